@@ -1,0 +1,28 @@
+"""mjtraj: how the choice of joint-space trajectory planner changes closed-loop execution on a MuJoCo UR5."""
+
+from mjtraj.closed_loop import ClosedLoop, LoopConfig
+from mjtraj.compare import Comparison, compare
+from mjtraj.controller import PIDGains, control_law
+from mjtraj.exceptions import (
+    InfeasibleError,
+    InvalidInputError,
+    MjtrajError,
+    ModelError,
+    RenderError,
+    SolverError,
+)
+from mjtraj.metrics import Metrics, metrics
+from mjtraj.model import load_model
+from mjtraj.planners import Planner, available, make
+from mjtraj.reference import Reference
+from mjtraj.rollout import Rollout
+from mjtraj.scenario import Scenario, load_scenario
+from mjtraj.task import Task
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig", "Metrics", "MjtrajError",
+    "ModelError", "PIDGains", "Planner", "Reference", "RenderError", "Rollout", "Scenario", "SolverError", "Task",
+    "__version__", "available", "compare", "control_law", "load_model", "load_scenario", "make", "metrics",
+]

@@ -1,0 +1,79 @@
+"""`mjtraj bench`: speed measured as ratios within one run (machines are noisy; no absolute targets in tests)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+from mujoco.batch import Batch
+
+from mjtraj.closed_loop import ClosedLoop
+from mjtraj.model import load_model
+from mjtraj.scenario import Scenario
+from mjtraj.task import Task
+
+PLAN_STEPS = (100, 200, 400, 800)
+LOOP_SIZES = (1, 64, 1024, 4096)
+
+
+def _median_time(fn: Callable[[], object], repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def bench_plan(scenario: Scenario, steps: tuple[int, ...] = PLAN_STEPS, *, repeats: int = 9) -> list[dict[str, float]]:
+    """Median wall time of the optimal plan (linearise, build, solve) per horizon N, and its ratio to the first.
+
+    The task keeps the scenario's start, goal and dt; T = N dt.
+    """
+    model = load_model(dt=scenario.task.dt)
+    planner = scenario.planner("optimal")
+    rows: list[dict[str, float]] = []
+    for N in steps:
+        task = Task.create(scenario.task.q0, scenario.task.qg, N * scenario.task.dt, scenario.task.dt, model=model)
+        planner.plan(task, model)  # warm-up
+        seconds = _median_time(lambda t=task: planner.plan(t, model), repeats if N <= 200 else max(3, repeats // 3))
+        rows.append({"N": N, "median_ms": 1e3 * seconds, "ratio_to_first": 1e3 * seconds / rows[0]["median_ms"]
+                     if rows else 1.0})
+    return rows
+
+
+def bench_loop(scenario: Scenario, sizes: tuple[int, ...] = LOOP_SIZES, *, nthread: int = 0,
+               rounds: int = 3) -> list[dict[str, float]]:
+    """Closed-loop env-steps/s (ClosedLoop.step over a cubic reference) against raw mujoco.batch stepping of the
+    same model with the same batch size and threads. Raw and loop passes of N steps alternate for `rounds`
+    rounds after a warm-up pass each; the medians are compared."""
+    model = load_model(dt=scenario.task.dt)
+    reference = scenario.planner("cubic").plan(scenario.task, model)
+    N = reference.steps
+    rows = []
+    for B in sizes:
+        raw = Batch(model, B, nthread=nthread)
+        loop = ClosedLoop(model, scenario.loop, nsim=B, nthread=nthread)
+        loop.start([reference] * B)
+
+        def raw_pass() -> None:
+            for _ in range(N):
+                raw.step(nstep=scenario.loop.substeps)
+
+        def loop_pass() -> None:
+            loop.start([reference] * B)
+            for _ in range(N):
+                loop.step()
+
+        raw_pass()
+        loop_pass()
+        raw_times, loop_times = [], []
+        for _ in range(rounds):
+            raw_times.append(_median_time(raw_pass, 1))
+            loop_times.append(_median_time(loop_pass, 1))
+        raw_rate = B * N / float(np.median(raw_times))
+        loop_rate = B * N / float(np.median(loop_times))
+        rows.append({"scenarios": B, "raw_steps_per_s": raw_rate, "loop_steps_per_s": loop_rate,
+                     "ratio": loop_rate / raw_rate})
+    return rows

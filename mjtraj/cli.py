@@ -1,0 +1,178 @@
+"""The `mjtraj` command: parses, calls the library, writes files. `main(argv) -> exit code`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import os
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from mjtraj.exceptions import MjtrajError
+
+log = logging.getLogger(__name__)
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"mjtraj: error: {message}\n")
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        return [float(x) for x in text.replace(",", " ").split()]
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from e
+
+
+def _names(text: str) -> list[str]:
+    return [x for x in text.replace(",", " ").split() if x]
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="mjtraj", description="How the trajectory planner changes closed-loop execution.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    c = sub.add_parser("compare", help="the paper's Table I: every planner through one closed loop")
+    c.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
+    c.add_argument("--q0", type=_floats, help="start, rad, comma-separated")
+    c.add_argument("--qg", type=_floats, help="goal, rad, comma-separated")
+    c.add_argument("--duration", type=float, help="T, s (a whole number of dt)")
+    c.add_argument("--dt", type=float, help="control period, s")
+    c.add_argument("--ff", dest="feedforward", help="feedforward: inverse | planned | none")
+    c.add_argument("--ff-accel", dest="ff_accel", help="feedforward acceleration: sample | step_average")
+    c.add_argument("--gravity-comp", dest="gravity_comp", help="gravity compensation: native | zoh")
+    c.add_argument("--anti-windup", dest="anti_windup", help="anti-windup: none | clamp")
+    c.add_argument("--substeps", type=int, help="integrator steps per control period")
+    c.add_argument("--planners", type=_names, help="comma-separated planner names (default: all)")
+    c.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
+    c.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
+    c.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+
+    b = sub.add_parser("bench", help="speed ratios measured in one run")
+    b.add_argument("what", choices=("plan", "loop", "all"), nargs="?", default="all")
+    b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
+    b.add_argument("--sizes", type=lambda s: [int(x) for x in _names(s)], help="loop batch sizes")
+
+    g = sub.add_parser("gains", help="derive the default PID gains and optimal weights by their stated rules")
+    g.add_argument("--config", type=Path, help="scenario TOML whose task to use (default: the paper scenario)")
+    return parser
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def _scenario(args: argparse.Namespace):  # noqa: ANN202
+    from mjtraj.scenario import load_scenario
+
+    scenario = load_scenario(args.config)
+    task = {k: getattr(args, k) for k in ("q0", "qg", "duration", "dt") if getattr(args, k, None) is not None}
+    loop = {k: getattr(args, k) for k in ("feedforward", "ff_accel", "gravity_comp", "anti_windup", "substeps")
+            if getattr(args, k, None) is not None}
+    return scenario.replace(task_changes=task, loop_changes=loop) if task or loop else scenario
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from mjtraj.compare import compare, comparison_record
+    from mjtraj.model import load_model
+    from mjtraj.report import csv_text, format_report
+
+    scenario = _scenario(args)
+    scenario.task.check_limits(load_model())
+    from mjtraj.planners import available
+
+    stages = len(args.planners or available()) + 2 + (0 if args.no_figures else 1)  # plans, execute, check, figures
+    with tqdm(total=stages, desc="mjtraj compare", file=sys.stderr, leave=False, disable=None) as bar:
+        def progress(label: str) -> None:
+            bar.set_postfix_str(label)
+            bar.update(1)
+
+        result = compare(scenario, args.planners, progress=progress)
+        record = _json_safe(comparison_record(result))
+        _write_atomic(args.out / "results.json", json.dumps(record, indent=2) + "\n")
+        _write_atomic(args.out / "results.csv", csv_text(result))
+        figures = []
+        if not args.no_figures:
+            from mjtraj.plots import write_figures
+
+            progress("figures")
+            figures = write_figures(result, args.out)
+    if args.json:
+        print(json.dumps(record, indent=2))
+    else:
+        print(format_report(result))
+        print(f"\nwrote {args.out / 'results.json'}, {args.out / 'results.csv'}"
+              + (f" and {len(figures)} figures" if figures else ""))
+    return 0
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from mjtraj.bench import LOOP_SIZES, bench_loop, bench_plan
+    from mjtraj.scenario import load_scenario
+
+    scenario = load_scenario(args.config)
+    if args.what in ("plan", "all"):
+        print("optimal planner (linearise + build + OSQP solve), median wall time; target N=100 <= 2 ms")
+        print(f"{'N':>6} {'median ms':>10} {'ratio to N=100':>15}")
+        for row in bench_plan(scenario):
+            print(f"{row['N']:>6} {row['median_ms']:>10.2f} {row['ratio_to_first']:>15.2f}")
+    if args.what in ("loop", "all"):
+        print("closed loop (FF + PID + plant) vs raw mujoco.batch stepping, same run; target ratio >= 0.7 at 4096")
+        print(f"{'scenarios':>9} {'raw steps/s':>12} {'loop steps/s':>13} {'ratio':>6}")
+        for row in bench_loop(scenario, tuple(args.sizes) if args.sizes else LOOP_SIZES):
+            print(f"{row['scenarios']:>9} {row['raw_steps_per_s']:>12.0f} {row['loop_steps_per_s']:>13.0f} "
+                  f"{row['ratio']:>6.2f}")
+    return 0
+
+
+def _gains(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from mjtraj.gains import GAIN_RULE, gain_rule
+    from mjtraj.model import JointInfo, load_model
+    from mjtraj.planners.optimal import bryson_weights
+    from mjtraj.scenario import load_scenario
+
+    scenario = load_scenario(args.config)
+    model = load_model(dt=scenario.task.dt)
+    gains = gain_rule(model, scenario.task.q0, scenario.task.qg, scenario.task.dt)
+    Q, R = bryson_weights(scenario.task, JointInfo.of(model).torque_limit)
+    show = lambda a: "[" + ", ".join(repr(float(x)) for x in np.asarray(a)) + "]"  # noqa: E731
+    print(f"# gain rule: {GAIN_RULE}")
+    print(f"kp = {show(gains.kp)}\nki = {show(gains.ki)}\nkd = {show(gains.kd)}")
+    print("# optimal planner weights, Bryson's rule (mjtraj.planners.optimal.bryson_weights)")
+    print(f"state_weight = {show(Q)}\ninput_weight = {show(R)}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI; returns the exit code (2 on bad input, with a one-line message on stderr)."""
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return {"compare": _compare, "bench": _bench, "gains": _gains}[args.command](args)
+    except MjtrajError as e:
+        print(f"mjtraj: error: {e}", file=sys.stderr)
+        return 2

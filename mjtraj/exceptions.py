@@ -1,0 +1,30 @@
+"""The one exception tree of mjtraj: every error the library raises on purpose derives from MjtrajError."""
+
+from __future__ import annotations
+
+
+class MjtrajError(Exception):
+    """Root of every error mjtraj raises on purpose."""
+
+
+class InvalidInputError(MjtrajError, ValueError):
+    """An argument, option or file entry is malformed or out of range."""
+
+
+class ModelError(MjtrajError):
+    """The MuJoCo model is missing, unreadable or lacks what mjtraj needs."""
+
+
+class InfeasibleError(MjtrajError):
+    """An optimisation problem has no solution within its constraints."""
+
+
+class SolverError(MjtrajError):
+    """A numerical solver failed or returned an unusable answer."""
+
+
+class RenderError(MjtrajError):
+    """Off-screen rendering is unavailable or misconfigured."""
+
+
+__all__ = ["InfeasibleError", "InvalidInputError", "MjtrajError", "ModelError", "RenderError", "SolverError"]
