@@ -1,5 +1,9 @@
 """mjtraj: how the choice of joint-space trajectory planner changes closed-loop execution on a MuJoCo UR5."""
 
+from mjtraj.gl import select_backend as _select_backend
+
+_select_backend()  # before mujoco is imported: MuJoCo reads MUJOCO_GL once
+
 from mjtraj.closed_loop import ClosedLoop, LoopConfig
 from mjtraj.compare import Comparison, compare
 from mjtraj.controller import PIDGains, control_law
@@ -18,11 +22,14 @@ from mjtraj.reference import Reference
 from mjtraj.rollout import Rollout
 from mjtraj.scenario import Scenario, load_scenario
 from mjtraj.task import Task
+from mjtraj.envs import ENV_ID, register_envs
+
+register_envs()  # gym.make("UR5Track-v0") after `import mjtraj`
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig", "Metrics", "MjtrajError",
+    "ENV_ID", "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig", "Metrics", "MjtrajError",
     "ModelError", "PIDGains", "Planner", "Reference", "RenderError", "Rollout", "Scenario", "SolverError", "Task",
     "__version__", "available", "compare", "control_law", "load_model", "load_scenario", "make", "metrics",
 ]

@@ -77,3 +77,101 @@ def bench_loop(scenario: Scenario, sizes: tuple[int, ...] = LOOP_SIZES, *, nthre
         rows.append({"scenarios": B, "raw_steps_per_s": raw_rate, "loop_steps_per_s": loop_rate,
                      "ratio": loop_rate / raw_rate})
     return rows
+
+
+def bench_env(*, episodes: int = 20, rounds: int = 5) -> dict[str, float]:
+    """UR5Track-v0 `env.step` rate in pid mode through gym.make (default wrappers) against a raw mj_step loop on
+    the same model; the step loops of whole episodes are timed (reset excluded), raw and env passes alternate."""
+    import gymnasium as gym
+    import mujoco
+
+    env = gym.make("UR5Track-v0")
+    env.reset(seed=0)
+    model = env.unwrapped.settings.model
+    data = mujoco.MjData(model)
+    steps = env.unwrapped.settings.steps
+    action = env.action_space.sample()
+
+    def env_pass() -> float:
+        total = 0.0
+        for _ in range(episodes):
+            env.reset()
+            start = time.perf_counter()
+            for _ in range(steps):
+                env.step(action)
+            total += time.perf_counter() - start
+        return total
+
+    def raw_pass() -> float:
+        mujoco.mj_resetDataKeyframe(model, data, 0)
+        start = time.perf_counter()
+        for _ in range(episodes * steps):
+            mujoco.mj_step(model, data)
+        return time.perf_counter() - start
+
+    raw_pass(), env_pass()
+    raw, stepped = [], []
+    for _ in range(rounds):
+        raw.append(raw_pass())
+        stepped.append(env_pass())
+    env.close()
+    raw_rate = episodes * steps / float(np.median(raw))
+    env_rate = episodes * steps / float(np.median(stepped))
+    return {"raw_steps_per_s": raw_rate, "env_steps_per_s": env_rate, "ratio": env_rate / raw_rate}
+
+
+def bench_vector_env(sizes: tuple[int, ...] = (64, 1024), *, rounds: int = 3) -> list[dict[str, float]]:
+    """Vector env steps/s (all sub-envs, autoresets included) against raw mujoco.batch stepping of as many
+    simulations, passes of one episode alternating."""
+    import gymnasium as gym
+
+    rows = []
+    for B in sizes:
+        env = gym.make_vec("UR5Track-v0", num_envs=B, vectorization_mode="vector_entry_point")
+        env.reset(seed=0)
+        model = env.unwrapped.settings.model
+        steps = env.unwrapped.settings.steps
+        raw = Batch(model, B)
+        actions = np.zeros((B, model.nu), dtype=np.float32)
+
+        def env_pass() -> None:
+            for _ in range(steps + 1):  # + the autoreset step
+                env.step(actions)
+
+        def raw_pass() -> None:
+            for _ in range(steps + 1):
+                raw.step()
+
+        env_pass(), raw_pass()
+        env_times, raw_times = [], []
+        for _ in range(rounds):
+            raw_times.append(_median_time(raw_pass, 1))
+            env_times.append(_median_time(env_pass, 1))
+        env.close()
+        raw_rate = B * (steps + 1) / float(np.median(raw_times))
+        env_rate = B * (steps + 1) / float(np.median(env_times))
+        rows.append({"envs": B, "raw_steps_per_s": raw_rate, "env_steps_per_s": env_rate,
+                     "ratio": env_rate / raw_rate})
+    return rows
+
+
+def bench_render(sizes: tuple[tuple[int, int], ...] = ((320, 240), (640, 480)), *,
+                 frames: int = 30) -> list[dict[str, object]]:
+    """env.render() frames per second at each (width, height), on the GL backend in force."""
+    import gymnasium as gym
+
+    from mjtraj.gl import active_backend
+
+    rows: list[dict[str, object]] = []
+    for width, height in sizes:
+        env = gym.make("UR5Track-v0", render_mode="rgb_array", width=width, height=height)
+        env.reset(seed=0)
+        env.render()  # opens the context
+        start = time.perf_counter()
+        for _ in range(frames):
+            env.step(env.action_space.sample())
+            env.render()
+        rows.append({"size": f"{width}x{height}", "backend": active_backend(),
+                     "fps": frames / (time.perf_counter() - start)})
+        env.close()
+    return rows

@@ -55,9 +55,21 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
 
     b = sub.add_parser("bench", help="speed ratios measured in one run")
-    b.add_argument("what", choices=("plan", "loop", "all"), nargs="?", default="all")
+    b.add_argument("what", choices=("plan", "loop", "env", "all"), nargs="?", default="all")
     b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     b.add_argument("--sizes", type=lambda s: [int(x) for x in _names(s)], help="loop batch sizes")
+
+    r = sub.add_parser("render", help="execution videos per planner, a 2x2 clip and the Fig. 1 snapshot strip")
+    r.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
+    r.add_argument("--planners", type=_names, help="comma-separated planner names (default: all)")
+    r.add_argument("--format", dest="formats", type=_names, default=["mp4"], help="mp4 and/or gif (default: mp4)")
+    r.add_argument("--width", type=int, default=640, help="image width, px (default 640)")
+    r.add_argument("--height", type=int, default=480, help="image height, px (default 480)")
+    r.add_argument("--camera", default="front", help="front | side | top (default front)")
+    r.add_argument("--every", type=int, default=1, help="keep one control period in EVERY (default 1)")
+    r.add_argument("--out", type=Path, default=Path("videos"), help="output folder (default: videos/)")
+
+    sub.add_parser("doctor", help="which OpenGL backends render here, and the library versions")
 
     g = sub.add_parser("gains", help="derive the default PID gains and optimal weights by their stated rules")
     g.add_argument("--config", type=Path, help="scenario TOML whose task to use (default: the paper scenario)")
@@ -144,6 +156,75 @@ def _bench(args: argparse.Namespace) -> int:
         for row in bench_loop(scenario, tuple(args.sizes) if args.sizes else LOOP_SIZES):
             print(f"{row['scenarios']:>9} {row['raw_steps_per_s']:>12.0f} {row['loop_steps_per_s']:>13.0f} "
                   f"{row['ratio']:>6.2f}")
+    if args.what in ("env", "all"):
+        from mjtraj.bench import bench_env, bench_render, bench_vector_env
+
+        row = bench_env()
+        print("UR5Track-v0 env.step in pid mode through gym.make (default wrappers) vs a raw mj_step loop, same run; "
+              "target ratio >= 0.35")
+        print(f"{'raw mj_step/s':>14} {'env.step/s':>11} {'ratio':>6}")
+        print(f"{row['raw_steps_per_s']:>14.0f} {row['env_steps_per_s']:>11.0f} {row['ratio']:>6.2f}")
+        print("vector env (vector_entry_point) vs raw mujoco.batch stepping, same run; target ratio >= 0.6 at 1024")
+        print(f"{'envs':>6} {'raw steps/s':>12} {'env steps/s':>12} {'ratio':>6}")
+        for row in bench_vector_env():
+            print(f"{row['envs']:>6} {row['raw_steps_per_s']:>12.0f} {row['env_steps_per_s']:>12.0f} "
+                  f"{row['ratio']:>6.2f}")
+        print("rendering (env.render, executed arm + ghost)")
+        print(f"{'size':>9} {'backend':>8} {'frames/s':>9}")
+        for row in bench_render():
+            print(f"{row['size']:>9} {row['backend']:>8} {row['fps']:>9.1f}")
+    return 0
+
+
+def _render(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from mjtraj._validate import positive_int
+    from mjtraj.compare import compare
+    from mjtraj.model import load_model
+    from mjtraj.planners import available
+    from mjtraj.render import check_render_options
+    from mjtraj.videos import SNAPSHOT_TIMES, VIDEO_FORMATS, render_all
+
+    scenario = _scenario(args)
+    check_render_options(load_model(), args.width, args.height, args.camera)
+    for fmt in args.formats:
+        if fmt not in VIDEO_FORMATS:
+            raise _bad(f"format: unknown format {fmt!r}; valid: {', '.join(VIDEO_FORMATS)}")
+    every = positive_int("every", args.every)
+    planners = tuple(args.planners or available())
+    result = compare(scenario, planners)
+    total = len(planners) * (scenario.task.steps // every + 1) + len(SNAPSHOT_TIMES) * len(planners)
+    with tqdm(total=total, desc="mjtraj render", unit="frame", file=sys.stderr, disable=None) as bar:
+        paths = render_all(result, args.out, formats=args.formats, width=args.width, height=args.height,
+                           camera=args.camera, every=every, progress=bar.update)
+    for path in paths:
+        print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
+    return 0
+
+
+def _bad(message: str) -> MjtrajError:
+    from mjtraj.exceptions import InvalidInputError
+
+    return InvalidInputError(message)
+
+
+def _doctor(args: argparse.Namespace) -> int:
+    from mjtraj import gl
+    from mjtraj.compare import versions
+
+    print("versions: " + ", ".join(f"{k} {v}" for k, v in versions().items()))
+    print(f"python {sys.version.split()[0]}, MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}, "
+          f"mjtraj's default: {gl.default_backend() or 'none found'}")
+    working = []
+    for backend in gl.BACKENDS:
+        ok, detail = gl.probe_backend(backend) if gl.library_present(backend) else (False, "library not found")
+        print(f"  {backend:<7} {'works' if ok else 'fails'}: {detail}")
+        if ok:
+            working.append(backend)
+    if not working:
+        print(f"no OpenGL backend renders here: {gl.INSTALL_HINT}")
+        return 1
     return 0
 
 
@@ -172,7 +253,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        return {"compare": _compare, "bench": _bench, "gains": _gains}[args.command](args)
+        commands = {"compare": _compare, "bench": _bench, "gains": _gains, "render": _render, "doctor": _doctor}
+        return commands[args.command](args)
     except MjtrajError as e:
         print(f"mjtraj: error: {e}", file=sys.stderr)
         return 2

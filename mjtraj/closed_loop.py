@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 from numpy.typing import NDArray
 
 from mjtraj._validate import choice, positive, positive_int
@@ -50,12 +52,18 @@ class LoopConfig:
         positive("divergence_bound", self.divergence_bound)
 
 
+RECORDED = ("q", "qd", "e", "ed", "tau_ff", "tau_fb", "dtau", "saturated")
+
+
 @dataclass
 class LoopState:
-    """Per-simulation progress of a running loop (mutable; owned by ClosedLoop).
+    """Per-simulation progress of a running loop (mutable; owned by ClosedLoop). Arrays are time-major.
 
-    q_ref, qd_ref: shape (B, N+1, n); tau_ff: (B, N, n); k: (B,) next period; integral: (B, n), rad s;
-    diverged_step: (B,), -1 while running.
+    q_ref, qd_ref: shape (N+1, B, n); tau_ff: (N, B, n); integral: (B, n), rad s; diverged_step: (B,), -1
+    while running; records: name -> (N, B, n) for each of RECORDED (NaN where not reached); q_final, qd_final:
+    (B, n) state after period N-1 (NaN until then).
+    sync: the common next period while every simulation is live and in step (the fast path), else None; k:
+    (B,) each simulation's next period, kept only while sync is None (read `periods`).
     """
 
     q_ref: NDArray[np.float64]
@@ -64,15 +72,42 @@ class LoopState:
     k: NDArray[np.intp]
     integral: NDArray[np.float64]
     diverged_step: NDArray[np.int64]
+    records: dict[str, NDArray[Any]]
+    q_final: NDArray[np.float64]
+    qd_final: NDArray[np.float64]
+    sync: int | None = 0
     rows: NDArray[np.intp] = field(init=False)
 
     def __post_init__(self) -> None:
         self.rows = np.arange(self.k.size)
 
+    @property
+    def steps(self) -> int:
+        """N, the number of control periods."""
+        return self.tau_ff.shape[0]
 
-@dataclass(frozen=True)
-class Step:
-    """What one period did, for a batch: measured state and errors before control, and the control."""
+    @property
+    def periods(self) -> NDArray[np.intp]:
+        """Each simulation's next control period, shape (B,); N once it has ended or diverged."""
+        return np.full(self.k.size, self.sync, dtype=np.intp) if self.sync is not None else self.k.copy()
+
+    def desync(self) -> None:
+        """Leave the fast path: write the common period into k."""
+        if self.sync is not None:
+            self.k[:] = self.sync
+            self.sync = None
+
+    def resync(self) -> None:
+        """Re-enter the fast path when every simulation is live and at the same period."""
+        k = self.k
+        self.sync = int(k[0]) if np.all(k == k[0]) and np.all(self.diverged_step < 0) else None
+
+
+class Step(NamedTuple):
+    """What one period did, for a batch: measured state and errors before control (shapes (B, n)), the control.
+
+    A NamedTuple, as it is built every control period; q, qd, e, ed are the loop's records (do not write them).
+    """
 
     q: NDArray[np.float64]
     qd: NDArray[np.float64]
@@ -99,6 +134,10 @@ class ClosedLoop:
         self.plant = BatchPlant(plant if plant is not None else model, nsim, nominal=model,
                                 gravity_comp=config.gravity_comp, substeps=config.substeps, nthread=nthread)
         self.state: LoopState | None = None
+        self._gains = config.gains.tiled(nsim)
+        self._limit = np.tile(self.limit, (nsim, 1))
+        self._none_diverged = np.zeros(nsim, dtype=bool)
+        self._none_diverged.setflags(write=False)
 
     @property
     def nsim(self) -> int:
@@ -119,81 +158,130 @@ class ClosedLoop:
                 raise InvalidInputError(f"references: expected the control period dt={self.dt} s of the model, "
                                         f"got {ref.dt} s from {ref.planner!r}")
 
-    def start(self, references: Sequence[Reference], ids: NDArray[np.intp] | None = None) -> LoopState:
-        """(Re)start simulations `ids` (all if None) at their references' first sample, with I_{-1} = 0."""
+    def start(self, references: Sequence[Reference], ids: npt.ArrayLike | None = None) -> LoopState:
+        """(Re)start simulations `ids` (all if None) at their references' first sample, with I_{-1} = 0.
+
+        A restart of some simulations (the vector env's autoreset) needs references of the running N.
+        """
         self._check(references)
-        rows = np.arange(self.nsim) if ids is None else np.asarray(ids, dtype=np.intp)
+        rows = np.arange(self.nsim) if ids is None else np.asarray(ids, dtype=np.intp).reshape(-1)
         if len(references) != rows.size:
             raise InvalidInputError(f"references: expected {rows.size} (one per simulation), got {len(references)}")
-        q_ref = np.stack([r.q for r in references])
-        qd_ref = np.stack([r.qd for r in references])
+        q_ref = np.stack([r.q for r in references], axis=1)
+        qd_ref = np.stack([r.qd for r in references], axis=1)
         unique = {id(r): r for r in references}  # a reference shared by many simulations is computed once
         ff_of = {key: feedforward(self.model, r, mode=self.config.feedforward, accel=self.config.ff_accel)
                  for key, r in unique.items()}
-        ff = np.stack([ff_of[id(r)] for r in references])
-        if self.state is None or ids is None or self.state.q_ref.shape[1:] != q_ref.shape[1:]:
+        ff = np.stack([ff_of[id(r)] for r in references], axis=1)
+        N, n = ff.shape[0], self.model.nv
+        s = self.state
+        if s is None or ids is None or s.q_ref.shape[0] != q_ref.shape[0]:
             if ids is not None and rows.size != self.nsim:
-                raise InvalidInputError("ids: a loop must first be started on all simulations")
-            self.state = LoopState(q_ref, qd_ref, ff, np.zeros(self.nsim, dtype=np.intp),
-                                   np.zeros((self.nsim, self.model.nv)), np.full(self.nsim, -1, dtype=np.int64))
+                raise InvalidInputError(f"ids: a loop must first be started on all {self.nsim} simulations "
+                                        f"with references of one length; got {rows.size} simulations")
+            B = self.nsim
+            records: dict[str, NDArray[Any]] = {name: np.full((N, B, n), np.nan) for name in RECORDED}
+            records["saturated"] = np.zeros((N, B, n), dtype=bool)
+            self.state = s = LoopState(q_ref, qd_ref, ff, np.zeros(B, dtype=np.intp), np.zeros((B, n)),
+                                       np.full(B, -1, dtype=np.int64), records, np.full((B, n), np.nan),
+                                       np.full((B, n), np.nan))
         else:
-            s = self.state
-            s.q_ref[rows], s.qd_ref[rows], s.tau_ff[rows] = q_ref, qd_ref, ff
+            s.desync()
+            s.q_ref[:, rows], s.qd_ref[:, rows], s.tau_ff[:, rows] = q_ref, qd_ref, ff
             s.k[rows], s.integral[rows], s.diverged_step[rows] = 0, 0.0, -1
-        self.plant.reset(q_ref[:, 0], qd_ref[:, 0], None if ids is None else rows)
-        return self.state
+            for name, record in s.records.items():
+                record[:, rows] = False if name == "saturated" else np.nan
+            s.q_final[rows] = s.qd_final[rows] = np.nan
+            s.resync()
+        self.plant.reset(q_ref[0], qd_ref[0], None if ids is None else rows)
+        return s
 
     def step(self, *, residual: NDArray[np.float64] | None = None,
              override: NDArray[np.float64] | None = None) -> Step:
         """Advance every simulation by one control period (shapes (B, n) for residual/override, N m).
 
-        A simulation past its last period, or diverged, holds its state and gets zero corrective torque.
+        A simulation past its last period, or diverged, gets zero corrective torque (it coasts under gravity
+        compensation; a diverged one was stopped at its last pose) and records nothing more.
         """
         s = self.state
         if s is None:
             raise InvalidInputError("step: call start(references) first")
-        N = s.tau_ff.shape[1]
-        k = np.minimum(s.k, N - 1)
+        N = s.steps
+        if s.sync is not None and s.sync < N:  # every simulation live and at the same period: views, no masks
+            k = s.sync
+            rec = s.records
+            q, qd = rec["q"][k], rec["qd"][k]
+            q[:], qd[:] = self.plant.qpos, self.plant.qvel
+            e = np.subtract(s.q_ref[k], q, out=rec["e"][k])
+            ed = np.subtract(s.qd_ref[k], qd, out=rec["ed"][k])
+            out = control_law(e, ed, s.integral, s.tau_ff[k], self._gains, self._limit, self.dt,
+                              anti_windup=self.config.anti_windup, residual=residual, override=override)
+            s.integral = out.integral
+            self.plant.step(out.dtau)
+            rec["tau_ff"][k], rec["tau_fb"][k], rec["dtau"][k], rec["saturated"][k] = (
+                out.tau_ff, out.tau_fb, out.dtau, out.saturated)
+            if k + 1 == N:
+                s.q_final[:], s.qd_final[:] = self.plant.qpos, self.plant.qvel
+            error = s.q_ref[k + 1] - self.plant.qpos
+            if np.abs(error).max() <= self.config.divergence_bound:  # False for NaN too
+                s.sync = k + 1
+                return Step(q, qd, e, ed, out, self._none_diverged)
+            s.sync = k + 1
+            bad = ~np.all(np.abs(error) <= self.config.divergence_bound, axis=1)
+            self._diverge(bad, np.full(self.nsim, k), q, qd)
+            return Step(q, qd, e, ed, out, s.diverged_step >= 0)
+        s.desync()
         q, qd = self.plant.state()
-        e = s.q_ref[s.rows, k] - q
-        ed = s.qd_ref[s.rows, k] - qd
-        out = control_law(e, ed, s.integral, s.tau_ff[s.rows, k], self.config.gains, self.limit, self.dt,
-                          anti_windup=self.config.anti_windup, residual=residual, override=override)
         active = (s.diverged_step < 0) & (s.k < N)
+        k = np.minimum(s.k, N - 1)
+        e = s.q_ref[k, s.rows] - q
+        ed = s.qd_ref[k, s.rows] - qd
+        out = control_law(e, ed, s.integral, s.tau_ff[k, s.rows], self._gains, self._limit, self.dt,
+                          anti_windup=self.config.anti_windup, residual=residual, override=override)
         dtau = np.where(active[:, None], out.dtau, 0.0)
-        s.integral[:] = np.where(active[:, None], out.integral, s.integral)
+        s.integral = np.where(active[:, None], out.integral, s.integral)
         self.plant.step(dtau)
-        q_new, qd_new = self.plant.state()
-        k_next = np.minimum(s.k + 1, N)
-        error = s.q_ref[s.rows, k_next] - q_new
-        bad = active & ~(np.all(np.isfinite(q_new), axis=1) & np.all(np.isfinite(qd_new), axis=1)
-                         & np.all(np.abs(error) <= self.config.divergence_bound, axis=1))
-        if bad.any():
-            s.diverged_step[bad] = s.k[bad]
-            frozen = np.flatnonzero(bad)
-            self.plant.reset(q[frozen], np.zeros_like(qd[frozen]), frozen)
-        s.k[:] = np.where(active, s.k + 1, s.k)
         control = ControlOutput(out.tau_ff, out.tau_fb, dtau, out.saturated & active[:, None], out.integral)
+        live, kl = s.rows[active], k[active]
+        for name, value in zip(RECORDED, (q, qd, e, ed, control.tau_ff, control.tau_fb, dtau, control.saturated)):
+            s.records[name][kl, live] = value[active]
+        error = s.q_ref[np.minimum(s.k + 1, N), s.rows] - self.plant.qpos
+        bad = active & ~np.all(np.abs(error) <= self.config.divergence_bound, axis=1)
+        s.k[:] = np.where(active, s.k + 1, s.k)
+        ended = active & (s.k == N)
+        s.q_final[ended], s.qd_final[ended] = self.plant.qpos[ended], self.plant.qvel[ended]
+        self._diverge(bad, k, q, qd)
+        s.resync()
         return Step(q, qd, e, ed, control, s.diverged_step >= 0)
+
+    def _diverge(self, bad: NDArray[np.bool_], k: NDArray[np.intp], q: NDArray[np.float64],
+                 qd: NDArray[np.float64]) -> None:
+        """Mark simulations `bad` diverged at period k, stop them at their last pose, blank what they recorded."""
+        if not bad.any():
+            return
+        s = self.state
+        assert s is not None
+        s.desync()
+        rows = np.flatnonzero(bad)
+        s.diverged_step[rows] = k[rows]
+        s.k[rows] = s.steps
+        s.q_final[rows] = s.qd_final[rows] = np.nan
+        self.plant.reset(q[rows], np.zeros_like(qd[rows]), rows)
+
+    def rollout(self, ids: npt.ArrayLike | None = None) -> Rollout:
+        """What simulations `ids` (all if None) recorded since their start, as a Rollout (rows in `ids` order)."""
+        s = self.state
+        if s is None:
+            raise InvalidInputError("rollout: call start(references) first")
+        rows = s.rows if ids is None else np.asarray(ids, dtype=np.intp).reshape(-1)
+        rec = {name: np.ascontiguousarray(s.records[name][:, rows].swapaxes(0, 1)) for name in RECORDED}
+        q_final, qd_final = s.q_final[rows].copy(), s.qd_final[rows].copy()
+        return Rollout(**rec, q_final=q_final, qd_final=qd_final, e_final=s.q_ref[s.steps, rows] - q_final,
+                       diverged_step=s.diverged_step[rows].copy(), dt=self.dt)
 
     def run(self, references: Sequence[Reference]) -> Rollout:
         """Execute one reference per simulation from its first sample to its end; all share N and dt."""
         state = self.start(references)
-        B, N, n = state.tau_ff.shape
-        names = ("q", "qd", "e", "ed", "tau_ff", "tau_fb", "dtau")
-        rec = {name: np.full((B, N, n), np.nan) for name in names}
-        saturated = np.zeros((B, N, n), dtype=bool)
-        for k in range(N):
-            live = state.diverged_step < 0
-            step = self.step()
-            values = (step.q, step.qd, step.e, step.ed, step.control.tau_ff, step.control.tau_fb,
-                      step.control.dtau)
-            for name, value in zip(names, values):
-                rec[name][live, k] = value[live]
-            saturated[live, k] = step.control.saturated[live]
-        q_final, qd_final = self.plant.state()
-        diverged = state.diverged_step >= 0
-        q_final[diverged] = np.nan
-        qd_final[diverged] = np.nan
-        return Rollout(**rec, saturated=saturated, q_final=q_final, qd_final=qd_final,
-                       e_final=state.q_ref[:, N] - q_final, diverged_step=state.diverged_step.copy(), dt=self.dt)
+        for _ in range(state.steps):
+            self.step()
+        return self.rollout()

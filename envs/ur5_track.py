@@ -1,0 +1,198 @@
+"""UR5Track-v0: the paper's closed loop (plant, feedforward + PID, saturation) behind the Gymnasium API."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from mjtraj.envs.core import TrackCore
+from mjtraj.envs.settings import RENDER_MODES, TrackSettings, resolve
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.model import JointInfo
+from mjtraj.planners import Planner
+from mjtraj.render import ArmRenderer
+
+
+VELOCITY_BOUND = 200.0
+"""rad/s, the velocity bounds of the observation space: 60 N m on the lightest joint inertia (0.09 kg m^2) cannot
+reach it before the tracking error exceeds pi, which ends the episode."""
+
+
+def observation_space(settings: TrackSettings) -> spaces.Box:
+    """Positions within the joint ranges +- pi, errors within the range widths + pi, velocities within
+    +-VELOCITY_BOUND, the phase in [0, 1]; float64. Layout in UR5TrackEnv's docstring."""
+    joints = JointInfo.of(settings.model)
+    q_low, q_high = joints.lower - np.pi, joints.upper + np.pi
+    e_max = joints.upper - joints.lower + np.pi
+    v = np.full(settings.n, VELOCITY_BOUND)
+    low = [q_low, -v, q_low, -v, -e_max, -2 * v, [0.0]] + [q_low, -v] * settings.preview
+    high = [q_high, v, q_high, v, e_max, 2 * v, [1.0]] + [q_high, v] * settings.preview
+    return spaces.Box(np.concatenate(low), np.concatenate(high), dtype=np.float64)
+
+
+def action_space(settings: TrackSettings) -> spaces.Box:
+    """[-1, 1]^n, float32."""
+    return spaces.Box(-1.0, 1.0, shape=(settings.n,), dtype=np.float32)
+
+
+class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
+    """Track a planned joint-space reference with a 3-DoF UR5 under the paper's controller.
+
+    ## Description
+    The plant is MuJoCo's model of a UR5 reduced to shoulder_pan, shoulder_lift and elbow (`assets/ur5_3dof.xml`,
+    RK4, gravity compensated). Each episode a planner (cubic, quintic, trapezoidal, optimal or your own) plans a
+    point-to-point move q0 -> qg of `duration` seconds; every step is one control period dt, in which the
+    corrective torque dtau = clip(tau_ff + tau_fb [+ residual], -60, 60) N m is applied on top of G(q): tau_ff
+    from inverse dynamics of the reference, tau_fb from a PID on the tracking error. This is `mjtraj compare`'s
+    closed loop (`mjtraj.ClosedLoop`), not a copy of it: in `pid` mode with the `paper` task the episode's
+    metrics equal `mjtraj compare`'s for the same planner.
+
+    ## Action Space
+    `Box(-1, 1, (3,), float32)`, scaled by the 60 N m saturation. Values outside [-1, 1] are clipped; a
+    non-finite value raises InvalidInputError.
+
+    | action_mode | the action                                                              |
+    |-------------|-------------------------------------------------------------------------|
+    | pid         | ignored: the paper's controller alone (feedforward + PID)               |
+    | residual    | 60 a N m added to feedforward + PID before the saturation               |
+    | torque      | 60 a N m is the whole corrective torque (gravity compensation stays)    |
+
+    ## Observation Space
+    `Box(float64)` of size 19 + 6 preview. After step k the loop is at period k+1 and the reference sample is
+    that period's. Bounds: `range` is a joint's position range (pan and lift +-2 pi, elbow +-pi), `width` its
+    length; velocities are bounded by 200 rad/s, which 60 N m cannot reach before |e| > pi ends the episode.
+
+    | index          | observation                                        | min           | max          | unit  |
+    |----------------|----------------------------------------------------|---------------|--------------|-------|
+    | 0-2            | joint positions q                                  | range - pi    | range + pi   | rad   |
+    | 3-5            | joint velocities qd                                | -200          | 200          | rad/s |
+    | 6-8            | reference positions q_ref,k                        | range - pi    | range + pi   | rad   |
+    | 9-11           | reference velocities qd_ref,k                      | -200          | 200          | rad/s |
+    | 12-14          | position error e = q_ref,k - q                     | -(width + pi) | width + pi   | rad   |
+    | 15-17          | velocity error ed = qd_ref,k - qd                  | -400          | 400          | rad/s |
+    | 18             | phase k / N                                        | 0             | 1            | -     |
+    | 19+6j .. 21+6j | preview j = 0..preview-1: q_ref,k+1+j (held at N)  | range - pi    | range + pi   | rad   |
+    | 22+6j .. 24+6j | preview j: qd_ref,k+1+j (held at N)                | -200          | 200          | rad/s |
+
+    ## Rewards
+    r_k = reward_tracking + reward_effort = -(x_k^T Q_exec x_k) - (dtau_k^T R_exec dtau_k), x_k = [e_k; ed_k] the
+    error before control in period k. The return of an episode is therefore -J_exec, the executed cost the
+    planners are scored on (Q_exec, R_exec diagonal; default: the paper scenario's).
+
+    ## Starting State
+    The arm rests on the reference's first sample (q0, zero velocity), with the integral of the PID at zero.
+    `task="paper"`: the paper scenario's move (q0 = (0, -pi/2, 0), qg = q0 + 1 rad). `task="random"`: q0 uniform
+    in the joint ranges, qg uniform in the ranges within +-max_displacement of q0, from `reset(seed=...)`'s
+    generator. `task="explicit"`: your q0 and qg.
+
+    ## Episode End
+    Terminated after N = duration/dt steps (the motion's horizon is part of the state through the phase), or
+    earlier when the closed loop diverges (|e| above pi on a joint, or a non-finite state). `gym.make` adds
+    `TimeLimit` at the registered 100 steps (the paper's N): pass `max_episode_steps=N` to `gym.make` when you
+    change duration or dt. At the end `info["metrics"]` holds the episode's Metrics (`mjtraj.Metrics` fields;
+    NaN if diverged) and `info["diverged"]` says whether it diverged.
+
+    ## Info
+    Every step: tau_ff, tau_fb, dtau (N m, shape (3,)), saturated (bool (3,)), e (rad, (3,)), reward_tracking,
+    reward_effort.
+
+    ## Arguments
+    | argument         | default    | meaning                                                                 |
+    |------------------|------------|-------------------------------------------------------------------------|
+    | planner          | "cubic"    | registered planner name or an object with plan(task, model)             |
+    | action_mode      | "pid"      | pid, residual or torque                                                 |
+    | task             | "paper"    | paper, random or explicit                                               |
+    | q0               | None       | start, rad (task="explicit")                                            |
+    | qg               | None       | goal, rad (task="explicit")                                             |
+    | max_displacement | 1.5        | largest abs(qg - q0) per joint of task="random", rad                    |
+    | duration         | 2.0        | T, s (a whole number of dt)                                             |
+    | dt               | 0.02       | control period, s                                                       |
+    | feedforward      | "inverse"  | inverse, planned or none                                                |
+    | ff_accel         | "sample"   | sample or step_average                                                  |
+    | gravity_comp     | "native"   | native or zoh                                                           |
+    | anti_windup      | "none"     | none or clamp                                                           |
+    | preview          | 0          | future reference samples in the observation                             |
+    | Q_exec           | None       | diag of Q_exec, 6 weights (None: the paper scenario's)                  |
+    | R_exec           | None       | diag of R_exec, 3 weights (None: the paper scenario's)                  |
+    | render_mode      | None       | None or "rgb_array"                                                     |
+    | width            | 640        | image width, px                                                         |
+    | height           | 480        | image height, px                                                        |
+    | camera           | "front"    | front, side or top                                                      |
+
+    The PID gains are the paper scenario's, identical for every planner and task (their rule: `mjtraj gains`).
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
+
+    def __init__(self, planner: str | Planner = "cubic", action_mode: str = "pid", task: str = "paper",
+                 q0: npt.ArrayLike | None = None, qg: npt.ArrayLike | None = None, max_displacement: float = 1.5,
+                 duration: float = 2.0, dt: float = 0.02, feedforward: str = "inverse", ff_accel: str = "sample",
+                 gravity_comp: str = "native", anti_windup: str = "none", preview: int = 0,
+                 Q_exec: npt.ArrayLike | None = None, R_exec: npt.ArrayLike | None = None,
+                 render_mode: str | None = None, width: int = 640, height: int = 480, camera: str = "front") -> None:
+        self.settings = resolve(planner=planner, action_mode=action_mode, task=task, q0=q0, qg=qg,
+                                max_displacement=max_displacement, duration=duration, dt=dt, feedforward=feedforward,
+                                ff_accel=ff_accel, gravity_comp=gravity_comp, anti_windup=anti_windup,
+                                preview=preview, Q_exec=Q_exec, R_exec=R_exec, render_mode=render_mode, width=width,
+                                height=height, camera=camera)
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.settings.dt)}
+        self.observation_space = observation_space(self.settings)
+        self.action_space = action_space(self.settings)
+        self._core = TrackCore(self.settings, 1)
+        self._running = False
+        self._renderer: ArmRenderer | None = None
+
+    @property
+    def loop(self) -> Any:
+        """The ClosedLoop this env runs (read-only use)."""
+        return self._core.loop
+
+    @property
+    def reference(self) -> Any:
+        """The current episode's Reference (None before the first reset)."""
+        return self._core.references[0]
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        super().reset(seed=seed)
+        obs = self._core.reset([self.np_random])
+        self._running = True
+        return obs[0], {}
+
+    def step(self, action: npt.ArrayLike) -> tuple[NDArray[np.float64], float, bool, bool, dict[str, Any]]:
+        if not self._running:
+            raise InvalidInputError("step: call reset() first (before the first step and after an episode ends)")
+        obs, reward, terminated, info = self._core.step(action)
+        out = {key: value[0] for key, value in info.items()}
+        done = bool(terminated[0])
+        if done:
+            self._running = False
+            out["metrics"] = {name: float(v[0]) for name, v in self._core.metrics(np.zeros(1, np.intp)).items()}
+            out["diverged"] = bool(self._core.loop.state.diverged_step[0] >= 0)
+        return obs[0], float(reward[0]), done, False, out
+
+    def render(self) -> NDArray[np.uint8] | None:
+        """rgb_array: the executed arm and, translucent, the reference pose it tracks; (height, width, 3) uint8."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' to gym.make")
+            return None
+        if self._core.loop.state is None:
+            raise InvalidInputError("render: call reset() first")
+        if self._renderer is None:
+            s = self.settings
+            self._renderer = ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera)
+        return self._renderer.frame(self._core.loop.plant.qpos[0], self._core.reference_pose(0))
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None

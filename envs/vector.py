@@ -1,0 +1,134 @@
+"""UR5Track-v0 natively vectorised: num_envs episodes on one mujoco.batch.Batch through the same ClosedLoop."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numpy.typing import NDArray
+
+from mjtraj.envs.core import STEP_INFO, TrackCore
+from mjtraj.envs.settings import RENDER_MODES, resolve
+from mjtraj.envs.ur5_track import action_space, observation_space
+from mjtraj._validate import positive_int
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.planners import Planner
+from mjtraj.render import ArmRenderer
+
+
+class UR5TrackVectorEnv(VectorEnv):
+    """`num_envs` copies of UR5TrackEnv (same arguments, documented there) stepped as one batch.
+
+    Autoreset follows Gymnasium 1.x's default, `AutoresetMode.NEXT_STEP`: the step that ends a sub-env's
+    episode returns its final observation with terminated (or truncated) set; the next `step` call resets that
+    sub-env instead of stepping it (its action is ignored) and returns the new episode's first observation with
+    reward 0 and terminated = truncated = False. `info["metrics"]` (name -> (num_envs,) array, with the mask
+    `info["_metrics"]`) carries the Metrics of the episodes that ended in that step.
+
+    Seeding: `reset(seed=s)` seeds sub-env i with s + i (a list gives one seed each), so sub-env i reproduces
+    `UR5TrackEnv` reset with seed s + i bit for bit, later episodes included. `max_episode_steps` (set by
+    `gym.make_vec` from the registration) truncates like gym.make's TimeLimit.
+    """
+
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50, "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, planner: str | Planner = "cubic", action_mode: str = "pid",
+                 task: str = "paper", q0: npt.ArrayLike | None = None, qg: npt.ArrayLike | None = None,
+                 max_displacement: float = 1.5, duration: float = 2.0, dt: float = 0.02,
+                 feedforward: str = "inverse", ff_accel: str = "sample", gravity_comp: str = "native",
+                 anti_windup: str = "none", preview: int = 0, Q_exec: npt.ArrayLike | None = None,
+                 R_exec: npt.ArrayLike | None = None, render_mode: str | None = None, width: int = 640,
+                 height: int = 480, camera: str = "front", max_episode_steps: int | None = None) -> None:
+        self.settings = resolve(planner=planner, action_mode=action_mode, task=task, q0=q0, qg=qg,
+                                max_displacement=max_displacement, duration=duration, dt=dt, feedforward=feedforward,
+                                ff_accel=ff_accel, gravity_comp=gravity_comp, anti_windup=anti_windup,
+                                preview=preview, Q_exec=Q_exec, R_exec=R_exec, render_mode=render_mode, width=width,
+                                height=height, camera=camera)
+        self.num_envs = positive_int("num_envs", num_envs)
+        self.max_episode_steps = None if max_episode_steps is None else positive_int("max_episode_steps",
+                                                                                      max_episode_steps)
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.settings.dt)}
+        self.single_observation_space = observation_space(self.settings)
+        self.single_action_space = action_space(self.settings)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._core = TrackCore(self.settings, self.num_envs)
+        self._rngs: list[np.random.Generator] = []
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
+        self._renderers: list[ArmRenderer] = []
+
+    @property
+    def loop(self) -> Any:
+        """The ClosedLoop this env runs (read-only use)."""
+        return self._core.loop
+
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        if isinstance(seed, (list, tuple)):
+            if len(seed) != self.num_envs:
+                raise InvalidInputError(f"seed: expected {self.num_envs} seeds (one per sub-env), got {len(seed)}")
+            seeds: list[int | None] = list(seed)
+        else:
+            seeds = [None if seed is None else seed + i for i in range(self.num_envs)]
+        if seed is not None or not self._rngs:
+            self._rngs = [seeding.np_random(s)[0] for s in seeds]
+        obs = self._core.reset(self._rngs)
+        self._autoreset[:] = False
+        self._elapsed[:] = 0
+        return obs, {}
+
+    def step(self, actions: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
+                                                    NDArray[np.bool_], dict[str, Any]]:
+        if self._core.loop.state is None:
+            raise InvalidInputError("step: call reset() first")
+        restart = np.flatnonzero(self._autoreset)
+        obs, reward, terminated, info = self._core.step(actions)
+        self._elapsed += 1
+        truncated = (np.zeros(self.num_envs, dtype=bool) if self.max_episode_steps is None
+                     else (self._elapsed >= self.max_episode_steps) & ~terminated)
+        truncated[restart] = False
+        done = terminated | truncated
+        done[restart] = False
+        out: dict[str, Any] = {}
+        live = np.ones(self.num_envs, dtype=bool)
+        live[restart] = False
+        for key in STEP_INFO:
+            out[key], out[f"_{key}"] = info[key], live
+        if done.any():
+            ended = np.flatnonzero(done)
+            values = self._core.metrics(ended)
+            out["metrics"] = {name: np.full(self.num_envs, np.nan) for name in values}
+            for name, value in values.items():
+                out["metrics"][name][ended] = value
+            out["_metrics"] = done.copy()
+            diverged = self._core.loop.state.diverged_step >= 0
+            out["diverged"], out["_diverged"] = diverged & done, done.copy()
+        if restart.size:
+            obs[restart] = self._core.reset([self._rngs[i] for i in restart], restart)
+            reward[restart] = 0.0
+            terminated[restart] = False
+            self._elapsed[restart] = 0
+        self._autoreset = done
+        return obs, reward, terminated, truncated, out
+
+    def render(self) -> tuple[NDArray[np.uint8], ...] | None:
+        """rgb_array: one frame per sub-env (executed arm and translucent reference), each (height, width, 3)."""
+        if self.render_mode is None:
+            return None
+        s = self.settings
+        if not self._renderers:
+            self._renderers = [ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera)]
+        plant = self._core.loop.plant
+        return tuple(self._renderers[0].frame(plant.qpos[i], self._core.reference_pose(i))
+                     for i in range(self.num_envs))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for renderer in self._renderers:
+            renderer.close()
+        self._renderers = []

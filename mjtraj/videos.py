@@ -1,0 +1,136 @@
+"""`mjtraj render`: execution videos per planner, a 2x2 side-by-side clip, and the paper's Fig. 1 snapshot strip."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj._validate import choice
+from mjtraj.compare import Comparison
+from mjtraj.render import ArmRenderer
+
+VIDEO_FORMATS = ("mp4", "gif")
+SNAPSHOT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)
+"""Fractions of T at which the snapshot strip shows each planner."""
+
+
+def label(image: NDArray[np.uint8], lines: Sequence[str], *, size: int = 16) -> NDArray[np.uint8]:
+    """`image` with `lines` of text drawn top-left on a dark band; a new array."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    picture = Image.fromarray(image)
+    draw = ImageDraw.Draw(picture)
+    font = ImageFont.load_default(size=size)
+    draw.rectangle((0, 0, picture.width, 6 + (size + 4) * len(lines)), fill=(20, 20, 24))
+    for i, line in enumerate(lines):
+        draw.text((6, 3 + (size + 4) * i), line, fill=(240, 240, 240), font=font)
+    return np.asarray(picture)
+
+
+def frames(result: Comparison, planner: str, renderer: ArmRenderer, *, every: int = 1,
+           text: bool = True) -> list[NDArray[np.uint8]]:
+    """Frames of one planner's execution: period k shows q_k with the ghost at q_ref,k, and the live error."""
+    b = result.planners.index(planner)
+    rollout, ref = result.rollout, result.references[planner]
+    images = []
+    for k in range(0, ref.steps + 1, every):
+        q = rollout.q[b, k] if k < ref.steps else rollout.q_final[b]
+        image = renderer.frame(q, ref.q[k])
+        if text:
+            error = np.abs(ref.q[k] - q).max()
+            image = label(image, [f"{planner}", f"t = {k * ref.dt:4.2f} s  max|e| = {1e3 * error:6.2f} mrad"])
+        images.append(image)
+    return images
+
+
+def _write(path: Path, images: Sequence[NDArray[np.uint8]], fps: float) -> None:
+    """Write a video or image atomically (a failure leaves no partial file)."""
+    import imageio.v3 as iio
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        if path.suffix == ".mp4":
+            iio.imwrite(tmp, np.stack(images), fps=fps, codec="libx264", macro_block_size=8)
+        elif path.suffix == ".gif":
+            iio.imwrite(tmp, np.stack(images), duration=1000.0 / fps, loop=0)
+        else:
+            iio.imwrite(tmp, images[0])
+        os.chmod(tmp, 0o644)  # mkstemp creates 0600
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4",), width: int = 640,
+               height: int = 480, camera: str = "front", every: int = 1,
+               progress: Callable[[int], None] | None = None) -> list[Path]:
+    """Write `<scenario>_<planner>.<fmt>` per planner, `<scenario>_grid.<fmt>` (2x2 of up to four planners) and
+    `<scenario>_snapshots.png`; return the paths. `every` keeps one control period in `every` (fps = 1/(every dt)).
+
+    Args:
+      progress: called with the number of frames just rendered.
+    """
+    for fmt in formats:
+        choice("format", fmt, VIDEO_FORMATS)
+    from mjtraj.model import load_model
+
+    plant = load_model(dt=result.scenario.task.dt)
+    name = result.scenario.name
+    fps = 1.0 / (every * result.scenario.task.dt)
+    written: list[Path] = []
+    clips = {}
+    with ArmRenderer(plant, width=width, height=height, camera=camera) as renderer:
+        for planner in result.planners:
+            clips[planner] = frames(result, planner, renderer, every=every)
+            if progress:
+                progress(len(clips[planner]))
+            for fmt in formats:
+                path = out / f"{name}_{planner}.{fmt}"
+                _write(path, clips[planner], fps)
+                written.append(path)
+        grid = _grid([clips[p] for p in result.planners[:4]])
+        for fmt in formats:
+            path = out / f"{name}_grid.{fmt}"
+            _write(path, grid, fps)
+            written.append(path)
+        strip = snapshot_strip(result, renderer)
+        if progress:
+            progress(len(SNAPSHOT_TIMES) * len(result.planners))
+        path = out / f"{name}_snapshots.png"
+        _write(path, [strip], fps)
+        written.append(path)
+    return written
+
+
+def _grid(clips: Sequence[Sequence[NDArray[np.uint8]]]) -> list[NDArray[np.uint8]]:
+    """Tile up to four equally long clips 2x2 (missing tiles black)."""
+    h, w, _ = clips[0][0].shape
+    black = np.zeros((h, w, 3), dtype=np.uint8)
+    out = []
+    for k in range(len(clips[0])):
+        tiles = [clip[k] for clip in clips] + [black] * (4 - len(clips))
+        out.append(np.vstack([np.hstack(tiles[:2]), np.hstack(tiles[2:])]))
+    return out
+
+
+def snapshot_strip(result: Comparison, renderer: ArmRenderer) -> NDArray[np.uint8]:
+    """The paper's Fig. 1: one row per planner, one column per time in SNAPSHOT_TIMES (executed + ghost)."""
+    rows = []
+    for planner in result.planners:
+        b = result.planners.index(planner)
+        ref = result.references[planner]
+        tiles = []
+        for fraction in SNAPSHOT_TIMES:
+            k = round(fraction * ref.steps)
+            q = result.rollout.q[b, k] if k < ref.steps else result.rollout.q_final[b]
+            tiles.append(label(renderer.frame(q, ref.q[k]), [f"{planner}  t = {k * ref.dt:.2f} s"]))
+        rows.append(np.hstack(tiles))
+    return np.vstack(rows)

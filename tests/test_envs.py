@@ -1,0 +1,302 @@
+"""UR5Track-v0: registration, Gymnasium contract, the env is compare's closed loop, vector == single, bad input."""
+
+from __future__ import annotations
+
+import inspect
+import re
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mjtraj
+from mjtraj.compare import compare
+from mjtraj.envs.settings import ACTION_MODES, TASKS
+from mjtraj.envs.ur5_track import UR5TrackEnv
+from mjtraj.envs.vector import UR5TrackVectorEnv
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.gains import closed_loop_map
+from mjtraj.linearize import discretize_zoh, linearize
+from mjtraj.metrics import METRIC_NAMES
+from mjtraj.model import JointInfo
+
+
+def episode(env, *, seed=None, actions=None):
+    """Run one episode; (observations, rewards, last info)."""
+    obs, _ = env.reset(seed=seed)
+    observations, rewards = [obs], []
+    k = 0
+    while True:
+        action = env.action_space.sample() if actions is None else actions[k]
+        obs, reward, terminated, truncated, info = env.step(action)
+        observations.append(obs)
+        rewards.append(reward)
+        k += 1
+        if terminated or truncated:
+            return np.array(observations), np.array(rewards), info
+
+
+def test_registered_with_the_paper_episode_length():
+    spec = gym.spec("UR5Track-v0")
+    assert spec.max_episode_steps == 100 == mjtraj.load_scenario().task.steps
+    assert spec.vector_entry_point is not None
+
+
+def test_make_with_module_prefix_needs_no_prior_import():
+    code = ("import gymnasium as gym, sys; env = gym.make('mjtraj:UR5Track-v0'); env.reset(seed=1); "
+            "print(type(env.unwrapped).__module__, 'envs' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["mjtraj.envs.ur5_track", "False"]  # and nothing named plain `envs` was imported
+
+
+@pytest.mark.parametrize("action_mode", ACTION_MODES)
+def test_gymnasium_check_env_without_warnings(action_mode):
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make("UR5Track-v0", action_mode=action_mode, task="random", preview=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped)
+    env.close()
+
+
+def test_sb3_check_env():
+    sb3 = pytest.importorskip("stable_baselines3.common.env_checker", reason="stable-baselines3 comes with the rl "
+                              "extra (issue 5)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sb3.check_env(UR5TrackEnv(action_mode="residual", task="random"))
+
+
+@pytest.mark.parametrize("planner", ["optimal", "cubic", "quintic", "trapezoidal"])
+def test_pid_paper_episode_is_compare(planner, scenario):
+    """One implementation: the env's episode metrics equal `mjtraj compare`'s, and the return is -J_exec."""
+    expected = compare(scenario).metrics[planner]
+    env = gym.make("UR5Track-v0", planner=planner)
+    _, rewards, info = episode(env, seed=0)
+    assert rewards.size == scenario.task.steps
+    for name in METRIC_NAMES:
+        assert info["metrics"][name] == pytest.approx(getattr(expected, name), rel=1e-12, abs=1e-12), name
+    assert -rewards.sum() == pytest.approx(expected.cost, rel=1e-12)
+    assert info["diverged"] is False
+
+
+def test_reward_terms_and_info(scenario):
+    env = UR5TrackEnv(action_mode="residual")
+    env.reset(seed=0)
+    _, reward, _, _, info = env.step(np.array([0.5, -0.2, 0.1], dtype=np.float32))
+    Q, R = scenario.Q_exec, scenario.R_exec
+    e, dtau = info["e"], info["dtau"]
+    q0 = scenario.task.q0
+    assert np.array_equal(e, np.zeros(3)) and np.allclose(q0, env.reference.q[0])
+    # residual mode: dtau = clip(ff + fb + 60 a); at k = 0 the error is zero, so fb = 0
+    np.testing.assert_allclose(dtau, np.clip(info["tau_ff"] + 60 * np.array([0.5, -0.2, 0.1]), -60, 60),
+                               rtol=0, atol=1e-6)
+    assert info["reward_tracking"] == 0.0
+    assert info["reward_effort"] == pytest.approx(-(dtau**2) @ R, rel=1e-12)
+    assert reward == info["reward_tracking"] + info["reward_effort"]
+    assert set(info) == {"tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort"}
+    del Q
+
+
+def test_observation_layout():
+    env = UR5TrackEnv(preview=2, task="random")
+    obs, _ = env.reset(seed=3)
+    ref = env.reference
+    obs, *_ = env.step(env.action_space.sample())
+    q, qd = obs[:3], obs[3:6]
+    np.testing.assert_array_equal(obs[6:9], ref.q[1])
+    np.testing.assert_array_equal(obs[9:12], ref.qd[1])
+    np.testing.assert_array_equal(obs[12:15], ref.q[1] - q)
+    np.testing.assert_array_equal(obs[15:18], ref.qd[1] - qd)
+    assert obs[18] == 1 / 100
+    np.testing.assert_array_equal(obs[19:25], np.concatenate([ref.q[2], ref.qd[2]]))
+    np.testing.assert_array_equal(obs[25:31], np.concatenate([ref.q[3], ref.qd[3]]))
+    assert obs.shape == env.observation_space.shape == (31,)
+
+
+def test_seeded_resets_are_identical():
+    env = UR5TrackEnv(task="random", action_mode="torque")
+    env.action_space.seed(5)
+    actions = [env.action_space.sample() for _ in range(100)]
+    first = episode(env, seed=11, actions=actions)
+    second = episode(env, seed=11, actions=actions)
+    np.testing.assert_array_equal(first[0], second[0])
+    np.testing.assert_array_equal(first[1], second[1])
+    other = episode(env, seed=12, actions=actions)
+    assert not np.array_equal(first[0][0], other[0][0])
+
+
+def test_random_tasks_stay_in_range_and_bounded(model):
+    env = UR5TrackEnv(task="random", max_displacement=0.7)
+    joints = JointInfo.of(model)
+    for seed in range(50):
+        env.reset(seed=seed)
+        q0, qg = env.reference.q[0], env.reference.q[-1]
+        assert np.all((joints.lower <= q0) & (q0 <= joints.upper) & (joints.lower <= qg) & (qg <= joints.upper))
+        assert np.max(np.abs(qg - q0)) <= 0.7
+
+
+def test_scenario_gains_are_stable_over_the_workspace(model, scenario, rng):
+    """Random tasks keep the paper scenario's gains: the linearised closed loop at rest is stable at random poses."""
+    joints = JointInfo.of(model)
+    for q in rng.uniform(joints.lower, joints.upper, size=(100, 3)):
+        Ad, Bd = discretize_zoh(*linearize(model, q), scenario.task.dt)
+        assert np.max(np.abs(np.linalg.eigvals(closed_loop_map(Ad, Bd, scenario.loop.gains, scenario.task.dt)))) < 1
+
+
+def test_actions_are_clipped():
+    clipped, inside = UR5TrackEnv(action_mode="torque"), UR5TrackEnv(action_mode="torque")
+    big = np.array([5.0, -7.0, 0.5])
+    clipped.reset(seed=0)
+    inside.reset(seed=0)
+    a = clipped.step(big)
+    b = inside.step(np.clip(big, -1, 1))
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[4]["dtau"], [60.0, -60.0, 30.0])
+
+
+@pytest.mark.parametrize("bad", [[np.nan, 0, 0], [0, np.inf, 0]])
+def test_non_finite_actions_raise(bad):
+    env = UR5TrackEnv(action_mode="residual")
+    env.reset(seed=0)
+    with pytest.raises(InvalidInputError, match=r"^action: expected finite values in \[-1, 1\], got "):
+        env.step(np.array(bad))
+
+
+def test_wrong_action_shape_raises():
+    env = UR5TrackEnv(action_mode="torque")
+    env.reset(seed=0)
+    with pytest.raises(InvalidInputError, match=r"^action: expected shape \(3,\), got \(2,\)$"):
+        env.step(np.zeros(2))
+
+
+def test_step_before_reset_and_after_the_end_raises():
+    env = UR5TrackEnv()
+    with pytest.raises(InvalidInputError, match=r"^step: call reset\(\) first"):
+        env.step(env.action_space.sample())
+    episode(env, seed=0)
+    with pytest.raises(InvalidInputError, match=r"^step: call reset\(\) first"):
+        env.step(env.action_space.sample())
+
+
+def test_divergence_terminates_with_nan_metrics():
+    env = UR5TrackEnv(action_mode="torque", task="explicit", q0=[0, -1.5707963267948966, 0],
+                      qg=[0, -1.5707963267948966, 0])
+    env.reset(seed=0)
+    for k in range(100):  # full torque one way: the arm leaves the (constant) reference by more than pi
+        _, _, terminated, _, info = env.step(np.ones(3))
+        if terminated:
+            break
+    assert terminated and k < 99 and info["diverged"] is True
+    assert all(np.isnan(v) for v in info["metrics"].values())
+
+
+@pytest.mark.parametrize("task", ["paper", "random"])
+def test_vector_env_equals_single_envs(task):
+    """num_envs sub-envs seeded s + i give the same trajectories as single envs reset with s + i, bit for bit,
+    across an autoreset into the second episode."""
+    n, steps = 3, 130
+    venv = gym.make_vec("UR5Track-v0", num_envs=n, vectorization_mode="vector_entry_point", task=task,
+                        action_mode="residual")
+    assert isinstance(venv.unwrapped, UR5TrackVectorEnv)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-0.2, 0.2, size=(steps, n, 3)).astype(np.float32)
+    obs, _ = venv.reset(seed=40)
+    vec_obs, vec_rew, vec_done = [obs], [], []
+    for k in range(steps):
+        obs, reward, terminated, truncated, info = venv.step(actions[k])
+        vec_obs.append(obs)
+        vec_rew.append(reward)
+        vec_done.append(terminated | truncated)
+    vec_obs, vec_rew, vec_done = np.array(vec_obs), np.array(vec_rew), np.array(vec_done)
+    assert vec_done[99].all() and not vec_done[100].any()  # the autoreset step
+    for i in range(n):
+        env = gym.make("UR5Track-v0", task=task, action_mode="residual")
+        obs, _ = env.reset(seed=40 + i)
+        single_obs, single_rew = [obs], []
+        for k in range(steps):
+            if k == 100:  # next-step autoreset: the vector env resets here instead of stepping
+                obs, _ = env.reset()
+                single_obs.append(obs)
+                single_rew.append(0.0)
+                continue
+            obs, reward, *_ = env.step(actions[k, i])
+            single_obs.append(obs)
+            single_rew.append(reward)
+        np.testing.assert_array_equal(vec_obs[:, i], np.array(single_obs))
+        np.testing.assert_array_equal(vec_rew[:, i], np.array(single_rew))
+    venv.close()
+
+
+def test_vector_env_reports_metrics_of_ended_episodes(scenario):
+    venv = gym.make_vec("UR5Track-v0", num_envs=2, vectorization_mode="vector_entry_point", planner="quintic")
+    venv.reset(seed=0)
+    for _ in range(100):
+        *_, info = venv.step(np.zeros((2, 3), dtype=np.float32))
+    assert info["_metrics"].tolist() == [True, True]
+    expected = compare(scenario, ["quintic"]).metrics["quintic"]
+    assert info["metrics"]["rms_err"].tolist() == [expected.rms_err] * 2
+
+
+def test_docstring_arguments_table_matches_the_code():
+    doc = inspect.getdoc(UR5TrackEnv)
+    table = doc.split("## Arguments")[1].split("##")[0]
+    rows = re.findall(r"^\| (\w+)\s+\| (\S+)\s+\|", table, flags=re.M)
+    documented = {name: value for name, value in rows if name != "argument"}
+    signature = inspect.signature(UR5TrackEnv.__init__).parameters
+    code = {name: repr(p.default).replace("'", '"') for name, p in signature.items() if name != "self"}
+    assert documented == code
+    vector = inspect.signature(UR5TrackVectorEnv.__init__).parameters
+    assert {n: repr(p.default).replace("'", '"') for n, p in vector.items()
+            if n not in ("self", "num_envs", "max_episode_steps")} == code
+
+
+def test_docstring_defaults_are_the_paper_scenario(scenario):
+    env = UR5TrackEnv()
+    s = env.settings
+    assert (s.duration, s.dt) == (scenario.task.duration, scenario.task.dt)
+    loop = scenario.loop
+    assert (s.loop.feedforward, s.loop.ff_accel, s.loop.gravity_comp, s.loop.anti_windup) == (
+        loop.feedforward, loop.ff_accel, loop.gravity_comp, loop.anti_windup)
+    np.testing.assert_array_equal(s.Q_exec, scenario.Q_exec)
+    np.testing.assert_array_equal(s.R_exec, scenario.R_exec)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"planner": "spline"}, r"^planner: unknown planner 'spline'; valid: cubic, optimal, quintic, trapezoidal$"),
+    ({"planner": 3}, r"^planner: expected a registered name \(cubic, optimal, quintic, trapezoidal\) or an object "
+                     r"with plan\(task, model\), got 3$"),
+    ({"action_mode": "velocity"}, r"^action_mode: unknown value 'velocity'; valid: pid, residual, torque$"),
+    ({"task": "circle"}, r"^task: unknown value 'circle'; valid: paper, random, explicit$"),
+    ({"camera": "wrist"}, r"^camera: unknown camera 'wrist'; valid: front, side, top$"),
+    ({"task": "explicit", "q0": [0, 0, 4], "qg": [0, 0, 0]},
+     r"^q0: joint 'elbow_joint' = 4 rad is outside its range \[-3.14159, 3.14159\]$"),
+    ({"task": "explicit", "q0": [0, 0, 0]}, r"^task: 'explicit' needs both q0 and qg \(rad\)$"),
+    ({"q0": [0, 0, 0], "qg": [0, 0, 1]}, r"^q0, qg: only used with task='explicit', got task='paper'$"),
+    ({"width": 4000}, r"^width: expected at most the offscreen buffer's 1920 pixels, got 4000; raise it with the "
+                      r"MJCF attribute <visual><global offwidth=\"4000\"/></visual>$"),
+    ({"height": 2000}, r"^height: expected at most the offscreen buffer's 1080 pixels, got 2000; raise it with the "
+                       r"MJCF attribute <visual><global offheight=\"2000\"/></visual>$"),
+    ({"render_mode": "human"}, r"^render_mode: unsupported mode 'human'; valid: None, rgb_array$"),
+    ({"preview": -1}, r"^preview: expected a whole number >= 0, got -1$"),
+    ({"Q_exec": [1, 1]}, r"^Q_exec: expected 6 values, got shape \(2,\)$"),
+    ({"duration": 1.01}, r"^duration: expected a whole number of control periods dt=0.02 s, got 1.01 s"),
+])
+def test_bad_arguments(kwargs, message):
+    assert set(TASKS) == {"paper", "random", "explicit"}
+    with pytest.raises(InvalidInputError, match=message):
+        UR5TrackEnv(**kwargs)
+
+
+def test_user_planner_object(model):
+    from mjtraj.planners.cubic import Cubic
+
+    env = UR5TrackEnv(planner=Cubic())
+    _, rewards, info = episode(env, seed=0)
+    reference = UR5TrackEnv(planner="cubic")
+    _, expected, _ = episode(reference, seed=0)
+    np.testing.assert_array_equal(rewards, expected)
