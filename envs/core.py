@@ -12,8 +12,8 @@ import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
-from mjtraj.envs.settings import TrackSettings
 from mjtraj.closed_loop import ClosedLoop
+from mjtraj.envs.settings import TrackSettings
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.metrics import METRIC_NAMES, metrics_arrays
 from mjtraj.reference import Reference

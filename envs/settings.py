@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
 
 import mujoco
 import numpy as np
@@ -15,7 +14,7 @@ from mjtraj._validate import choice, frozen, positive, vector
 from mjtraj.closed_loop import LoopConfig
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.model import JointInfo, load_model
-from mjtraj.planners import Planner, available, make
+from mjtraj.planners import Planner, available
 from mjtraj.render import check_render_options
 from mjtraj.scenario import Scenario, load_scenario
 from mjtraj.task import Task

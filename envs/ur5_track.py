@@ -17,7 +17,6 @@ from mjtraj.model import JointInfo
 from mjtraj.planners import Planner
 from mjtraj.render import ArmRenderer
 
-
 VELOCITY_BOUND = 200.0
 """rad/s, the velocity bounds of the observation space: 60 N m on the lightest joint inertia (0.09 kg m^2) cannot
 reach it before the tracking error exceeds pi, which ends the episode."""

@@ -11,10 +11,10 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from mjtraj._validate import positive_int
 from mjtraj.envs.core import STEP_INFO, TrackCore
 from mjtraj.envs.settings import RENDER_MODES, resolve
 from mjtraj.envs.ur5_track import action_space, observation_space
-from mjtraj._validate import positive_int
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.planners import Planner
 from mjtraj.render import ArmRenderer

@@ -29,7 +29,8 @@ register_envs()  # gym.make("UR5Track-v0") after `import mjtraj`
 __version__ = "0.1.0"
 
 __all__ = [
-    "ENV_ID", "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig", "Metrics", "MjtrajError",
-    "ModelError", "PIDGains", "Planner", "Reference", "RenderError", "Rollout", "Scenario", "SolverError", "Task",
-    "__version__", "available", "compare", "control_law", "load_model", "load_scenario", "make", "metrics",
+    "ENV_ID", "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig", "Metrics",
+    "MjtrajError", "ModelError", "PIDGains", "Planner", "Reference", "RenderError", "Rollout", "Scenario",
+    "SolverError", "Task", "__version__", "available", "compare", "control_law", "load_model", "load_scenario",
+    "make", "metrics",
 ]

@@ -8,7 +8,6 @@ import logging
 import math
 import os
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -77,11 +76,10 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _write_atomic(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+    from mjtraj._files import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
 
 
 def _json_safe(value: Any) -> Any:
@@ -184,13 +182,11 @@ def _render(args: argparse.Namespace) -> int:
     from mjtraj.model import load_model
     from mjtraj.planners import available
     from mjtraj.render import check_render_options
-    from mjtraj.videos import SNAPSHOT_TIMES, VIDEO_FORMATS, render_all
+    from mjtraj.videos import SNAPSHOT_TIMES, check_formats, render_all
 
     scenario = _scenario(args)
     check_render_options(load_model(), args.width, args.height, args.camera)
-    for fmt in args.formats:
-        if fmt not in VIDEO_FORMATS:
-            raise _bad(f"format: unknown format {fmt!r}; valid: {', '.join(VIDEO_FORMATS)}")
+    check_formats(args.formats)
     every = positive_int("every", args.every)
     planners = tuple(args.planners or available())
     result = compare(scenario, planners)
@@ -201,12 +197,6 @@ def _render(args: argparse.Namespace) -> int:
     for path in paths:
         print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     return 0
-
-
-def _bad(message: str) -> MjtrajError:
-    from mjtraj.exceptions import InvalidInputError
-
-    return InvalidInputError(message)
 
 
 def _doctor(args: argparse.Namespace) -> int:

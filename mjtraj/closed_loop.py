@@ -222,11 +222,10 @@ class ClosedLoop:
                 out.tau_ff, out.tau_fb, out.dtau, out.saturated)
             if k + 1 == N:
                 s.q_final[:], s.qd_final[:] = self.plant.qpos, self.plant.qvel
+            s.sync = k + 1
             error = s.q_ref[k + 1] - self.plant.qpos
             if np.abs(error).max() <= self.config.divergence_bound:  # False for NaN too
-                s.sync = k + 1
                 return Step(q, qd, e, ed, out, self._none_diverged)
-            s.sync = k + 1
             bad = ~np.all(np.abs(error) <= self.config.divergence_bound, axis=1)
             self._diverge(bad, np.full(self.nsim, k), q, qd)
             return Step(q, qd, e, ed, out, s.diverged_step >= 0)

@@ -2,21 +2,32 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj._validate import choice
+from mjtraj._files import atomic_path
 from mjtraj.compare import Comparison
+from mjtraj.exceptions import InvalidInputError
 from mjtraj.render import ArmRenderer
 
 VIDEO_FORMATS = ("mp4", "gif")
 SNAPSHOT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)
 """Fractions of T at which the snapshot strip shows each planner."""
+
+
+def check_formats(formats: Sequence[str]) -> None:
+    """Raise InvalidInputError for a video format other than VIDEO_FORMATS."""
+    for fmt in formats:
+        if fmt not in VIDEO_FORMATS:
+            raise InvalidInputError(f"format: unknown format {fmt!r}; valid: {', '.join(VIDEO_FORMATS)}")
+
+
+def executed_pose(result: Comparison, b: int, k: int) -> NDArray[np.float64]:
+    """q at period k of rollout row b (k = N: the final state), rad."""
+    return result.rollout.q[b, k] if k < result.rollout.q.shape[1] else result.rollout.q_final[b]
 
 
 def label(image: NDArray[np.uint8], lines: Sequence[str], *, size: int = 16) -> NDArray[np.uint8]:
@@ -36,10 +47,10 @@ def frames(result: Comparison, planner: str, renderer: ArmRenderer, *, every: in
            text: bool = True) -> list[NDArray[np.uint8]]:
     """Frames of one planner's execution: period k shows q_k with the ghost at q_ref,k, and the live error."""
     b = result.planners.index(planner)
-    rollout, ref = result.rollout, result.references[planner]
+    ref = result.references[planner]
     images = []
     for k in range(0, ref.steps + 1, every):
-        q = rollout.q[b, k] if k < ref.steps else rollout.q_final[b]
+        q = executed_pose(result, b, k)
         image = renderer.frame(q, ref.q[k])
         if text:
             error = np.abs(ref.q[k] - q).max()
@@ -52,21 +63,13 @@ def _write(path: Path, images: Sequence[NDArray[np.uint8]], fps: float) -> None:
     """Write a video or image atomically (a failure leaves no partial file)."""
     import imageio.v3 as iio
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
-    try:
+    with atomic_path(path) as tmp:
         if path.suffix == ".mp4":
             iio.imwrite(tmp, np.stack(images), fps=fps, codec="libx264", macro_block_size=8)
         elif path.suffix == ".gif":
             iio.imwrite(tmp, np.stack(images), duration=1000.0 / fps, loop=0)
         else:
             iio.imwrite(tmp, images[0])
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4",), width: int = 640,
@@ -78,8 +81,7 @@ def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4"
     Args:
       progress: called with the number of frames just rendered.
     """
-    for fmt in formats:
-        choice("format", fmt, VIDEO_FORMATS)
+    check_formats(formats)
     from mjtraj.model import load_model
 
     plant = load_model(dt=result.scenario.task.dt)
@@ -130,7 +132,7 @@ def snapshot_strip(result: Comparison, renderer: ArmRenderer) -> NDArray[np.uint
         tiles = []
         for fraction in SNAPSHOT_TIMES:
             k = round(fraction * ref.steps)
-            q = result.rollout.q[b, k] if k < ref.steps else result.rollout.q_final[b]
+            q = executed_pose(result, b, k)
             tiles.append(label(renderer.frame(q, ref.q[k]), [f"{planner}  t = {k * ref.dt:.2f} s"]))
         rows.append(np.hstack(tiles))
     return np.vstack(rows)
