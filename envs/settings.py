@@ -13,11 +13,11 @@ from numpy.typing import NDArray
 from mjtraj._validate import choice, frozen, positive, vector
 from mjtraj.closed_loop import LoopConfig
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.model import JointInfo, load_model
+from mjtraj.model import load_model
 from mjtraj.planners import Planner, available
 from mjtraj.render import check_render_options
 from mjtraj.scenario import Scenario, load_scenario
-from mjtraj.task import Task
+from mjtraj.task import Task, random_task
 
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
@@ -66,11 +66,8 @@ class TrackSettings:
         uniform in the ranges within +-max_displacement of it (two draws of n uniforms from `rng`)."""
         if self.fixed_task is not None:
             return self.fixed_task
-        joints = JointInfo.of(self.model)
-        q0 = rng.uniform(joints.lower, joints.upper)
-        low = np.maximum(joints.lower, q0 - self.max_displacement)
-        high = np.minimum(joints.upper, q0 + self.max_displacement)
-        return Task.create(q0, rng.uniform(low, high), self.duration, self.dt)
+        return random_task(rng, self.model, max_displacement=self.max_displacement, duration=self.duration,
+                           dt=self.dt)
 
 
 def _count(name: str, value: int) -> int:

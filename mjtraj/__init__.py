@@ -8,6 +8,7 @@ from mjtraj.closed_loop import ClosedLoop, LoopConfig
 from mjtraj.compare import Comparison, compare
 from mjtraj.controller import PIDGains, control_law
 from mjtraj.exceptions import (
+    BackendError,
     InfeasibleError,
     InvalidInputError,
     MjtrajError,
@@ -21,6 +22,8 @@ from mjtraj.planners import Planner, available, make
 from mjtraj.reference import Reference
 from mjtraj.rollout import Rollout
 from mjtraj.scenario import Scenario, load_scenario
+from mjtraj.sweep import SweepSettings
+from mjtraj.sweep_runner import run_sweep
 from mjtraj.task import Task
 from mjtraj.envs import ENV_ID, register_envs
 
@@ -29,8 +32,8 @@ register_envs()  # gym.make("UR5Track-v0") after `import mjtraj`
 __version__ = "0.1.0"
 
 __all__ = [
-    "ENV_ID", "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig", "Metrics",
+    "ENV_ID", "BackendError", "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig", "Metrics",
     "MjtrajError", "ModelError", "PIDGains", "Planner", "Reference", "RenderError", "Rollout", "Scenario",
-    "SolverError", "Task", "__version__", "available", "compare", "control_law", "load_model", "load_scenario",
-    "make", "metrics",
+    "SolverError", "SweepSettings", "Task", "__version__", "available", "compare", "control_law", "load_model", "load_scenario",
+    "make", "metrics", "run_sweep",
 ]

@@ -175,3 +175,21 @@ def bench_render(sizes: tuple[tuple[int, int], ...] = ((320, 240), (640, 480)), 
                      "fps": frames / (time.perf_counter() - start)})
         env.close()
     return rows
+
+
+def bench_sweep(scenarios: int = 10_000, *, workers: int | None = None) -> dict[str, object]:
+    """A nominal sweep of `scenarios` x the four paper planners into a temporary file: wall time, rows and the
+    CPU seconds per stage (sample, plan, execute, metrics) summed over the workers."""
+    import os
+    import tempfile
+
+    from mjtraj.sweep import SweepSettings
+    from mjtraj.sweep_runner import run_sweep
+
+    settings = SweepSettings(families=("nominal",), scenarios=scenarios)
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        report = run_sweep(settings, os.path.join(folder, "sweep.csv"), workers=workers, progress=False)
+        wall = time.perf_counter() - start
+    return {"wall": wall, "rows": report.rows, "stages": report.seconds,
+            "workers": workers if workers is not None else os.cpu_count() or 1}

@@ -54,9 +54,40 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
 
     b = sub.add_parser("bench", help="speed ratios measured in one run")
-    b.add_argument("what", choices=("plan", "loop", "env", "all"), nargs="?", default="all")
+    b.add_argument("what", choices=("plan", "loop", "env", "sweep", "all"), nargs="?", default="all",
+                   help="what to time ('all' skips the minute-long sweep)")
     b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     b.add_argument("--sizes", type=lambda s: [int(x) for x in _names(s)], help="loop batch sizes")
+    b.add_argument("--scenarios", type=int, default=10_000, help="sweep: nominal scenarios (default 10000)")
+    b.add_argument("--workers", type=int, help="sweep: worker processes (default: all cores)")
+
+    w = sub.add_parser("sweep", help="every planner on many seeded scenarios; rows appended to a CSV file")
+    w.add_argument("--family", dest="families", type=_names, default=["nominal"],
+                   help="nominal, aggressive and/or mismatch, comma-separated (default nominal)")
+    w.add_argument("--scenarios", type=int, default=1000, help="scenarios per family (default 1000)")
+    w.add_argument("--seed", type=int, default=0, help="the sweep's seed (default 0)")
+    w.add_argument("--planners", type=_names, help="planners and variants, comma-separated (default: optimal, cubic, "
+                   "quintic, trapezoidal; variants: optimal_start, min_effort)")
+    w.add_argument("--ff-accel", dest="ff_accel", type=_names, default=["sample"],
+                   help="feedforward acceleration modes to run: sample and/or step_average (default sample)")
+    w.add_argument("--gravity-comp", dest="gravity_comp", type=_names, default=["native"],
+                   help="gravity compensation modes to run: native and/or zoh (default native)")
+    w.add_argument("--model-error", action="store_true",
+                   help="also measure the linear model's open-loop prediction error of optimal-type planners")
+    w.add_argument("--sensor-noise", type=float, default=0.0, help="mismatch: position noise std, rad (default 0)")
+    w.add_argument("--delay", type=int, default=0, help="mismatch: actuation delay, control periods, 0 or 1")
+    w.add_argument("--batch", type=int, default=250, help="scenarios per unit of work (default 250)")
+    w.add_argument("--config", help="base scenario TOML: controller and planner options (default: paper.toml)")
+    w.add_argument("--out", type=Path, default=Path("sweep.csv"), help="results CSV (default sweep.csv)")
+    w.add_argument("--resume", action="store_true", help="continue an interrupted sweep in --out")
+    w.add_argument("--backend", default="local", help="local (process pool) or ray (default local)")
+    w.add_argument("--workers", type=int, help="local worker processes, or CPUs of a local Ray (default: all)")
+    w.add_argument("--ray-address", help="Ray cluster HOST:PORT, ray://HOST:PORT or auto (default: a local Ray)")
+    w.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    a = sub.add_parser("audit", help="check the paper's claims against sweep files; writes AUDIT.md and figures")
+    a.add_argument("sweeps", nargs="+", type=Path, help="sweep CSV files")
+    a.add_argument("--out", type=Path, default=Path("AUDIT.md"), help="output Markdown (default AUDIT.md)")
 
     r = sub.add_parser("render", help="execution videos per planner, a 2x2 clip and the Fig. 1 snapshot strip")
     r.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
@@ -144,7 +175,7 @@ def _bench(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.config)
     if args.what in ("plan", "all"):
-        print("optimal planner (linearise + build + OSQP solve), median wall time; target N=100 <= 2 ms")
+        print("optimal planner (linearise + solve; the exact active-set Riccati solver, OSQP as fallback), median wall time; target N=100 <= 2 ms")
         print(f"{'N':>6} {'median ms':>10} {'ratio to N=100':>15}")
         for row in bench_plan(scenario):
             print(f"{row['N']:>6} {row['median_ms']:>10.2f} {row['ratio_to_first']:>15.2f}")
@@ -154,6 +185,18 @@ def _bench(args: argparse.Namespace) -> int:
         for row in bench_loop(scenario, tuple(args.sizes) if args.sizes else LOOP_SIZES):
             print(f"{row['scenarios']:>9} {row['raw_steps_per_s']:>12.0f} {row['loop_steps_per_s']:>13.0f} "
                   f"{row['ratio']:>6.2f}")
+    if args.what == "sweep":
+        from mjtraj.bench import bench_sweep
+
+        row = bench_sweep(args.scenarios, workers=args.workers)
+        print(f"sweep: {args.scenarios} nominal scenarios x 4 planners end to end (plan, execute, metrics, write) on "
+              f"{row['workers']} worker processes; target <= 60 s")
+        print(f"{'wall s':>7} {'rows':>7} {'rows/s':>8}")
+        print(f"{row['wall']:>7.1f} {row['rows']:>7} {row['rows'] / row['wall']:>8.0f}")
+        print("per stage, CPU seconds summed over workers (share of their total):")
+        total = sum(row["stages"].values())
+        for stage, seconds in row["stages"].items():
+            print(f"  {stage:<8} {seconds:>7.1f} s {100 * seconds / total:>5.1f} %")
     if args.what in ("env", "all"):
         from mjtraj.bench import bench_env, bench_render, bench_vector_env
 
@@ -171,6 +214,37 @@ def _bench(args: argparse.Namespace) -> int:
         print(f"{'size':>9} {'backend':>8} {'frames/s':>9}")
         for row in bench_render():
             print(f"{row['size']:>9} {row['backend']:>8} {row['fps']:>9.1f}")
+    return 0
+
+
+def _sweep_settings(args: argparse.Namespace):  # noqa: ANN202
+    from mjtraj.sweep import DEFAULT_PLANNERS, SweepSettings
+
+    return SweepSettings(families=tuple(args.families), scenarios=args.scenarios, seed=args.seed,
+                         planners=tuple(args.planners or DEFAULT_PLANNERS), ff_accel=tuple(args.ff_accel),
+                         gravity_comp=tuple(args.gravity_comp), batch=args.batch, sensor_noise=args.sensor_noise,
+                         delay=args.delay, model_error=args.model_error, config=args.config)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from mjtraj.sweep_runner import run_sweep
+
+    settings = _sweep_settings(args)
+    report = run_sweep(settings, args.out, resume=args.resume, backend=args.backend, workers=args.workers,
+                       ray_address=args.ray_address, progress=not args.no_progress)
+    statuses = ", ".join(f"{k} {v}" for k, v in sorted(report.statuses.items())) or "none"
+    print(f"wrote {report.rows} rows to {report.path} in {report.wall:.1f} s ({report.skipped_units} units were "
+          f"already done); statuses: {statuses}")
+    return 0
+
+
+def _audit(args: argparse.Namespace) -> int:
+    from mjtraj.audit import audit
+
+    text = audit(args.sweeps, args.out)
+    verdicts = text.split("## Verdicts", 1)[1].split("\n\nVerdict rule")[0]
+    print(verdicts.strip())
+    print(f"\nwrote {args.out}")
     return 0
 
 
@@ -243,7 +317,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        commands = {"compare": _compare, "bench": _bench, "gains": _gains, "render": _render, "doctor": _doctor}
+        commands = {"compare": _compare, "bench": _bench, "gains": _gains, "render": _render, "doctor": _doctor,
+                    "sweep": _sweep, "audit": _audit}
         return commands[args.command](args)
     except MjtrajError as e:
         print(f"mjtraj: error: {e}", file=sys.stderr)

@@ -23,8 +23,13 @@ class SolverError(MjtrajError):
     """A numerical solver failed or returned an unusable answer."""
 
 
+class BackendError(MjtrajError):
+    """A compute backend (a Ray cluster) is unavailable or unreachable."""
+
+
 class RenderError(MjtrajError):
     """Off-screen rendering is unavailable or misconfigured."""
 
 
-__all__ = ["InfeasibleError", "InvalidInputError", "MjtrajError", "ModelError", "RenderError", "SolverError"]
+__all__ = ["BackendError", "InfeasibleError", "InvalidInputError", "MjtrajError", "ModelError", "RenderError",
+           "SolverError"]

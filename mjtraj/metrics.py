@@ -69,19 +69,26 @@ def _matrix(weight: npt.ArrayLike) -> NDArray[np.float64]:
     return np.diag(w) if w.ndim == 1 else w
 
 
-def metrics_arrays(rollout: Rollout, Q_exec: npt.ArrayLike, R_exec: npt.ArrayLike) -> dict[str, NDArray[np.float64]]:
+def metrics_arrays(rollout: Rollout, Q_exec: npt.ArrayLike, R_exec: npt.ArrayLike, *, per_scenario: bool = False
+                   ) -> dict[str, NDArray[np.float64]]:
     """Every metric for every scenario of `rollout`: name -> shape (B,).
 
-    Q_exec (2n, 2n) and R_exec (n, n) may also be given as their diagonals, shapes (2n,) and (n,).
+    Q_exec (2n, 2n) and R_exec (n, n) may also be given as their diagonals, shapes (2n,) and (n,); with
+    `per_scenario`, they are diagonals of shapes (B, 2n) and (B, n), one per scenario.
     """
-    Q = _matrix(Q_exec)
-    R = _matrix(R_exec)
     e, dtau = rollout.e, rollout.dtau
+    if per_scenario:
+        q_diag, r_diag = np.asarray(Q_exec, dtype=np.float64), np.asarray(R_exec, dtype=np.float64)
+        x = np.concatenate([e, rollout.ed], axis=-1)
+        cost = np.sum(np.square(x) * q_diag[:, None, :], axis=(-2, -1)) + \
+            np.sum(np.square(dtau) * r_diag[:, None, :], axis=(-2, -1))
+    else:
+        cost = executed_cost(e, rollout.ed, dtau, _matrix(Q_exec), _matrix(R_exec))
     return {
         "rms_err": rms(e),
         "rms_dtau": rms(dtau),
         "int_dtau": integral_abs(dtau, rollout.dt),
-        "cost": executed_cost(e, rollout.ed, dtau, Q, R),
+        "cost": cost,
         "rms_fb": rms(rollout.tau_fb),
         "peak_dtau": np.max(np.abs(dtau), axis=(-2, -1)),
         "saturated_frac": np.mean(rollout.saturated, axis=(-2, -1)).astype(np.float64),

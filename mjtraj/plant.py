@@ -25,10 +25,15 @@ class BatchPlant:
 
     One simulation steps a plain MjData with mj_step (the batch's per-call overhead is a tenth of a step);
     several step on mujoco.batch.Batch. Both run the same mj_step: results are bit-identical (tested).
+
+    `fields` gives model fields per-simulation values (MjModel names, arrays of shape (nsim, ...)): the plant
+    perturbations of sweeps. mj_setConst then recomputes what derives from them. Under 'zoh' gravity
+    compensation a given body_gravcomp is ignored (the plant's own gravcomp is off).
     """
 
     def __init__(self, model: mujoco.MjModel, nsim: int, *, nominal: mujoco.MjModel | None = None,
-                 gravity_comp: str = "native", substeps: int = 1, nthread: int = 0) -> None:
+                 gravity_comp: str = "native", substeps: int = 1, nthread: int = 0,
+                 fields: dict[str, NDArray[np.float64]] | None = None) -> None:
         self.gravity_comp = choice("gravity_comp", gravity_comp, GRAVITY_COMP)
         self.substeps = positive_int("substeps", substeps)
         self.nsim = positive_int("nsim", nsim)
@@ -45,14 +50,26 @@ class BatchPlant:
             self._frc_lo = np.where(limited, plant.jnt_actfrcrange[:, 0], -np.inf)
             self._frc_hi = np.where(limited, plant.jnt_actfrcrange[:, 1], np.inf)
         self.model = plant
+        fields = {name: np.asarray(values, dtype=np.float64) for name, values in (fields or {}).items()
+                  if not (gravity_comp == "zoh" and name == "body_gravcomp")}
         if self.nsim == 1:
+            if fields:
+                plant = self.model = copy.deepcopy(plant)
+                for name, values in fields.items():
+                    getattr(plant, name)[:] = values[0]
             self.data: mujoco.MjData | None = mujoco.MjData(plant)
+            if fields:
+                mujoco.mj_setConst(plant, self.data)
             self.batch: Batch | None = None
             self._qpos, self._qvel = self.data.qpos[None, :], self.data.qvel[None, :]
             self._ctrl, self._applied = self.data.ctrl[None, :], self.data.qfrc_applied[None, :]
         else:
             self.data = None
             self.batch = Batch(plant, self.nsim, nthread=nthread)
+            for name, values in fields.items():
+                self.batch.expand(name)[:] = values
+            if fields:
+                self.batch.set_const()
             self._qpos, self._qvel = self.batch.bind("qpos"), self.batch.bind("qvel")
             self._ctrl, self._applied = self.batch.bind("ctrl"), self.batch.bind("qfrc_applied")
 
@@ -67,6 +84,15 @@ class BatchPlant:
         self._qvel[rows] = qd
         self._ctrl[rows] = 0.0
         self._applied[rows] = 0.0
+
+    def unstable(self) -> NDArray[np.bool_]:
+        """Shape (nsim,): MuJoCo flagged the simulation numerically unstable (bad qacc, qpos or qvel; it then
+        resets the state by itself) since its last reset."""
+        bad = [int(mujoco.mjtWarning.mjWARN_BADQACC), int(mujoco.mjtWarning.mjWARN_BADQPOS),
+               int(mujoco.mjtWarning.mjWARN_BADQVEL)]
+        if self.batch is not None:
+            return np.any(self.batch.warning[:, bad, 1] > 0, axis=1)
+        return np.array([any(self.data.warning[i].number > 0 for i in bad)])
 
     def state(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Copies of (q, qd), shape (nsim, n) each."""

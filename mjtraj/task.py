@@ -81,3 +81,14 @@ class Task:
                 raise InvalidInputError(
                     f"{label}: joint '{joints.names[j]}' = {q[j]:.6g} rad is outside its range "
                     f"[{joints.lower[j]:.6g}, {joints.upper[j]:.6g}]")
+
+
+def random_task(rng: np.random.Generator, model: mujoco.MjModel, *, max_displacement: float, duration: float,
+                dt: float) -> Task:
+    """A start uniform in the joint ranges and a goal uniform in the ranges within +-max_displacement (rad) of
+    it, per joint: two draws of n uniforms from `rng`."""
+    joints = JointInfo.of(model)
+    q0 = rng.uniform(joints.lower, joints.upper)
+    low = np.maximum(joints.lower, q0 - max_displacement)
+    high = np.minimum(joints.upper, q0 + max_displacement)
+    return Task.create(q0, rng.uniform(low, high), duration, dt)

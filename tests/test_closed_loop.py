@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjtraj.closed_loop import ClosedLoop, LoopConfig
+from mjtraj.closed_loop import ClosedLoop
 from mjtraj.controller import PIDGains, control_law
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.feedforward import feedforward

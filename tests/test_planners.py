@@ -183,7 +183,7 @@ def test_optimal_infeasible_names_the_bound(model):
 
 
 def test_solver_failure_reports_status(model, task):
-    planner = make("optimal", osqp_settings={"max_iter": 3, "polishing": False})
+    planner = make("optimal", solver="osqp", osqp_settings={"max_iter": 3, "polishing": False})
     from mjtraj.exceptions import SolverError
 
     with pytest.raises(SolverError, match=r"^OSQP did not solve the QP: status 'maximum iterations reached' after 3 "

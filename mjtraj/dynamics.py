@@ -1,0 +1,92 @@
+"""Batched rigid-body dynamics of the nominal model on mujoco.batch.Batch: forward accelerations, the feedforward
+torque ID(q, qd, qdd) - G(q), and gravity, for many states in one call."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from mujoco.batch import Batch
+from numpy.typing import NDArray
+
+CHUNK = 4096
+"""Most states evaluated per Batch call (bounds the probe's memory; any size gives the same numbers)."""
+
+
+class DynamicsProbe:
+    """Evaluates `model` at many states: arrays of shape (rows, n) in, (rows, n) out, `size` states per call.
+
+    Each call runs MuJoCo's own pipeline per state (mj_forward up to the needed stage) on a Batch, so
+    the numbers equal those of a loop over MjData (tested against mj_inverse and mj_forward).
+    """
+
+    def __init__(self, model: mujoco.MjModel, *, size: int = CHUNK, nthread: int = 1) -> None:
+        self.model = model
+        self.n = model.nv
+        self.size = max(1, min(int(size), CHUNK))
+        self._batch = Batch(model, self.size, nthread=nthread)
+        bind = self._batch.bind
+        self._qpos, self._qvel, self._ctrl = bind("qpos"), bind("qvel"), bind("ctrl")
+        self._qacc, self._bias, self._passive = bind("qacc"), bind("qfrc_bias"), bind("qfrc_passive")
+        self._gravcomp, self._M = bind("qfrc_gravcomp"), bind("M")
+        rows, cols, index = [], [], []  # the dense D(q) from MuJoCo's lower-triangular CSR `M`
+        for i in range(model.nv):
+            start = model.M_rowadr[i]
+            for a in range(start, start + model.M_rownnz[i]):
+                j = model.M_colind[a]
+                rows += [i, j]
+                cols += [j, i]
+                index += [a, a]
+        self._dense = (np.array(rows), np.array(cols), np.array(index))
+
+    def _chunks(self, *arrays: NDArray[np.float64]):
+        rows = arrays[0].shape[0]
+        for start in range(0, rows, self.size):
+            stop = min(start + self.size, rows)
+            yield slice(start, stop), np.arange(stop - start), tuple(a[start:stop] for a in arrays)
+
+    def accelerations(self, q: NDArray[np.float64], qd: NDArray[np.float64], u: NDArray[np.float64]
+                      ) -> NDArray[np.float64]:
+        """qacc of the gravity-compensated model under corrective torque u (ctrl); shapes (rows, n)."""
+        out = np.empty_like(q)
+        for rows, ids, (qc, qdc, uc) in self._chunks(q, qd, u):
+            self._qpos[ids], self._qvel[ids], self._ctrl[ids] = qc, qdc, uc
+            self._batch.forward(ids=ids, stage=mujoco.mjtStage.mjSTAGE_ACC)
+            out[rows] = self._qacc[ids]
+        return out
+
+    def mass_matrices(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """D(q), shape (rows, n, n), kg m^2."""
+        out = np.empty((q.shape[0], self.n, self.n))
+        i, j, a = self._dense
+        for rows, ids, (qc,) in self._chunks(q):
+            self._qpos[ids] = qc
+            self._batch.forward(ids=ids, stage=mujoco.mjtStage.mjSTAGE_POS)
+            out[rows, i, j] = self._M[ids][:, a]
+        return out
+
+    def inverse(self, q: NDArray[np.float64], qd: NDArray[np.float64], qdd: NDArray[np.float64]
+                ) -> NDArray[np.float64]:
+        """ID(q, qd, qdd) - G(q) = D(q) qdd + C(q, qd) qd - passive forces, N m; shapes (rows, n).
+
+        This is mj_inverse's qfrc_inverse minus qfrc_gravcomp, for a model without constraints.
+        """
+        out = np.empty_like(q)
+        i, j, a = self._dense
+        for rows, ids, (qc, qdc, qddc) in self._chunks(q, qd, qdd):
+            self._qpos[ids], self._qvel[ids] = qc, qdc
+            self._batch.forward(ids=ids, stage=mujoco.mjtStage.mjSTAGE_VEL)
+            D = np.zeros((ids.size, self.n, self.n))
+            D[:, i, j] = self._M[ids][:, a]
+            out[rows] = (np.einsum("bij,bj->bi", D, qddc) + self._bias[ids] - self._passive[ids]
+                         - self._gravcomp[ids])
+        return out
+
+    def gravity(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """G(q), the torque that holds the poses q still, N m; shapes (rows, n)."""
+        zero = np.zeros_like(q)
+        out = np.empty_like(q)
+        for rows, ids, (qc,) in self._chunks(q):
+            self._qpos[ids], self._qvel[ids] = qc, zero[: ids.size]
+            self._batch.forward(ids=ids, stage=mujoco.mjtStage.mjSTAGE_VEL)
+            out[rows] = self._bias[ids]
+        return out
