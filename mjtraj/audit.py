@@ -17,10 +17,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.exceptions import InvalidInputError
+from mjtraj.families import FAMILIES
 from mjtraj.metrics import METRIC_NAMES
 from mjtraj.report import PAPER_TABLE
 from mjtraj.stats import PairedRatio, cvar, paired_ratio
-from mjtraj.sweep_file import numeric, read_rows
+from mjtraj.sweep_file import VERSION_COLUMNS, numeric, read_rows
 
 CLASSICAL = ("cubic", "quintic", "trapezoidal")
 LARGE_MOTION = 1.0
@@ -55,17 +56,18 @@ class SweepData:
         if missing:
             raise InvalidInputError(f"sweep: not a sweep results file (missing columns {', '.join(missing)})")
         self.rows = rows
-        self.versions = {k: rows[0][k] for k in ("mjtraj", "mujoco", "numpy")}
+        self.versions = {k: rows[0][k] for k in VERSION_COLUMNS}
         self.settings = {k: v for k, v in rows[0].items() if k.startswith("sweep_") or k in ("sensor_noise", "delay")}
-        self.conditions = sorted({Condition(r["family"], r["ff_accel"], r["gravity_comp"]) for r in rows},
-                                 key=lambda c: (("nominal", "aggressive", "mismatch").index(c.family)
-                                                if c.family in ("nominal", "aggressive", "mismatch") else 9,
-                                                c.ff_accel, c.gravity_comp))
+        by_condition: dict[Condition, list[dict[str, str]]] = {}
+        for r in rows:
+            by_condition.setdefault(Condition(r["family"], r["ff_accel"], r["gravity_comp"]), []).append(r)
+        order = {family: k for k, family in enumerate(FAMILIES)}
+        self.conditions = sorted(by_condition, key=lambda c: (order.get(c.family, len(order)), c.ff_accel,
+                                                               c.gravity_comp))
         self.planners = list(dict.fromkeys(r["planner"] for r in rows))
         self._tables: dict[Condition, dict[str, dict[str, NDArray[np.float64]]]] = {}
         for c in self.conditions:
-            chosen = [r for r in rows if (r["family"], r["ff_accel"], r["gravity_comp"]) ==
-                      (c.family, c.ff_accel, c.gravity_comp)]
+            chosen = by_condition[c]
             scenarios = sorted({int(r["scenario"]) for r in chosen})
             where = {s: i for i, s in enumerate(scenarios)}
             table: dict[str, dict[str, NDArray[np.float64]]] = {}

@@ -19,12 +19,32 @@ BACKENDS = ("local", "ray")
 
 
 def _run(settings_dict: dict[str, Any], unit: tuple[str, int]) -> UnitResult:
-    """run_unit from plain data (what crosses process and machine boundaries)."""
-    return run_unit(SweepSettings(**_settings_args(settings_dict)), unit)
+    """run_unit from plain data (what crosses process and machine boundaries, pickled)."""
+    return run_unit(SweepSettings(**settings_dict), unit)
 
 
-def _settings_args(data: dict[str, Any]) -> dict[str, Any]:
-    return {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+def _import_ray():  # noqa: ANN202
+    try:
+        import ray
+    except ImportError as e:
+        raise BackendError("backend 'ray' needs Ray: pip install 'mjtraj[ray]'") from e
+    return ray
+
+
+def check_backend(backend: str, ray_address: str | None) -> None:
+    """Everything about the backend that can be checked before a file is written.
+
+    Raises:
+      InvalidInputError: unknown backend, or a Ray address without the Ray backend.
+      BackendError: Ray is not installed, or nothing answers at `ray_address` (see check_ray_address).
+    """
+    if backend not in BACKENDS:
+        raise InvalidInputError(f"backend: unknown value {backend!r}; valid: {', '.join(BACKENDS)}")
+    if backend == "local" and ray_address is not None:
+        raise InvalidInputError("ray_address: only meaningful with --backend ray")
+    if backend == "ray":
+        _import_ray()
+        check_ray_address(ray_address)
 
 
 def local_map(settings: SweepSettings, units: Sequence[tuple[str, int]], workers: int) -> Iterator[UnitResult]:
@@ -71,11 +91,7 @@ def ray_map(settings: SweepSettings, units: Sequence[tuple[str, int]], address: 
             workers: int) -> Iterator[UnitResult]:
     """Units as Ray tasks (one CPU each) on the cluster at `address` (None: a local instance with `workers`
     CPUs), results in order. The cluster's nodes need mjtraj installed, at this version."""
-    try:
-        import ray
-    except ImportError as e:
-        raise BackendError("backend 'ray' needs Ray: pip install 'mjtraj[ray]'") from e
-    check_ray_address(address)
+    ray = _import_ray()
     started = not ray.is_initialized()
     if started:
         try:
@@ -100,11 +116,8 @@ def ray_map(settings: SweepSettings, units: Sequence[tuple[str, int]], address: 
 
 def backend_map(backend: str, settings: SweepSettings, units: Sequence[tuple[str, int]], *, workers: int,
                 ray_address: str | None = None) -> Iterator[UnitResult]:
-    """The results of `units` on `backend`, in order."""
-    if backend not in BACKENDS:
-        raise InvalidInputError(f"backend: unknown value {backend!r}; valid: {', '.join(BACKENDS)}")
+    """The results of `units` on `backend`, in order. Call `check_backend` first: here a bad backend or address
+    shows only when the iteration starts."""
     if backend == "local":
-        if ray_address is not None:
-            raise InvalidInputError("ray_address: only meaningful with --backend ray")
         return local_map(settings, units, workers)
     return ray_map(settings, units, ray_address, workers)

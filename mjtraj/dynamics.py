@@ -54,16 +54,6 @@ class DynamicsProbe:
             out[rows] = self._qacc[ids]
         return out
 
-    def mass_matrices(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
-        """D(q), shape (rows, n, n), kg m^2."""
-        out = np.empty((q.shape[0], self.n, self.n))
-        i, j, a = self._dense
-        for rows, ids, (qc,) in self._chunks(q):
-            self._qpos[ids] = qc
-            self._batch.forward(ids=ids, stage=mujoco.mjtStage.mjSTAGE_POS)
-            out[rows, i, j] = self._M[ids][:, a]
-        return out
-
     def inverse(self, q: NDArray[np.float64], qd: NDArray[np.float64], qdd: NDArray[np.float64]
                 ) -> NDArray[np.float64]:
         """ID(q, qd, qdd) - G(q) = D(q) qdd + C(q, qd) qd - passive forces, N m; shapes (rows, n).

@@ -44,6 +44,7 @@ from mjtraj.planners.optimal import bryson_weights
 from mjtraj.plant import GRAVITY_COMP
 from mjtraj.reference import Reference
 from mjtraj.scenario import Scenario, load_scenario
+from mjtraj.sweep_file import VERSION_COLUMNS
 
 DEFAULT_PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
@@ -146,10 +147,11 @@ class SweepSettings:
 
 
 def versions() -> dict[str, str]:
-    """The versions every row records."""
-    from mjtraj import __version__
+    """The versions every row records: mjtraj, mujoco and numpy of `mjtraj.compare.versions`."""
+    from mjtraj.compare import versions as all_versions
 
-    return {"mjtraj": __version__, "mujoco": mujoco.__version__, "numpy": np.__version__}
+    every = all_versions()
+    return {name: every[name] for name in VERSION_COLUMNS}
 
 
 @dataclass
@@ -222,7 +224,8 @@ def run_unit(settings: SweepSettings, unit: tuple[str, int]) -> UnitResult:
     try:
         rows = _unit_rows(settings, unit, model, scenarios, weights, seconds)
     except Exception as e:  # noqa: BLE001 - recorded, and the sweep goes on
-        rows = [_row(settings, family, u, s, planner, ff, gc, "error", _one_line(e), {}, {})
+        fixed = fixed_columns(settings)
+        rows = [_row(fixed, family, u, s, planner, ff, gc, "error", _one_line(e), {}, {})
                 for s in scenarios
                 for ff in settings.ff_accel for gc in settings.gravity_comp for planner in settings.planners]
     return UnitResult(unit, rows, seconds)
@@ -240,8 +243,7 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], model: mujoco.MjM
             if isinstance(ref, Reference) and ref.u_plan is not None:
                 extras[(b, name)] = {"plan_effort": float(np.sqrt(np.mean(np.square(ref.u_plan))))}
     if settings.model_error:
-        with_plan = [(b, name) for (b, name) in extras]
-        for group in _by_steps([(key, plans[key[1]][key[0]]) for key in with_plan]):
+        for group in _by_steps([(key, plans[key[1]][key[0]]) for key in extras]):
             errors = _model_errors(model, [ref for _, ref in group])
             for (key, _), value in zip(group, errors, strict=True):
                 extras[key]["model_error"] = float(value)
@@ -286,6 +288,7 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], model: mujoco.MjM
                         outcome[(b, name, ff, gc)] = ("ok", "", values)
                 seconds["metrics"] += time.perf_counter() - clock
     rows = []
+    fixed = fixed_columns(settings)
     for b, s in enumerate(scenarios):
         for ff in settings.ff_accel:
             for gc in settings.gravity_comp:
@@ -293,11 +296,11 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], model: mujoco.MjM
                     plan = plans[name][b]
                     if isinstance(plan, MjtrajError):
                         status = "infeasible" if isinstance(plan, InfeasibleError) else "solver_error"
-                        rows.append(_row(settings, family, u, s, name, ff, gc, status, _one_line(plan),
+                        rows.append(_row(fixed, family, u, s, name, ff, gc, status, _one_line(plan),
                                          {}, {}))
                         continue
                     status, reason, values = outcome[(b, name, ff, gc)]
-                    rows.append(_row(settings, family, u, s, name, ff, gc, status, reason, values,
+                    rows.append(_row(fixed, family, u, s, name, ff, gc, status, reason, values,
                                      {**extras.get((b, name), {}), "solver": plan.info.get("solver", "")}))
     return rows
 
@@ -315,7 +318,12 @@ COLUMNS: tuple[str, ...] = ()
 """Filled below: the columns of a results file, in order."""
 
 
-def _row(settings: SweepSettings, family: str, unit: int, s: FamilyScenario, planner: str, ff: str, gc: str,
+def fixed_columns(settings: SweepSettings) -> dict[str, Any]:
+    """The columns every row of a sweep shares: its settings and the versions."""
+    return {**settings.record(), **versions()}
+
+
+def _row(fixed: dict[str, Any], family: str, unit: int, s: FamilyScenario, planner: str, ff: str, gc: str,
          status: str, reason: str, values: dict[str, float],
          extra: dict[str, Any]) -> dict[str, Any]:
     task = s.task
@@ -333,6 +341,5 @@ def _row(settings: SweepSettings, family: str, unit: int, s: FamilyScenario, pla
     if s.perturbation is not None:
         pert = s.perturbation.as_dict()
     row.update(pert)
-    row.update(settings.record())
-    row.update(versions())
+    row.update(fixed)
     return row

@@ -8,11 +8,11 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mjtraj.backends import BACKENDS, backend_map, check_ray_address
-from mjtraj.exceptions import BackendError, InvalidInputError
-from mjtraj.families import FAMILIES, scenario
+from mjtraj.backends import backend_map, check_backend
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.families import scenario
 from mjtraj.model import load_model
-from mjtraj.sweep import SweepSettings, _row, versions
+from mjtraj.sweep import SweepSettings, _row, fixed_columns
 from mjtraj.sweep_file import ResultsFile
 
 
@@ -36,7 +36,7 @@ def columns(settings: SweepSettings) -> list[str]:
     model = load_model(dt=settings.base.task.dt)
     family = "mismatch"  # its rows carry every column
     probe = scenario(family, settings.seed, 0, model, settings.base.task.dt)
-    row = _row(settings, family, 0, probe, settings.planners[0], settings.ff_accel[0],
+    row = _row(fixed_columns(settings), family, 0, probe, settings.planners[0], settings.ff_accel[0],
                settings.gravity_comp[0], "ok", "", {}, {})
     return list(row)
 
@@ -53,22 +53,13 @@ def run_sweep(settings: SweepSettings, out: str | os.PathLike[str], *, resume: b
       InvalidInputError: unknown backend, or a file that cannot be resumed (see ResultsFile.open).
       BackendError: Ray missing or unreachable; raised before the file is touched.
     """
-    if backend not in BACKENDS:
-        raise InvalidInputError(f"backend: unknown value {backend!r}; valid: {', '.join(BACKENDS)}")
-    if backend == "ray":
-        try:
-            import ray  # noqa: F401
-        except ImportError as e:
-            raise BackendError("backend 'ray' needs Ray: pip install 'mjtraj[ray]'") from e
-        check_ray_address(ray_address)
-    elif ray_address is not None:
-        raise InvalidInputError("ray_address: only meaningful with --backend ray")
+    check_backend(backend, ray_address)  # before the file is touched
     workers = (os.cpu_count() or 1) if workers is None else workers
     if workers < 1:
         raise InvalidInputError(f"workers: expected a whole number >= 1, got {workers!r}")
     units = settings.units()
     unit_rows = {unit: settings.unit_rows(unit) for unit in units}
-    record = {**settings.record(), **versions()}
+    record = fixed_columns(settings)
     path = Path(out)
     fresh = not path.exists()
     results = ResultsFile.open(path, columns(settings), record, unit_rows, resume=resume)
@@ -103,4 +94,4 @@ def run_sweep(settings: SweepSettings, out: str | os.PathLike[str], *, resume: b
     return report
 
 
-__all__ = ["FAMILIES", "SweepReport", "columns", "run_sweep"]
+__all__ = ["SweepReport", "columns", "run_sweep"]

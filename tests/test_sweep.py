@@ -87,7 +87,7 @@ def test_unit_rows_are_deterministic_and_backend_independent(tmp_path):
     settings = SweepSettings(**SMALL)
     one, two = run_unit(settings, ("nominal", 1)), run_unit(settings, ("nominal", 1))
     assert one.rows == two.rows or all(
-        all((a[k] == b[k]) or (a[k] != a[k] and b[k] != b[k]) for k in a) for a, b in zip(one.rows, two.rows))
+        all((a[k] == b[k]) or (a[k] != a[k] and b[k] != b[k]) for k in a) for a, b in zip(one.rows, two.rows, strict=True))
     run_sweep(settings, tmp_path / "a.csv", workers=1, progress=False)
     run_sweep(settings, tmp_path / "b.csv", workers=2, progress=False)
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
