@@ -25,36 +25,50 @@ STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "r
 class TrackCore:
     """B tracking episodes advanced together: task sampling, planning, control, observation, reward."""
 
-    def __init__(self, settings: TrackSettings, num: int) -> None:
+    def __init__(self, settings: TrackSettings, num: int, loop: ClosedLoop | None = None) -> None:
+        """`loop`: a ClosedLoop of `num` simulations to drive instead of a new one on the nominal plant with
+        settings.loop (evaluation on perturbed plants builds its own)."""
         self.settings = settings
         self.num = num
         self.model = settings.model
-        self.loop = ClosedLoop(self.model, settings.loop, nsim=num)
+        if loop is not None and loop.nsim != num:
+            raise InvalidInputError(f"loop: expected a ClosedLoop of {num} simulations, got {loop.nsim}")
+        self.loop = loop if loop is not None else ClosedLoop(self.model, settings.loop, nsim=num)
         n = settings.n
         self.limit = np.tile(self.loop.limit, (num, 1))
-        self.fixed_reference = (settings.planner.plan(settings.fixed_task, self.model)
-                                if settings.fixed_task is not None else None)
+        task = settings.fixed_task
+        self.fixed = (settings.planner.plan(task, self.model), settings.weights(task)) if task is not None else None
         self.references: list[Reference | None] = [None] * num
         # weighted squares of [e, ed, dtau], summed row by row (a matrix product would round differently for
         # different B, and the vector env must equal single envs bit for bit)
-        self._weights = np.concatenate([settings.Q_exec, settings.R_exec])[None, :]
+        self._weights = np.zeros((num, 3 * n))
         self._split = 2 * n
         self._preview = np.arange(1, settings.preview + 1)
         N = settings.steps
         self._phase = np.repeat((np.arange(N + 1) / N)[:, None, None], num, axis=1)  # (N+1, B, 1)
 
-    def plan(self, rng: np.random.Generator) -> Reference:
-        """The reference of the next episode, planned for a task drawn from `rng` (fixed tasks: planned once)."""
-        if self.fixed_reference is not None:
-            return self.fixed_reference
-        return self.settings.planner.plan(self.settings.sample_task(rng), self.model)
+    def plan(self, rng: np.random.Generator) -> tuple[Reference, tuple[NDArray[np.float64], NDArray[np.float64]]]:
+        """The next episode's reference, planned for a task drawn from `rng` (fixed tasks: planned once), and the
+        diagonal weights (Q_exec (2n,), R_exec (n,)) that score it."""
+        if self.fixed is not None:
+            return self.fixed
+        task = self.settings.sample_task(rng)
+        return self.settings.planner.plan(task, self.model), self.settings.weights(task)
 
     def reset(self, rngs: Sequence[np.random.Generator], ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
         """Start new episodes on simulations `ids` (all if None), one rng each; their observations (len, d)."""
+        planned = [self.plan(rng) for rng in rngs]
+        return self.begin([ref for ref, _ in planned], [w for _, w in planned], ids)
+
+    def begin(self, references: Sequence[Reference],
+              weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
+              ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+        """Start episodes tracking `references` on simulations `ids` (all if None), scored with `weights`
+        ((2n,), (n,) diagonals, one pair each); their observations (len, d)."""
         rows = np.arange(self.num) if ids is None else ids
-        references = [self.plan(rng) for rng in rngs]
-        for row, reference in zip(rows, references):
+        for row, reference, (q_diag, r_diag) in zip(rows, references, weights, strict=True):
             self.references[row] = reference
+            self._weights[row] = np.concatenate([q_diag, r_diag])
         self.loop.start(references, ids)
         return self.observe()[rows]
 
@@ -121,7 +135,8 @@ class TrackCore:
     def metrics(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
         """The episode Metrics of simulations `ids` (NaN for a diverged one): name -> shape (len(ids),)."""
         rollout = self.loop.rollout(ids)
-        arrays = metrics_arrays(rollout, self.settings.Q_exec, self.settings.R_exec)
+        weights = self._weights[ids]
+        arrays = metrics_arrays(rollout, weights[:, :self._split], weights[:, self._split:], per_scenario=True)
         return {name: np.where(rollout.diverged, np.nan, arrays[name]) for name in METRIC_NAMES}
 
     def reference_pose(self, row: int) -> NDArray[np.float64]:

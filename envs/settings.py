@@ -13,8 +13,9 @@ from numpy.typing import NDArray
 from mjtraj._validate import choice, frozen, positive, vector
 from mjtraj.closed_loop import LoopConfig
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.model import load_model
+from mjtraj.model import JointInfo, load_model
 from mjtraj.planners import Planner, available
+from mjtraj.planners.optimal import bryson_weights
 from mjtraj.render import check_render_options
 from mjtraj.scenario import Scenario, load_scenario
 from mjtraj.task import Task, random_task
@@ -25,7 +26,8 @@ RENDER_MODES = ("rgb_array",)
 
 @dataclass(frozen=True)
 class TrackSettings:
-    """Everything an env instance needs, validated. Weights are diagonals: Q_exec (2n,), R_exec (n,)."""
+    """Everything an env instance needs, validated. Weights are diagonals: Q_exec (2n,), R_exec (n,); None for
+    Bryson's rule on each episode's task (`weights`)."""
 
     model: mujoco.MjModel
     planner: Planner
@@ -39,8 +41,8 @@ class TrackSettings:
     dt: float
     loop: LoopConfig
     preview: int
-    Q_exec: NDArray[np.float64]
-    R_exec: NDArray[np.float64]
+    Q_exec: NDArray[np.float64] | None
+    R_exec: NDArray[np.float64] | None
     render_mode: str | None
     width: int
     height: int
@@ -61,6 +63,18 @@ class TrackSettings:
         """6n + 1 + 2n preview."""
         return 6 * self.n + 1 + 2 * self.n * self.preview
 
+    def weights(self, task: Task) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """diag(Q_exec) (2n,) and diag(R_exec) (n,) that score an episode of `task`: the given ones, else Bryson's
+        rule for the task (`mjtraj.planners.optimal.bryson_weights`), the rule sweeps score every scenario by. For
+        the paper task Bryson's rule gives the paper scenario's weights."""
+        q_rule, r_rule = bryson_weights(task, self.torque_limit)
+        return (q_rule if self.Q_exec is None else self.Q_exec), (r_rule if self.R_exec is None else self.R_exec)
+
+    @property
+    def torque_limit(self) -> NDArray[np.float64]:
+        """The corrective-torque saturation, shape (n,), N m."""
+        return JointInfo.of(self.model).torque_limit
+
     def sample_task(self, rng: np.random.Generator) -> Task:
         """The next episode's task: the fixed one, or for 'random' a start uniform in the joint ranges and a goal
         uniform in the ranges within +-max_displacement of it (two draws of n uniforms from `rng`)."""
@@ -76,9 +90,9 @@ def _count(name: str, value: int) -> int:
     return int(value)
 
 
-def _weights(name: str, value: npt.ArrayLike | None, default: NDArray[np.float64], size: int) -> NDArray[np.float64]:
+def _weights(name: str, value: npt.ArrayLike | None, size: int) -> NDArray[np.float64] | None:
     if value is None:
-        return default
+        return None
     weights = vector(name, value, size)
     if np.any(weights < 0):
         raise InvalidInputError(f"{name}: expected {size} non-negative weights (a diagonal), got {weights.tolist()}")
@@ -92,7 +106,7 @@ def resolve(*, planner: str | Planner = "cubic", action_mode: str = "pid", task:
             Q_exec: npt.ArrayLike | None = None, R_exec: npt.ArrayLike | None = None,
             render_mode: str | None = None, width: int = 640, height: int = 480, camera: str = "front",
             scenario: Scenario | None = None) -> TrackSettings:
-    """Validate the env's arguments (see UR5TrackEnv) and fill in the paper scenario's gains and weights."""
+    """Validate the env's arguments (see UR5TrackEnv) and fill in the paper scenario's controller."""
     paper = scenario if scenario is not None else load_scenario()
     if isinstance(planner, str):
         if planner not in available():
@@ -129,6 +143,6 @@ def resolve(*, planner: str | Planner = "cubic", action_mode: str = "pid", task:
         fixed_task=fixed, max_displacement=positive("max_displacement", max_displacement),
         duration=float(duration), dt=float(dt), loop=loop,
         preview=_count("preview", preview),
-        Q_exec=_weights("Q_exec", Q_exec, paper.Q_exec, 2 * n), R_exec=_weights("R_exec", R_exec, paper.R_exec, n),
+        Q_exec=_weights("Q_exec", Q_exec, 2 * n), R_exec=_weights("R_exec", R_exec, n),
         render_mode=render_mode, **dict(zip(("width", "height", "camera"),
-                                            check_render_options(model, width, height, camera))))
+                                            check_render_options(model, width, height, camera), strict=True)))

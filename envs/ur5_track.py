@@ -81,7 +81,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     ## Rewards
     r_k = reward_tracking + reward_effort = -(x_k^T Q_exec x_k) - (dtau_k^T R_exec dtau_k), x_k = [e_k; ed_k] the
     error before control in period k. The return of an episode is therefore -J_exec, the executed cost the
-    planners are scored on (Q_exec, R_exec diagonal; default: the paper scenario's).
+    planners are scored on (Q_exec, R_exec diagonal). By default both follow Bryson's rule for the episode's task,
+    as sweeps score every scenario: 1/move^2 on positions (move = the largest joint displacement), 1/pi^2 on
+    velocities, 1/60^2 on torques; for the paper task these are the paper scenario's weights.
 
     ## Starting State
     The arm rests on the reference's first sample (q0, zero velocity), with the integral of the PID at zero.
@@ -116,8 +118,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | gravity_comp     | "native"   | native or zoh                                                           |
     | anti_windup      | "none"     | none or clamp                                                           |
     | preview          | 0          | future reference samples in the observation                             |
-    | Q_exec           | None       | diag of Q_exec, 6 weights (None: the paper scenario's)                  |
-    | R_exec           | None       | diag of R_exec, 3 weights (None: the paper scenario's)                  |
+    | Q_exec           | None       | diag of Q_exec, 6 weights (None: Bryson's rule for each task)           |
+    | R_exec           | None       | diag of R_exec, 3 weights (None: Bryson's rule)                         |
     | render_mode      | None       | None or "rgb_array"                                                     |
     | width            | 640        | image width, px                                                         |
     | height           | 480        | image height, px                                                        |

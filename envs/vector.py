@@ -19,6 +19,8 @@ from mjtraj.exceptions import InvalidInputError
 from mjtraj.planners import Planner
 from mjtraj.render import ArmRenderer
 
+AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+
 
 class UR5TrackVectorEnv(VectorEnv):
     """`num_envs` copies of UR5TrackEnv (same arguments, documented there) stepped as one batch.
@@ -26,8 +28,11 @@ class UR5TrackVectorEnv(VectorEnv):
     Autoreset follows Gymnasium 1.x's default, `AutoresetMode.NEXT_STEP`: the step that ends a sub-env's
     episode returns its final observation with terminated (or truncated) set; the next `step` call resets that
     sub-env instead of stepping it (its action is ignored) and returns the new episode's first observation with
-    reward 0 and terminated = truncated = False. `info["metrics"]` (name -> (num_envs,) array, with the mask
-    `info["_metrics"]`) carries the Metrics of the episodes that ended in that step.
+    reward 0 and terminated = truncated = False. With `autoreset_mode=AutoresetMode.SAME_STEP` (what
+    Stable-Baselines3 expects) the ending step already returns the new episode's first observation, and the final
+    one is in `info["final_obs"]` (an object array with the mask `info["_final_obs"]`). In both modes
+    `info["metrics"]` (name -> (num_envs,) array, with the mask `info["_metrics"]`) carries the Metrics of the
+    episodes that ended in that step, and `info["diverged"]` whether they diverged.
 
     Seeding: `reset(seed=s)` seeds sub-env i with s + i (a list gives one seed each), so sub-env i reproduces
     `UR5TrackEnv` reset with seed s + i bit for bit, later episodes included. `max_episode_steps` (set by
@@ -42,7 +47,8 @@ class UR5TrackVectorEnv(VectorEnv):
                  feedforward: str = "inverse", ff_accel: str = "sample", gravity_comp: str = "native",
                  anti_windup: str = "none", preview: int = 0, Q_exec: npt.ArrayLike | None = None,
                  R_exec: npt.ArrayLike | None = None, render_mode: str | None = None, width: int = 640,
-                 height: int = 480, camera: str = "front", max_episode_steps: int | None = None) -> None:
+                 height: int = 480, camera: str = "front", max_episode_steps: int | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP) -> None:
         self.settings = resolve(planner=planner, action_mode=action_mode, task=task, q0=q0, qg=qg,
                                 max_displacement=max_displacement, duration=duration, dt=dt, feedforward=feedforward,
                                 ff_accel=ff_accel, gravity_comp=gravity_comp, anti_windup=anti_windup,
@@ -51,8 +57,14 @@ class UR5TrackVectorEnv(VectorEnv):
         self.num_envs = positive_int("num_envs", num_envs)
         self.max_episode_steps = None if max_episode_steps is None else positive_int("max_episode_steps",
                                                                                       max_episode_steps)
+        modes = {m.value: m for m in AUTORESET_MODES}
+        mode = autoreset_mode.value if isinstance(autoreset_mode, AutoresetMode) else autoreset_mode
+        if mode not in modes:
+            raise InvalidInputError(f"autoreset_mode: expected one of {', '.join(modes)}, got {autoreset_mode!r}")
+        self.autoreset_mode = modes[mode]
         self.render_mode = render_mode
-        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.settings.dt)}
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.settings.dt),
+                         "autoreset_mode": self.autoreset_mode}
         self.single_observation_space = observation_space(self.settings)
         self.single_action_space = action_space(self.settings)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -114,6 +126,16 @@ class UR5TrackVectorEnv(VectorEnv):
             reward[restart] = 0.0
             terminated[restart] = False
             self._elapsed[restart] = 0
+        if self.autoreset_mode is AutoresetMode.SAME_STEP:
+            if done.any():
+                ended = np.flatnonzero(done)
+                final = np.full(self.num_envs, None, dtype=object)
+                for i in ended:
+                    final[i] = obs[i].copy()
+                out["final_obs"], out["_final_obs"] = final, done.copy()
+                obs[ended] = self._core.reset([self._rngs[i] for i in ended], ended)
+                self._elapsed[ended] = 0
+            return obs, reward, terminated, truncated, out
         self._autoreset = done
         return obs, reward, terminated, truncated, out
 

@@ -11,6 +11,7 @@ from mjtraj.exceptions import (
     BackendError,
     InfeasibleError,
     InvalidInputError,
+    MissingExtraError,
     MjtrajError,
     ModelError,
     RenderError,
@@ -32,8 +33,8 @@ register_envs()  # gym.make("UR5Track-v0") after `import mjtraj`
 __version__ = "0.1.0"
 
 __all__ = [
-    "ENV_ID", "BackendError", "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig", "Metrics",
-    "MjtrajError", "ModelError", "PIDGains", "Planner", "Reference", "RenderError", "Rollout", "Scenario",
-    "SolverError", "SweepSettings", "Task", "__version__", "available", "compare", "control_law", "load_model", "load_scenario",
-    "make", "metrics", "run_sweep",
+    "ENV_ID", "BackendError", "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig",
+    "Metrics", "MissingExtraError", "MjtrajError", "ModelError", "PIDGains", "Planner", "Reference", "RenderError",
+    "Rollout", "Scenario", "SolverError", "SweepSettings", "Task", "__version__", "available", "compare",
+    "control_law", "load_model", "load_scenario", "make", "metrics", "run_sweep",
 ]

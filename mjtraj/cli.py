@@ -101,6 +101,40 @@ def _parser() -> argparse.ArgumentParser:
 
     sub.add_parser("doctor", help="which OpenGL backends render here, and the library versions")
 
+    rl = sub.add_parser("rl", help="RL tracking policies (the rl extra): train on UR5Track-v0, evaluate against "
+                        "the planners")
+    rl_sub = rl.add_subparsers(dest="rl_command", required=True, parser_class=_Parser)
+    t = rl_sub.add_parser("train", help="train an SB3 agent on the vectorised env; checkpoints, learning curve, "
+                          "run.json")
+    t.add_argument("--algo", default="sac", help="sac | ppo | td3 (default sac)")
+    t.add_argument("--action-mode", dest="action_mode", default="residual",
+                   help="residual (added to feedforward + PID) | torque (the whole corrective torque); default "
+                   "residual")
+    t.add_argument("--planner", default="cubic", help="planner whose references the policy tracks (default cubic)")
+    t.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
+    t.add_argument("--steps", type=int, default=100_000, help="environment steps (default 100000)")
+    t.add_argument("--seed", type=int, default=0, help="the run's seed, 0 <= seed < 2^32 (default 0)")
+    t.add_argument("--num-envs", dest="num_envs", type=int, help="sub-envs (default: 4 for sac/td3, 8 for ppo)")
+    t.add_argument("--checkpoints", type=int, default=5, help="checkpoints along the run (default 5)")
+    t.add_argument("--evaluations", type=int, default=20, help="validation points of the learning curve (default 20)")
+    t.add_argument("--validation", type=int, default=32, help="validation tasks (default 32)")
+    t.add_argument("--threads", type=int, help="PyTorch CPU threads (default: all cores)")
+    t.add_argument("--out", type=Path, default=Path("runs/rl"), help="output folder (default runs/rl)")
+    t.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p = rl_sub.add_parser("plot", help="redraw a run's learning_curve.png from its learning_curve.csv (also of a run "
+                          "still going or interrupted)")
+    p.add_argument("run", type=Path, help="the folder rl train wrote")
+    e = rl_sub.add_parser("eval", help="policies and planners on the same held-out sweep scenarios: rows and a "
+                          "comparison table with 95 %% intervals")
+    e.add_argument("--policy", dest="policies", action="append", type=Path, required=True,
+                   help="a policy .zip written by rl train (repeat for several)")
+    e.add_argument("--family", default="nominal", help="nominal | aggressive | mismatch (default nominal)")
+    e.add_argument("--scenarios", type=int, default=200, help="held-out scenarios (default 200)")
+    e.add_argument("--seed", type=int, default=1, help="the scenarios' seed (default 1)")
+    e.add_argument("--planners", type=_names, help="planners with PID alone to compare (default: optimal, cubic, "
+                   "quintic, trapezoidal)")
+    e.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
+
     g = sub.add_parser("gains", help="derive the default PID gains and optimal weights by their stated rules")
     g.add_argument("--config", type=Path, help="scenario TOML whose task to use (default: the paper scenario)")
     return parser
@@ -312,13 +346,46 @@ def _gains(args: argparse.Namespace) -> int:
     return 0
 
 
+def _rl(args: argparse.Namespace) -> int:
+    from mjtraj.rl.extra import require_sb3
+
+    require_sb3()
+    if args.rl_command == "train":
+        from mjtraj.rl.train import TrainSettings, train
+
+        settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, planner=args.planner, task=args.task,
+                                 steps=args.steps, seed=args.seed, num_envs=args.num_envs,
+                                 checkpoints=args.checkpoints, evaluations=args.evaluations,
+                                 validation=args.validation, threads=args.threads)
+        report = train(settings, args.out, progress=not args.no_progress)
+        final = report.final
+        print(f"trained {report.timesteps} steps in {report.wall:.0f} s; validation mean J_exec "
+              f"{final['cost_mean']:.4g} (median {final['cost_median']:.4g}, {final['diverged']} diverged)")
+        print(f"wrote {report.policy}, {report.out / 'learning_curve.csv'}, {report.out / 'learning_curve.png'}, "
+              f"{report.out / 'run.json'} and {report.out / 'checkpoints'}/")
+        return 0
+    if args.rl_command == "plot":
+        from mjtraj.rl.train import plot_run
+
+        print(f"wrote {plot_run(args.run)}")
+        return 0
+    from mjtraj.rl.evaluate import evaluate
+    from mjtraj.sweep import DEFAULT_PLANNERS
+
+    report = evaluate(args.policies, family=args.family, scenarios=args.scenarios, seed=args.seed,
+                      planners=tuple(args.planners or DEFAULT_PLANNERS), out=args.out)
+    print(report.table)
+    print(f"\nwrote {report.csv} and {report.markdown}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (2 on bad input, with a one-line message on stderr)."""
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         commands = {"compare": _compare, "bench": _bench, "gains": _gains, "render": _render, "doctor": _doctor,
-                    "sweep": _sweep, "audit": _audit}
+                    "sweep": _sweep, "audit": _audit, "rl": _rl}
         return commands[args.command](args)
     except MjtrajError as e:
         print(f"mjtraj: error: {e}", file=sys.stderr)

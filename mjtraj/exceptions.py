@@ -27,9 +27,13 @@ class BackendError(MjtrajError):
     """A compute backend (a Ray cluster) is unavailable or unreachable."""
 
 
+class MissingExtraError(MjtrajError, ImportError):
+    """An optional extra (such as `rl`) that a feature needs is not installed; the message says how to get it."""
+
+
 class RenderError(MjtrajError):
     """Off-screen rendering is unavailable or misconfigured."""
 
 
-__all__ = ["BackendError", "InfeasibleError", "InvalidInputError", "MjtrajError", "ModelError", "RenderError",
-           "SolverError"]
+__all__ = ["BackendError", "InfeasibleError", "InvalidInputError", "MissingExtraError", "MjtrajError", "ModelError",
+           "RenderError", "SolverError"]

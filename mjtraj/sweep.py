@@ -163,7 +163,8 @@ class UnitResult:
     seconds: dict[str, float]
 
 
-def _planner(settings: SweepSettings, name: str) -> Planner:
+def planner_for(settings: SweepSettings, name: str) -> Planner:
+    """The planner (or variant) `name` with the base scenario's options and Bryson's rule for its weights."""
     registered, extra = VARIANTS.get(name, (name, {}))
     options = dict(settings.base.planner_options.get(registered, {}))
     if registered == "optimal":
@@ -172,12 +173,14 @@ def _planner(settings: SweepSettings, name: str) -> Planner:
     return make(registered, **{**options, **extra})
 
 
-def _plan(settings: SweepSettings, scenarios: Sequence[FamilyScenario], model: mujoco.MjModel
-          ) -> dict[str, list[Reference | MjtrajError]]:
+def plan_scenarios(settings: SweepSettings, scenarios: Sequence[FamilyScenario], model: mujoco.MjModel,
+                   planners: Sequence[str] | None = None) -> dict[str, list[Reference | MjtrajError]]:
+    """Each planner's reference for each scenario, or the MjtrajError its planning raised (`planners`: default
+    the settings' own)."""
     plans: dict[str, list[Reference | MjtrajError]] = {}
     tasks = [s.task for s in scenarios]
-    for name in settings.planners:
-        planner = _planner(settings, name)
+    for name in settings.planners if planners is None else planners:
+        planner = planner_for(settings, name)
         if hasattr(planner, "plan_many"):
             plans[name] = planner.plan_many(tasks, model)
             continue
@@ -191,7 +194,8 @@ def _plan(settings: SweepSettings, scenarios: Sequence[FamilyScenario], model: m
     return plans
 
 
-def _one_line(error: BaseException) -> str:
+def one_line(error: BaseException) -> str:
+    """An error as one line: 'Type: message'."""
     return " ".join(f"{type(error).__name__}: {error}".split())
 
 
@@ -206,26 +210,36 @@ def _model_errors(model: mujoco.MjModel, refs: list[Reference]) -> np.ndarray:
     return np.where(rollout.diverged, np.inf, out)
 
 
+def unit_scenarios(settings: SweepSettings, unit: tuple[str, int], model: mujoco.MjModel) -> list[FamilyScenario]:
+    """The scenarios of unit `unit` = (family, index): [index * batch, (index + 1) * batch) of the family."""
+    family, u = unit
+    first = u * settings.batch
+    return [scenario(family, settings.seed, i, model, settings.base.task.dt)
+            for i in range(first, min(first + settings.batch, settings.scenarios))]
+
+
+def scoring_weights(scenarios: Sequence[FamilyScenario], model: mujoco.MjModel
+                    ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """diag(Q_exec) (2n,) and diag(R_exec) (n,) of each scenario: Bryson's rule for its task."""
+    limit = JointInfo.of(model).torque_limit
+    return [bryson_weights(s.task, limit) for s in scenarios]
+
+
 def run_unit(settings: SweepSettings, unit: tuple[str, int]) -> UnitResult:
     """Compute unit `unit` = (family, index): plan, execute, score. Never raises for a scenario's failure: a
     failed plan, a divergence or an unexpected error becomes that row's status and reason."""
     seconds = {"sample": 0.0, "plan": 0.0, "execute": 0.0, "metrics": 0.0}
     clock = time.perf_counter()
     family, u = unit
-    base = settings.base
-    dt = base.task.dt
-    model = load_model(dt=dt)
-    first = u * settings.batch
-    indices = range(first, min(first + settings.batch, settings.scenarios))
-    scenarios = [scenario(family, settings.seed, i, model, dt) for i in indices]
-    limit = JointInfo.of(model).torque_limit
-    weights = [bryson_weights(s.task, limit) for s in scenarios]
+    model = load_model(dt=settings.base.task.dt)
+    scenarios = unit_scenarios(settings, unit, model)
+    weights = scoring_weights(scenarios, model)
     seconds["sample"] += time.perf_counter() - clock
     try:
         rows = _unit_rows(settings, unit, model, scenarios, weights, seconds)
     except Exception as e:  # noqa: BLE001 - recorded, and the sweep goes on
         fixed = fixed_columns(settings)
-        rows = [_row(fixed, family, u, s, planner, ff, gc, "error", _one_line(e), {}, {})
+        rows = [make_row(fixed, family, u, s, planner, ff, gc, "error", one_line(e), {}, {})
                 for s in scenarios
                 for ff in settings.ff_accel for gc in settings.gravity_comp for planner in settings.planners]
     return UnitResult(unit, rows, seconds)
@@ -236,14 +250,14 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], model: mujoco.MjM
                seconds: dict[str, float]) -> list[dict[str, Any]]:
     family, u = unit
     clock = time.perf_counter()
-    plans = _plan(settings, scenarios, model)
+    plans = plan_scenarios(settings, scenarios, model)
     extras: dict[tuple[int, str], dict[str, float]] = {}
     for name, refs in plans.items():
         for b, ref in enumerate(refs):
             if isinstance(ref, Reference) and ref.u_plan is not None:
                 extras[(b, name)] = {"plan_effort": float(np.sqrt(np.mean(np.square(ref.u_plan))))}
     if settings.model_error:
-        for group in _by_steps([(key, plans[key[1]][key[0]]) for key in extras]):
+        for group in by_steps([(key, plans[key[1]][key[0]]) for key in extras]):
             errors = _model_errors(model, [ref for _, ref in group])
             for (key, _), value in zip(group, errors, strict=True):
                 extras[key]["model_error"] = float(value)
@@ -259,7 +273,7 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], model: mujoco.MjM
             config = LoopConfig(settings.base.loop.gains, feedforward=settings.base.loop.feedforward,
                                 ff_accel=ff, gravity_comp=gc, anti_windup=settings.base.loop.anti_windup,
                                 substeps=settings.base.loop.substeps, delay=settings.delay if mismatch else 0)
-            for group in _by_steps(live):
+            for group in by_steps(live):
                 clock = time.perf_counter()
                 keys = [key for key, _ in group]
                 refs = [ref for _, ref in group]
@@ -277,15 +291,8 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], model: mujoco.MjM
                 r_diag = np.array([weights[b][1] for b, _ in keys])
                 arrays = metrics_arrays(rollout, q_diag, r_diag, per_scenario=True)
                 for j, (b, name) in enumerate(keys):
-                    values = {m: float(arrays[m][j]) for m in METRIC_NAMES}
-                    if unstable[j]:
-                        outcome[(b, name, ff, gc)] = ("unstable", "MuJoCo flagged the simulation numerically "
-                                                      "unstable (bad qacc/qpos/qvel)", {})
-                    elif rollout.diverged[j]:
-                        outcome[(b, name, ff, gc)] = ("diverged", f"|e| > {config.divergence_bound:.4g} rad at "
-                                                      f"step {int(rollout.diverged_step[j])}", {})
-                    else:
-                        outcome[(b, name, ff, gc)] = ("ok", "", values)
+                    outcome[(b, name, ff, gc)] = episode_outcome(arrays, j, bool(unstable[j]),
+                                                                 int(rollout.diverged_step[j]), config)
                 seconds["metrics"] += time.perf_counter() - clock
     rows = []
     fixed = fixed_columns(settings)
@@ -295,17 +302,30 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], model: mujoco.MjM
                 for name in settings.planners:
                     plan = plans[name][b]
                     if isinstance(plan, MjtrajError):
-                        status = "infeasible" if isinstance(plan, InfeasibleError) else "solver_error"
-                        rows.append(_row(fixed, family, u, s, name, ff, gc, status, _one_line(plan),
-                                         {}, {}))
+                        rows.append(make_row(fixed, family, u, s, name, ff, gc, *plan_failure(plan), {}, {}))
                         continue
                     status, reason, values = outcome[(b, name, ff, gc)]
-                    rows.append(_row(fixed, family, u, s, name, ff, gc, status, reason, values,
+                    rows.append(make_row(fixed, family, u, s, name, ff, gc, status, reason, values,
                                      {**extras.get((b, name), {}), "solver": plan.info.get("solver", "")}))
     return rows
 
 
-def _by_steps(items: list[tuple[Any, Reference]]) -> Iterator[list[tuple[Any, Reference]]]:
+def episode_outcome(arrays: dict[str, np.ndarray], j: int, unstable: bool, diverged_step: int, config: LoopConfig
+                    ) -> tuple[str, str, dict[str, float]]:
+    """(status, reason, metric values) of episode j of a batch: unstable, diverged (no values) or ok."""
+    if unstable:
+        return "unstable", "MuJoCo flagged the simulation numerically unstable (bad qacc/qpos/qvel)", {}
+    if diverged_step >= 0:
+        return "diverged", f"|e| > {config.divergence_bound:.4g} rad at step {diverged_step}", {}
+    return "ok", "", {m: float(arrays[m][j]) for m in METRIC_NAMES}
+
+
+def plan_failure(plan: MjtrajError) -> tuple[str, str]:
+    """(status, reason) of a scenario whose planning failed."""
+    return ("infeasible" if isinstance(plan, InfeasibleError) else "solver_error"), one_line(plan)
+
+
+def by_steps(items: list[tuple[Any, Reference]]) -> Iterator[list[tuple[Any, Reference]]]:
     """Items grouped by their reference's N (one ClosedLoop runs references of one length)."""
     groups: dict[int, list[tuple[Any, Reference]]] = {}
     for key, ref in items:
@@ -323,7 +343,7 @@ def fixed_columns(settings: SweepSettings) -> dict[str, Any]:
     return {**settings.record(), **versions()}
 
 
-def _row(fixed: dict[str, Any], family: str, unit: int, s: FamilyScenario, planner: str, ff: str, gc: str,
+def make_row(fixed: dict[str, Any], family: str, unit: int, s: FamilyScenario, planner: str, ff: str, gc: str,
          status: str, reason: str, values: dict[str, float],
          extra: dict[str, Any]) -> dict[str, Any]:
     task = s.task

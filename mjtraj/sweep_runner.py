@@ -12,7 +12,7 @@ from mjtraj.backends import backend_map, check_backend
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.families import scenario
 from mjtraj.model import load_model
-from mjtraj.sweep import SweepSettings, _row, fixed_columns
+from mjtraj.sweep import SweepSettings, fixed_columns, make_row
 from mjtraj.sweep_file import ResultsFile
 
 
@@ -36,7 +36,7 @@ def columns(settings: SweepSettings) -> list[str]:
     model = load_model(dt=settings.base.task.dt)
     family = "mismatch"  # its rows carry every column
     probe = scenario(family, settings.seed, 0, model, settings.base.task.dt)
-    row = _row(fixed_columns(settings), family, 0, probe, settings.planners[0], settings.ff_accel[0],
+    row = make_row(fixed_columns(settings), family, 0, probe, settings.planners[0], settings.ff_accel[0],
                settings.gravity_comp[0], "ok", "", {}, {})
     return list(row)
 

@@ -63,14 +63,6 @@ def test_gymnasium_check_env_without_warnings(action_mode):
     env.close()
 
 
-def test_sb3_check_env():
-    sb3 = pytest.importorskip("stable_baselines3.common.env_checker", reason="stable-baselines3 comes with the rl "
-                              "extra (issue 5)")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        sb3.check_env(UR5TrackEnv(action_mode="residual", task="random"))
-
-
 @pytest.mark.parametrize("planner", ["optimal", "cubic", "quintic", "trapezoidal"])
 def test_pid_paper_episode_is_compare(planner, scenario):
     """One implementation: the env's episode metrics equal `mjtraj compare`'s, and the return is -J_exec."""
@@ -252,7 +244,7 @@ def test_docstring_arguments_table_matches_the_code():
     assert documented == code
     vector = inspect.signature(UR5TrackVectorEnv.__init__).parameters
     assert {n: repr(p.default).replace("'", '"') for n, p in vector.items()
-            if n not in ("self", "num_envs", "max_episode_steps")} == code
+            if n not in ("self", "num_envs", "max_episode_steps", "autoreset_mode")} == code
 
 
 def test_docstring_defaults_are_the_paper_scenario(scenario):
@@ -262,8 +254,28 @@ def test_docstring_defaults_are_the_paper_scenario(scenario):
     loop = scenario.loop
     assert (s.loop.feedforward, s.loop.ff_accel, s.loop.gravity_comp, s.loop.anti_windup) == (
         loop.feedforward, loop.ff_accel, loop.gravity_comp, loop.anti_windup)
-    np.testing.assert_array_equal(s.Q_exec, scenario.Q_exec)
-    np.testing.assert_array_equal(s.R_exec, scenario.R_exec)
+    assert s.Q_exec is None and s.R_exec is None  # Bryson's rule per task, which for the paper task is:
+    q_diag, r_diag = s.weights(s.fixed_task)
+    np.testing.assert_allclose(q_diag, scenario.Q_exec, rtol=1e-15)
+    np.testing.assert_allclose(r_diag, scenario.R_exec, rtol=1e-15)
+
+
+def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
+    """A random-task episode is scored with the weights a sweep scores its task with: 1/move^2 on the positions
+    (move = the task's largest joint displacement, taken here from the reference), 1/pi^2 on the velocities."""
+    env = UR5TrackEnv(task="random")
+    env.reset(seed=11)
+    ref = env.reference
+    move = np.max(np.abs(ref.q[-1] - ref.q[0]))
+    assert abs(move - 1.0) > 0.05  # weights that differ from the paper task's
+    total, done = 0.0, False
+    while not done:
+        _, reward, done, _, info = env.step(np.zeros(3, dtype=np.float32))
+        total += reward
+    e = info["e"]
+    ed = ref.qd[-2] - env.loop.rollout().qd[0, -1]  # the last period's velocity error
+    assert info["reward_tracking"] == pytest.approx(-(e @ e) / move**2 - (ed @ ed) / np.pi**2, rel=1e-9)
+    assert -total == pytest.approx(info["metrics"]["cost"], rel=1e-12)
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [

@@ -1,0 +1,14 @@
+"""Reinforcement-learning tracking policies on UR5Track-v0, trained and scored like the planners.
+
+Needs the `rl` extra (Stable-Baselines3 on CPU PyTorch); the modules import it only when called:
+- `train`: `train(TrainSettings, out)`, an SB3 agent on the natively vectorised env;
+- `evaluate`: `evaluate(policies, family, ...)`, policies and planners on the same held-out sweep scenarios;
+- `policy`: a saved policy (the SB3 zip and its mjtraj record) and its deterministic actions;
+- `streams`: the seed streams that keep training, validation and evaluation scenarios apart.
+"""
+
+from __future__ import annotations
+
+ALGORITHMS = ("sac", "ppo", "td3")
+ACTION_MODES = ("residual", "torque")
+"""The env's action modes a policy can learn in ('pid' has nothing to learn)."""

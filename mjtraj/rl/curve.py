@@ -1,0 +1,72 @@
+"""The learning curve of a training run: a CSV row per validation point, and its plot."""
+
+from __future__ import annotations
+
+import csv
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mjtraj._files import atomic_path
+from mjtraj.sweep_file import numeric, read_rows
+
+COLUMNS = ("timesteps", "wall_s", "episodes", "train_return_mean", "train_diverged", "val_cost_mean",
+           "val_cost_median", "val_rms_err_mean", "val_diverged", "pid_cost_mean", "pid_rms_err_mean")
+"""timesteps: env steps so far; train_*: the training episodes that ended since the previous row (their mean return
+-J_exec on the stochastic policy, and how many diverged); val_*: the deterministic policy on the validation tasks
+(J_exec and RMS tracking error means over those that did not diverge); pid_*: the planner + PID alone on them."""
+
+
+class CurveFile:
+    """learning_curve.csv, appended row by row and flushed (a crashed run keeps its curve so far)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        with path.open("x", newline="") as f:
+            csv.writer(f).writerow(COLUMNS)
+
+    def append(self, row: dict[str, Any]) -> None:
+        with self.path.open("a", newline="") as f:
+            csv.writer(f).writerow([repr(float(row[c])) if isinstance(row[c], float) else row[c] for c in COLUMNS])
+            f.flush()
+            os.fsync(f.fileno())
+
+
+def plot_curve(csv_path: Path, out: Path, *, title: str) -> Path:
+    """learning_curve.png: validation J_exec of the policy against planner + PID, the training return, and how
+    many episodes diverged (a diverged episode has no J_exec: a gap in the upper panels)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = read_rows(csv_path)
+    col = {c: np.array([numeric(r[c]) for r in rows]) for c in COLUMNS}
+    t = col["timesteps"]
+    fig, (top, middle, bottom) = plt.subplots(3, 1, figsize=(7, 7.5), sharex=True,
+                                              gridspec_kw={"height_ratios": [3, 2, 1.3]})
+    top.plot(t, col["val_cost_mean"], "o-", label="policy (deterministic), mean J_exec of the non-diverged")
+    top.plot(t, col["val_cost_median"], ".:", color="C0", alpha=0.6, label="policy, median J_exec")
+    top.axhline(col["pid_cost_mean"][0], color="k", ls="--", label="planner + PID alone, mean J_exec")
+    top.set_yscale("log")
+    top.set_ylabel("validation J_exec")
+    top.legend(fontsize=8)
+    top.set_title(title, fontsize=9)
+    train = np.isfinite(col["train_return_mean"])
+    middle.plot(t[train], -col["train_return_mean"][train], "o-", color="C1",
+                label="training episodes (stochastic policy), mean J_exec = -return")
+    middle.set_yscale("log")
+    middle.set_ylabel("training J_exec")
+    middle.legend(fontsize=8)
+    bottom.plot(t, col["train_diverged"], "o-", color="C1", label="training episodes since the previous point")
+    bottom.plot(t, col["val_diverged"], "s-", color="C0", label="validation episodes")
+    bottom.set_ylabel("diverged")
+    bottom.set_xlabel("environment steps")
+    bottom.legend(fontsize=8)
+    fig.tight_layout()
+    with atomic_path(out) as tmp:
+        fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    return out

@@ -1,0 +1,237 @@
+"""`mjtraj rl eval`: policies and planners on the same held-out sweep scenarios, one table.
+
+The scenarios are a sweep family's (mjtraj.families: seed streams [seed, FAMILY_ID, i]), which no training run
+draws from (checked against each policy's recorded training and validation streams). The planners' rows are the
+sweep's own (`run_unit`); each policy tracks its planner's reference for the same scenario on the same plant
+(perturbed per scenario in `mismatch`), with the same controller and saturation, and is scored by the same
+metrics and weights. Rows are written in the sweep's format plus the columns `controller` and `policy*`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mjtraj._files import atomic_path
+from mjtraj._validate import choice, positive_int
+from mjtraj.audit import Condition, SweepData
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.families import FAMILIES, perturbed_plant, plant_fields
+from mjtraj.model import load_model
+from mjtraj.reference import Reference
+from mjtraj.rl.episodes import run_episodes
+from mjtraj.rl.extra import require_sb3
+from mjtraj.rl.policy import Policy, load_policy
+from mjtraj.rl.streams import VALIDATION_STREAM, check_seed, family_entropies, shared_streams
+from mjtraj.stats import cvar, paired_ratio
+from mjtraj.sweep import (
+    SweepSettings,
+    by_steps,
+    episode_outcome,
+    fixed_columns,
+    make_row,
+    one_line,
+    plan_failure,
+    plan_scenarios,
+    run_unit,
+    scoring_weights,
+    unit_scenarios,
+)
+from mjtraj.sweep_file import format_rows
+from mjtraj.sweep_runner import columns
+
+POLICY_COLUMNS = ("controller", "policy", "policy_sha256", "policy_timesteps")
+
+
+@dataclass
+class EvalReport:
+    """The rows file, the Markdown table file, and the table's text."""
+
+    csv: Path
+    markdown: Path
+    table: str
+
+
+def check_held_out(policy: Policy, family: str, seed: int, scenarios: int) -> None:
+    """InvalidInputError if any evaluation scenario's stream is one the policy trained or validated on."""
+    streams = policy.record["streams"]
+    train_seed = int(policy.record["settings"]["seed"])
+    used = list(streams["train"]["gym_seeds"]) + [[train_seed, VALIDATION_STREAM, i]
+                                                   for i in range(int(streams["validation"]["count"]))]
+    shared = shared_streams(used, family_entropies(family, seed, range(scenarios)))
+    if shared:
+        raise InvalidInputError(f"seed: {len(shared)} of the {family} scenarios under seed {seed} share a seed stream "
+                                f"with {policy.path}'s training; choose another seed")
+
+
+def _labels(policies: Sequence[Policy]) -> list[str]:
+    labels = [p.label for p in policies]
+    return [f"{label} [{p.path.parent.name if p.path else k}]" if labels.count(label) > 1 else label
+            for k, (label, p) in enumerate(zip(labels, policies, strict=True))]
+
+
+def _settings(policies: Sequence[Policy], family: str, scenarios: int, seed: int,
+              planners: Sequence[str]) -> SweepSettings:
+    """The sweep the planners' rows come from: the policies' controller variant, every planner they track."""
+    loops = {(p.settings().loop.ff_accel, p.settings().loop.gravity_comp) for p in policies}
+    if len(loops) > 1:
+        raise InvalidInputError(f"policy: the policies were trained with different controllers (ff_accel, "
+                                f"gravity_comp): {sorted(loops)}; evaluate them separately")
+    ((ff, gc),) = loops
+    names = tuple(dict.fromkeys([*planners, *(p.env_kwargs["planner"] for p in policies)]))
+    settings = SweepSettings(families=(family,), scenarios=scenarios, seed=seed, planners=names, ff_accel=(ff,),
+                             gravity_comp=(gc,))
+    for p in policies:
+        mine, base = p.settings().loop, settings.base.loop
+        for name in ("feedforward", "anti_windup", "substeps", "gains"):
+            if not _same(getattr(mine, name), getattr(base, name)):
+                raise InvalidInputError(f"policy: {p.path} was trained with a different controller ({name}) than "
+                                        f"the sweep's base scenario")
+    return settings
+
+
+def _same(a: Any, b: Any) -> bool:
+    if hasattr(a, "kp"):
+        return all(np.array_equal(getattr(a, k), getattr(b, k)) for k in ("kp", "ki", "kd"))
+    return bool(a == b)
+
+
+def policy_rows(settings: SweepSettings, unit: tuple[str, int], policies: Sequence[Policy],
+                labels: Sequence[str]) -> list[dict[str, Any]]:
+    """Unit `unit`'s rows for each policy (sweep rows with the planner column holding the policy's label)."""
+    family, u = unit
+    model = load_model(dt=settings.base.task.dt)
+    draws = unit_scenarios(settings, unit, model)
+    weights = scoring_weights(draws, model)
+    fixed = fixed_columns(settings)
+    ff, gc = settings.ff_accel[0], settings.gravity_comp[0]
+    plans = plan_scenarios(settings, draws, model, tuple(dict.fromkeys(p.env_kwargs["planner"] for p in policies)))
+    mismatch = family == "mismatch"
+    plant = perturbed_plant(model) if mismatch else None
+    rows = []
+    for policy, label in zip(policies, labels, strict=True):
+        extra = {"controller": label, "policy": str(policy.path), "policy_sha256": _sha(policy),
+                 "policy_timesteps": policy.timesteps}
+        env = policy.settings()
+        outcome: dict[int, tuple[str, str, dict[str, float]]] = {}
+        mine = plans[policy.env_kwargs["planner"]]
+        try:
+            live = [(b, ref) for b, ref in enumerate(mine) if isinstance(ref, Reference)]
+            for group in by_steps(live):
+                ids = [b for b, _ in group]
+                fields = plant_fields(plant, [draws[b].perturbation for b in ids]) if mismatch else None
+                episodes = run_episodes(policy.act, env, [ref for _, ref in group], [weights[b] for b in ids],
+                                        plant=plant, plant_fields=fields)
+                for j, b in enumerate(ids):
+                    outcome[b] = episode_outcome(episodes.metrics, j, bool(episodes.unstable[j]),
+                                                 int(episodes.rollout.diverged_step[j]), env.loop)
+        except Exception as e:  # noqa: BLE001 - recorded, and the evaluation goes on
+            outcome = {b: ("error", one_line(e), {}) for b in range(len(draws))}
+        for b, s in enumerate(draws):
+            plan = mine[b]
+            status, reason, values = outcome[b] if b in outcome else (*plan_failure(plan), {})
+            rows.append({**make_row(fixed, family, u, s, label, ff, gc, status, reason, values, {}), **extra})
+    return rows
+
+
+def _sha(policy: Policy) -> str:
+    return hashlib.sha256(policy.path.read_bytes()).hexdigest()[:16] if policy.path else ""
+
+
+def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenarios: int = 200, seed: int = 1,
+             planners: Sequence[str] = ("optimal", "cubic", "quintic", "trapezoidal"), out: str | Path = "rl_eval",
+             batch: int = 250) -> EvalReport:
+    """Evaluate `policies` (zips from `mjtraj rl train`) and the `planners` with PID alone on scenarios
+    0..scenarios-1 of `family` under `seed`; writes eval_<family>.csv and EVAL_<family>.md into `out`.
+
+    Raises:
+      InvalidInputError: bad arguments, an unreadable or mismatched policy file, or scenarios that are not
+        held out from a policy's training streams.
+      MissingExtraError: the rl extra is not installed.
+    """
+    require_sb3()
+    choice("family", family, FAMILIES)
+    positive_int("scenarios", scenarios)
+    check_seed("seed", seed)
+    if not policies:
+        raise InvalidInputError("policy: expected at least one policy file, got none")
+    loaded = [load_policy(p) for p in policies]
+    for p in loaded:
+        check_held_out(p, family, seed, scenarios)
+    labels = _labels(loaded)
+    settings = _settings(loaded, family, scenarios, seed, planners)
+    settings = SweepSettings(**{**settings.as_dict(), "batch": batch})
+    rows: list[dict[str, Any]] = []
+    for unit in settings.units():
+        planner_rows = run_unit(settings, unit).rows
+        rows += [{**row, "controller": f"{row['planner']}+PID", "policy": "", "policy_sha256": "",
+                  "policy_timesteps": ""} for row in planner_rows]
+        rows += policy_rows(settings, unit, loaded, labels)
+    out = Path(out)
+    csv_path = out / f"eval_{family}.csv"
+    header = [*columns(settings), *POLICY_COLUMNS]
+    with atomic_path(csv_path) as tmp:
+        tmp.write_text(",".join(header) + "\n" + format_rows(header, rows))
+    table = comparison_table(csv_path, reference=loaded[0].env_kwargs["planner"])
+    md_path = out / f"EVAL_{family}.md"
+    with atomic_path(md_path) as tmp:
+        tmp.write_text("\n".join([*_header(loaded, labels, family, scenarios, seed, policies, settings.planners),
+                                   table, ""]))
+    return EvalReport(csv_path, md_path, table)
+
+
+def comparison_table(csv_path: Path, *, reference: str) -> str:
+    """The Markdown table of an evaluation file: every controller against `reference` + PID, paired by scenario,
+    with 95 % bootstrap intervals (mjtraj.stats)."""
+    data = SweepData([csv_path])
+    (condition,) = data.conditions
+    by_planner = {r["planner"]: r["controller"] for r in data.rows}
+    lines = [f"| controller | ok | failed | J_exec mean | J_exec median | CVaR90 J_exec | J_exec / {reference}+PID "
+             f"[95 % CI] | beats {reference}+PID in | RMS err mean (rad) | RMS dtau mean (N m) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    ref = data.values(condition, reference, "cost")
+    for planner in data.planners:
+        lines.append(_table_row(data, condition, planner, by_planner[planner], None if planner == reference else ref))
+    return "\n".join(lines)
+
+
+def _table_row(data: SweepData, c: Condition, planner: str, name: str, ref: np.ndarray | None) -> str:
+    """One controller's row; `ref` the reference's J_exec per scenario (None: this is the reference)."""
+    cost = data.values(c, planner, "cost")
+    ok = int(np.sum(np.isfinite(cost)))
+    failed = data.failures(c, planner)
+    if not ok:
+        return f"| {name} | 0 | {failed} | - | - | - | - | - | - | - |"
+    err, dtau = data.values(c, planner, "rms_err"), data.values(c, planner, "rms_dtau")
+    if ref is None:
+        ratio, wins = "1 (reference)", "-"
+    else:
+        r = paired_ratio(cost, ref)
+        both = np.isfinite(cost) & np.isfinite(ref)
+        ratio = f"{r.ratio:.3g} [{r.low:.3g}, {r.high:.3g}]"
+        wins = f"{100 * np.mean(cost[both] < ref[both]):.0f} %" if both.any() else "-"
+    return (f"| {name} | {ok} | {failed} | {np.nanmean(cost):.4g} | {np.nanmedian(cost):.4g} | {cvar(cost, 0.9):.4g} | "
+            f"{ratio} | {wins} | {np.nanmean(err):.3g} | {np.nanmean(dtau):.3g} |")
+
+
+def _header(policies: Sequence[Policy], labels: Sequence[str], family: str, scenarios: int, seed: int,
+            paths: Sequence[str | Path], planners: Sequence[str]) -> list[str]:
+    lines = [f"# Policies and planners on held-out {family} scenarios", "",
+             f"Regenerate: `mjtraj rl eval {' '.join(f'--policy {p}' for p in paths)} --family {family} "
+             f"--scenarios {scenarios} --seed {seed} --planners {','.join(planners)}`.", "",
+             f"Scenarios 0..{scenarios - 1} of the {family} family under seed {seed} (mjtraj/families.py); none "
+             "shares a seed stream with the policies' training or validation (checked). Every controller runs the "
+             "same plant, saturation and scoring (J_exec with Bryson's weights per task); a failed row (diverged, "
+             "unstable, plan failed) is counted under 'failed' and left out of the paired statistics.", "",
+             "Policies:"]
+    for label, p in zip(labels, policies, strict=True):
+        s = p.record["settings"]
+        lines.append(f"- {label}: {p.path} ({p.algo.upper()}, {p.timesteps} steps, task={s['task']}, "
+                     f"seed {s['seed']}; stable-baselines3 {p.record['versions']['stable_baselines3']}, torch "
+                     f"{p.record['versions']['torch']})")
+    return [*lines, ""]

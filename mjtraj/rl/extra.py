@@ -1,0 +1,33 @@
+"""The `rl` extra: import Stable-Baselines3 (and PyTorch) or say how to install them."""
+
+from __future__ import annotations
+
+from types import ModuleType
+
+from mjtraj.exceptions import MissingExtraError
+
+INSTALL_HINT = ("install the rl extra: pip install torch==2.13.0 && pip install 'mjtraj[rl]' (torch first, so that "
+                "pip takes the CPU build)")
+
+
+def require_sb3() -> ModuleType:
+    """The stable_baselines3 module; MissingExtraError naming the missing package if the extra is absent."""
+    try:
+        import stable_baselines3
+        import torch  # noqa: F401
+    except ImportError as e:
+        raise MissingExtraError(f"rl: {e.name or 'stable-baselines3'} is not installed; {INSTALL_HINT}") from e
+    return stable_baselines3
+
+
+def rl_versions() -> dict[str, str]:
+    """Versions of the RL stack that shape a policy's numbers (after mjtraj's own `compare.versions`)."""
+    import platform
+
+    import torch
+
+    from mjtraj.compare import versions
+
+    sb3 = require_sb3()
+    return {**versions(), "stable_baselines3": sb3.__version__, "torch": torch.__version__,
+            "python": platform.python_version()}

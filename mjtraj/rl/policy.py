@@ -1,0 +1,178 @@
+"""A saved policy: SB3's zip plus its mjtraj record (`<name>.json`: how it was trained, and the observation
+normalisation it acts through), and its deterministic actions.
+
+Actions are those of training's VecNormalize + `model.predict(deterministic=True)`, bit for bit: the record keeps
+the normalisation statistics as exact floats and `act` applies SB3's own formula.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from numpy.typing import NDArray
+
+from mjtraj._files import atomic_path
+from mjtraj.envs.settings import TrackSettings, resolve
+from mjtraj.envs.ur5_track import action_space, observation_space
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.rl import ALGORITHMS
+from mjtraj.rl.extra import require_sb3
+
+FORMAT = "mjtraj-policy/1"
+
+
+@dataclass(frozen=True)
+class Normalization:
+    """VecNormalize's observation transform: clip((obs - mean) / sqrt(var + epsilon), -clip, clip); shapes (d,)."""
+
+    mean: NDArray[np.float64]
+    var: NDArray[np.float64]
+    epsilon: float
+    clip: float
+
+    @classmethod
+    def of(cls, vec_normalize: Any) -> Normalization:
+        """The current statistics of an SB3 VecNormalize (copied)."""
+        rms = vec_normalize.obs_rms
+        return cls(np.array(rms.mean, dtype=np.float64), np.array(rms.var, dtype=np.float64),
+                   float(vec_normalize.epsilon), float(vec_normalize.clip_obs))
+
+    def __call__(self, obs: NDArray[np.float64]) -> NDArray[np.float32]:
+        return np.clip((obs - self.mean) / np.sqrt(self.var + self.epsilon), -self.clip, self.clip).astype(np.float32)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"mean": self.mean.tolist(), "var": self.var.tolist(), "epsilon": self.epsilon, "clip": self.clip}
+
+
+def record_path(path: Path) -> Path:
+    """The record beside a policy zip: policy.zip -> policy.json."""
+    return path.with_suffix(".json")
+
+
+class Policy:
+    """A trained tracking policy: `act(obs)` for a batch of UR5Track-v0 observations.
+
+    Attributes:
+      model: the SB3 algorithm (SAC, PPO or TD3).
+      record: the training run's record (settings, hyperparameters, versions, seeds), see `mjtraj.rl.train`.
+      normalization: the observation transform the model was trained behind.
+      timesteps: environment steps it had trained for when saved.
+    """
+
+    def __init__(self, model: Any, record: dict[str, Any], normalization: Normalization, timesteps: int,
+                 path: Path | None = None) -> None:
+        self.model = model
+        self.record = record
+        self.normalization = normalization
+        self.timesteps = timesteps
+        self.path = path
+
+    @property
+    def algo(self) -> str:
+        return str(self.record["settings"]["algo"])
+
+    @property
+    def env_kwargs(self) -> dict[str, Any]:
+        """The UR5Track-v0 arguments it trained with."""
+        return dict(self.record["env"])
+
+    def settings(self) -> TrackSettings:
+        """The env settings it acts in (resolved from `env_kwargs`)."""
+        return resolve(**self.env_kwargs)
+
+    @property
+    def label(self) -> str:
+        """How results tables name it: planner+PID+residual SAC, or planner+SAC torque."""
+        env = self.record["env"]
+        algo = self.algo.upper()
+        if env["action_mode"] == "residual":
+            return f"{env['planner']}+PID+residual {algo}"
+        return f"{env['planner']}+{algo} torque"
+
+    def act(self, obs: npt.ArrayLike) -> NDArray[np.float32]:
+        """Deterministic actions in [-1, 1], shape (B, n), for observations of shape (B, d)."""
+        x = np.asarray(obs, dtype=np.float64)
+        if x.ndim != 2 or x.shape[1] != self.normalization.mean.size:
+            raise InvalidInputError(f"obs: expected shape (B, {self.normalization.mean.size}), got {x.shape}")
+        actions, _ = self.model.predict(self.normalization(x), deterministic=True)
+        return np.asarray(actions, dtype=np.float32)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the SB3 zip at `path` (.zip) and its record beside it; returns the zip's path."""
+        path = Path(path).with_suffix(".zip")
+        with atomic_path(path) as tmp:
+            self.model.save(tmp)
+        sha = hashlib.sha256(path.read_bytes()).hexdigest()
+        body = {"format": FORMAT, "timesteps": self.timesteps, "zip_sha256": sha, "run": self.record,
+                "normalization": self.normalization.as_dict()}
+        with atomic_path(record_path(path)) as tmp:
+            tmp.write_text(json.dumps(body, indent=1) + "\n")
+        return path
+
+
+def load_policy(path: str | Path) -> Policy:
+    """Load a policy saved by `mjtraj rl train` (its zip; the record is read from beside it).
+
+    Raises:
+      InvalidInputError: no such file, no record, a record that does not belong to the zip, or a zip whose
+        observation or action space is not the env's its record describes (the message says which).
+      MissingExtraError: the rl extra is not installed.
+    """
+    zip_path = Path(path)
+    if zip_path.suffix != ".zip":
+        raise InvalidInputError(f"policy: expected a policy .zip saved by mjtraj rl train, got {str(path)!r}")
+    if not zip_path.is_file():
+        raise InvalidInputError(f"policy: file not found: {zip_path}")
+    meta_path = record_path(zip_path)
+    if not meta_path.is_file():
+        raise InvalidInputError(f"policy: no record {meta_path.name} beside {zip_path.name}; mjtraj rl train writes "
+                                "the two together")
+    try:
+        body = json.loads(meta_path.read_text())
+    except json.JSONDecodeError as e:
+        raise InvalidInputError(f"policy: {meta_path} is not valid JSON ({e})") from e
+    if not isinstance(body, dict) or body.get("format") != FORMAT:
+        raise InvalidInputError(f"policy: {meta_path} is not an mjtraj policy record (expected format {FORMAT})")
+    sha = hashlib.sha256(zip_path.read_bytes()).hexdigest()
+    if body["zip_sha256"] != sha:
+        raise InvalidInputError(f"policy: {meta_path.name} records a different zip than {zip_path.name} "
+                                f"(sha256 {body['zip_sha256'][:12]} vs {sha[:12]})")
+    record = body["run"]
+    algo = record["settings"]["algo"]
+    if algo not in ALGORITHMS:
+        raise InvalidInputError(f"policy: unknown algorithm {algo!r} in {meta_path.name}; valid: "
+                                f"{', '.join(ALGORITHMS)}")
+    sb3 = require_sb3()
+    model = getattr(sb3, algo.upper()).load(zip_path, device="cpu")
+    n = body["normalization"]
+    normalization = Normalization(np.array(n["mean"], dtype=np.float64), np.array(n["var"], dtype=np.float64),
+                                  float(n["epsilon"]), float(n["clip"]))
+    policy = Policy(model, record, normalization, int(body["timesteps"]), zip_path)
+    check_spaces(policy, policy.settings(), where=zip_path.name)
+    return policy
+
+
+def check_spaces(policy: Policy, settings: TrackSettings, *, where: str) -> None:
+    """InvalidInputError unless the policy's observation and action spaces are those of the env `settings`."""
+    obs, act = observation_space(settings), action_space(settings)
+    env = f"UR5Track-v0 (action_mode={settings.action_mode}, preview={settings.preview})"
+    got_obs = policy.model.observation_space
+    if getattr(got_obs, "shape", None) != obs.shape or policy.normalization.mean.shape != obs.shape:
+        raise InvalidInputError(f"policy: {where} takes observations of shape {getattr(got_obs, 'shape', got_obs)} "
+                                f"but {env} gives shape {obs.shape}")
+    got_act = policy.model.action_space
+    if getattr(got_act, "shape", None) != act.shape or not (
+            np.all(got_act.low == act.low) and np.all(got_act.high == act.high)):
+        raise InvalidInputError(f"policy: {where} acts in {got_act} but {env} takes {act}")
+
+
+def for_duration(settings: TrackSettings, duration: float) -> TrackSettings:
+    """The same env settings for episodes of `duration` s, tasks given from outside (evaluation)."""
+    return dataclasses.replace(settings, duration=float(duration), task_mode="explicit", fixed_task=None)

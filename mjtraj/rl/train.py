@@ -1,0 +1,313 @@
+"""Train an SB3 agent on the natively vectorised UR5Track-v0 and record everything about the run.
+
+Rules (stated once, recorded in run.json):
+- hyperparameters are Stable-Baselines3's defaults for the algorithm, with two additions SB3 leaves to the user:
+  PPO collects SB3's default 2048 transitions per update (n_steps = 2048 / num_envs), and TD3 explores with
+  Gaussian action noise of std 0.1 (the TD3 paper's; SB3 adds none). Nothing was tuned on evaluation scenarios;
+- observations and rewards are normalised by SB3's VecNormalize (running statistics, clip 10); saved policies
+  carry the observation statistics;
+- sub-env i trains on the TRAIN_STREAM seed (seed, i) and continues its stream across episodes; the learning
+  curve's validation tasks come from VALIDATION_STREAM (mjtraj.rl.streams), so neither is a sweep scenario.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mjtraj._files import atomic_path
+from mjtraj._validate import choice, positive_int
+from mjtraj.envs.settings import TASKS, TrackSettings, resolve
+from mjtraj.exceptions import InvalidInputError, MjtrajError
+from mjtraj.planners import available
+from mjtraj.rl import ACTION_MODES, ALGORITHMS
+from mjtraj.rl.curve import CurveFile, plot_curve
+from mjtraj.rl.episodes import Episodes, run_episodes
+from mjtraj.rl.extra import require_sb3, rl_versions
+from mjtraj.rl.policy import Normalization, Policy
+from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, check_seed, training_entropies
+
+RUN_FORMAT = "mjtraj-rl-run/1"
+DEFAULT_NUM_ENVS = {"sac": 4, "td3": 4, "ppo": 8}
+CLIP_OBS = 10.0
+TD3_NOISE_STD = 0.1
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    """Everything that determines a training run (all of it is written into run.json).
+
+    Attributes:
+      algo: sac, ppo or td3.
+      action_mode: residual (added to feedforward + PID) or torque (the whole corrective torque).
+      planner: the planner whose references the policy tracks.
+      task: paper (always the paper's move) or random (a new random move each episode).
+      steps: environment steps to train for (PPO rounds up to whole rollouts).
+      seed: the run's seed, in [0, 2^32).
+      num_envs: sub-envs stepped together (None: DEFAULT_NUM_ENVS of the algorithm).
+      checkpoints: policies saved along the run, evenly spaced; the last is the final policy (policy.zip).
+      evaluations: validation points of the learning curve, evenly spaced, the last on the final policy (plus one
+        before training).
+      validation: validation tasks (task=random; the paper task is its own single validation task).
+      threads: PyTorch CPU threads (None: PyTorch's default, every core).
+    """
+
+    algo: str = "sac"
+    action_mode: str = "residual"
+    planner: str = "cubic"
+    task: str = "random"
+    steps: int = 100_000
+    seed: int = 0
+    num_envs: int | None = None
+    checkpoints: int = 5
+    evaluations: int = 20
+    validation: int = 32
+    threads: int | None = None
+
+    def __post_init__(self) -> None:
+        choice("algo", self.algo, ALGORITHMS)
+        choice("action_mode", self.action_mode, ACTION_MODES)
+        choice("planner", self.planner, available())
+        choice("task", self.task, tuple(t for t in TASKS if t != "explicit"))
+        positive_int("steps", self.steps)
+        check_seed("seed", self.seed)
+        if self.num_envs is None:
+            object.__setattr__(self, "num_envs", DEFAULT_NUM_ENVS[self.algo])
+        positive_int("num_envs", self.num_envs)
+        for name in ("checkpoints", "evaluations", "validation"):
+            positive_int(name, getattr(self, name))
+        if self.threads is not None:
+            positive_int("threads", self.threads)
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """UR5Track-v0's arguments, every one that shapes the episodes (defaults written out)."""
+        s = resolve(planner=self.planner, action_mode=self.action_mode, task=self.task)
+        return {"planner": self.planner, "action_mode": self.action_mode, "task": self.task,
+                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt,
+                "feedforward": s.loop.feedforward, "ff_accel": s.loop.ff_accel, "gravity_comp": s.loop.gravity_comp,
+                "anti_windup": s.loop.anti_windup, "preview": s.preview}
+
+    def hyperparameters(self) -> dict[str, Any]:
+        """The keyword arguments given to the SB3 algorithm besides SB3's defaults (JSON-ready)."""
+        if self.algo == "ppo":
+            return {"n_steps": max(1, 2048 // self.num_envs)}
+        if self.algo == "td3":
+            return {"action_noise": {"type": "NormalActionNoise", "std": TD3_NOISE_STD}}
+        return {}
+
+
+@dataclass
+class TrainReport:
+    """Where a run wrote its files, how far it got, and its last validation."""
+
+    out: Path
+    policy: Path
+    timesteps: int
+    wall: float
+    final: dict[str, float]
+
+
+def validation_set(settings: TrainSettings, env: TrackSettings) -> tuple[list[Any], list[Any]]:
+    """The learning curve's validation references and weights: the paper task, or `settings.validation` tasks
+    drawn by the env's random-task rule from VALIDATION_STREAM."""
+    if env.fixed_task is not None:
+        tasks = [env.fixed_task]
+    else:
+        tasks = [env.sample_task(np.random.default_rng([settings.seed, VALIDATION_STREAM, i]))
+                 for i in range(settings.validation)]
+    return [env.planner.plan(task, env.model) for task in tasks], [env.weights(task) for task in tasks]
+
+
+def _summary(episodes: Episodes) -> dict[str, float]:
+    ok = np.isfinite(episodes.metrics["cost"]) & ~episodes.unstable
+    cost, err = episodes.metrics["cost"][ok], episodes.metrics["rms_err"][ok]
+    nan = float("nan")
+    return {"cost_mean": float(cost.mean()) if cost.size else nan,
+            "cost_median": float(np.median(cost)) if cost.size else nan,
+            "rms_err_mean": float(err.mean()) if err.size else nan, "diverged": int(np.sum(~ok))}
+
+
+def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) -> TrainReport:
+    """Train per `settings` into the folder `out` (which must not hold a run yet).
+
+    Writes run.json (settings, env arguments, hyperparameters, seeds, versions, status), checkpoints/,
+    policy.zip + policy.json (the final policy), learning_curve.csv and learning_curve.png.
+
+    Raises:
+      InvalidInputError: `out` already holds a run.
+      MissingExtraError: the rl extra is not installed.
+    """
+    sb3 = require_sb3()
+    import torch
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.noise import NormalActionNoise
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+    from mjtraj.rl.sb3_env import SB3TrackVecEnv
+
+    out = Path(out)
+    if (out / "run.json").exists():
+        raise InvalidInputError(f"out: {out} already holds a training run (run.json); choose another folder")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "checkpoints").mkdir(exist_ok=True)
+    if settings.threads is not None:
+        torch.set_num_threads(settings.threads)
+    env_kwargs = settings.env_kwargs()
+    env = resolve(**env_kwargs)
+    hyper = settings.hyperparameters()
+    num_envs = int(settings.num_envs)  # type: ignore[arg-type]
+    record: dict[str, Any] = {
+        "format": RUN_FORMAT, "status": "running", "settings": dataclasses.asdict(settings), "env": env_kwargs,
+        "hyperparameters": {"sb3_defaults_plus": hyper},
+        "normalization": {"norm_obs": True, "norm_reward": True, "clip_obs": CLIP_OBS},
+        "streams": {"train": {"stream": TRAIN_STREAM, "gym_seeds": training_entropies(settings.seed, num_envs)},
+                    "validation": {"stream": VALIDATION_STREAM,
+                                   "count": 1 if env.fixed_task is not None else settings.validation}},
+        "versions": rl_versions(), "torch_threads": torch.get_num_threads(),
+        "started": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+    _write_json(out / "run.json", record)
+    clock = time.perf_counter()
+    try:
+        venv = VecNormalize(VecMonitor(SB3TrackVecEnv(num_envs, **env_kwargs)), clip_obs=CLIP_OBS)
+        kwargs = dict(hyper)
+        if settings.algo == "td3":
+            n = env.n
+            kwargs["action_noise"] = NormalActionNoise(np.zeros(n), np.full(n, TD3_NOISE_STD))
+        model = getattr(sb3, settings.algo.upper())("MlpPolicy", venv, seed=settings.seed, device="cpu", verbose=0,
+                                                    **kwargs)
+        venv.gamma = model.gamma  # VecNormalize discounts rewards with the algorithm's gamma
+        record["hyperparameters"]["resolved"] = _resolved(model)
+        _write_json(out / "run.json", record)
+        references, weights = validation_set(settings, env)
+        pid = _summary(run_episodes(None, env, references, weights))
+        curve = CurveFile(out / "learning_curve.csv")
+        policy_record = {k: record[k] for k in ("format", "settings", "env", "hyperparameters", "normalization",
+                                                "streams", "versions", "torch_threads")}
+
+        def snapshot() -> Policy:
+            return Policy(model, policy_record, Normalization.of(venv), int(model.num_timesteps))
+
+        every_eval = max(num_envs, settings.steps // settings.evaluations)
+        every_save = max(num_envs, settings.steps // settings.checkpoints)
+
+        class Tracker(BaseCallback):  # type: ignore[misc]
+            """Collects finished training episodes; validates, checkpoints and reports progress on schedule."""
+
+            def _on_training_start(self) -> None:
+                self.returns: list[float] = []
+                self.diverged = 0
+                self.episodes = 0
+                self.next_eval = every_eval
+                self.next_save = every_save
+                self.bar = None
+                if progress:
+                    from tqdm import tqdm
+
+                    self.bar = tqdm(total=settings.steps, unit="step", desc=f"train {settings.algo}",
+                                    dynamic_ncols=True)
+                self.validate()
+
+            def validate(self) -> dict[str, float]:
+                val = _summary(run_episodes(snapshot().act, env, references, weights))
+                curve.append({"timesteps": int(model.num_timesteps), "wall_s": time.perf_counter() - clock,
+                              "episodes": self.episodes,
+                              "train_return_mean": float(np.mean(self.returns)) if self.returns else float("nan"),
+                              "train_diverged": self.diverged, "val_cost_mean": val["cost_mean"],
+                              "val_cost_median": val["cost_median"], "val_rms_err_mean": val["rms_err_mean"],
+                              "val_diverged": val["diverged"], "pid_cost_mean": pid["cost_mean"],
+                              "pid_rms_err_mean": pid["rms_err_mean"]})
+                self.returns, self.diverged = [], 0
+                if self.bar is not None:
+                    self.bar.set_postfix_str(f"val J {val['cost_mean']:.3g} (PID {pid['cost_mean']:.3g})")
+                self.last = val
+                return val
+
+            def _on_step(self) -> bool:
+                for info in self.locals["infos"]:
+                    if "episode" in info:
+                        self.episodes += 1
+                        self.returns.append(float(info["episode"]["r"]))
+                        self.diverged += int(info.get("diverged", False))
+                t = int(model.num_timesteps)
+                if self.bar is not None:
+                    self.bar.update(min(t, settings.steps) - self.bar.n)
+                if t >= settings.steps:  # the last update is yet to come: the final policy is saved after it
+                    return True
+                if t >= self.next_save:
+                    snapshot().save(out / "checkpoints" / f"step_{t:09d}.zip")
+                    self.next_save += every_save
+                if t >= self.next_eval:
+                    self.validate()
+                    self.next_eval += every_eval
+                return True
+
+            def _on_training_end(self) -> None:
+                if self.bar is not None:
+                    self.bar.close()
+
+        tracker = Tracker()
+        model.learn(total_timesteps=settings.steps, callback=tracker)
+        final = tracker.validate()
+        policy_path = snapshot().save(out / "policy.zip")
+        plot_curve(out / "learning_curve.csv", out / "learning_curve.png", title=_title(settings))
+    except BaseException as e:
+        record.update(status="failed", error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - clock)
+        _write_json(out / "run.json", record)
+        raise
+    wall = time.perf_counter() - clock
+    record.update(status="complete", timesteps=int(model.num_timesteps), wall_s=wall,
+                  finished=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                  final_validation={"policy": final, "pid": pid})
+    _write_json(out / "run.json", record)
+    return TrainReport(out, policy_path, int(model.num_timesteps), wall, final)
+
+
+def _title(settings: TrainSettings) -> str:
+    return (f"{settings.algo.upper()} {settings.action_mode} on {settings.planner} references, task={settings.task}, "
+            f"seed {settings.seed}")
+
+
+def plot_run(run: str | Path) -> Path:
+    """Redraw `run`/learning_curve.png from its CSV and run.json; returns the PNG's path."""
+    run = Path(run)
+    record, curve = run / "run.json", run / "learning_curve.csv"
+    for path in (record, curve):
+        if not path.is_file():
+            raise InvalidInputError(f"run: {path} not found; expected a folder written by mjtraj rl train")
+    settings = TrainSettings(**json.loads(record.read_text())["settings"])
+    return plot_curve(curve, run / "learning_curve.png", title=_title(settings))
+
+
+def _resolved(model: Any) -> dict[str, Any]:
+    """The algorithm's effective hyperparameters (SB3 defaults included), as JSON-ready values."""
+    names = ("learning_rate", "buffer_size", "learning_starts", "batch_size", "tau", "gamma", "train_freq",
+             "gradient_steps", "ent_coef", "target_update_interval", "target_entropy", "policy_delay",
+             "target_policy_noise", "target_noise_clip", "n_steps", "n_epochs", "gae_lambda", "clip_range",
+             "clip_range_vf", "normalize_advantage", "vf_coef", "max_grad_norm", "use_sde")
+    out: dict[str, Any] = {}
+    for name in names:
+        if hasattr(model, name):
+            value = getattr(model, name)
+            out[name] = value if isinstance(value, (int, float, str, bool, type(None))) else repr(value)
+    out["policy"] = repr(model.policy).replace("\n", " ")
+    return out
+
+
+def _write_json(path: Path, body: dict[str, Any]) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(body, indent=1, default=_json_default) + "\n")
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, (np.integer, np.floating)):
+        return value.item()
+    if isinstance(value, MjtrajError):
+        return str(value)
+    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")

@@ -1,0 +1,306 @@
+"""RL on UR5Track-v0: SB3 contract, seed streams, train -> eval end to end, reloads, fairness oracles, bad input."""
+
+from __future__ import annotations
+
+import json
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from stable_baselines3 import SAC
+from stable_baselines3.common.env_checker import check_env
+from stable_baselines3.common.vec_env import VecNormalize
+
+from mjtraj.cli import main
+from mjtraj.envs.settings import resolve
+from mjtraj.envs.ur5_track import UR5TrackEnv
+from mjtraj.envs.vector import UR5TrackVectorEnv
+from mjtraj.exceptions import InvalidInputError, MissingExtraError
+from mjtraj.families import FAMILIES, scenario
+from mjtraj.metrics import METRIC_NAMES
+from mjtraj.model import JointInfo
+from mjtraj.planners.optimal import bryson_weights
+from mjtraj.rl.episodes import run_episodes
+from mjtraj.rl.evaluate import check_held_out, evaluate
+from mjtraj.rl.extra import require_sb3
+from mjtraj.rl.policy import Normalization, Policy, load_policy
+from mjtraj.rl.sb3_env import SB3TrackVecEnv
+from mjtraj.rl.streams import TRAIN_STREAM, shared_streams, stream_seed, training_entropies
+from mjtraj.rl.train import TrainSettings, train, validation_set
+from mjtraj.sweep import SweepSettings, by_steps, plan_scenarios, run_unit
+from mjtraj.sweep_file import numeric, read_rows
+
+TINY = {"steps": 240, "evaluations": 2, "checkpoints": 2, "validation": 4}
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A tiny SAC residual run through the CLI (the README's command with a small budget)."""
+    out = tmp_path_factory.mktemp("run") / "sac"
+    code = main(["rl", "train", "--algo", "sac", "--action-mode", "residual", "--planner", "cubic", "--task",
+                 "random", "--steps", "240", "--seed", "3", "--evaluations", "2", "--checkpoints", "2",
+                 "--validation", "4", "--out", str(out), "--no-progress"])
+    assert code == 0
+    return out
+
+
+@pytest.mark.parametrize("action_mode", ["residual", "torque"])
+def test_sb3_check_env(action_mode):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(UR5TrackEnv(action_mode=action_mode, task="random", preview=1))
+
+
+def test_stream_seed_is_the_list_seed_and_plain_seeds_collide_with_scenarios():
+    for seed, stream, index in [(0, TRAIN_STREAM, 0), (7, 17, 3), (2**32 - 1, 16, 255)]:
+        a = np.random.default_rng(stream_seed(seed, stream, index)).random(5)
+        np.testing.assert_array_equal(a, np.random.default_rng([seed, stream, index]).random(5))
+    # the hazard the streams avoid: a plain gym seed s is the nominal family's scenario 0 under seed s
+    np.testing.assert_array_equal(np.random.default_rng(5).random(3), np.random.default_rng([5, 0, 0]).random(3))
+    with pytest.raises(InvalidInputError, match=r"^seed: expected a whole number in \[0, 2\^32\), got 4294967296$"):
+        stream_seed(2**32, TRAIN_STREAM, 0)
+
+
+def test_sb3_vec_env_is_the_vector_env_with_same_step_autoreset():
+    """Sub-env i of the SB3 adapter is UR5TrackEnv seeded with the TRAIN_STREAM seed (s, i), bit for bit, across an
+    autoreset: terminal_observation is the single env's last observation, and the returned one its next reset's."""
+    venv = SB3TrackVecEnv(2, action_mode="residual", task="random")
+    venv.seed(9)
+    obs = venv.reset()
+    singles = [UR5TrackEnv(action_mode="residual", task="random") for _ in range(2)]
+    first = [env.reset(seed=s)[0] for env, s in zip(singles, training_entropies(9, 2), strict=True)]
+    np.testing.assert_array_equal(obs, np.array(first))
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        actions = rng.uniform(-0.05, 0.05, (2, 3)).astype(np.float32)
+        obs, reward, dones, infos = venv.step(actions)
+        for i, env in enumerate(singles):
+            o, r, done, _, info = env.step(actions[i])
+            assert np.float32(r) == reward[i] and done == dones[i]
+            if done:
+                np.testing.assert_array_equal(infos[i]["terminal_observation"], o)
+                assert infos[i]["TimeLimit.truncated"] is False
+                assert infos[i]["metrics"] == pytest.approx(info["metrics"], rel=0, abs=0, nan_ok=True)
+                np.testing.assert_array_equal(obs[i], env.reset()[0])
+            else:
+                np.testing.assert_array_equal(obs[i], o)
+    assert dones.all()
+
+
+def test_gymnasium_same_step_mode_matches_next_step_mode():
+    kwargs = {"num_envs": 3, "task": "random", "action_mode": "torque"}
+    same = UR5TrackVectorEnv(autoreset_mode=gym.vector.AutoresetMode.SAME_STEP, **kwargs)
+    nxt = UR5TrackVectorEnv(**kwargs)
+    a, _ = same.reset(seed=4)
+    b, _ = nxt.reset(seed=4)
+    np.testing.assert_array_equal(a, b)
+    actions = np.full((3, 3), 0.01, dtype=np.float32)
+    for _ in range(100):
+        a, *_, info_a = same.step(actions)
+        b, *_, info_b = nxt.step(actions)
+    np.testing.assert_array_equal(np.stack(info_a["final_obs"]), b)  # the final observations
+    b, reward, terminated, _, _ = nxt.step(actions)  # NEXT_STEP's reset step
+    np.testing.assert_array_equal(a, b)
+    assert not reward.any() and not terminated.any()
+    with pytest.raises(InvalidInputError, match=r"^autoreset_mode: expected one of"):
+        UR5TrackVectorEnv(autoreset_mode="sometimes")
+
+
+def test_pid_through_the_policy_path_is_the_sweep(model):
+    """Fairness oracle: run_episodes without actions gives the sweep's planner rows bit for bit, on the nominal
+    and on the perturbed plants (same plant, controller, saturation and scoring)."""
+    for family in FAMILIES:
+        settings = SweepSettings(families=(family,), scenarios=6, seed=2, planners=("cubic",))
+        rows = run_unit(settings, (family, 0)).rows
+        draws = [scenario(family, 2, i, model, 0.02) for i in range(6)]
+        refs = plan_scenarios(settings, draws, model)["cubic"]
+        weights = [bryson_weights(s.task, JointInfo.of(model).torque_limit) for s in draws]
+        env = resolve(planner="cubic", action_mode="residual")
+        for i, (row, ref) in enumerate(zip(rows, refs, strict=True)):
+            plant = fields = None
+            if family == "mismatch":
+                from mjtraj.families import perturbed_plant, plant_fields
+
+                plant = perturbed_plant(model)
+                fields = plant_fields(plant, [draws[i].perturbation])
+            pid = run_episodes(None, env, [ref], [weights[i]], plant=plant, plant_fields=fields)
+            zero = run_episodes(lambda obs: np.zeros((len(obs), 3), np.float32), env, [ref], [weights[i]],
+                                plant=plant, plant_fields=fields)
+            for name in METRIC_NAMES:
+                assert pid.metrics[name][0] == numeric(row[name]), (family, i, name)
+                assert zero.metrics[name][0] == pid.metrics[name][0]  # a zero residual is PID alone
+
+
+def test_saved_policy_reloads_with_identical_actions(tmp_path):
+    """Oracle: SB3's own path (VecNormalize.normalize_obs + predict) on the in-memory model."""
+    venv = VecNormalize(SB3TrackVecEnv(2, action_mode="torque", task="random"), clip_obs=10.0)
+    model = SAC("MlpPolicy", venv, seed=1, device="cpu", learning_starts=50)
+    model.learn(150)
+    record = {"settings": {"algo": "sac", "seed": 1}, "env": {"planner": "cubic", "action_mode": "torque",
+                                                               "task": "random"}}
+    path = Policy(model, record, Normalization.of(venv), int(model.num_timesteps)).save(tmp_path / "p.zip")
+    obs = np.array([venv.unnormalize_obs(np.random.default_rng(k).normal(size=19)) for k in range(64)])
+    expected, _ = model.predict(venv.normalize_obs(obs), deterministic=True)
+    loaded = load_policy(path)
+    np.testing.assert_array_equal(loaded.act(obs), expected)
+    np.testing.assert_array_equal(load_policy(path).act(obs), loaded.act(obs))
+
+
+def test_train_writes_every_artifact(trained):
+    run = json.loads((trained / "run.json").read_text())
+    assert run["status"] == "complete" and run["timesteps"] == 240
+    assert run["settings"]["seed"] == 3 and run["env"]["action_mode"] == "residual"
+    assert {"mjtraj", "mujoco", "numpy", "stable_baselines3", "torch", "gymnasium"} <= set(run["versions"])
+    assert run["streams"]["train"]["gym_seeds"] == [stream_seed(3, TRAIN_STREAM, i) for i in range(4)]
+    assert run["hyperparameters"]["resolved"]["batch_size"] == 256  # SB3's default, recorded
+    curve = read_rows(trained / "learning_curve.csv")
+    assert [int(r["timesteps"]) for r in curve] == [0, 120, 240]
+    assert all(numeric(r["pid_cost_mean"]) == numeric(curve[0]["pid_cost_mean"]) for r in curve)
+    assert (trained / "learning_curve.png").stat().st_size > 10_000
+    checkpoints = sorted((trained / "checkpoints").glob("*.zip"))
+    assert [p.name for p in checkpoints] == ["step_000000120.zip"]  # and the final one, policy.zip
+    assert load_policy(checkpoints[0]).timesteps == 120
+    # the curve's last row is the saved final policy on the validation tasks (replayed here)
+    final = load_policy(trained / "policy.zip")
+    settings = TrainSettings(**{**TINY, "seed": 3})
+    refs, weights = validation_set(settings, final.settings())
+    replay = run_episodes(final.act, final.settings(), refs, weights).metrics["cost"]
+    assert numeric(curve[-1]["val_cost_mean"]) == np.mean(replay[np.isfinite(replay)])
+    pid = run_episodes(None, final.settings(), refs, weights).metrics["cost"]
+    assert numeric(curve[0]["pid_cost_mean"]) == np.mean(pid)
+
+
+def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
+    code = main(["rl", "eval", "--policy", str(trained / "policy.zip"), "--family", "aggressive", "--scenarios", "5",
+                 "--seed", "3", "--planners", "cubic,optimal", "--out", str(tmp_path)])
+    assert code == 0
+    table = capsys.readouterr().out
+    assert "| cubic+PID+residual SAC | " in table and "| optimal+PID | " in table
+    rows = read_rows(tmp_path / "eval_aggressive.csv")
+    sweep = run_unit(SweepSettings(families=("aggressive",), scenarios=5, seed=3, planners=("cubic", "optimal")),
+                     ("aggressive", 0)).rows
+    planner_rows = [r for r in rows if r["policy"] == ""]
+    assert len(planner_rows) == len(sweep) == 10
+    for got, want in zip(planner_rows, sweep, strict=True):
+        assert all(got[k] == (repr(v) if isinstance(v, float) else str(v)) or got[k] == v == "nan"
+                   for k, v in want.items() if k not in ("reason",)), got["planner"]
+    mine = [r for r in rows if r["policy"]]
+    assert [r["scenario"] for r in mine] == [str(i) for i in range(5)]
+    assert all(r["controller"] == "cubic+PID+residual SAC" and r["policy_timesteps"] == "240" for r in mine)
+    # the policy rows replay: its episodes on the same references, batched as eval batches them (scenarios of one
+    # length together: torch's float32 kernels round differently for different batch sizes), give the same numbers
+    policy = load_policy(trained / "policy.zip")
+    model = policy.settings().model
+    draws = [scenario("aggressive", 3, i, model, 0.02) for i in range(5)]
+    refs = plan_scenarios(SweepSettings(families=("aggressive",), scenarios=5, seed=3, planners=("cubic",)),
+                          draws, model)["cubic"]
+    limit = JointInfo.of(model).torque_limit
+    replayed = 0
+    for group in by_steps(list(enumerate(refs))):
+        ids = [i for i, _ in group]
+        episodes = run_episodes(policy.act, policy.settings(), [r for _, r in group],
+                                [bryson_weights(draws[i].task, limit) for i in ids])
+        for j, i in enumerate(ids):
+            assert mine[i]["status"] == "ok" and numeric(mine[i]["cost"]) == episodes.metrics["cost"][j]
+            replayed += 1
+    assert replayed == 5
+    assert (tmp_path / "EVAL_aggressive.md").read_text().count("| cubic+PID+residual SAC |") == 1
+
+
+def test_eval_scenarios_are_held_out_from_training(trained):
+    """No eval task is a task the run trained on (replayed from its recorded streams), and a policy whose record
+    claims plain gym seeds (the hazard) is refused."""
+    policy = load_policy(trained / "policy.zip")
+    env = policy.settings()
+    trained_tasks = set()
+    for gym_seed in policy.record["streams"]["train"]["gym_seeds"]:
+        rng = np.random.default_rng(gym_seed)
+        for _ in range(5):  # more episodes than the tiny run had
+            task = env.sample_task(rng)
+            trained_tasks.add((tuple(task.q0), tuple(task.qg)))
+    for family in FAMILIES:
+        for seed in (0, 3):
+            check_held_out(policy, family, seed, 200)
+            tasks = {(tuple(t.q0), tuple(t.qg)) for t in
+                     (scenario(family, seed, i, env.model, 0.02).task for i in range(200))}
+            assert not tasks & trained_tasks
+    hazard = Policy(policy.model, {**policy.record, "streams": {"train": {"gym_seeds": [3, 4]},
+                                                                 "validation": {"count": 0}}},
+                    policy.normalization, 0, trained / "policy.zip")
+    with pytest.raises(InvalidInputError, match=r"^seed: 1 of the nominal scenarios under seed 3 share a seed "):
+        check_held_out(hazard, "nominal", 3, 10)
+    assert shared_streams([3], [[3, 0, 0]])
+
+
+def test_same_seed_same_policy(tmp_path):
+    settings = TrainSettings(algo="td3", action_mode="torque", seed=5, num_envs=2, **TINY)
+    a, b = train(settings, tmp_path / "a", progress=False), train(settings, tmp_path / "b", progress=False)
+    pa, pb = load_policy(a.policy), load_policy(b.policy)
+    for x, y in zip(pa.model.policy.parameters(), pb.model.policy.parameters(), strict=True):
+        assert np.array_equal(x.detach().numpy(), y.detach().numpy())
+    curve = [[{k: v for k, v in r.items() if k != "wall_s"} for r in read_rows(p / "learning_curve.csv")]
+             for p in (a.out, b.out)]
+    assert curve[0] == curve[1]
+
+
+def test_ppo_trains_and_reloads(tmp_path):
+    report = train(TrainSettings(algo="ppo", action_mode="residual", task="paper", num_envs=8, **TINY),
+                   tmp_path / "ppo", progress=False)
+    policy = load_policy(report.policy)
+    assert report.timesteps == 2048 and policy.model.n_steps == 256  # SB3's 2048 transitions per update
+    assert policy.label == "cubic+PID+residual PPO"
+    assert len(read_rows(report.out / "learning_curve.csv")) == 3
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["rl", "train", "--algo", "dqn"], "mjtraj: error: algo: unknown value 'dqn'; valid: sac, ppo, td3\n"),
+    (["rl", "train", "--action-mode", "pid"],
+     "mjtraj: error: action_mode: unknown value 'pid'; valid: residual, torque\n"),
+    (["rl", "train", "--task", "explicit"], "mjtraj: error: task: unknown value 'explicit'; valid: paper, random\n"),
+    (["rl", "train", "--steps", "0"], "mjtraj: error: steps: expected a whole number >= 1, got 0\n"),
+    (["rl", "eval", "--policy", "nowhere.zip"], "mjtraj: error: policy: file not found: nowhere.zip\n"),
+    (["rl", "eval", "--policy", "p.pt"],
+     "mjtraj: error: policy: expected a policy .zip saved by mjtraj rl train, got 'p.pt'\n"),
+])
+def test_cli_bad_input(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    assert capsys.readouterr().err == message
+
+
+def test_policy_for_another_space_is_refused(trained, tmp_path):
+    """A zip whose spaces are not the env's its record describes: the message says which space and both shapes."""
+    other = SAC("MlpPolicy", "Pendulum-v1", seed=0, device="cpu")
+    record = json.loads((trained / "policy.json").read_text())["run"]
+    bad = Policy(other, record, Normalization(np.zeros(19), np.ones(19), 1e-8, 10.0), 0).save(tmp_path / "x.zip")
+    with pytest.raises(InvalidInputError, match=r"^policy: x\.zip takes observations of shape \(3,\) but UR5Track-v0 "
+                       r"\(action_mode=residual, preview=0\) gives shape \(19,\)$"):
+        load_policy(bad)
+    record["env"]["preview"] = 1  # a record that asks for preview observations the zip was not trained on
+    (tmp_path / "y.json").write_text(json.dumps({**json.loads((trained / "policy.json").read_text()), "run": record}))
+    (tmp_path / "y.zip").write_bytes((trained / "policy.zip").read_bytes())
+    with pytest.raises(InvalidInputError, match=r"takes observations of shape \(19,\) but UR5Track-v0 "
+                       r"\(action_mode=residual, preview=1\) gives shape \(25,\)$"):
+        load_policy(tmp_path / "y.zip")
+    (tmp_path / "z.zip").write_bytes(b"not a zip")
+    (tmp_path / "z.json").write_text((trained / "policy.json").read_text())
+    with pytest.raises(InvalidInputError, match=r"^policy: z\.json records a different zip than z\.zip"):
+        load_policy(tmp_path / "z.zip")
+
+
+def test_train_refuses_a_folder_with_a_run(trained):
+    with pytest.raises(InvalidInputError, match=r"already holds a training run \(run\.json\); choose another"):
+        train(TrainSettings(**TINY), trained, progress=False)
+
+
+def test_missing_rl_extra_says_how_to_install(monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "stable_baselines3", None)
+    with pytest.raises(MissingExtraError, match=r"^rl: stable_baselines3 is not installed; install the rl extra: "
+                       r"pip install torch==2\.13\.0 && pip install 'mjtraj\[rl\]'"):
+        require_sb3()
+    assert main(["rl", "eval", "--policy", "p.zip"]) == 2
+    assert "install the rl extra" in capsys.readouterr().err
+    with pytest.raises(MissingExtraError):
+        evaluate(["p.zip"])
