@@ -130,7 +130,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="a policy .zip written by rl train (repeat for several)")
     e.add_argument("--family", default="nominal", help="nominal | aggressive | mismatch (default nominal)")
     e.add_argument("--scenarios", type=int, default=200, help="held-out scenarios (default 200)")
-    e.add_argument("--seed", type=int, default=1, help="the scenarios' seed (default 1)")
+    e.add_argument("--seed", type=int, default=0, help="the scenarios' seed (default 0, as mjtraj sweep's)")
     e.add_argument("--planners", type=_names, help="planners with PID alone to compare (default: optimal, cubic, "
                    "quintic, trapezoidal)")
     e.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
@@ -347,6 +347,11 @@ def _gains(args: argparse.Namespace) -> int:
 
 
 def _rl(args: argparse.Namespace) -> int:
+    if args.rl_command == "plot":
+        from mjtraj.rl.train import plot_run
+
+        print(f"wrote {plot_run(args.run)}")
+        return 0
     from mjtraj.rl.extra import require_sb3
 
     require_sb3()
@@ -363,11 +368,6 @@ def _rl(args: argparse.Namespace) -> int:
               f"{final['cost_mean']:.4g} (median {final['cost_median']:.4g}, {final['diverged']} diverged)")
         print(f"wrote {report.policy}, {report.out / 'learning_curve.csv'}, {report.out / 'learning_curve.png'}, "
               f"{report.out / 'run.json'} and {report.out / 'checkpoints'}/")
-        return 0
-    if args.rl_command == "plot":
-        from mjtraj.rl.train import plot_run
-
-        print(f"wrote {plot_run(args.run)}")
         return 0
     from mjtraj.rl.evaluate import evaluate
     from mjtraj.sweep import DEFAULT_PLANNERS

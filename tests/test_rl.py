@@ -172,6 +172,16 @@ def test_train_writes_every_artifact(trained):
     assert numeric(curve[0]["pid_cost_mean"]) == np.mean(pid)
 
 
+def test_plot_redraws_a_run(trained, tmp_path, capsys):
+    png = trained / "learning_curve.png"
+    png.unlink()
+    assert main(["rl", "plot", str(trained)]) == 0
+    assert png.stat().st_size > 10_000 and capsys.readouterr().out == f"wrote {png}\n"
+    assert main(["rl", "plot", str(tmp_path)]) == 2
+    assert capsys.readouterr().err == (f"mjtraj: error: run: {tmp_path / 'run.json'} not found; expected a folder "
+                                       "written by mjtraj rl train\n")
+
+
 def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
     code = main(["rl", "eval", "--policy", str(trained / "policy.zip"), "--family", "aggressive", "--scenarios", "5",
                  "--seed", "3", "--planners", "cubic,optimal", "--out", str(tmp_path)])

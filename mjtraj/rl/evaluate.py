@@ -143,7 +143,7 @@ def _sha(policy: Policy) -> str:
     return hashlib.sha256(policy.path.read_bytes()).hexdigest()[:16] if policy.path else ""
 
 
-def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenarios: int = 200, seed: int = 1,
+def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenarios: int = 200, seed: int = 0,
              planners: Sequence[str] = ("optimal", "cubic", "quintic", "trapezoidal"), out: str | Path = "rl_eval",
              batch: int = 250) -> EvalReport:
     """Evaluate `policies` (zips from `mjtraj rl train`) and the `planners` with PID alone on scenarios

@@ -226,7 +226,6 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
                 self.returns, self.diverged = [], 0
                 if self.bar is not None:
                     self.bar.set_postfix_str(f"val J {val['cost_mean']:.3g} (PID {pid['cost_mean']:.3g})")
-                self.last = val
                 return val
 
             def _on_step(self) -> bool:
