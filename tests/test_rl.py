@@ -139,7 +139,8 @@ def test_saved_policy_reloads_with_identical_actions(tmp_path):
     model = SAC("MlpPolicy", venv, seed=1, device="cpu", learning_starts=50)
     model.learn(150)
     record = {"settings": {"algo": "sac", "seed": 1}, "env": {"planner": "cubic", "action_mode": "torque",
-                                                               "task": "random"}}
+                                                               "task": "random"},
+              "streams": {"train": {"gym_seeds": training_entropies(1, 2)}, "validation": {"count": 0}}}
     path = Policy(model, record, Normalization.of(venv), int(model.num_timesteps)).save(tmp_path / "p.zip")
     obs = np.array([venv.unnormalize_obs(np.random.default_rng(k).normal(size=19)) for k in range(64)])
     expected, _ = model.predict(venv.normalize_obs(obs), deterministic=True)

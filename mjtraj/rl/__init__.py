@@ -1,9 +1,11 @@
 """Reinforcement-learning tracking policies on UR5Track-v0, trained and scored like the planners.
 
-Needs the `rl` extra (Stable-Baselines3 on CPU PyTorch); the modules import it only when called:
-- `train`: `train(TrainSettings, out)`, an SB3 agent on the natively vectorised env;
-- `evaluate`: `evaluate(policies, family, ...)`, policies and planners on the same held-out sweep scenarios;
+Needs the `rl` extra (Stable-Baselines3 on CPU PyTorch), imported only when a function needs it:
+- `train`: `train(TrainSettings, out)`, an SB3 agent on the natively vectorised env (`sb3_env`), with its
+  learning curve (`curve`);
+- `evaluate`: `evaluate(policies, family=...)`, policies and planners on the same held-out sweep scenarios;
 - `policy`: a saved policy (the SB3 zip and its mjtraj record) and its deterministic actions;
+- `episodes`: whole episodes of a policy on given references, through the env's own engine;
 - `streams`: the seed streams that keep training, validation and evaluation scenarios apart.
 """
 

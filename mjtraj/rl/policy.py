@@ -140,6 +140,10 @@ def load_policy(path: str | Path) -> Policy:
         raise InvalidInputError(f"policy: {meta_path} is not valid JSON ({e})") from e
     if not isinstance(body, dict) or body.get("format") != FORMAT:
         raise InvalidInputError(f"policy: {meta_path} is not an mjtraj policy record (expected format {FORMAT})")
+    missing = [key for key in ("zip_sha256", "timesteps", "run", "normalization") if key not in body] + [
+        f"run.{key}" for key in ("settings", "env", "streams") if key not in body.get("run", {})]
+    if missing:
+        raise InvalidInputError(f"policy: {meta_path} lacks {', '.join(missing)}")
     sha = hashlib.sha256(zip_path.read_bytes()).hexdigest()
     if body["zip_sha256"] != sha:
         raise InvalidInputError(f"policy: {meta_path.name} records a different zip than {zip_path.name} "
