@@ -122,10 +122,9 @@ class UR5TrackVectorEnv(VectorEnv):
             diverged = self._core.loop.state.diverged_step >= 0
             out["diverged"], out["_diverged"] = diverged & done, done.copy()
         if restart.size:
-            obs[restart] = self._core.reset([self._rngs[i] for i in restart], restart)
+            self._restart(restart, obs)
             reward[restart] = 0.0
             terminated[restart] = False
-            self._elapsed[restart] = 0
         if self.autoreset_mode is AutoresetMode.SAME_STEP:
             if done.any():
                 ended = np.flatnonzero(done)
@@ -133,11 +132,15 @@ class UR5TrackVectorEnv(VectorEnv):
                 for i in ended:
                     final[i] = obs[i].copy()
                 out["final_obs"], out["_final_obs"] = final, done.copy()
-                obs[ended] = self._core.reset([self._rngs[i] for i in ended], ended)
-                self._elapsed[ended] = 0
+                self._restart(ended, obs)
             return obs, reward, terminated, truncated, out
         self._autoreset = done
         return obs, reward, terminated, truncated, out
+
+    def _restart(self, ids: NDArray[np.intp], obs: NDArray[np.float64]) -> None:
+        """Start the next episodes of sub-envs `ids` (their own rngs), writing their first observations into obs."""
+        obs[ids] = self._core.reset([self._rngs[i] for i in ids], ids)
+        self._elapsed[ids] = 0
 
     def render(self) -> tuple[NDArray[np.uint8], ...] | None:
         """rgb_array: one frame per sub-env (executed arm and translucent reference), each (height, width, 3)."""

@@ -219,10 +219,9 @@ def audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], 
         lines += _figures(data, out)
     lines += _paper_note()
     text = "\n".join(lines) + "\n"
-    from mjtraj._files import atomic_path
+    from mjtraj._files import write_text_atomic
 
-    with atomic_path(out) as tmp:
-        Path(tmp).write_text(text)
+    write_text_atomic(out, text)
     return text
 
 

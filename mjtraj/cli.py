@@ -140,13 +140,6 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    from mjtraj._files import atomic_path
-
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
-
-
 def _json_safe(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
@@ -170,6 +163,7 @@ def _scenario(args: argparse.Namespace):  # noqa: ANN202
 def _compare(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from mjtraj._files import write_text_atomic
     from mjtraj.compare import compare, comparison_record
     from mjtraj.model import load_model
     from mjtraj.report import csv_text, format_report
@@ -186,8 +180,8 @@ def _compare(args: argparse.Namespace) -> int:
 
         result = compare(scenario, args.planners, progress=progress)
         record = _json_safe(comparison_record(result))
-        _write_atomic(args.out / "results.json", json.dumps(record, indent=2) + "\n")
-        _write_atomic(args.out / "results.csv", csv_text(result))
+        write_text_atomic(args.out / "results.json", json.dumps(record, indent=2) + "\n")
+        write_text_atomic(args.out / "results.csv", csv_text(result))
         figures = []
         if not args.no_figures:
             from mjtraj.plots import write_figures

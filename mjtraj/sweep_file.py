@@ -38,6 +38,19 @@ def format_rows(columns: list[str], rows: list[dict[str, Any]]) -> str:
     return buffer.getvalue()
 
 
+def csv_text(columns: list[str], rows: list[dict[str, Any]]) -> str:
+    """CSV text of the header `columns` and `rows`."""
+    return format_rows(columns, [dict(zip(columns, columns, strict=True)), *rows])
+
+
+def append_rows(path: Path, columns: list[str], rows: list[dict[str, Any]]) -> None:
+    """Append `rows` to the CSV file `path` in one write, flushed and fsynced (durable when this returns)."""
+    with open(path, "a", newline="") as f:
+        f.write(format_rows(columns, rows))
+        f.flush()
+        os.fsync(f.fileno())
+
+
 def read_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
     """The rows of a results file as dicts of strings (use `numeric` for the numbers)."""
     with open(path, newline="") as f:
@@ -78,10 +91,7 @@ class ResultsFile:
                                     f"path")
         if not file.exists() or file.stat().st_size == 0:
             file.parent.mkdir(parents=True, exist_ok=True)
-            with open(file, "w", newline="") as f:
-                f.write(format_rows(columns, [dict(zip(columns, columns, strict=True))]))
-                f.flush()
-                os.fsync(f.fileno())
+            append_rows(file, columns, [dict(zip(columns, columns, strict=True))])  # absent or empty: the header
             return cls(file, columns, set())
         done, keep = _check(file, columns, settings, unit_rows)
         with open(file, "r+b") as f:
@@ -90,10 +100,7 @@ class ResultsFile:
 
     def append(self, rows: list[dict[str, Any]]) -> None:
         """Write a unit's rows at once and make them durable."""
-        with open(self.path, "a", newline="") as f:
-            f.write(format_rows(self.columns, rows))
-            f.flush()
-            os.fsync(f.fileno())
+        append_rows(self.path, self.columns, rows)
 
 
 def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: dict[tuple[str, int], int]

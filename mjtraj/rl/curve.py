@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import csv
-import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from mjtraj._files import atomic_path
-from mjtraj.sweep_file import numeric, read_rows
+from mjtraj.sweep_file import append_rows, numeric, read_rows
 
 COLUMNS = ("timesteps", "wall_s", "episodes", "train_return_mean", "train_diverged", "val_cost_mean",
            "val_cost_median", "val_rms_err_mean", "val_diverged", "pid_cost_mean", "pid_rms_err_mean")
@@ -20,18 +18,16 @@ COLUMNS = ("timesteps", "wall_s", "episodes", "train_return_mean", "train_diverg
 
 
 class CurveFile:
-    """learning_curve.csv, appended row by row and flushed (a crashed run keeps its curve so far)."""
+    """learning_curve.csv, appended row by row and fsynced (a crashed run keeps its curve so far)."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        with path.open("x", newline="") as f:
-            csv.writer(f).writerow(COLUMNS)
+        path.open("x").close()  # never over another run's curve
+        append_rows(path, list(COLUMNS), [dict(zip(COLUMNS, COLUMNS, strict=True))])
 
     def append(self, row: dict[str, Any]) -> None:
-        with self.path.open("a", newline="") as f:
-            csv.writer(f).writerow([repr(float(row[c])) if isinstance(row[c], float) else row[c] for c in COLUMNS])
-            f.flush()
-            os.fsync(f.fileno())
+        """One validation point (COLUMNS -> value; floats as Python floats)."""
+        append_rows(self.path, list(COLUMNS), [row])
 
 
 def plot_curve(csv_path: Path, out: Path, *, title: str) -> Path:

@@ -17,10 +17,8 @@ from numpy.typing import NDArray
 from mjtraj.closed_loop import ClosedLoop
 from mjtraj.envs.core import TrackCore
 from mjtraj.envs.settings import TrackSettings
-from mjtraj.metrics import metrics_arrays
 from mjtraj.reference import Reference
 from mjtraj.rl.policy import for_duration
-from mjtraj.rollout import Rollout
 
 Actor = Callable[[NDArray[np.float64]], NDArray[np.float32]]
 """Observations (B, d) -> actions (B, n) in [-1, 1]."""
@@ -28,10 +26,11 @@ Actor = Callable[[NDArray[np.float64]], NDArray[np.float32]]
 
 @dataclass
 class Episodes:
-    """B finished episodes: what the loop recorded, every metric (name -> (B,)), and MuJoCo's instability flags."""
+    """B finished episodes: every metric (name -> (B,), NaN where diverged), the period each diverged in (-1:
+    never), and MuJoCo's instability flags; shapes (B,)."""
 
-    rollout: Rollout
     metrics: dict[str, NDArray[np.float64]]
+    diverged_step: NDArray[np.int64]
     unstable: NDArray[np.bool_]
 
 
@@ -52,8 +51,6 @@ def run_episodes(actor: Actor | None, settings: TrackSettings, references: Seque
     zeros = np.zeros((B, settings.n), dtype=np.float32)
     for _ in range(settings.steps):
         obs, *_ = core.step(zeros if actor is None else actor(obs))
-    rollout = loop.rollout()
-    q_diag = np.array([w[0] for w in weights])
-    r_diag = np.array([w[1] for w in weights])
-    return Episodes(rollout, metrics_arrays(rollout, q_diag, r_diag, per_scenario=True), loop.plant.unstable())
+    assert loop.state is not None
+    return Episodes(core.metrics(np.arange(B)), loop.state.diverged_step.copy(), loop.plant.unstable())
 

@@ -9,7 +9,6 @@ metrics and weights. Rows are written in the sweep's format plus the columns `co
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from mjtraj._files import atomic_path
+from mjtraj._files import write_text_atomic
 from mjtraj._validate import choice, positive_int
 from mjtraj.audit import Condition, SweepData
 from mjtraj.exceptions import InvalidInputError
@@ -42,7 +41,7 @@ from mjtraj.sweep import (
     scoring_weights,
     unit_scenarios,
 )
-from mjtraj.sweep_file import format_rows
+from mjtraj.sweep_file import csv_text
 from mjtraj.sweep_runner import columns
 
 POLICY_COLUMNS = ("controller", "policy", "policy_sha256", "policy_timesteps")
@@ -75,8 +74,8 @@ def _labels(policies: Sequence[Policy]) -> list[str]:
             for k, (label, p) in enumerate(zip(labels, policies, strict=True))]
 
 
-def _settings(policies: Sequence[Policy], family: str, scenarios: int, seed: int,
-              planners: Sequence[str]) -> SweepSettings:
+def _settings(policies: Sequence[Policy], family: str, scenarios: int, seed: int, planners: Sequence[str],
+              batch: int) -> SweepSettings:
     """The sweep the planners' rows come from: the policies' controller variant, every planner they track."""
     loops = {(p.settings().loop.ff_accel, p.settings().loop.gravity_comp) for p in policies}
     if len(loops) > 1:
@@ -85,7 +84,7 @@ def _settings(policies: Sequence[Policy], family: str, scenarios: int, seed: int
     ((ff, gc),) = loops
     names = tuple(dict.fromkeys([*planners, *(p.env_kwargs["planner"] for p in policies)]))
     settings = SweepSettings(families=(family,), scenarios=scenarios, seed=seed, planners=names, ff_accel=(ff,),
-                             gravity_comp=(gc,))
+                             gravity_comp=(gc,), batch=batch)
     for p in policies:
         mine, base = p.settings().loop, settings.base.loop
         for name in ("feedforward", "anti_windup", "substeps", "gains"):
@@ -115,7 +114,7 @@ def policy_rows(settings: SweepSettings, unit: tuple[str, int], policies: Sequen
     plant = perturbed_plant(model) if mismatch else None
     rows = []
     for policy, label in zip(policies, labels, strict=True):
-        extra = {"controller": label, "policy": str(policy.path), "policy_sha256": _sha(policy),
+        extra = {"controller": label, "policy": str(policy.path), "policy_sha256": policy.sha256[:16],
                  "policy_timesteps": policy.timesteps}
         env = policy.settings()
         outcome: dict[int, tuple[str, str, dict[str, float]]] = {}
@@ -129,7 +128,7 @@ def policy_rows(settings: SweepSettings, unit: tuple[str, int], policies: Sequen
                                         plant=plant, plant_fields=fields)
                 for j, b in enumerate(ids):
                     outcome[b] = episode_outcome(episodes.metrics, j, bool(episodes.unstable[j]),
-                                                 int(episodes.rollout.diverged_step[j]), env.loop)
+                                                 int(episodes.diverged_step[j]), env.loop)
         except Exception as e:  # noqa: BLE001 - recorded, and the evaluation goes on
             outcome = {b: ("error", one_line(e), {}) for b in range(len(draws))}
         for b, s in enumerate(draws):
@@ -137,10 +136,6 @@ def policy_rows(settings: SweepSettings, unit: tuple[str, int], policies: Sequen
             status, reason, values = outcome[b] if b in outcome else (*plan_failure(plan), {})
             rows.append({**make_row(fixed, family, u, s, label, ff, gc, status, reason, values, {}), **extra})
     return rows
-
-
-def _sha(policy: Policy) -> str:
-    return hashlib.sha256(policy.path.read_bytes()).hexdigest()[:16] if policy.path else ""
 
 
 def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenarios: int = 200, seed: int = 0,
@@ -164,8 +159,7 @@ def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenari
     for p in loaded:
         check_held_out(p, family, seed, scenarios)
     labels = _labels(loaded)
-    settings = _settings(loaded, family, scenarios, seed, planners)
-    settings = SweepSettings(**{**settings.as_dict(), "batch": batch})
+    settings = _settings(loaded, family, scenarios, seed, planners, batch)
     rows: list[dict[str, Any]] = []
     for unit in settings.units():
         planner_rows = run_unit(settings, unit).rows
@@ -174,14 +168,11 @@ def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenari
         rows += policy_rows(settings, unit, loaded, labels)
     out = Path(out)
     csv_path = out / f"eval_{family}.csv"
-    header = [*columns(settings), *POLICY_COLUMNS]
-    with atomic_path(csv_path) as tmp:
-        tmp.write_text(",".join(header) + "\n" + format_rows(header, rows))
+    write_text_atomic(csv_path, csv_text([*columns(settings), *POLICY_COLUMNS], rows))
     table = comparison_table(csv_path, reference=loaded[0].env_kwargs["planner"])
     md_path = out / f"EVAL_{family}.md"
-    with atomic_path(md_path) as tmp:
-        tmp.write_text("\n".join([*_header(loaded, labels, family, scenarios, seed, policies, settings.planners),
-                                   table, ""]))
+    write_text_atomic(md_path, "\n".join([*_header(loaded, labels, family, scenarios, seed, policies,
+                                                   settings.planners), table, ""]))
     return EvalReport(csv_path, md_path, table)
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
-from mjtraj._files import atomic_path
+from mjtraj._files import atomic_path, write_text_atomic
 from mjtraj.envs.settings import TrackSettings, resolve
 from mjtraj.envs.ur5_track import action_space, observation_space
 from mjtraj.exceptions import InvalidInputError
@@ -67,12 +67,15 @@ class Policy:
     """
 
     def __init__(self, model: Any, record: dict[str, Any], normalization: Normalization, timesteps: int,
-                 path: Path | None = None) -> None:
+                 path: Path | None = None, sha256: str = "") -> None:
         self.model = model
         self.record = record
         self.normalization = normalization
         self.timesteps = timesteps
         self.path = path
+        self.sha256 = sha256
+        """Of the zip at `path` ('' until saved or loaded)."""
+        self._settings: TrackSettings | None = None
 
     @property
     def algo(self) -> str:
@@ -84,8 +87,10 @@ class Policy:
         return dict(self.record["env"])
 
     def settings(self) -> TrackSettings:
-        """The env settings it acts in (resolved from `env_kwargs`)."""
-        return resolve(**self.env_kwargs)
+        """The env settings it acts in (resolved from `env_kwargs` once)."""
+        if self._settings is None:
+            self._settings = resolve(**self.env_kwargs)
+        return self._settings
 
     @property
     def label(self) -> str:
@@ -109,11 +114,10 @@ class Policy:
         path = Path(path).with_suffix(".zip")
         with atomic_path(path) as tmp:
             self.model.save(tmp)
-        sha = hashlib.sha256(path.read_bytes()).hexdigest()
-        body = {"format": FORMAT, "timesteps": self.timesteps, "zip_sha256": sha, "run": self.record,
+        self.path, self.sha256 = path, hashlib.sha256(path.read_bytes()).hexdigest()
+        body = {"format": FORMAT, "timesteps": self.timesteps, "zip_sha256": self.sha256, "run": self.record,
                 "normalization": self.normalization.as_dict()}
-        with atomic_path(record_path(path)) as tmp:
-            tmp.write_text(json.dumps(body, indent=1) + "\n")
+        write_text_atomic(record_path(path), json.dumps(body, indent=1) + "\n")
         return path
 
 
@@ -158,7 +162,7 @@ def load_policy(path: str | Path) -> Policy:
     n = body["normalization"]
     normalization = Normalization(np.array(n["mean"], dtype=np.float64), np.array(n["var"], dtype=np.float64),
                                   float(n["epsilon"]), float(n["clip"]))
-    policy = Policy(model, record, normalization, int(body["timesteps"]), zip_path)
+    policy = Policy(model, record, normalization, int(body["timesteps"]), zip_path, sha)
     check_spaces(policy, policy.settings(), where=zip_path.name)
     return policy
 

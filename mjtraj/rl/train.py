@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from mjtraj._files import atomic_path
+from mjtraj._files import write_text_atomic
 from mjtraj._validate import choice, positive_int
 from mjtraj.envs.settings import TASKS, TrackSettings, resolve
-from mjtraj.exceptions import InvalidInputError, MjtrajError
+from mjtraj.exceptions import InvalidInputError
 from mjtraj.planners import available
 from mjtraj.rl import ACTION_MODES, ALGORITHMS
 from mjtraj.rl.curve import CurveFile, plot_curve
@@ -300,13 +300,4 @@ def _resolved(model: Any) -> dict[str, Any]:
 
 
 def _write_json(path: Path, body: dict[str, Any]) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(body, indent=1, default=_json_default) + "\n")
-
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, (np.integer, np.floating)):
-        return value.item()
-    if isinstance(value, MjtrajError):
-        return str(value)
-    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
+    write_text_atomic(path, json.dumps(body, indent=1) + "\n")
