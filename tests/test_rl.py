@@ -301,6 +301,61 @@ def test_policy_for_another_space_is_refused(trained, tmp_path):
         load_policy(tmp_path / "z.zip")
 
 
+@pytest.mark.parametrize(("record", "message"), [
+    (None, r"^policy: no record p\.json beside p\.zip; mjtraj rl train writes the two together$"),
+    ("{not json", r"^policy: .*p\.json is not valid JSON \(Expecting property name"),
+    ('{"format": "other"}', r"^policy: .*p\.json is not an mjtraj policy record \(expected format "
+                            r"mjtraj-policy/1\)$"),
+    ('{"format": "mjtraj-policy/1", "run": {"env": {}}}', r"^policy: .*p\.json lacks zip_sha256, timesteps, "
+                                                          r"normalization, run\.settings, run\.streams$"),
+    ("unknown-algo", r"^policy: unknown algorithm 'dqn' in p\.json; valid: sac, ppo, td3$"),
+])
+def test_broken_policy_records(trained, tmp_path, record, message):
+    (tmp_path / "p.zip").write_bytes((trained / "policy.zip").read_bytes())
+    if record == "unknown-algo":
+        body = json.loads((trained / "policy.json").read_text())
+        body["run"]["settings"]["algo"] = "dqn"
+        record = json.dumps(body)
+    if record is not None:
+        (tmp_path / "p.json").write_text(record)
+    with pytest.raises(InvalidInputError, match=message):
+        load_policy(tmp_path / "p.zip")
+
+
+def test_policy_and_engine_argument_checks(trained):
+    policy = load_policy(trained / "policy.zip")
+    with pytest.raises(InvalidInputError, match=r"^obs: expected shape \(B, 19\), got \(19,\)$"):
+        policy.act(np.zeros(19))
+    with pytest.raises(InvalidInputError, match=r"^policy: expected at least one policy file, got none$"):
+        evaluate([])
+    from mjtraj.closed_loop import ClosedLoop
+    from mjtraj.envs.core import TrackCore
+
+    settings = policy.settings()
+    with pytest.raises(InvalidInputError, match=r"^loop: expected a ClosedLoop of 2 simulations, got 3$"):
+        TrackCore(settings, 2, loop=ClosedLoop(settings.model, settings.loop, nsim=3))
+
+
+def test_eval_refuses_policies_trained_on_another_controller(trained, tmp_path):
+    def variant(name, **env):
+        body = json.loads((trained / "policy.json").read_text())
+        body["run"]["env"].update(env)
+        (tmp_path / f"{name}.json").write_text(json.dumps(body))
+        (tmp_path / f"{name}.zip").write_bytes((trained / "policy.zip").read_bytes())
+        return tmp_path / f"{name}.zip"
+
+    planned = variant("planned", feedforward="planned")
+    with pytest.raises(InvalidInputError, match=r"^policy: .*planned\.zip was trained with a different controller "
+                       r"\(feedforward\) than the sweep's base scenario$"):
+        evaluate([planned], scenarios=2, out=tmp_path)
+    averaged = variant("averaged", ff_accel="step_average")
+    with pytest.raises(InvalidInputError, match=r"^policy: the policies were trained with different controllers "
+                       r"\(ff_accel, gravity_comp\): \[\('sample', 'native'\), \('step_average', 'native'\)\]; "
+                       r"evaluate them separately$"):
+        evaluate([trained / "policy.zip", averaged], scenarios=2, out=tmp_path)
+    assert not list(tmp_path.glob("eval_*"))  # refused before anything was written
+
+
 def test_train_refuses_a_folder_with_a_run(trained):
     with pytest.raises(InvalidInputError, match=r"already holds a training run \(run\.json\); choose another"):
         train(TrainSettings(**TINY), trained, progress=False)
