@@ -370,3 +370,36 @@ def test_missing_rl_extra_says_how_to_install(monkeypatch, capsys):
     assert "install the rl extra" in capsys.readouterr().err
     with pytest.raises(MissingExtraError):
         evaluate(["p.zip"])
+
+
+def test_a_failed_training_run_is_recorded(tmp_path, monkeypatch):
+    import mjtraj.rl.train as train_module
+
+    calls = []
+
+    def failing(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:  # the baseline ran; the first validation of the policy fails
+            raise RuntimeError("validation exploded")
+        return run_episodes(*args, **kwargs)
+
+    monkeypatch.setattr(train_module, "run_episodes", failing)
+    with pytest.raises(RuntimeError, match="validation exploded"):
+        train(TrainSettings(**TINY), tmp_path / "run", progress=False)
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert run["status"] == "failed" and run["error"] == "RuntimeError: validation exploded"
+
+
+def test_a_policy_failing_in_eval_is_recorded_and_eval_goes_on(trained, tmp_path, monkeypatch):
+    import mjtraj.rl.evaluate as evaluate_module
+
+    def failing(*args, **kwargs):
+        raise RuntimeError("policy exploded")
+
+    monkeypatch.setattr(evaluate_module, "run_episodes", failing)
+    evaluate([trained / "policy.zip"], scenarios=3, planners=("cubic",), out=tmp_path)
+    rows = read_rows(tmp_path / "eval_nominal.csv")
+    assert [(r["controller"], r["status"]) for r in rows] == [("cubic+PID", "ok")] * 3 + [
+        ("cubic+PID+residual SAC", "error")] * 3
+    assert {r["reason"] for r in rows if r["policy"]} == {"RuntimeError: policy exploded"}
+    assert "| cubic+PID+residual SAC | 0 | 3 |" in (tmp_path / "EVAL_nominal.md").read_text()
