@@ -1,8 +1,16 @@
-"""Gymnasium environments of mjtraj (installed as `mjtraj.envs`): UR5Track-v0, single and natively vectorised."""
+"""Gymnasium environments of mjtraj (installed as `mjtraj.envs`): UR5Track-v0, single and natively vectorised.
+
+Importing this package registers the envs (it imports Gymnasium, nothing of MuJoCo); the names below load on
+first use.
+"""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import gymnasium as gym
+
+from mjtraj._lazy import lazy_exports
 
 ENV_ID = "UR5Track-v0"
 MAX_EPISODE_STEPS = 100
@@ -18,3 +26,31 @@ def register_envs() -> None:
 
 
 register_envs()
+
+_EXPORTS = {
+    "UR5TrackEnv": "mjtraj.envs.ur5_track",
+    "action_space": "mjtraj.envs.ur5_track",
+    "observation_space": "mjtraj.envs.ur5_track",
+    "UR5TrackVectorEnv": "mjtraj.envs.vector",
+    "TrackCore": "mjtraj.envs.core",
+    "observe": "mjtraj.envs.core",
+    "scale_action": "mjtraj.envs.core",
+    "STEP_INFO": "mjtraj.envs.core",
+    "ACTION_MODES": "mjtraj.envs.settings",
+    "TASKS": "mjtraj.envs.settings",
+    "EnvOptions": "mjtraj.envs.settings",
+    "TrackSettings": "mjtraj.envs.settings",
+    "argument_defaults": "mjtraj.envs.settings",
+    "resolve": "mjtraj.envs.settings",
+}
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
+
+if TYPE_CHECKING:
+    from mjtraj.envs.core import STEP_INFO, TrackCore, observe, scale_action
+    from mjtraj.envs.settings import ACTION_MODES, TASKS, EnvOptions, TrackSettings, argument_defaults, resolve
+    from mjtraj.envs.ur5_track import UR5TrackEnv, action_space, observation_space
+    from mjtraj.envs.vector import UR5TrackVectorEnv
+
+__all__ = ["ACTION_MODES", "ENV_ID", "MAX_EPISODE_STEPS", "STEP_INFO", "TASKS", "EnvOptions", "TrackCore",
+           "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults", "observation_space",
+           "observe", "register_envs", "resolve", "scale_action"]

@@ -1,33 +1,73 @@
-"""UR5Track-v0's keyword arguments, validated once and resolved against the paper scenario."""
+"""The env's keyword arguments: declared once (`EnvOptions` plus the loop options of LoopConfig), validated once,
+and resolved against the paper scenario's controller."""
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
-from mjtraj._validate import choice, frozen, positive, vector
-from mjtraj.closed_loop import LoopConfig
+from mjtraj.core import (
+    JointInfo,
+    LoopConfig,
+    Planner,
+    Scoring,
+    Task,
+    available,
+    check_name,
+    check_options,
+    declared_options,
+    load_model,
+    option,
+    random_task,
+)
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.model import JointInfo, load_model
-from mjtraj.planners import Planner, available
-from mjtraj.planners.optimal import bryson_weights
-from mjtraj.render import check_render_options
-from mjtraj.scenario import Scenario, load_scenario
-from mjtraj.task import Task, random_task
+from mjtraj.media import check_render_options
+from mjtraj.study import Scenario, load_scenario
 
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
 RENDER_MODES = ("rgb_array",)
+ENV_OWN = ("planner", "q0", "qg", "Q_exec", "R_exec", "render_mode")
+"""Arguments that are not declared options (objects, vectors or None)."""
+
+
+@dataclass(frozen=True)
+class EnvOptions:
+    """UR5Track-v0's own scalar arguments, declared once (the loop's follow from LoopConfig)."""
+
+    action_mode: str = option("pid", "pid (the controller alone), residual (added to feedforward + PID) or torque "
+                              "(the whole corrective torque)", choices=ACTION_MODES)
+    task: str = option("paper", "paper, random or explicit", choices=TASKS)
+    max_displacement: float = option(1.5, "largest abs(qg - q0) per joint of task='random', rad", positive=True)
+    duration: float = option(2.0, "T, s (a whole number of dt)", positive=True)
+    dt: float = option(0.02, "control period, s", positive=True)
+    preview: int = option(0, "future reference samples in the observation", minimum=0)
+    width: int = option(640, "image width, px", minimum=1)
+    height: int = option(480, "image height, px", minimum=1)
+    camera: str = option("front", "front, side or top")
+
+    def __post_init__(self) -> None:
+        check_options(self)
+
+
+def argument_defaults() -> dict[str, Any]:
+    """Every env argument and its default: the env's own, then the loop options (the paper scenario's values)."""
+    paper = load_scenario()
+    own = {f.name: f.default for f, _, _ in declared_options(EnvOptions)}
+    loop = {f.name: getattr(paper.loop, f.name) for f, _, _ in declared_options(LoopConfig, scenario_only=True)}
+    return {"planner": "cubic", **own, "q0": None, "qg": None, "Q_exec": None, "R_exec": None, "render_mode": None,
+            **loop}
+
 
 @dataclass(frozen=True)
 class TrackSettings:
-    """Everything an env instance needs, validated. Weights are diagonals: Q_exec (2n,), R_exec (n,); None for
-    Bryson's rule on each episode's task (`weights`)."""
+    """Everything an env instance needs, validated."""
 
     model: mujoco.MjModel
     planner: Planner
@@ -41,8 +81,7 @@ class TrackSettings:
     dt: float
     loop: LoopConfig
     preview: int
-    Q_exec: NDArray[np.float64] | None
-    R_exec: NDArray[np.float64] | None
+    scoring: Scoring
     render_mode: str | None
     width: int
     height: int
@@ -63,17 +102,16 @@ class TrackSettings:
         """6n + 1 + 2n preview."""
         return 6 * self.n + 1 + 2 * self.n * self.preview
 
-    def weights(self, task: Task) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """diag(Q_exec) (2n,) and diag(R_exec) (n,) that score an episode of `task`: the given ones, else Bryson's
-        rule for the task (`mjtraj.planners.optimal.bryson_weights`), the rule sweeps score every scenario by. For
-        the paper task Bryson's rule gives the paper scenario's weights."""
-        q_rule, r_rule = bryson_weights(task, self.torque_limit)
-        return (q_rule if self.Q_exec is None else self.Q_exec), (r_rule if self.R_exec is None else self.R_exec)
-
     @property
     def torque_limit(self) -> NDArray[np.float64]:
         """The corrective-torque saturation, shape (n,), N m."""
         return JointInfo.of(self.model).torque_limit
+
+    def weights(self, task: Task) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """diag(Q_exec) (2n,) and diag(R_exec) (n,) that score an episode of `task` (`mjtraj.core.scoring`): the
+        given ones, else Bryson's rule for the task, the rule sweeps score every scenario by. For the paper task
+        Bryson's rule gives the paper scenario's weights."""
+        return self.scoring.weights(task, self.torque_limit)
 
     def sample_task(self, rng: np.random.Generator) -> Task:
         """The next episode's task: the fixed one, or for 'random' a start uniform in the joint ranges and a goal
@@ -83,66 +121,62 @@ class TrackSettings:
         return random_task(rng, self.model, max_displacement=self.max_displacement, duration=self.duration,
                            dt=self.dt)
 
-
-def _count(name: str, value: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise InvalidInputError(f"{name}: expected a whole number >= 0, got {value!r}")
-    return int(value)
+    def with_duration(self, duration: float) -> TrackSettings:
+        """The same settings for episodes of `duration` s whose tasks are given from outside (evaluation)."""
+        return dataclasses.replace(self, duration=float(duration), task_mode="explicit", fixed_task=None)
 
 
-def _weights(name: str, value: npt.ArrayLike | None, size: int) -> NDArray[np.float64] | None:
-    if value is None:
-        return None
-    weights = vector(name, value, size)
-    if np.any(weights < 0):
-        raise InvalidInputError(f"{name}: expected {size} non-negative weights (a diagonal), got {weights.tolist()}")
-    return frozen(weights)
-
-
-def resolve(*, planner: str | Planner = "cubic", action_mode: str = "pid", task: str = "paper",
-            q0: npt.ArrayLike | None = None, qg: npt.ArrayLike | None = None, max_displacement: float = 1.5,
-            duration: float = 2.0, dt: float = 0.02, feedforward: str = "inverse", ff_accel: str = "sample",
-            gravity_comp: str = "native", anti_windup: str = "none", preview: int = 0,
-            Q_exec: npt.ArrayLike | None = None, R_exec: npt.ArrayLike | None = None,
-            render_mode: str | None = None, width: int = 640, height: int = 480, camera: str = "front",
-            scenario: Scenario | None = None) -> TrackSettings:
-    """Validate the env's arguments (see UR5TrackEnv) and fill in the paper scenario's controller."""
-    paper = scenario if scenario is not None else load_scenario()
+def _planner(planner: Any, paper: Scenario) -> tuple[str, Planner]:
     if isinstance(planner, str):
-        if planner not in available():
-            raise InvalidInputError(f"planner: unknown planner {planner!r}; valid: {', '.join(available())}")
-        planner_name, planner_obj = planner, paper.planner(planner)
-    elif callable(getattr(planner, "plan", None)):
-        planner_name, planner_obj = type(planner).__name__, planner
-    else:
-        raise InvalidInputError(f"planner: expected a registered name ({', '.join(available())}) or an object "
-                                f"with plan(task, model), got {planner!r}")
-    choice("action_mode", action_mode, ACTION_MODES)
-    choice("task", task, TASKS)
+        return check_name("planner", planner), paper.planner(planner)
+    if callable(getattr(planner, "plan", None)):
+        return type(planner).__name__, planner
+    raise InvalidInputError(f"planner: expected a registered name ({', '.join(available())}) or an object with "
+                            f"plan(task, model), got {planner!r}")
+
+
+def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None, qg: npt.ArrayLike | None = None,
+            Q_exec: npt.ArrayLike | None = None, R_exec: npt.ArrayLike | None = None, render_mode: str | None = None,
+            scenario: Scenario | None = None, **options: Any) -> TrackSettings:
+    """Validate the env's arguments (see UR5TrackEnv; the declared ones are EnvOptions' and LoopConfig's) and fill
+    in the paper scenario's controller.
+
+    Raises:
+      InvalidInputError: an unknown argument (the valid ones are listed) or a bad value.
+    """
+    paper = scenario if scenario is not None else load_scenario()
+    env_names = [f.name for f, _, _ in declared_options(EnvOptions)]
+    loop_names = [f.name for f, _, _ in declared_options(LoopConfig, scenario_only=True)]
+    unknown = sorted(set(options) - set(env_names) - set(loop_names))
+    if unknown:
+        raise InvalidInputError(f"{unknown[0]}: unknown argument; valid: "
+                                f"{', '.join([*ENV_OWN, *env_names, *loop_names])}")
+    own = EnvOptions(**{k: v for k, v in options.items() if k in env_names})
+    loop = dataclasses.replace(paper.loop, **{k: v for k, v in options.items() if k in loop_names})
+    planner_name, planner_obj = _planner(planner, paper)
     if render_mode is not None and render_mode not in RENDER_MODES:
         raise InvalidInputError(f"render_mode: unsupported mode {render_mode!r}; valid: None, "
                                 f"{', '.join(RENDER_MODES)}")
-    model = load_model(dt=positive("dt", dt))
+    model = load_model(paper.model_path, dt=own.dt)
     n = model.nv
-    if task == "explicit":
+    if own.task == "explicit":
         if q0 is None or qg is None:
             raise InvalidInputError("task: 'explicit' needs both q0 and qg (rad)")
     elif q0 is not None or qg is not None:
-        raise InvalidInputError(f"q0, qg: only used with task='explicit', got task={task!r}")
-    if task == "paper":
-        fixed: Task | None = Task.create(paper.task.q0, paper.task.qg, duration, dt, model=model)
-    elif task == "explicit":
-        fixed = Task.create(q0, qg, duration, dt, model=model)  # type: ignore[arg-type]
+        raise InvalidInputError(f"q0, qg: only used with task='explicit', got task={own.task!r}")
+    fixed: Task | None = None
+    if own.task == "paper":
+        fixed = Task.create(paper.task.q0, paper.task.qg, own.duration, own.dt, model=model)
+    elif own.task == "explicit":
+        fixed = Task.create(q0, qg, own.duration, own.dt, model=model)  # type: ignore[arg-type]
     else:
-        Task.create(np.zeros(n), np.zeros(n), duration, dt)  # validates the time grid now
-        fixed = None
-    loop = dataclasses.replace(paper.loop, feedforward=feedforward, ff_accel=ff_accel, gravity_comp=gravity_comp,
-                               anti_windup=anti_windup)
-    return TrackSettings(
-        model=model, planner=planner_obj, planner_name=planner_name, action_mode=action_mode, task_mode=task,
-        fixed_task=fixed, max_displacement=positive("max_displacement", max_displacement),
-        duration=float(duration), dt=float(dt), loop=loop,
-        preview=_count("preview", preview),
-        Q_exec=_weights("Q_exec", Q_exec, 2 * n), R_exec=_weights("R_exec", R_exec, n),
-        render_mode=render_mode, **dict(zip(("width", "height", "camera"),
-                                            check_render_options(model, width, height, camera), strict=True)))
+        Task.create(np.zeros(n), np.zeros(n), own.duration, own.dt)  # validates the time grid now
+    if (Q_exec is None) != (R_exec is None):
+        raise InvalidInputError("Q_exec, R_exec: give both (diagonals of 2n and n weights), or neither for Bryson's "
+                                "rule on each task")
+    scoring = Scoring() if Q_exec is None else Scoring.fixed(Q_exec, R_exec, n)  # type: ignore[arg-type]
+    width, height, camera = check_render_options(model, own.width, own.height, own.camera)
+    return TrackSettings(model=model, planner=planner_obj, planner_name=planner_name, action_mode=own.action_mode,
+                         task_mode=own.task, fixed_task=fixed, max_displacement=own.max_displacement,
+                         duration=own.duration, dt=own.dt, loop=loop, preview=own.preview, scoring=scoring,
+                         render_mode=render_mode, width=width, height=height, camera=camera)

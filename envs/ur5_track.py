@@ -8,14 +8,14 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
-from numpy.typing import NDArray
-
 from mjtraj.envs.core import TrackCore
 from mjtraj.envs.settings import RENDER_MODES, TrackSettings, resolve
+from numpy.typing import NDArray
+
+from mjtraj.core import JointInfo
+from mjtraj.core import ClosedLoop
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.model import JointInfo
-from mjtraj.planners import Planner
-from mjtraj.render import ArmRenderer
+from mjtraj.media import ArmRenderer
 
 VELOCITY_BOUND = 200.0
 """rad/s, the velocity bounds of the observation space: 60 N m on the lightest joint inertia (0.09 kg m^2) cannot
@@ -117,6 +117,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | ff_accel         | "sample"   | sample or step_average                                                  |
     | gravity_comp     | "native"   | native or zoh                                                           |
     | anti_windup      | "none"     | none or clamp                                                           |
+    | substeps         | 1          | integrator steps per control period                                     |
     | preview          | 0          | future reference samples in the observation                             |
     | Q_exec           | None       | diag of Q_exec, 6 weights (None: Bryson's rule for each task)           |
     | R_exec           | None       | diag of R_exec, 3 weights (None: Bryson's rule)                         |
@@ -133,17 +134,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
 
-    def __init__(self, planner: str | Planner = "cubic", action_mode: str = "pid", task: str = "paper",
-                 q0: npt.ArrayLike | None = None, qg: npt.ArrayLike | None = None, max_displacement: float = 1.5,
-                 duration: float = 2.0, dt: float = 0.02, feedforward: str = "inverse", ff_accel: str = "sample",
-                 gravity_comp: str = "native", anti_windup: str = "none", preview: int = 0,
-                 Q_exec: npt.ArrayLike | None = None, R_exec: npt.ArrayLike | None = None,
-                 render_mode: str | None = None, width: int = 640, height: int = 480, camera: str = "front") -> None:
-        self.settings = resolve(planner=planner, action_mode=action_mode, task=task, q0=q0, qg=qg,
-                                max_displacement=max_displacement, duration=duration, dt=dt, feedforward=feedforward,
-                                ff_accel=ff_accel, gravity_comp=gravity_comp, anti_windup=anti_windup,
-                                preview=preview, Q_exec=Q_exec, R_exec=R_exec, render_mode=render_mode, width=width,
-                                height=height, camera=camera)
+    def __init__(self, **kwargs: Any) -> None:
+        self.settings = resolve(**kwargs)
+        render_mode = self.settings.render_mode
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.settings.dt)}
         self.observation_space = observation_space(self.settings)
@@ -153,8 +146,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         self._renderer: ArmRenderer | None = None
 
     @property
-    def loop(self) -> Any:
-        """The ClosedLoop this env runs (read-only use)."""
+    def loop(self) -> ClosedLoop:
+        """The ClosedLoop this env runs (read its public queries; do not step it)."""
         return self._core.loop
 
     @property
@@ -178,7 +171,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         if done:
             self._running = False
             out["metrics"] = {name: float(v[0]) for name, v in self._core.metrics(np.zeros(1, np.intp)).items()}
-            out["diverged"] = bool(self._core.loop.state.diverged_step[0] >= 0)
+            out["diverged"] = bool(self._core.loop.diverged[0])
         return obs[0], float(reward[0]), done, False, out
 
     def render(self) -> NDArray[np.uint8] | None:
@@ -186,12 +179,12 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' to gym.make")
             return None
-        if self._core.loop.state is None:
+        if not self._core.loop.started:
             raise InvalidInputError("render: call reset() first")
         if self._renderer is None:
             s = self.settings
             self._renderer = ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera)
-        return self._renderer.frame(self._core.loop.plant.qpos[0], self._core.reference_pose(0))
+        return self._renderer.frame(self._core.loop.positions[0], self._core.reference_pose(0))
 
     def close(self) -> None:
         if self._renderer is not None:

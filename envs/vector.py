@@ -9,15 +9,15 @@ import numpy.typing as npt
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
-from numpy.typing import NDArray
-
-from mjtraj._validate import positive_int
 from mjtraj.envs.core import STEP_INFO, TrackCore
 from mjtraj.envs.settings import RENDER_MODES, resolve
 from mjtraj.envs.ur5_track import action_space, observation_space
+from numpy.typing import NDArray
+
+from mjtraj.checks import positive_int
+from mjtraj.core import ClosedLoop
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.planners import Planner
-from mjtraj.render import ArmRenderer
+from mjtraj.media import ArmRenderer
 
 AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
@@ -41,19 +41,10 @@ class UR5TrackVectorEnv(VectorEnv):
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50, "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, planner: str | Planner = "cubic", action_mode: str = "pid",
-                 task: str = "paper", q0: npt.ArrayLike | None = None, qg: npt.ArrayLike | None = None,
-                 max_displacement: float = 1.5, duration: float = 2.0, dt: float = 0.02,
-                 feedforward: str = "inverse", ff_accel: str = "sample", gravity_comp: str = "native",
-                 anti_windup: str = "none", preview: int = 0, Q_exec: npt.ArrayLike | None = None,
-                 R_exec: npt.ArrayLike | None = None, render_mode: str | None = None, width: int = 640,
-                 height: int = 480, camera: str = "front", max_episode_steps: int | None = None,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP) -> None:
-        self.settings = resolve(planner=planner, action_mode=action_mode, task=task, q0=q0, qg=qg,
-                                max_displacement=max_displacement, duration=duration, dt=dt, feedforward=feedforward,
-                                ff_accel=ff_accel, gravity_comp=gravity_comp, anti_windup=anti_windup,
-                                preview=preview, Q_exec=Q_exec, R_exec=R_exec, render_mode=render_mode, width=width,
-                                height=height, camera=camera)
+    def __init__(self, num_envs: int = 1, *, max_episode_steps: int | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs: Any) -> None:
+        self.settings = resolve(**kwargs)
+        render_mode = self.settings.render_mode
         self.num_envs = positive_int("num_envs", num_envs)
         self.max_episode_steps = None if max_episode_steps is None else positive_int("max_episode_steps",
                                                                                       max_episode_steps)
@@ -76,8 +67,8 @@ class UR5TrackVectorEnv(VectorEnv):
         self._renderers: list[ArmRenderer] = []
 
     @property
-    def loop(self) -> Any:
-        """The ClosedLoop this env runs (read-only use)."""
+    def loop(self) -> ClosedLoop:
+        """The ClosedLoop this env runs (read its public queries; do not step it)."""
         return self._core.loop
 
     def reset(self, *, seed: int | list[int | None] | None = None,
@@ -97,7 +88,7 @@ class UR5TrackVectorEnv(VectorEnv):
 
     def step(self, actions: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
                                                     NDArray[np.bool_], dict[str, Any]]:
-        if self._core.loop.state is None:
+        if not self._core.loop.started:
             raise InvalidInputError("step: call reset() first")
         restart = np.flatnonzero(self._autoreset)
         obs, reward, terminated, info = self._core.step(actions)
@@ -119,7 +110,7 @@ class UR5TrackVectorEnv(VectorEnv):
             for name, value in values.items():
                 out["metrics"][name][ended] = value
             out["_metrics"] = done.copy()
-            diverged = self._core.loop.state.diverged_step >= 0
+            diverged = self._core.loop.diverged
             out["diverged"], out["_diverged"] = diverged & done, done.copy()
         if restart.size:
             self._restart(restart, obs)
@@ -149,8 +140,8 @@ class UR5TrackVectorEnv(VectorEnv):
         s = self.settings
         if not self._renderers:
             self._renderers = [ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera)]
-        plant = self._core.loop.plant
-        return tuple(self._renderers[0].frame(plant.qpos[i], self._core.reference_pose(i))
+        positions = self._core.loop.positions
+        return tuple(self._renderers[0].frame(positions[i], self._core.reference_pose(i))
                      for i in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:

@@ -1,12 +1,21 @@
-"""mjtraj: how the choice of joint-space trajectory planner changes closed-loop execution on a MuJoCo UR5."""
+"""mjtraj: how the choice of joint-space trajectory planner changes closed-loop execution on a MuJoCo arm.
 
-from mjtraj.gl import select_backend as _select_backend
+The package is layered (docs/design.md, "Layers"): `mjtraj.core` (plant, planners, closed loop, metrics, scoring),
+`mjtraj.study` (scenarios, comparisons, sweeps, statistics, audit), `mjtraj.media` (rendering, videos),
+`mjtraj.envs` (Gymnasium environments), `mjtraj.rl` (RL tracking policies) and the `mjtraj` command on top.
+Importing `mjtraj` imports none of them: the names below load on first use.
 
-_select_backend()  # before mujoco is imported: MuJoCo reads MUJOCO_GL once
+`gym.make("mjtraj:UR5Track-v0")` works without any import; `gym.make("UR5Track-v0")` after `import mjtraj.envs`
+(or after `import mjtraj` once Gymnasium is imported).
+"""
 
-from mjtraj.closed_loop import ClosedLoop, LoopConfig
-from mjtraj.compare import Comparison, compare
-from mjtraj.controller import PIDGains, control_law
+from __future__ import annotations
+
+import sys
+from typing import TYPE_CHECKING
+
+from mjtraj._lazy import lazy_exports
+from mjtraj.versions import __version__
 from mjtraj.exceptions import (
     BackendError,
     InfeasibleError,
@@ -17,24 +26,54 @@ from mjtraj.exceptions import (
     RenderError,
     SolverError,
 )
-from mjtraj.metrics import Metrics, metrics
-from mjtraj.model import load_model
-from mjtraj.planners import Planner, available, make
-from mjtraj.reference import Reference
-from mjtraj.rollout import Rollout
-from mjtraj.scenario import Scenario, load_scenario
-from mjtraj.sweep import SweepSettings
-from mjtraj.sweep_runner import run_sweep
-from mjtraj.task import Task
-from mjtraj.envs import ENV_ID, register_envs
 
-register_envs()  # gym.make("UR5Track-v0") after `import mjtraj`
+_EXPORTS = {
+    "ENV_ID": "mjtraj.envs",
+    "ClosedLoop": "mjtraj.core.closed_loop",
+    "LoopConfig": "mjtraj.core.closed_loop",
+    "PIDGains": "mjtraj.core.controller",
+    "control_law": "mjtraj.core.controller",
+    "Metrics": "mjtraj.core.metrics",
+    "metrics": "mjtraj.core.metrics",
+    "load_model": "mjtraj.core.model",
+    "Planner": "mjtraj.core.planners",
+    "available": "mjtraj.core.planners",
+    "make": "mjtraj.core.planners",
+    "Reference": "mjtraj.core.reference",
+    "Rollout": "mjtraj.core.rollout",
+    "Scoring": "mjtraj.core.scoring",
+    "Task": "mjtraj.core.task",
+    "Comparison": "mjtraj.study.comparison",
+    "compare": "mjtraj.study.comparison",
+    "Scenario": "mjtraj.study.scenario",
+    "load_scenario": "mjtraj.study.scenario",
+    "SweepSettings": "mjtraj.study.sweep",
+    "run_sweep": "mjtraj.study.runner",
+}
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
-__version__ = "0.1.0"
+if TYPE_CHECKING:
+    from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
+    from mjtraj.core.controller import PIDGains, control_law
+    from mjtraj.core.metrics import Metrics, metrics
+    from mjtraj.core.model import load_model
+    from mjtraj.core.planners import Planner, available, make
+    from mjtraj.core.reference import Reference
+    from mjtraj.core.rollout import Rollout
+    from mjtraj.core.scoring import Scoring
+    from mjtraj.core.task import Task
+    from mjtraj.envs import ENV_ID
+    from mjtraj.study.comparison import Comparison, compare
+    from mjtraj.study.runner import run_sweep
+    from mjtraj.study.scenario import Scenario, load_scenario
+    from mjtraj.study.sweep import SweepSettings
+
+if "gymnasium" in sys.modules:  # gym.make("UR5Track-v0") after `import gymnasium; import mjtraj`
+    import mjtraj.envs  # noqa: F401  (registers the envs)
 
 __all__ = [
     "ENV_ID", "BackendError", "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig",
     "Metrics", "MissingExtraError", "MjtrajError", "ModelError", "PIDGains", "Planner", "Reference", "RenderError",
-    "Rollout", "Scenario", "SolverError", "SweepSettings", "Task", "__version__", "available", "compare",
+    "Rollout", "Scenario", "Scoring", "SolverError", "SweepSettings", "Task", "__version__", "available", "compare",
     "control_law", "load_model", "load_scenario", "make", "metrics", "run_sweep",
 ]

@@ -8,10 +8,9 @@ from collections.abc import Callable
 import numpy as np
 from mujoco.batch import Batch
 
-from mjtraj.closed_loop import ClosedLoop
-from mjtraj.model import load_model
-from mjtraj.scenario import Scenario
-from mjtraj.task import Task
+from mjtraj.core.closed_loop import ClosedLoop
+from mjtraj.core.task import Task
+from mjtraj.study.scenario import Scenario
 
 PLAN_STEPS = (100, 200, 400, 800)
 LOOP_SIZES = (1, 64, 1024, 4096)
@@ -31,7 +30,7 @@ def bench_plan(scenario: Scenario, steps: tuple[int, ...] = PLAN_STEPS, *, repea
 
     The task keeps the scenario's start, goal and dt; T = N dt.
     """
-    model = load_model(dt=scenario.task.dt)
+    model = scenario.model
     planner = scenario.planner("optimal")
     rows: list[dict[str, float]] = []
     for N in steps:
@@ -48,7 +47,7 @@ def bench_loop(scenario: Scenario, sizes: tuple[int, ...] = LOOP_SIZES, *, nthre
     """Closed-loop env-steps/s (ClosedLoop.step over a cubic reference) against raw mujoco.batch stepping of the
     same model with the same batch size and threads. Raw and loop passes of N steps alternate for `rounds`
     rounds after a warm-up pass each; the medians are compared."""
-    model = load_model(dt=scenario.task.dt)
+    model = scenario.model
     reference = scenario.planner("cubic").plan(scenario.task, model)
     N = reference.steps
     rows = []
@@ -160,7 +159,7 @@ def bench_render(sizes: tuple[tuple[int, int], ...] = ((320, 240), (640, 480)), 
     """env.render() frames per second at each (width, height), on the GL backend in force."""
     import gymnasium as gym
 
-    from mjtraj.gl import active_backend
+    from mjtraj.media.gl import active_backend
 
     rows: list[dict[str, object]] = []
     for width, height in sizes:
@@ -183,8 +182,8 @@ def bench_sweep(scenarios: int = 10_000, *, workers: int | None = None) -> dict[
     import os
     import tempfile
 
-    from mjtraj.sweep import SweepSettings
-    from mjtraj.sweep_runner import run_sweep
+    from mjtraj.study.runner import run_sweep
+    from mjtraj.study.sweep import SweepSettings
 
     settings = SweepSettings(families=("nominal",), scenarios=scenarios)
     with tempfile.TemporaryDirectory() as folder:

@@ -6,7 +6,6 @@ import argparse
 import json
 import logging
 import math
-import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -33,6 +32,17 @@ def _names(text: str) -> list[str]:
     return [x for x in text.replace(",", " ").split() if x]
 
 
+def _loop_flags(parser: argparse.ArgumentParser) -> None:
+    """A flag per declared loop option (mjtraj.core.closed_loop.LoopConfig), overriding the scenario's value."""
+    from mjtraj.core import LoopConfig, declared_options
+
+    for f, declaration, kind in declared_options(LoopConfig, scenario_only=True):
+        flags = [f"--{f.name.replace('_', '-')}"] + ([declaration.flag] if declaration.flag else [])
+        choices = f" ({' | '.join(map(str, declaration.choices))})" if declaration.choices else ""
+        parser.add_argument(*flags, dest=f.name, type=kind, help=f"{declaration.help}{choices}; default: the "
+                            "scenario's")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="mjtraj", description="How the trajectory planner changes closed-loop execution.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -43,11 +53,7 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--qg", type=_floats, help="goal, rad, comma-separated")
     c.add_argument("--duration", type=float, help="T, s (a whole number of dt)")
     c.add_argument("--dt", type=float, help="control period, s")
-    c.add_argument("--ff", dest="feedforward", help="feedforward: inverse | planned | none")
-    c.add_argument("--ff-accel", dest="ff_accel", help="feedforward acceleration: sample | step_average")
-    c.add_argument("--gravity-comp", dest="gravity_comp", help="gravity compensation: native | zoh")
-    c.add_argument("--anti-windup", dest="anti_windup", help="anti-windup: none | clamp")
-    c.add_argument("--substeps", type=int, help="integrator steps per control period")
+    _loop_flags(c)
     c.add_argument("--planners", type=_names, help="comma-separated planner names (default: all)")
     c.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
     c.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
@@ -151,26 +157,26 @@ def _json_safe(value: Any) -> Any:
 
 
 def _scenario(args: argparse.Namespace):  # noqa: ANN202
-    from mjtraj.scenario import load_scenario
+    from mjtraj.study.scenario import load_scenario
+
+    from mjtraj.core import LoopConfig, option_names
 
     scenario = load_scenario(args.config)
     task = {k: getattr(args, k) for k in ("q0", "qg", "duration", "dt") if getattr(args, k, None) is not None}
-    loop = {k: getattr(args, k) for k in ("feedforward", "ff_accel", "gravity_comp", "anti_windup", "substeps")
-            if getattr(args, k, None) is not None}
-    return scenario.replace(task_changes=task, loop_changes=loop) if task or loop else scenario
+    loop = {k: getattr(args, k) for k in option_names(LoopConfig) if getattr(args, k, None) is not None}
+    return scenario.replace(task=task, loop=loop) if task or loop else scenario
 
 
 def _compare(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from mjtraj._files import write_text_atomic
-    from mjtraj.compare import compare, comparison_record
-    from mjtraj.model import load_model
-    from mjtraj.report import csv_text, format_report
+    from mjtraj.files import write_text_atomic
+    from mjtraj.study.comparison import compare, comparison_record
+    from mjtraj.study.report import format_report, results_csv
 
     scenario = _scenario(args)
-    scenario.task.check_limits(load_model())
-    from mjtraj.planners import available
+    scenario.task.check_limits(scenario.model)
+    from mjtraj.core.planners import available
 
     stages = len(args.planners or available()) + 2 + (0 if args.no_figures else 1)  # plans, execute, check, figures
     with tqdm(total=stages, desc="mjtraj compare", file=sys.stderr, leave=False, disable=None) as bar:
@@ -181,10 +187,10 @@ def _compare(args: argparse.Namespace) -> int:
         result = compare(scenario, args.planners, progress=progress)
         record = _json_safe(comparison_record(result))
         write_text_atomic(args.out / "results.json", json.dumps(record, indent=2) + "\n")
-        write_text_atomic(args.out / "results.csv", csv_text(result))
+        write_text_atomic(args.out / "results.csv", results_csv(result))
         figures = []
         if not args.no_figures:
-            from mjtraj.plots import write_figures
+            from mjtraj.study.plots import write_figures
 
             progress("figures")
             figures = write_figures(result, args.out)
@@ -199,7 +205,7 @@ def _compare(args: argparse.Namespace) -> int:
 
 def _bench(args: argparse.Namespace) -> int:
     from mjtraj.bench import LOOP_SIZES, bench_loop, bench_plan
-    from mjtraj.scenario import load_scenario
+    from mjtraj.study.scenario import load_scenario
 
     scenario = load_scenario(args.config)
     if args.what in ("plan", "all"):
@@ -246,7 +252,7 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def _sweep_settings(args: argparse.Namespace):  # noqa: ANN202
-    from mjtraj.sweep import DEFAULT_PLANNERS, SweepSettings
+    from mjtraj.study.sweep import DEFAULT_PLANNERS, SweepSettings
 
     return SweepSettings(families=tuple(args.families), scenarios=args.scenarios, seed=args.seed,
                          planners=tuple(args.planners or DEFAULT_PLANNERS), ff_accel=tuple(args.ff_accel),
@@ -255,7 +261,7 @@ def _sweep_settings(args: argparse.Namespace):  # noqa: ANN202
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from mjtraj.sweep_runner import run_sweep
+    from mjtraj.study.runner import run_sweep
 
     settings = _sweep_settings(args)
     report = run_sweep(settings, args.out, resume=args.resume, backend=args.backend, workers=args.workers,
@@ -267,9 +273,9 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def _audit(args: argparse.Namespace) -> int:
-    from mjtraj.audit import audit
+    from mjtraj.study.audit import write_audit
 
-    text = audit(args.sweeps, args.out)
+    text = write_audit(args.sweeps, args.out)
     verdicts = text.split("## Verdicts", 1)[1].split("\n\nVerdict rule")[0]
     print(verdicts.strip())
     print(f"\nwrote {args.out}")
@@ -279,15 +285,14 @@ def _audit(args: argparse.Namespace) -> int:
 def _render(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from mjtraj._validate import positive_int
-    from mjtraj.compare import compare
-    from mjtraj.model import load_model
-    from mjtraj.planners import available
-    from mjtraj.render import check_render_options
-    from mjtraj.videos import SNAPSHOT_TIMES, check_formats, render_all
+    from mjtraj.checks import positive_int
+    from mjtraj.core.planners import available
+    from mjtraj.media.render import check_render_options
+    from mjtraj.media.videos import SNAPSHOT_TIMES, check_formats, render_all
+    from mjtraj.study.comparison import compare
 
     scenario = _scenario(args)
-    check_render_options(load_model(), args.width, args.height, args.camera)
+    check_render_options(scenario.model, args.width, args.height, args.camera)
     check_formats(args.formats)
     every = positive_int("every", args.every)
     planners = tuple(args.planners or available())
@@ -302,12 +307,15 @@ def _render(args: argparse.Namespace) -> int:
 
 
 def _doctor(args: argparse.Namespace) -> int:
-    from mjtraj import gl
-    from mjtraj.compare import versions
+    from mjtraj.versions import versions
+    from mjtraj.media import gl
 
     print("versions: " + ", ".join(f"{k} {v}" for k, v in versions().items()))
-    print(f"python {sys.version.split()[0]}, MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}, "
-          f"mjtraj's default: {gl.default_backend() or 'none found'}")
+    user = gl.user_backend()
+    chosen = user or gl.default_backend()
+    print(f"python {sys.version.split()[0]}; MUJOCO_GL set by you: {user or '(unset)'}; renderers use: "
+          f"{chosen or 'none found'}" + ("" if user else " (mjtraj's choice when MUJOCO_GL is unset: OSMesa if "
+                                         "libOSMesa is present, else EGL)"))
     working = []
     for backend in gl.BACKENDS:
         ok, detail = gl.probe_backend(backend) if gl.library_present(backend) else (False, "library not found")
@@ -323,19 +331,18 @@ def _doctor(args: argparse.Namespace) -> int:
 def _gains(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from mjtraj.gains import GAIN_RULE, gain_rule
-    from mjtraj.model import JointInfo, load_model
-    from mjtraj.planners.optimal import bryson_weights
-    from mjtraj.scenario import load_scenario
+    from mjtraj.core.gains import GAIN_RULE, gain_rule
+    from mjtraj.core.scoring import bryson_weights
+    from mjtraj.study.scenario import load_scenario
 
     scenario = load_scenario(args.config)
-    model = load_model(dt=scenario.task.dt)
+    model = scenario.model
     gains = gain_rule(model, scenario.task.q0, scenario.task.qg, scenario.task.dt)
-    Q, R = bryson_weights(scenario.task, JointInfo.of(model).torque_limit)
+    Q, R = bryson_weights(scenario.task, scenario.torque_limit)
     show = lambda a: "[" + ", ".join(repr(float(x)) for x in np.asarray(a)) + "]"  # noqa: E731
     print(f"# gain rule: {GAIN_RULE}")
     print(f"kp = {show(gains.kp)}\nki = {show(gains.ki)}\nkd = {show(gains.kd)}")
-    print("# optimal planner weights, Bryson's rule (mjtraj.planners.optimal.bryson_weights)")
+    print("# optimal planner weights, Bryson's rule (mjtraj.core.scoring.bryson_weights)")
     print(f"state_weight = {show(Q)}\ninput_weight = {show(R)}")
     return 0
 
@@ -364,7 +371,7 @@ def _rl(args: argparse.Namespace) -> int:
               f"{report.out / 'run.json'} and {report.out / 'checkpoints'}/")
         return 0
     from mjtraj.rl.evaluate import evaluate
-    from mjtraj.sweep import DEFAULT_PLANNERS
+    from mjtraj.study.sweep import DEFAULT_PLANNERS
 
     report = evaluate(args.policies, family=args.family, scenarios=args.scenarios, seed=args.seed,
                       planners=tuple(args.planners or DEFAULT_PLANNERS), out=args.out)

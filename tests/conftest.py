@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mjtraj.model import load_model
-from mjtraj.scenario import Scenario, load_scenario
-from mjtraj.task import Task
+from mjtraj.core.model import load_model
+from mjtraj.core.task import Task
+from mjtraj.study.scenario import Scenario, load_scenario
 
 
 @pytest.fixture(scope="session")

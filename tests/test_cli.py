@@ -10,8 +10,8 @@ import sys
 import pytest
 
 from mjtraj.cli import main
-from mjtraj.compare import compare
-from mjtraj.plots import FIGURES
+from mjtraj.study.comparison import compare
+from mjtraj.study.plots import FIGURES
 
 
 def test_compare_writes_everything(tmp_path, capsys, scenario):
@@ -29,6 +29,7 @@ def test_compare_writes_everything(tmp_path, capsys, scenario):
         assert (tmp_path / figure).stat().st_size > 10_000
 
 
+
 def test_compare_json_and_overrides(tmp_path, capsys):
     args = ["compare", "--out", str(tmp_path), "--json", "--no-figures", "--planners", "cubic,quintic",
             "--ff-accel", "step_average", "--gravity-comp", "zoh", "--duration", "1.5"]
@@ -39,6 +40,7 @@ def test_compare_json_and_overrides(tmp_path, capsys):
     assert record["scenario"]["controller"]["gravity_comp"] == "zoh"
     assert record["scenario"]["task"]["duration"] == 1.5
     assert not list(tmp_path.glob("*.png"))
+
 
 
 @pytest.mark.parametrize(("args", "message"), [
@@ -66,6 +68,7 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message):
     assert not (tmp_path / "out").exists()  # nothing half-written
 
 
+
 def test_argparse_errors_are_one_line(capsys):
     with pytest.raises(SystemExit) as info:
         main(["compare", "--q0", "a,b"])
@@ -74,12 +77,8 @@ def test_argparse_errors_are_one_line(capsys):
     assert err.count("\n") == 1 and err.startswith("mjtraj: error: argument --q0: expected numbers")
 
 
+
 def test_python_dash_m(tmp_path):
     done = subprocess.run([sys.executable, "-m", "mjtraj", "gains"], capture_output=True, text=True, check=True)
     assert done.stdout.startswith("# gain rule: ")
 
-
-def test_bench_runs_small(capsys):
-    assert main(["bench", "loop", "--sizes", "1,8"]) == 0
-    out = capsys.readouterr().out
-    assert "ratio" in out and len(out.strip().splitlines()) == 4

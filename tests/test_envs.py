@@ -11,17 +11,16 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-
-import mjtraj
-from mjtraj.compare import compare
-from mjtraj.envs.settings import ACTION_MODES, TASKS
+from mjtraj.envs.settings import ACTION_MODES, argument_defaults
 from mjtraj.envs.ur5_track import UR5TrackEnv
 from mjtraj.envs.vector import UR5TrackVectorEnv
+
+import mjtraj
+from mjtraj.core import LoopConfig, option_names
+from mjtraj.core.metrics import METRIC_NAMES
+from mjtraj.core.model import JointInfo
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.gains import closed_loop_map
-from mjtraj.linearize import discretize_zoh, linearize
-from mjtraj.metrics import METRIC_NAMES
-from mjtraj.model import JointInfo
+from mjtraj.study.comparison import compare
 
 
 def episode(env, *, seed=None, actions=None):
@@ -39,10 +38,12 @@ def episode(env, *, seed=None, actions=None):
             return np.array(observations), np.array(rewards), info
 
 
+
 def test_registered_with_the_paper_episode_length():
     spec = gym.spec("UR5Track-v0")
     assert spec.max_episode_steps == 100 == mjtraj.load_scenario().task.steps
     assert spec.vector_entry_point is not None
+
 
 
 def test_make_with_module_prefix_needs_no_prior_import():
@@ -50,6 +51,7 @@ def test_make_with_module_prefix_needs_no_prior_import():
             "print(type(env.unwrapped).__module__, 'envs' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["mjtraj.envs.ur5_track", "False"]  # and nothing named plain `envs` was imported
+
 
 
 @pytest.mark.parametrize("action_mode", ACTION_MODES)
@@ -61,6 +63,7 @@ def test_gymnasium_check_env_without_warnings(action_mode):
         warnings.simplefilter("error")
         check_env(env.unwrapped)
     env.close()
+
 
 
 @pytest.mark.parametrize("planner", ["optimal", "cubic", "quintic", "trapezoidal"])
@@ -75,23 +78,6 @@ def test_pid_paper_episode_is_compare(planner, scenario):
     assert -rewards.sum() == pytest.approx(expected.cost, rel=1e-12)
     assert info["diverged"] is False
 
-
-def test_reward_terms_and_info(scenario):
-    env = UR5TrackEnv(action_mode="residual")
-    env.reset(seed=0)
-    _, reward, _, _, info = env.step(np.array([0.5, -0.2, 0.1], dtype=np.float32))
-    Q, R = scenario.Q_exec, scenario.R_exec
-    e, dtau = info["e"], info["dtau"]
-    q0 = scenario.task.q0
-    assert np.array_equal(e, np.zeros(3)) and np.allclose(q0, env.reference.q[0])
-    # residual mode: dtau = clip(ff + fb + 60 a); at k = 0 the error is zero, so fb = 0
-    np.testing.assert_allclose(dtau, np.clip(info["tau_ff"] + 60 * np.array([0.5, -0.2, 0.1]), -60, 60),
-                               rtol=0, atol=1e-6)
-    assert info["reward_tracking"] == 0.0
-    assert info["reward_effort"] == pytest.approx(-(dtau**2) @ R, rel=1e-12)
-    assert reward == info["reward_tracking"] + info["reward_effort"]
-    assert set(info) == {"tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort"}
-    del Q
 
 
 def test_observation_layout():
@@ -110,6 +96,7 @@ def test_observation_layout():
     assert obs.shape == env.observation_space.shape == (31,)
 
 
+
 def test_seeded_resets_are_identical():
     env = UR5TrackEnv(task="random", action_mode="torque")
     env.action_space.seed(5)
@@ -122,6 +109,7 @@ def test_seeded_resets_are_identical():
     assert not np.array_equal(first[0][0], other[0][0])
 
 
+
 def test_random_tasks_stay_in_range_and_bounded(model):
     env = UR5TrackEnv(task="random", max_displacement=0.7)
     joints = JointInfo.of(model)
@@ -131,13 +119,6 @@ def test_random_tasks_stay_in_range_and_bounded(model):
         assert np.all((joints.lower <= q0) & (q0 <= joints.upper) & (joints.lower <= qg) & (qg <= joints.upper))
         assert np.max(np.abs(qg - q0)) <= 0.7
 
-
-def test_scenario_gains_are_stable_over_the_workspace(model, scenario, rng):
-    """Random tasks keep the paper scenario's gains: the linearised closed loop at rest is stable at random poses."""
-    joints = JointInfo.of(model)
-    for q in rng.uniform(joints.lower, joints.upper, size=(100, 3)):
-        Ad, Bd = discretize_zoh(*linearize(model, q), scenario.task.dt)
-        assert np.max(np.abs(np.linalg.eigvals(closed_loop_map(Ad, Bd, scenario.loop.gains, scenario.task.dt)))) < 1
 
 
 def test_actions_are_clipped():
@@ -151,12 +132,14 @@ def test_actions_are_clipped():
     np.testing.assert_array_equal(a[4]["dtau"], [60.0, -60.0, 30.0])
 
 
+
 @pytest.mark.parametrize("bad", [[np.nan, 0, 0], [0, np.inf, 0]])
 def test_non_finite_actions_raise(bad):
     env = UR5TrackEnv(action_mode="residual")
     env.reset(seed=0)
     with pytest.raises(InvalidInputError, match=r"^action: expected finite values in \[-1, 1\], got "):
         env.step(np.array(bad))
+
 
 
 def test_wrong_action_shape_raises():
@@ -166,6 +149,7 @@ def test_wrong_action_shape_raises():
         env.step(np.zeros(2))
 
 
+
 def test_step_before_reset_and_after_the_end_raises():
     env = UR5TrackEnv()
     with pytest.raises(InvalidInputError, match=r"^step: call reset\(\) first"):
@@ -173,6 +157,7 @@ def test_step_before_reset_and_after_the_end_raises():
     episode(env, seed=0)
     with pytest.raises(InvalidInputError, match=r"^step: call reset\(\) first"):
         env.step(env.action_space.sample())
+
 
 
 def test_divergence_terminates_with_nan_metrics():
@@ -185,6 +170,7 @@ def test_divergence_terminates_with_nan_metrics():
             break
     assert terminated and k < 99 and info["diverged"] is True
     assert all(np.isnan(v) for v in info["metrics"].values())
+
 
 
 @pytest.mark.parametrize("task", ["paper", "random"])
@@ -224,6 +210,7 @@ def test_vector_env_equals_single_envs(task):
     venv.close()
 
 
+
 def test_vector_env_reports_metrics_of_ended_episodes(scenario):
     venv = gym.make_vec("UR5Track-v0", num_envs=2, vectorization_mode="vector_entry_point", planner="quintic")
     venv.reset(seed=0)
@@ -234,30 +221,36 @@ def test_vector_env_reports_metrics_of_ended_episodes(scenario):
     assert info["metrics"]["rms_err"].tolist() == [expected.rms_err] * 2
 
 
+
 def test_docstring_arguments_table_matches_the_code():
+    """The Arguments table documents every argument the env accepts, with the default the code applies."""
     doc = inspect.getdoc(UR5TrackEnv)
     table = doc.split("## Arguments")[1].split("##")[0]
     rows = re.findall(r"^\| (\w+)\s+\| (\S+)\s+\|", table, flags=re.M)
     documented = {name: value for name, value in rows if name != "argument"}
-    signature = inspect.signature(UR5TrackEnv.__init__).parameters
-    code = {name: repr(p.default).replace("'", '"') for name, p in signature.items() if name != "self"}
+    code = {name: repr(value).replace("'", '"') for name, value in argument_defaults().items()}
     assert documented == code
-    vector = inspect.signature(UR5TrackVectorEnv.__init__).parameters
-    assert {n: repr(p.default).replace("'", '"') for n, p in vector.items()
-            if n not in ("self", "num_envs", "max_episode_steps", "autoreset_mode")} == code
+    env = UR5TrackEnv()  # and those defaults are what an env built without arguments uses
+    s = env.settings
+    applied = {"planner": s.planner_name, "action_mode": s.action_mode, "task": s.task_mode,
+               "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
+               "width": s.width, "height": s.height, "camera": s.camera, "render_mode": s.render_mode,
+               **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}}
+    assert applied == {k: v for k, v in argument_defaults().items() if k not in ("q0", "qg", "Q_exec", "R_exec")}
+    env.close()
 
 
 def test_docstring_defaults_are_the_paper_scenario(scenario):
     env = UR5TrackEnv()
     s = env.settings
     assert (s.duration, s.dt) == (scenario.task.duration, scenario.task.dt)
-    loop = scenario.loop
-    assert (s.loop.feedforward, s.loop.ff_accel, s.loop.gravity_comp, s.loop.anti_windup) == (
-        loop.feedforward, loop.ff_accel, loop.gravity_comp, loop.anti_windup)
-    assert s.Q_exec is None and s.R_exec is None  # Bryson's rule per task, which for the paper task is:
+    assert all(getattr(s.loop, name) == getattr(scenario.loop, name) for name in option_names(LoopConfig))
+    assert all(np.array_equal(getattr(s.loop.gains, k), getattr(scenario.loop.gains, k)) for k in ("kp", "ki", "kd"))
+    assert s.scoring.rule == "bryson"  # Bryson's rule per task, which for the paper task is:
     q_diag, r_diag = s.weights(s.fixed_task)
     np.testing.assert_allclose(q_diag, scenario.Q_exec, rtol=1e-15)
     np.testing.assert_allclose(r_diag, scenario.R_exec, rtol=1e-15)
+    env.close()
 
 
 def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
@@ -278,6 +271,7 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     assert -total == pytest.approx(info["metrics"]["cost"], rel=1e-12)
 
 
+
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"planner": "spline"}, r"^planner: unknown planner 'spline'; valid: cubic, optimal, quintic, trapezoidal$"),
     ({"planner": 3}, r"^planner: expected a registered name \(cubic, optimal, quintic, trapezoidal\) or an object "
@@ -294,21 +288,29 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     ({"height": 2000}, r"^height: expected at most the offscreen buffer's 1080 pixels, got 2000; raise it with the "
                        r"MJCF attribute <visual><global offheight=\"2000\"/></visual>$"),
     ({"render_mode": "human"}, r"^render_mode: unsupported mode 'human'; valid: None, rgb_array$"),
-    ({"preview": -1}, r"^preview: expected a whole number >= 0, got -1$"),
-    ({"Q_exec": [1, 1]}, r"^Q_exec: expected 6 values, got shape \(2,\)$"),
+    ({"preview": -1}, r"^preview: expected a value >= 0, got -1$"),
+    ({"Q_exec": [1, 1], "R_exec": [1, 1, 1]}, r"^Q_exec: expected 6 values, got shape \(2,\)$"),
+    ({"Q_exec": [1] * 6}, r"^Q_exec, R_exec: give both \(diagonals of 2n and n weights\), or neither for Bryson's "
+                          r"rule on each task$"),
+    ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, action_mode, task, "
+                   r"max_displacement, duration, dt, preview, width, height, camera, feedforward, ff_accel, "
+                   r"gravity_comp, anti_windup, substeps$"),
+    ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
+    ({"dt": True}, r"^dt: expected a number, got True$"),
     ({"duration": 1.01}, r"^duration: expected a whole number of control periods dt=0.02 s, got 1.01 s"),
 ])
 def test_bad_arguments(kwargs, message):
-    assert set(TASKS) == {"paper", "random", "explicit"}
     with pytest.raises(InvalidInputError, match=message):
         UR5TrackEnv(**kwargs)
 
 
+
 def test_user_planner_object(model):
-    from mjtraj.planners.cubic import Cubic
+    from mjtraj.core.planners.cubic import Cubic
 
     env = UR5TrackEnv(planner=Cubic())
     _, rewards, info = episode(env, seed=0)
     reference = UR5TrackEnv(planner="cubic")
     _, expected, _ = episode(reference, seed=0)
     np.testing.assert_array_equal(rewards, expected)
+

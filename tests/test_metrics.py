@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mjtraj.metrics import METRIC_NAMES, executed_cost, integral_abs, metrics, reduction, rms
-from mjtraj.rollout import Rollout
+from mjtraj.core.metrics import METRIC_NAMES, executed_cost, integral_abs, metrics, reduction, rms
+from mjtraj.core.rollout import Rollout
 
 
 def hand_rollout() -> Rollout:
@@ -21,6 +21,7 @@ def hand_rollout() -> Rollout:
                    diverged_step=np.array([-1]), dt=0.5)
 
 
+
 def test_by_hand():
     m = metrics(hand_rollout(), np.diag([1.0, 2.0, 3.0, 4.0]), np.diag([0.5, 0.25]))[0]
     assert m.rms_err == pytest.approx(np.sqrt(6 / 4))
@@ -33,12 +34,16 @@ def test_by_hand():
     assert m.peak_dtau == 60.0 and m.saturated_frac == 0.25 and m.max_err == 2.0 and m.terminal_err == 5.0
 
 
+
 def test_pure_functions_broadcast():
     x = np.arange(24.0).reshape(2, 3, 4)
     np.testing.assert_allclose(rms(x), [np.sqrt(np.mean(x[0] ** 2)), np.sqrt(np.mean(x[1] ** 2))])
     np.testing.assert_allclose(integral_abs(-x, 0.1), [x[0].sum() * 0.1, x[1].sum() * 0.1])
     e = np.ones((2, 3, 2))
-    np.testing.assert_allclose(executed_cost(e, 0 * e, 0 * e, np.eye(4), np.eye(2)), [6.0, 6.0])
+    np.testing.assert_allclose(executed_cost(e, 0 * e, 0 * e, np.ones(4), np.ones(2)), [6.0, 6.0])
+    weights = np.array([[1.0, 1, 0, 0], [0, 0, 2, 2]])  # one diagonal per execution
+    np.testing.assert_allclose(executed_cost(e, e, 0 * e, weights, np.ones((2, 2))), [6.0, 12.0])
+
 
 
 def test_reduction_matches_the_papers_columns():
@@ -47,8 +52,10 @@ def test_reduction_matches_the_papers_columns():
     assert reduction(6.983, 3.622) == pytest.approx(48.13, abs=0.005)
 
 
+
 def test_diverged_scenario_gives_nan():
     r = hand_rollout()
     bad = Rollout(**{**{k: getattr(r, k) for k in r.__dataclass_fields__}, "diverged_step": np.array([1])})
     m = metrics(bad, np.eye(4), np.eye(2))[0]
     assert all(np.isnan(getattr(m, name)) for name in METRIC_NAMES)
+

@@ -6,17 +6,23 @@ import mujoco
 import numpy as np
 import pytest
 
+from mjtraj.core.feedforward import gravity
+from mjtraj.core.gains import mass_matrix
+from mjtraj.core.model import JointInfo, default_model_path, load_model
 from mjtraj.exceptions import ModelError
-from mjtraj.feedforward import gravity
-from mjtraj.gains import mass_matrix
-from mjtraj.model import JointInfo, default_model_path, load_model
 
 # --- the parameter table, typed in from ur5_params.md (the oracle; nothing read from the MJCF) ---
 DH = [(0.0, 0.089159, np.pi / 2), (-0.425, 0.0, 0.0), (-0.39225, 0.0, 0.0), (0.0, 0.10915, np.pi / 2),
       (0.0, 0.09465, -np.pi / 2), (0.0, 0.0823, 0.0)]                                    # (a, d, alpha)
+
+
 MASS = [3.7, 8.393, 2.33, 1.219, 1.219, 0.1879]
+
+
 COM = [(0, -0.02561, 0.00193), (0.2125, 0, 0.11336), (0.15, 0, 0.0265), (0, -0.0018, 0.01634),
        (0, 0.0018, 0.01634), (0, 0, -0.001159)]
+
+
 CYL = [(0.075, 0.178, 1), (0.06, 0.425, 0), (0.06, 0.39225, 0), (0.06, 0.095, 1), (0.06, 0.085, 1),
        (0.0375, 0.0305, 2)]                                                                # (r, L, axis in frame i)
 
@@ -47,11 +53,13 @@ def cylinder(m: float, r: float, L: float, axis: int) -> np.ndarray:
     return np.diag(d)
 
 
+
 def test_published_cylinder_inertias_match_the_table():
     published = [(0.014972, 0.010406, 0.014972), (0.015107, 0.133886, 0.133886), (0.004194, 0.031971, 0.031971),
                  (0.002014, 0.002194, 0.002014), (0.001831, 0.002194, 0.001831), (0.0000806, 0.0000806, 0.000132)]
     for m, (r, L, axis), p in zip(MASS, CYL, published):
         np.testing.assert_allclose(np.diag(cylinder(m, r, L, axis)), p, atol=6e-7)
+
 
 
 def test_lumped_forearm_matches_ur5_params(model):
@@ -81,9 +89,11 @@ def test_lumped_forearm_matches_ur5_params(model):
     np.testing.assert_allclose(R @ np.diag(body.inertia) @ R.T, inertia, atol=1e-9)
 
 
+
 def test_mass_matrix_at_zero_matches_ur5_params(model):
     np.testing.assert_allclose(mass_matrix(model, np.zeros(3)),
                                [[3.500, 0.020, 0.020], [0.020, 3.353, 1.267], [0.020, 1.267, 0.589]], atol=6e-4)
+
 
 
 def test_mass_matrix_symmetric_positive_definite(model, rng):
@@ -94,11 +104,13 @@ def test_mass_matrix_symmetric_positive_definite(model, rng):
         assert np.linalg.eigvalsh(D).min() > 1e-3
 
 
+
 @pytest.mark.parametrize("q", [np.zeros(3), np.array([0.7, -1.1, 1.9])])
 def test_gravity_equals_gradient_of_potential_from_the_table(model, q):
     h = 1e-6
     grad = [(potential(q + h * e) - potential(q - h * e)) / (2 * h) for e in np.eye(3)]
     np.testing.assert_allclose(gravity(model, q), grad, atol=1e-6)
+
 
 
 def test_gravity_at_zero_by_hand(model):
@@ -109,6 +121,7 @@ def test_gravity_at_zero_by_hand(model):
     elbow = sum(MASS[i] * 9.81 * (x[i] + 0.425) for i in range(2, 6))
     np.testing.assert_allclose(gravity(model, np.zeros(3)), [0.0, shoulder, elbow], atol=1e-9)
     assert shoulder == pytest.approx(-53.8, abs=0.1)  # "about 54 N m" in ur5_params.md
+
 
 
 def test_inverse_dynamics_returns_applied_torque(model, rng):
@@ -124,6 +137,7 @@ def test_inverse_dynamics_returns_applied_torque(model, rng):
         np.testing.assert_allclose(data.qfrc_inverse, applied, atol=1e-9)
 
 
+
 def test_steps_five_seconds_under_random_torque_without_warnings(model, rng):
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
@@ -132,6 +146,7 @@ def test_steps_five_seconds_under_random_torque_without_warnings(model, rng):
         mujoco.mj_step(model, data)
     assert all(w.number == 0 for w in data.warning)
     assert np.all(np.isfinite(data.qpos))
+
 
 
 def test_pinocchio_agrees(model, rng):
@@ -148,9 +163,11 @@ def test_pinocchio_agrees(model, rng):
         np.testing.assert_allclose(pin.rnea(pmodel, pdata, q, v, a), data.qfrc_inverse, atol=1e-10)
 
 
+
 def test_missing_model_file(tmp_path):
     with pytest.raises(ModelError, match=r"^model file not found: .*nope\.xml$"):
         load_model(tmp_path / "nope.xml")
+
 
 
 def test_joint_info(model):
@@ -158,3 +175,4 @@ def test_joint_info(model):
     assert joints.names == ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint")
     np.testing.assert_array_equal(joints.torque_limit, [60, 60, 60])
     np.testing.assert_allclose(joints.upper, [2 * np.pi, 2 * np.pi, np.pi])
+

@@ -14,21 +14,24 @@ import mjtraj
 ROOT = Path(__file__).resolve().parents[1]
 
 
+
 def test_all_names_import():
     for name in mjtraj.__all__:
         assert getattr(mjtraj, name) is not None
+
 
 
 def test_documented_loop_defaults_match_design():
     """DESIGN §3 defaults: feedforward inverse, sample acceleration, native gravity comp, no anti-windup."""
     import dataclasses
 
-    from mjtraj.closed_loop import LoopConfig
+    from mjtraj.core.closed_loop import LoopConfig
 
     defaults = {f.name: f.default for f in dataclasses.fields(LoopConfig) if f.default is not dataclasses.MISSING}
     assert defaults == {"feedforward": "inverse", "ff_accel": "sample", "gravity_comp": "native",
                         "anti_windup": "none", "substeps": 1, "divergence_bound": pytest.approx(3.141592653589793),
                         "delay": 0}
+
 
 
 @pytest.mark.slow
@@ -41,3 +44,4 @@ def test_wheel_contains_model_and_scenario(tmp_path):
     assert "mjtraj/scenarios/paper.toml" in names
     assert "mjtraj/py.typed" in names
     assert not any(n.startswith(("envs/", "tests/")) for n in names)
+

@@ -4,19 +4,26 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.signal
 
+from mjtraj.core.planners import available, make
+from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError
-from mjtraj.gains import mass_matrix
-from mjtraj.linearize import discretize_zoh, linearize
-from mjtraj.planners import available, make
-from mjtraj.qp import build_qp, solve_qp
-from mjtraj.task import Task
 
 
 def unit_task(model, n_move=1.0):
     q0 = np.array([0.0, -1.5, 0.5])
     return Task.create(q0, q0 + n_move, 2.0, 0.02, model=model)
+
+
+def kkt_solve(qp):
+    """Dense KKT solve of the equality-constrained QP (bounds dropped)."""
+    n, m = qp.H.shape[0], qp.A_eq.shape[0]
+    K = np.block([[qp.H, qp.A_eq.T], [qp.A_eq, np.zeros((m, m))]])
+    return np.linalg.solve(K, np.concatenate([-qp.f, qp.b_eq]))[:n]
+
+
+WEIGHTS = {"state_weight": (1.0, 1.0, 1.0, 0.1, 0.1, 0.1), "input_weight": (1 / 3600,) * 3}
+
 
 
 @pytest.mark.parametrize("name", available())
@@ -36,6 +43,7 @@ def test_contract(name, model, task):
     np.testing.assert_array_equal(again.q, ref.q)  # deterministic, bit for bit
 
 
+
 @pytest.mark.parametrize("name", ["cubic", "quintic", "trapezoidal"])
 def test_kinematic_velocity_and_acceleration_are_derivatives(name, model, task):
     ref = make(name).plan(task, model)
@@ -43,6 +51,7 @@ def test_kinematic_velocity_and_acceleration_are_derivatives(name, model, task):
     # central differences of the samples (trapezoid: away from its acceleration jumps)
     qd_fd = (ref.q[2:] - ref.q[:-2]) / (2 * dt)
     np.testing.assert_allclose(qd_fd, ref.qd[1:-1], atol=2e-3 if name != "trapezoidal" else 1e-2)
+
 
 
 def test_golden_unit_move(model):
@@ -57,6 +66,7 @@ def test_golden_unit_move(model):
     assert trap.info["blend_time"] == pytest.approx(2.0 / 3.0, abs=1e-15)
 
 
+
 @pytest.mark.parametrize("factor", [1.0, 2.5, float("nan")])
 def test_trapezoid_factor_out_of_range(factor):
     with pytest.raises(InvalidInputError, match=r"^cruise_factor: expected a value in \(1, 2\] \(cruise velocity "
@@ -64,10 +74,12 @@ def test_trapezoid_factor_out_of_range(factor):
         make("trapezoidal", cruise_factor=factor)
 
 
+
 def test_trapezoid_zero_move_is_constant(model):
     task = Task.create([0.1, -1.0, 0.2], [0.1, -1.0, 0.2], 1.0, 0.02, model=model)
     ref = make("trapezoidal").plan(task, model)
     np.testing.assert_array_equal(ref.q, np.tile(task.q0, (task.steps + 1, 1)))
+
 
 
 def test_unknown_planner_and_option():
@@ -79,58 +91,6 @@ def test_unknown_planner_and_option():
     with pytest.raises(InvalidInputError, match=r"^linearization: unknown value 'end'; valid: midpoint, start, goal$"):
         make("optimal", linearization="end")
 
-
-def test_linearization_at_rest(model):
-    q_bar = np.array([0.5, -1.07, 0.5])
-    A, B = linearize(model, q_bar)
-    np.testing.assert_allclose(A, np.block([[np.zeros((3, 3)), np.eye(3)], [np.zeros((3, 3)), np.zeros((3, 3))]]),
-                               atol=1e-6)
-    np.testing.assert_allclose(B, np.vstack([np.zeros((3, 3)), np.linalg.inv(mass_matrix(model, q_bar))]), atol=1e-6)
-
-
-def test_zoh_matches_scipy(model, rng):
-    A, B = linearize(model, [0.3, -1.0, 0.8], qd=[0.5, -0.4, 0.3], u=[5.0, -3.0, 2.0])
-    Ad, Bd = discretize_zoh(A, B, 0.02)
-    ref = scipy.signal.cont2discrete((A, B, np.eye(6), np.zeros((6, 3))), 0.02, method="zoh")
-    np.testing.assert_allclose(Ad, ref[0], atol=1e-12)
-    np.testing.assert_allclose(Bd, ref[1], atol=1e-12)
-
-
-def test_condensed_prediction_matches_simulation(model, rng):
-    A, B = linearize(model, [0.3, -1.0, 0.8])
-    Ad, Bd = discretize_zoh(A, B, 0.02)
-    x0 = rng.normal(size=6)
-    qp = build_qp(Ad, Bd, x0, 30, np.eye(6), np.eye(3), -np.ones(3), np.ones(3))
-    U = rng.normal(size=90)
-    x, states = x0, [x0]
-    for u in U.reshape(30, 3):
-        x = Ad @ x + Bd @ u
-        states.append(x)
-    np.testing.assert_allclose(qp.predict(U), np.array(states), atol=1e-12)
-    # the objective written as sums (paper eq. 19), independent of the condensed H, f
-    direct = 0.5 * sum(s @ s for s in states) + 0.5 * U @ U
-    assert qp.objective(U) == pytest.approx(direct, rel=1e-10)
-
-
-def kkt_solve(qp):
-    """Dense KKT solve of the equality-constrained QP (bounds dropped)."""
-    n, m = qp.H.shape[0], qp.A_eq.shape[0]
-    K = np.block([[qp.H, qp.A_eq.T], [qp.A_eq, np.zeros((m, m))]])
-    return np.linalg.solve(K, np.concatenate([-qp.f, qp.b_eq]))[:n]
-
-
-WEIGHTS = {"state_weight": (1.0, 1.0, 1.0, 0.1, 0.1, 0.1), "input_weight": (1 / 3600,) * 3}
-
-
-def test_optimal_equals_dense_kkt_when_bounds_inactive(model):
-    task = unit_task(model, n_move=0.3)
-    planner = make("optimal", torque_bound=1e4, **WEIGHTS)
-    qp, _ = planner.build(task, model)
-    ref = planner.plan(task, model)
-    U_kkt = kkt_solve(qp)
-    assert np.max(np.abs(U_kkt)) < 1e4
-    np.testing.assert_allclose(ref.u_plan.ravel(), U_kkt, atol=1e-6)
-    assert ref.info["terminal_residual"] <= 1e-8
 
 
 def test_optimal_with_tight_bounds(model):
@@ -148,6 +108,7 @@ def test_optimal_with_tight_bounds(model):
     assert ref.info["terminal_residual"] <= 1e-8
 
 
+
 def test_optimal_solution_satisfies_kkt_conditions(model, task):
     """Independent optimality check with bounds active: projected gradient stationarity on the free set."""
     planner = make("optimal")
@@ -163,11 +124,13 @@ def test_optimal_solution_satisfies_kkt_conditions(model, task):
     assert np.all(residual[at_upper] <= 1e-6) and np.all(residual[at_lower] >= -1e-6)
 
 
+
 @pytest.mark.parametrize("point", ["start", "goal", "midpoint"])
 def test_linearization_points(model, task, point):
     planner = make("optimal", linearization=point)
     expected = {"start": task.q0, "goal": task.qg, "midpoint": (task.q0 + task.qg) / 2}[point]
     np.testing.assert_array_equal(planner.operating_point(task), expected)
+
 
 
 def test_optimal_infeasible_names_the_bound(model):
@@ -181,17 +144,3 @@ def test_optimal_infeasible_names_the_bound(model):
                               "in T = 0.1 s: the linear model needs at least ")
     assert "the binding bound is joint '" in message and message.endswith("lengthen the duration or raise torque_bound")
 
-
-def test_solver_failure_reports_status(model, task):
-    planner = make("optimal", solver="osqp", osqp_settings={"max_iter": 3, "polishing": False})
-    from mjtraj.exceptions import SolverError
-
-    with pytest.raises(SolverError, match=r"^OSQP did not solve the QP: status 'maximum iterations reached' after 3 "
-                                          r"iterations$"):
-        planner.plan(task, model)
-
-
-def test_solve_qp_checks_its_answer(model, task):
-    qp, _ = make("optimal").build(task, model)
-    solution = solve_qp(qp)
-    assert solution.is_optimal() and solution.polished

@@ -9,19 +9,18 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from mjtraj.envs.settings import resolve
+from mjtraj.envs.ur5_track import UR5TrackEnv
+from mjtraj.envs.vector import UR5TrackVectorEnv
 from stable_baselines3 import SAC
 from stable_baselines3.common.env_checker import check_env
 from stable_baselines3.common.vec_env import VecNormalize
 
 from mjtraj.cli import main
-from mjtraj.envs.settings import resolve
-from mjtraj.envs.ur5_track import UR5TrackEnv
-from mjtraj.envs.vector import UR5TrackVectorEnv
+from mjtraj.core.metrics import METRIC_NAMES
+from mjtraj.core.model import JointInfo
+from mjtraj.core.planners.optimal import bryson_weights
 from mjtraj.exceptions import InvalidInputError, MissingExtraError
-from mjtraj.families import FAMILIES, scenario
-from mjtraj.metrics import METRIC_NAMES
-from mjtraj.model import JointInfo
-from mjtraj.planners.optimal import bryson_weights
 from mjtraj.rl.episodes import run_episodes
 from mjtraj.rl.evaluate import check_held_out, evaluate
 from mjtraj.rl.extra import require_sb3
@@ -29,8 +28,9 @@ from mjtraj.rl.policy import Normalization, Policy, load_policy
 from mjtraj.rl.sb3_env import SB3TrackVecEnv
 from mjtraj.rl.streams import TRAIN_STREAM, shared_streams, stream_seed, training_entropies
 from mjtraj.rl.train import TrainSettings, train, validation_set
-from mjtraj.sweep import SweepSettings, by_steps, plan_scenarios, run_unit
-from mjtraj.sweep_file import numeric, read_rows
+from mjtraj.study.families import FAMILIES, draw_scenario
+from mjtraj.study.store import numeric, read_rows
+from mjtraj.study.sweep import SweepSettings, plan_scenarios, run_unit
 
 TINY = {"steps": 240, "evaluations": 2, "checkpoints": 2, "validation": 4}
 
@@ -46,11 +46,13 @@ def trained(tmp_path_factory):
     return out
 
 
+
 @pytest.mark.parametrize("action_mode", ["residual", "torque"])
 def test_sb3_check_env(action_mode):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(UR5TrackEnv(action_mode=action_mode, task="random", preview=1))
+
 
 
 def test_stream_seed_is_the_list_seed_and_plain_seeds_collide_with_scenarios():
@@ -61,6 +63,7 @@ def test_stream_seed_is_the_list_seed_and_plain_seeds_collide_with_scenarios():
     np.testing.assert_array_equal(np.random.default_rng(5).random(3), np.random.default_rng([5, 0, 0]).random(3))
     with pytest.raises(InvalidInputError, match=r"^seed: expected a whole number in \[0, 2\^32\), got 4294967296$"):
         stream_seed(2**32, TRAIN_STREAM, 0)
+
 
 
 def test_sb3_vec_env_is_the_vector_env_with_same_step_autoreset():
@@ -89,6 +92,7 @@ def test_sb3_vec_env_is_the_vector_env_with_same_step_autoreset():
     assert dones.all()
 
 
+
 def test_gymnasium_same_step_mode_matches_next_step_mode():
     kwargs = {"num_envs": 3, "task": "random", "action_mode": "torque"}
     same = UR5TrackVectorEnv(autoreset_mode=gym.vector.AutoresetMode.SAME_STEP, **kwargs)
@@ -108,29 +112,30 @@ def test_gymnasium_same_step_mode_matches_next_step_mode():
         UR5TrackVectorEnv(autoreset_mode="sometimes")
 
 
+
 def test_pid_through_the_policy_path_is_the_sweep(model):
-    """Fairness oracle: run_episodes without actions gives the sweep's planner rows bit for bit, on the nominal
-    and on the perturbed plants (same plant, controller, saturation and scoring)."""
+    """Fairness oracle: the policy path without actions gives the sweep's planner rows bit for bit, on the nominal
+    and on the perturbed plants (same plant, controller, saturation and scoring); a zero residual is PID alone."""
+    from mjtraj.rl.episodes import PolicyActor
+    from mjtraj.study.families import perturbed_plant
+    from mjtraj.study.pipeline import Job, execute
+
     for family in FAMILIES:
         settings = SweepSettings(families=(family,), scenarios=6, seed=2, planners=("cubic",))
         rows = run_unit(settings, (family, 0)).rows
-        draws = [scenario(family, 2, i, model, 0.02) for i in range(6)]
-        refs = plan_scenarios(settings, draws, model)["cubic"]
+        draws = [draw_scenario(family, 2, i, model, 0.02) for i in range(6)]
+        refs = plan_scenarios(settings, draws)["cubic"]
         weights = [bryson_weights(s.task, JointInfo.of(model).torque_limit) for s in draws]
         env = resolve(planner="cubic", action_mode="residual")
-        for i, (row, ref) in enumerate(zip(rows, refs, strict=True)):
-            plant = fields = None
-            if family == "mismatch":
-                from mjtraj.families import perturbed_plant, plant_fields
-
-                plant = perturbed_plant(model)
-                fields = plant_fields(plant, [draws[i].perturbation])
-            pid = run_episodes(None, env, [ref], [weights[i]], plant=plant, plant_fields=fields)
-            zero = run_episodes(lambda obs: np.zeros((len(obs), 3), np.float32), env, [ref], [weights[i]],
-                                plant=plant, plant_fields=fields)
+        plant = perturbed_plant(model) if family == "mismatch" else None
+        jobs = [Job(ref, w, s.perturbation) for ref, w, s in zip(refs, weights, draws, strict=True)]
+        pid = execute(env.model, env.loop, jobs, plant=plant)
+        zero = execute(env.model, env.loop, jobs, plant=plant,
+                       actor=PolicyActor(lambda obs: np.zeros((len(obs), 3), np.float32), env))
+        for i, row in enumerate(rows):
             for name in METRIC_NAMES:
-                assert pid.metrics[name][0] == numeric(row[name]), (family, i, name)
-                assert zero.metrics[name][0] == pid.metrics[name][0]  # a zero residual is PID alone
+                assert pid[i].metrics[name] == numeric(row[name]), (family, i, name)
+                assert zero[i].metrics[name] == pid[i].metrics[name]
 
 
 def test_saved_policy_reloads_with_identical_actions(tmp_path):
@@ -147,6 +152,7 @@ def test_saved_policy_reloads_with_identical_actions(tmp_path):
     loaded = load_policy(path)
     np.testing.assert_array_equal(loaded.act(obs), expected)
     np.testing.assert_array_equal(load_policy(path).act(obs), loaded.act(obs))
+
 
 
 def test_train_writes_every_artifact(trained):
@@ -167,10 +173,11 @@ def test_train_writes_every_artifact(trained):
     final = load_policy(trained / "policy.zip")
     settings = TrainSettings(**{**TINY, "seed": 3})
     refs, weights = validation_set(settings, final.settings())
-    replay = run_episodes(final.act, final.settings(), refs, weights).metrics["cost"]
-    assert numeric(curve[-1]["val_cost_mean"]) == np.mean(replay[np.isfinite(replay)])
-    pid = run_episodes(None, final.settings(), refs, weights).metrics["cost"]
+    replay = [o.metrics["cost"] for o in run_episodes(final.act, final.settings(), refs, weights) if o.status == "ok"]
+    assert numeric(curve[-1]["val_cost_mean"]) == np.mean(replay)
+    pid = [o.metrics["cost"] for o in run_episodes(None, final.settings(), refs, weights)]
     assert numeric(curve[0]["pid_cost_mean"]) == np.mean(pid)
+
 
 
 def test_plot_redraws_a_run(trained, tmp_path, capsys):
@@ -181,6 +188,7 @@ def test_plot_redraws_a_run(trained, tmp_path, capsys):
     assert main(["rl", "plot", str(tmp_path)]) == 2
     assert capsys.readouterr().err == (f"mjtraj: error: run: {tmp_path / 'run.json'} not found; expected a folder "
                                        "written by mjtraj rl train\n")
+
 
 
 def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
@@ -204,20 +212,21 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
     # length together: torch's float32 kernels round differently for different batch sizes), give the same numbers
     policy = load_policy(trained / "policy.zip")
     model = policy.settings().model
-    draws = [scenario("aggressive", 3, i, model, 0.02) for i in range(5)]
+    draws = [draw_scenario("aggressive", 3, i, model, 0.02) for i in range(5)]
     refs = plan_scenarios(SweepSettings(families=("aggressive",), scenarios=5, seed=3, planners=("cubic",)),
-                          draws, model)["cubic"]
+                          draws)["cubic"]
     limit = JointInfo.of(model).torque_limit
     replayed = 0
-    for group in by_steps(list(enumerate(refs))):
-        ids = [i for i, _ in group]
-        episodes = run_episodes(policy.act, policy.settings(), [r for _, r in group],
+    for steps in sorted({r.steps for r in refs}):
+        ids = [i for i, r in enumerate(refs) if r.steps == steps]
+        outcomes = run_episodes(policy.act, policy.settings(), [refs[i] for i in ids],
                                 [bryson_weights(draws[i].task, limit) for i in ids])
         for j, i in enumerate(ids):
-            assert mine[i]["status"] == "ok" and numeric(mine[i]["cost"]) == episodes.metrics["cost"][j]
+            assert mine[i]["status"] == "ok" and numeric(mine[i]["cost"]) == outcomes[j].metrics["cost"]
             replayed += 1
     assert replayed == 5
     assert (tmp_path / "EVAL_aggressive.md").read_text().count("| cubic+PID+residual SAC |") == 1
+
 
 
 def test_eval_scenarios_are_held_out_from_training(trained):
@@ -235,7 +244,7 @@ def test_eval_scenarios_are_held_out_from_training(trained):
         for seed in (0, 3):
             check_held_out(policy, family, seed, 200)
             tasks = {(tuple(t.q0), tuple(t.qg)) for t in
-                     (scenario(family, seed, i, env.model, 0.02).task for i in range(200))}
+                     (draw_scenario(family, seed, i, env.model, 0.02).task for i in range(200))}
             assert not tasks & trained_tasks
     hazard = Policy(policy.model, {**policy.record, "streams": {"train": {"gym_seeds": [3, 4]},
                                                                  "validation": {"count": 0}}},
@@ -243,6 +252,7 @@ def test_eval_scenarios_are_held_out_from_training(trained):
     with pytest.raises(InvalidInputError, match=r"^seed: 1 of the nominal scenarios under seed 3 share a seed "):
         check_held_out(hazard, "nominal", 3, 10)
     assert shared_streams([3], [[3, 0, 0]])
+
 
 
 def test_same_seed_same_policy(tmp_path):
@@ -256,6 +266,7 @@ def test_same_seed_same_policy(tmp_path):
     assert curve[0] == curve[1]
 
 
+
 def test_ppo_trains_and_reloads(tmp_path):
     report = train(TrainSettings(algo="ppo", action_mode="residual", task="paper", num_envs=8, **TINY),
                    tmp_path / "ppo", progress=False)
@@ -263,6 +274,7 @@ def test_ppo_trains_and_reloads(tmp_path):
     assert report.timesteps == 2048 and policy.model.n_steps == 256  # SB3's 2048 transitions per update
     assert policy.label == "cubic+PID+residual PPO"
     assert len(read_rows(report.out / "learning_curve.csv")) == 3
+
 
 
 @pytest.mark.parametrize(("argv", "message"), [
@@ -279,6 +291,7 @@ def test_cli_bad_input(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 2
     assert capsys.readouterr().err == message
+
 
 
 def test_policy_for_another_space_is_refused(trained, tmp_path):
@@ -299,6 +312,7 @@ def test_policy_for_another_space_is_refused(trained, tmp_path):
     (tmp_path / "z.json").write_text((trained / "policy.json").read_text())
     with pytest.raises(InvalidInputError, match=r"^policy: z\.json records a different zip than z\.zip"):
         load_policy(tmp_path / "z.zip")
+
 
 
 @pytest.mark.parametrize(("record", "message"), [
@@ -322,18 +336,14 @@ def test_broken_policy_records(trained, tmp_path, record, message):
         load_policy(tmp_path / "p.zip")
 
 
+
 def test_policy_and_engine_argument_checks(trained):
     policy = load_policy(trained / "policy.zip")
     with pytest.raises(InvalidInputError, match=r"^obs: expected shape \(B, 19\), got \(19,\)$"):
         policy.act(np.zeros(19))
     with pytest.raises(InvalidInputError, match=r"^policy: expected at least one policy file, got none$"):
         evaluate([])
-    from mjtraj.closed_loop import ClosedLoop
-    from mjtraj.envs.core import TrackCore
 
-    settings = policy.settings()
-    with pytest.raises(InvalidInputError, match=r"^loop: expected a ClosedLoop of 2 simulations, got 3$"):
-        TrackCore(settings, 2, loop=ClosedLoop(settings.model, settings.loop, nsim=3))
 
 
 def test_eval_refuses_policies_trained_on_another_controller(trained, tmp_path):
@@ -356,9 +366,11 @@ def test_eval_refuses_policies_trained_on_another_controller(trained, tmp_path):
     assert not list(tmp_path.glob("eval_*"))  # refused before anything was written
 
 
+
 def test_train_refuses_a_folder_with_a_run(trained):
     with pytest.raises(InvalidInputError, match=r"already holds a training run \(run\.json\); choose another"):
         train(TrainSettings(**TINY), trained, progress=False)
+
 
 
 def test_missing_rl_extra_says_how_to_install(monkeypatch, capsys):
@@ -370,6 +382,7 @@ def test_missing_rl_extra_says_how_to_install(monkeypatch, capsys):
     assert "install the rl extra" in capsys.readouterr().err
     with pytest.raises(MissingExtraError):
         evaluate(["p.zip"])
+
 
 
 def test_a_failed_training_run_is_recorded(tmp_path, monkeypatch):
@@ -390,16 +403,18 @@ def test_a_failed_training_run_is_recorded(tmp_path, monkeypatch):
     assert run["status"] == "failed" and run["error"] == "RuntimeError: validation exploded"
 
 
+
 def test_a_policy_failing_in_eval_is_recorded_and_eval_goes_on(trained, tmp_path, monkeypatch):
-    import mjtraj.rl.evaluate as evaluate_module
+    from mjtraj.rl.episodes import PolicyActor
 
     def failing(*args, **kwargs):
         raise RuntimeError("policy exploded")
 
-    monkeypatch.setattr(evaluate_module, "run_episodes", failing)
+    monkeypatch.setattr(PolicyActor, "act", failing)
     evaluate([trained / "policy.zip"], scenarios=3, planners=("cubic",), out=tmp_path)
     rows = read_rows(tmp_path / "eval_nominal.csv")
     assert [(r["controller"], r["status"]) for r in rows] == [("cubic+PID", "ok")] * 3 + [
         ("cubic+PID+residual SAC", "error")] * 3
     assert {r["reason"] for r in rows if r["policy"]} == {"RuntimeError: policy exploded"}
     assert "| cubic+PID+residual SAC | 0 | 3 |" in (tmp_path / "EVAL_nominal.md").read_text()
+

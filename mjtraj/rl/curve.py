@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from mjtraj._files import atomic_path
-from mjtraj.sweep_file import append_rows, numeric, read_rows
+from mjtraj.files import atomic_path
+from mjtraj.study import append_rows, numeric, read_rows
 
 COLUMNS = ("timesteps", "wall_s", "episodes", "train_return_mean", "train_diverged", "val_cost_mean",
            "val_cost_median", "val_rms_err_mean", "val_diverged", "pid_cost_mean", "pid_rms_err_mean")

@@ -1,4 +1,5 @@
-"""Whole episodes of a policy on given references, through the env's own engine (TrackCore on a ClosedLoop).
+"""Whole episodes of a policy on given references, through the study's evaluation pipeline: the policy is an
+Actor that observes the loop as the env does and adds its torque inside the one closed loop.
 
 Validation during training and `mjtraj rl eval` both run here, on the nominal plant or, for mismatch scenarios,
 on per-simulation perturbed plants, exactly as sweeps run the planners.
@@ -6,51 +7,40 @@ on per-simulation perturbed plants, exactly as sweeps run the planners.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.closed_loop import ClosedLoop
-from mjtraj.envs.core import TrackCore
-from mjtraj.envs.settings import TrackSettings
-from mjtraj.reference import Reference
-from mjtraj.rl.policy import for_duration
+from mjtraj.core import ClosedLoop, Reference
+from mjtraj.envs import TrackSettings, observe, scale_action
+from mjtraj.study import Job, Outcome, execute
 
-Actor = Callable[[NDArray[np.float64]], NDArray[np.float32]]
+Policy = Callable[[NDArray[np.float64]], NDArray[np.float32]]
 """Observations (B, d) -> actions (B, n) in [-1, 1]."""
 
 
-@dataclass
-class Episodes:
-    """B finished episodes: every metric (name -> (B,), NaN where diverged), the period each diverged in (-1:
-    never), and MuJoCo's instability flags; shapes (B,)."""
+class PolicyActor:
+    """A policy acting in the env's `settings` (action mode, preview): observations as the env builds them, actions
+    scaled to torque as the env scales them."""
 
-    metrics: dict[str, NDArray[np.float64]]
-    diverged_step: NDArray[np.int64]
-    unstable: NDArray[np.bool_]
+    def __init__(self, policy: Policy, settings: TrackSettings) -> None:
+        self.policy = policy
+        self.settings = settings
+        self.action_mode = settings.action_mode
+        self._limit = np.zeros((0, settings.n))
+
+    def begin(self, loop: ClosedLoop, references: Sequence[Reference]) -> None:
+        self._limit = np.tile(loop.limit, (loop.nsim, 1))
+
+    def act(self, loop: ClosedLoop) -> NDArray[np.float64]:
+        return scale_action(self.policy(observe(loop, self.settings.preview)), self._limit)
 
 
-def run_episodes(actor: Actor | None, settings: TrackSettings, references: Sequence[Reference],
-                 weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]], *,
-                 plant: mujoco.MjModel | None = None, plant_fields: dict[str, NDArray[np.float64]] | None = None
-                 ) -> Episodes:
-    """Run one episode per reference (all of one length) with `actor` choosing the actions (None: pid mode, no
-    actions), scored with per-episode diagonal `weights` ((2n,), (n,)) as sweeps score them."""
-    duration = references[0].steps * settings.dt
-    settings = for_duration(settings, duration)
-    if actor is None:
-        settings = dataclasses.replace(settings, action_mode="pid")
-    B = len(references)
-    loop = ClosedLoop(settings.model, settings.loop, nsim=B, plant=plant, plant_fields=plant_fields, nthread=1)
-    core = TrackCore(settings, B, loop=loop)
-    obs = core.begin(references, weights)
-    zeros = np.zeros((B, settings.n), dtype=np.float32)
-    for _ in range(settings.steps):
-        obs, *_ = core.step(zeros if actor is None else actor(obs))
-    assert loop.state is not None
-    return Episodes(core.metrics(np.arange(B)), loop.state.diverged_step.copy(), loop.plant.unstable())
-
+def run_episodes(policy: Policy | None, settings: TrackSettings, references: Sequence[Reference],
+                 weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]]) -> list[Outcome]:
+    """One episode per reference on the nominal plant with `policy` acting (None: the controller alone), scored
+    with per-episode diagonal `weights` ((2n,), (n,)) as sweeps score them; an Outcome each."""
+    actor = None if policy is None or settings.action_mode == "pid" else PolicyActor(policy, settings)
+    jobs = [Job(ref, w) for ref, w in zip(references, weights, strict=True)]
+    return execute(settings.model, settings.loop, jobs, actor=actor)

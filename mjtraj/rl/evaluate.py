@@ -1,6 +1,6 @@
 """`mjtraj rl eval`: policies and planners on the same held-out sweep scenarios, one table.
 
-The scenarios are a sweep family's (mjtraj.families: seed streams [seed, FAMILY_ID, i]), which no training run
+The scenarios are a sweep family's (mjtraj.study.families: seed streams [seed, FAMILY_ID, i]), which no training run
 draws from (checked against each policy's recorded training and validation streams). The planners' rows are the
 sweep's own (`run_unit`); each policy tracks its planner's reference for the same scenario on the same plant
 (perturbed per scenario in `mismatch`), with the same controller and saturation, and is scored by the same
@@ -9,6 +9,7 @@ metrics and weights. Rows are written in the sweep's format plus the columns `co
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,33 +17,27 @@ from typing import Any
 
 import numpy as np
 
-from mjtraj._files import write_text_atomic
-from mjtraj._validate import choice, positive_int
-from mjtraj.audit import Condition, SweepData
+from mjtraj.checks import choice, positive_int
+from mjtraj.core import LoopConfig
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.families import FAMILIES, perturbed_plant, plant_fields
-from mjtraj.model import load_model
-from mjtraj.reference import Reference
-from mjtraj.rl.episodes import run_episodes
+from mjtraj.files import write_text_atomic
+from mjtraj.rl.episodes import PolicyActor
 from mjtraj.rl.extra import require_sb3
 from mjtraj.rl.policy import Policy, load_policy
 from mjtraj.rl.streams import VALIDATION_STREAM, check_seed, family_entropies, shared_streams
-from mjtraj.stats import cvar, paired_ratio
-from mjtraj.sweep import (
+from mjtraj.study import (
+    FAMILIES,
+    SWEPT,
+    ActorSpec,
+    Condition,
+    SweepData,
     SweepSettings,
-    by_steps,
-    episode_outcome,
-    fixed_columns,
-    make_row,
-    one_line,
-    plan_failure,
-    plan_scenarios,
+    columns,
+    csv_text,
+    cvar,
+    paired_ratio,
     run_unit,
-    scoring_weights,
-    unit_scenarios,
 )
-from mjtraj.sweep_file import csv_text
-from mjtraj.sweep_runner import columns
 
 POLICY_COLUMNS = ("controller", "policy", "policy_sha256", "policy_timesteps")
 
@@ -85,11 +80,11 @@ def _settings(policies: Sequence[Policy], family: str, scenarios: int, seed: int
     names = tuple(dict.fromkeys([*planners, *(p.env_kwargs["planner"] for p in policies)]))
     settings = SweepSettings(families=(family,), scenarios=scenarios, seed=seed, planners=names, ff_accel=(ff,),
                              gravity_comp=(gc,), batch=batch)
-    for p in policies:
+    for p in policies:  # every other controller setting must be the base scenario's
         mine, base = p.settings().loop, settings.base.loop
-        for name in ("feedforward", "anti_windup", "substeps", "gains"):
-            if not _same(getattr(mine, name), getattr(base, name)):
-                raise InvalidInputError(f"policy: {p.path} was trained with a different controller ({name}) than "
+        for f in dataclasses.fields(LoopConfig):
+            if f.name not in SWEPT and not _same(getattr(mine, f.name), getattr(base, f.name)):
+                raise InvalidInputError(f"policy: {p.path} was trained with a different controller ({f.name}) than "
                                         f"the sweep's base scenario")
     return settings
 
@@ -100,42 +95,12 @@ def _same(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
-def policy_rows(settings: SweepSettings, unit: tuple[str, int], policies: Sequence[Policy],
-                labels: Sequence[str]) -> list[dict[str, Any]]:
-    """Unit `unit`'s rows for each policy (sweep rows with the planner column holding the policy's label)."""
-    family, u = unit
-    model = load_model(dt=settings.base.task.dt)
-    draws = unit_scenarios(settings, unit, model)
-    weights = scoring_weights(draws, model)
-    fixed = fixed_columns(settings)
-    ff, gc = settings.ff_accel[0], settings.gravity_comp[0]
-    plans = plan_scenarios(settings, draws, model, tuple(dict.fromkeys(p.env_kwargs["planner"] for p in policies)))
-    mismatch = family == "mismatch"
-    plant = perturbed_plant(model) if mismatch else None
-    rows = []
-    for policy, label in zip(policies, labels, strict=True):
-        extra = {"controller": label, "policy": str(policy.path), "policy_sha256": policy.sha256[:16],
-                 "policy_timesteps": policy.timesteps}
-        env = policy.settings()
-        outcome: dict[int, tuple[str, str, dict[str, float]]] = {}
-        mine = plans[policy.env_kwargs["planner"]]
-        try:
-            live = [(b, ref) for b, ref in enumerate(mine) if isinstance(ref, Reference)]
-            for group in by_steps(live):
-                ids = [b for b, _ in group]
-                fields = plant_fields(plant, [draws[b].perturbation for b in ids]) if mismatch else None
-                episodes = run_episodes(policy.act, env, [ref for _, ref in group], [weights[b] for b in ids],
-                                        plant=plant, plant_fields=fields)
-                for j, b in enumerate(ids):
-                    outcome[b] = episode_outcome(episodes.metrics, j, bool(episodes.unstable[j]),
-                                                 int(episodes.diverged_step[j]), env.loop)
-        except Exception as e:  # noqa: BLE001 - recorded, and the evaluation goes on
-            outcome = {b: ("error", one_line(e), {}) for b in range(len(draws))}
-        for b, s in enumerate(draws):
-            plan = mine[b]
-            status, reason, values = outcome[b] if b in outcome else (*plan_failure(plan), {})
-            rows.append({**make_row(fixed, family, u, s, label, ff, gc, status, reason, values, {}), **extra})
-    return rows
+def actor_specs(policies: Sequence[Policy], labels: Sequence[str]) -> list[ActorSpec]:
+    """Each policy as an actor of the sweep's units: its label, the planner it tracks, its row columns."""
+    return [ActorSpec(label, p.env_kwargs["planner"], PolicyActor(p.act, p.settings()),
+                      {"controller": label, "policy": str(p.path), "policy_sha256": p.sha256[:16],
+                       "policy_timesteps": p.timesteps})
+            for p, label in zip(policies, labels, strict=True)]
 
 
 def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenarios: int = 200, seed: int = 0,
@@ -161,11 +126,13 @@ def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenari
     labels = _labels(loaded)
     settings = _settings(loaded, family, scenarios, seed, planners, batch)
     rows: list[dict[str, Any]] = []
+    actors = actor_specs(loaded, labels)
+    names = {spec.label for spec in actors}
     for unit in settings.units():
-        planner_rows = run_unit(settings, unit).rows
-        rows += [{**row, "controller": f"{row['planner']}+PID", "policy": "", "policy_sha256": "",
-                  "policy_timesteps": ""} for row in planner_rows]
-        rows += policy_rows(settings, unit, loaded, labels)
+        for row in run_unit(settings, unit, actors=actors).rows:
+            rows.append(row if row["planner"] in names else
+                        {**row, "controller": f"{row['planner']}+PID", "policy": "", "policy_sha256": "",
+                         "policy_timesteps": ""})
     out = Path(out)
     csv_path = out / f"eval_{family}.csv"
     write_text_atomic(csv_path, csv_text([*columns(settings), *POLICY_COLUMNS], rows))
@@ -178,7 +145,7 @@ def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenari
 
 def comparison_table(csv_path: Path, *, reference: str) -> str:
     """The Markdown table of an evaluation file: every controller against `reference` + PID, paired by scenario,
-    with 95 % bootstrap intervals (mjtraj.stats)."""
+    with 95 % bootstrap intervals (mjtraj.study.stats)."""
     data = SweepData([csv_path])
     (condition,) = data.conditions
     by_planner = {r["planner"]: r["controller"] for r in data.rows}

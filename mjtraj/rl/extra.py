@@ -26,7 +26,7 @@ def rl_versions() -> dict[str, str]:
 
     import torch
 
-    from mjtraj.compare import versions
+    from mjtraj.versions import versions
 
     sb3 = require_sb3()
     return {**versions(), "stable_baselines3": sb3.__version__, "torch": torch.__version__,

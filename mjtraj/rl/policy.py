@@ -7,7 +7,6 @@ the normalisation statistics as exact floats and `act` applies SB3's own formula
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 from dataclasses import dataclass
@@ -18,9 +17,8 @@ import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
-from mjtraj._files import atomic_path, write_text_atomic
-from mjtraj.envs.settings import TrackSettings, resolve
-from mjtraj.envs.ur5_track import action_space, observation_space
+from mjtraj.files import atomic_path, write_text_atomic
+from mjtraj.envs import TrackSettings, action_space, observation_space, resolve
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.rl import ALGORITHMS
 from mjtraj.rl.extra import require_sb3
@@ -179,8 +177,3 @@ def check_spaces(policy: Policy, settings: TrackSettings, *, where: str) -> None
     if getattr(got_act, "shape", None) != act.shape or not (
             np.all(got_act.low == act.low) and np.all(got_act.high == act.high)):
         raise InvalidInputError(f"policy: {where} acts in {got_act} but {env} takes {act}")
-
-
-def for_duration(settings: TrackSettings, duration: float) -> TrackSettings:
-    """The same env settings for episodes of `duration` s, tasks given from outside (evaluation)."""
-    return dataclasses.replace(settings, duration=float(duration), task_mode="explicit", fixed_task=None)

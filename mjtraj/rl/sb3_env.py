@@ -14,7 +14,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
-from mjtraj.envs.vector import UR5TrackVectorEnv
+from mjtraj.envs import UR5TrackVectorEnv
 from mjtraj.rl.extra import require_sb3
 from mjtraj.rl.streams import training_entropies
 

@@ -22,14 +22,15 @@ from typing import Any
 
 import numpy as np
 
-from mjtraj._files import write_text_atomic
-from mjtraj._validate import choice, positive_int
-from mjtraj.envs.settings import TASKS, TrackSettings, resolve
+from mjtraj.files import write_text_atomic
+from mjtraj.checks import choice, positive_int
+from mjtraj.core import LoopConfig, check_name, option_names
+from mjtraj.envs import TASKS, TrackSettings, resolve
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.planners import available
+from mjtraj.study import Outcome
 from mjtraj.rl import ACTION_MODES, ALGORITHMS
 from mjtraj.rl.curve import CurveFile, plot_curve
-from mjtraj.rl.episodes import Episodes, run_episodes
+from mjtraj.rl.episodes import run_episodes
 from mjtraj.rl.extra import require_sb3, rl_versions
 from mjtraj.rl.policy import Normalization, Policy
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, check_seed, training_entropies
@@ -74,7 +75,7 @@ class TrainSettings:
     def __post_init__(self) -> None:
         choice("algo", self.algo, ALGORITHMS)
         choice("action_mode", self.action_mode, ACTION_MODES)
-        choice("planner", self.planner, available())
+        check_name("planner", self.planner)
         choice("task", self.task, tuple(t for t in TASKS if t != "explicit"))
         positive_int("steps", self.steps)
         check_seed("seed", self.seed)
@@ -91,8 +92,7 @@ class TrainSettings:
         s = resolve(planner=self.planner, action_mode=self.action_mode, task=self.task)
         return {"planner": self.planner, "action_mode": self.action_mode, "task": self.task,
                 "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt,
-                "feedforward": s.loop.feedforward, "ff_accel": s.loop.ff_accel, "gravity_comp": s.loop.gravity_comp,
-                "anti_windup": s.loop.anti_windup, "preview": s.preview}
+                **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}, "preview": s.preview}
 
     def hyperparameters(self) -> dict[str, Any]:
         """The keyword arguments given to the SB3 algorithm besides SB3's defaults (JSON-ready)."""
@@ -125,13 +125,14 @@ def validation_set(settings: TrainSettings, env: TrackSettings) -> tuple[list[An
     return [env.planner.plan(task, env.model) for task in tasks], [env.weights(task) for task in tasks]
 
 
-def _summary(episodes: Episodes) -> dict[str, float]:
-    ok = np.isfinite(episodes.metrics["cost"]) & ~episodes.unstable
-    cost, err = episodes.metrics["cost"][ok], episodes.metrics["rms_err"][ok]
+def _summary(outcomes: list[Outcome]) -> dict[str, float]:
+    ok = [o for o in outcomes if o.status == "ok"]
+    cost = np.array([o.metrics["cost"] for o in ok])
+    err = np.array([o.metrics["rms_err"] for o in ok])
     nan = float("nan")
     return {"cost_mean": float(cost.mean()) if cost.size else nan,
             "cost_median": float(np.median(cost)) if cost.size else nan,
-            "rms_err_mean": float(err.mean()) if err.size else nan, "diverged": int(np.sum(~ok))}
+            "rms_err_mean": float(err.mean()) if err.size else nan, "diverged": len(outcomes) - len(ok)}
 
 
 def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) -> TrainReport:

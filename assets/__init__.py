@@ -1,0 +1,1 @@
+"""MJCF models shipped with mjtraj, installed as the package `mjtraj.assets`."""

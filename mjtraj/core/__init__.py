@@ -1,0 +1,96 @@
+"""The core layer: the plant, its dynamics and linearisation, the planners, the controller and the one closed
+loop, rollouts, metrics and scoring. It imports nothing from the layers above it (docs/design.md, "Layers").
+Every name below loads on first use."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from mjtraj._lazy import lazy_exports
+
+_EXPORTS = {
+    "load_model": "mjtraj.core.model",
+    "default_model_path": "mjtraj.core.model",
+    "JointInfo": "mjtraj.core.model",
+    "Task": "mjtraj.core.task",
+    "random_task": "mjtraj.core.task",
+    "Reference": "mjtraj.core.reference",
+    "BatchPlant": "mjtraj.core.plant",
+    "GRAVITY_COMP": "mjtraj.core.plant",
+    "DynamicsProbe": "mjtraj.core.dynamics",
+    "linearize_many": "mjtraj.core.linearize",
+    "discretize_zoh": "mjtraj.core.linearize",
+    "build_qp": "mjtraj.core.qp",
+    "solve_qp": "mjtraj.core.qp",
+    "CondensedQP": "mjtraj.core.qp",
+    "QPSolution": "mjtraj.core.qp",
+    "box_lqr": "mjtraj.core.lqr",
+    "BoxLQRSolution": "mjtraj.core.lqr",
+    "feedforward_many": "mjtraj.core.feedforward",
+    "FEEDFORWARD_MODES": "mjtraj.core.feedforward",
+    "FEEDFORWARD_ACCEL": "mjtraj.core.feedforward",
+    "PIDGains": "mjtraj.core.controller",
+    "ControlOutput": "mjtraj.core.controller",
+    "control_law": "mjtraj.core.controller",
+    "ANTI_WINDUP": "mjtraj.core.controller",
+    "ClosedLoop": "mjtraj.core.closed_loop",
+    "LoopConfig": "mjtraj.core.closed_loop",
+    "Step": "mjtraj.core.closed_loop",
+    "Rollout": "mjtraj.core.rollout",
+    "Metrics": "mjtraj.core.metrics",
+    "METRIC_NAMES": "mjtraj.core.metrics",
+    "METRIC_UNITS": "mjtraj.core.metrics",
+    "metrics_arrays": "mjtraj.core.metrics",
+    "reduction": "mjtraj.core.metrics",
+    "Scoring": "mjtraj.core.scoring",
+    "bryson_weights": "mjtraj.core.scoring",
+    "step_cost": "mjtraj.core.scoring",
+    "executed_cost": "mjtraj.core.scoring",
+    "JOINT_SPEED_LIMIT": "mjtraj.core.scoring",
+    "gain_rule": "mjtraj.core.gains",
+    "GAIN_RULE": "mjtraj.core.gains",
+    "spectral_radii": "mjtraj.core.stability",
+    "Planner": "mjtraj.core.planners",
+    "available": "mjtraj.core.planners",
+    "make": "mjtraj.core.planners",
+    "register": "mjtraj.core.planners",
+    "check_name": "mjtraj.core.planners",
+    "plan_all": "mjtraj.core.planners",
+    "option": "mjtraj.core.options",
+    "declared_options": "mjtraj.core.options",
+    "option_names": "mjtraj.core.options",
+    "from_mapping": "mjtraj.core.options",
+    "check_options": "mjtraj.core.options",
+}
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
+
+if TYPE_CHECKING:
+    from mjtraj.core.model import JointInfo, default_model_path, load_model
+    from mjtraj.core.task import Task, random_task
+    from mjtraj.core.reference import Reference
+    from mjtraj.core.plant import BatchPlant, GRAVITY_COMP
+    from mjtraj.core.dynamics import DynamicsProbe
+    from mjtraj.core.linearize import discretize_zoh, linearize_many
+    from mjtraj.core.qp import CondensedQP, QPSolution, build_qp, solve_qp
+    from mjtraj.core.lqr import BoxLQRSolution, box_lqr
+    from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many
+    from mjtraj.core.controller import ANTI_WINDUP, ControlOutput, PIDGains, control_law
+    from mjtraj.core.closed_loop import ClosedLoop, LoopConfig, Step
+    from mjtraj.core.rollout import Rollout
+    from mjtraj.core.metrics import METRIC_NAMES, METRIC_UNITS, Metrics, metrics_arrays, reduction
+    from mjtraj.core.scoring import JOINT_SPEED_LIMIT, Scoring, bryson_weights, executed_cost, step_cost
+    from mjtraj.core.gains import GAIN_RULE, gain_rule
+    from mjtraj.core.stability import spectral_radii
+    from mjtraj.core.planners import Planner, available, check_name, make, plan_all, register
+    from mjtraj.core.options import check_options, declared_options, from_mapping, option, option_names
+
+__all__ = [
+    "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "ClosedLoop", "CondensedQP", "ControlOutput", "DynamicsProbe",
+    "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE", "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo",
+    "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics", "PIDGains", "Planner", "QPSolution", "Reference",
+    "Rollout", "Scoring", "Step", "Task", "available", "box_lqr", "bryson_weights", "build_qp", "check_name",
+    "check_options", "control_law", "declared_options", "default_model_path", "discretize_zoh", "executed_cost",
+    "feedforward_many", "from_mapping", "gain_rule", "linearize_many", "load_model", "make", "metrics_arrays",
+    "option", "option_names", "plan_all", "random_task", "reduction", "register", "solve_qp", "spectral_radii",
+    "step_cost",
+]

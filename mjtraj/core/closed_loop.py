@@ -1,0 +1,407 @@
+"""The closed loop of DESIGN §3, once: plant + feedforward + PID, batched; the executor, env and sweeps use it."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+from numpy.typing import NDArray
+
+from mjtraj.core.controller import ANTI_WINDUP, ControlOutput, PIDGains, control_law
+from mjtraj.core.dynamics import DynamicsProbe
+from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many
+from mjtraj.core.model import JointInfo
+from mjtraj.core.options import check_options, option
+from mjtraj.core.plant import GRAVITY_COMP, BatchPlant
+from mjtraj.core.reference import Reference
+from mjtraj.core.rollout import Rollout
+from mjtraj.exceptions import InvalidInputError
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Everything about the controller that is held identical across planners: the PID gains and the declared
+    options below (`mjtraj.core.options`: each is validated, read from scenario files and env arguments, and
+    given a command-line flag from its declaration here)."""
+
+    gains: PIDGains
+    feedforward: str = option("inverse", "feedforward torque: inverse = ID(q_ref, qd_ref, qdd_ref) - G(q_ref) on the "
+                              "nominal model, planned = the planner's own u_plan, none = 0",
+                              choices=FEEDFORWARD_MODES, flag="--ff")
+    ff_accel: str = option("sample", "reference acceleration of the inverse feedforward: sample = qdd_ref(t_k), "
+                           "step_average = (qd_ref,k+1 - qd_ref,k)/dt", choices=FEEDFORWARD_ACCEL)
+    gravity_comp: str = option("native", "gravity compensation: native = G(q) inside every integrator stage, zoh = "
+                               "G(q_k) held over the period", choices=GRAVITY_COMP)
+    anti_windup: str = option("none", "anti-windup: none, or clamp = stop integrating on a saturated joint",
+                              choices=ANTI_WINDUP)
+    substeps: int = option(1, "integrator steps per control period", minimum=1)
+    divergence_bound: float = option(float(np.pi), "|e| above this on any joint marks an execution diverged, rad",
+                                     positive=True, scenario=False)
+    delay: int = option(0, "actuation delay in control periods: with 1 the plant receives in period k the torque "
+                        "computed in period k-1 (zero in period 0)", choices=(0, 1), scenario=False)
+
+    def __post_init__(self) -> None:
+        check_options(self)
+
+
+RECORDED = ("q", "qd", "e", "ed", "tau_ff", "tau_fb", "dtau", "saturated")
+
+
+@dataclass
+class _LoopState:
+    """Per-simulation progress of a running loop (private to ClosedLoop, mutable). Arrays are time-major.
+
+    q_ref, qd_ref: shape (N+1, B, n); tau_ff: (N, B, n); integral: (B, n), rad s; noise: measurement
+    noise (N, B, 2n) added to [q; qd] before control, or None; held: the torque the delayed actuator applies
+    next, (B, n), or None without delay; diverged_step: (B,), -1 while running; records: name -> (N, B, n)
+    for each of RECORDED (NaN where not reached); q_final, qd_final: (B, n) state after period N-1 (NaN until
+    then).
+    sync: the common next period while every simulation is live and in step (the fast path), else None; k:
+    (B,) each simulation's next period, kept only while sync is None (read `periods`).
+    """
+
+    q_ref: NDArray[np.float64]
+    qd_ref: NDArray[np.float64]
+    tau_ff: NDArray[np.float64]
+    k: NDArray[np.intp]
+    integral: NDArray[np.float64]
+    diverged_step: NDArray[np.int64]
+    records: dict[str, NDArray[Any]]
+    q_final: NDArray[np.float64]
+    qd_final: NDArray[np.float64]
+    noise: NDArray[np.float64] | None = None
+    held: NDArray[np.float64] | None = None
+    sync: int | None = 0
+    rows: NDArray[np.intp] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.rows = np.arange(self.k.size)
+
+    @property
+    def steps(self) -> int:
+        """N, the number of control periods."""
+        return self.tau_ff.shape[0]
+
+    @property
+    def periods(self) -> NDArray[np.intp]:
+        """Each simulation's next control period, shape (B,); N once it has ended or diverged."""
+        return np.full(self.k.size, self.sync, dtype=np.intp) if self.sync is not None else self.k.copy()
+
+    def desync(self) -> None:
+        """Leave the fast path: write the common period into k."""
+        if self.sync is not None:
+            self.k[:] = self.sync
+            self.sync = None
+
+    def resync(self) -> None:
+        """Re-enter the fast path when every simulation is live and at the same period."""
+        k = self.k
+        self.sync = int(k[0]) if np.all(k == k[0]) and np.all(self.diverged_step < 0) else None
+
+
+class Step(NamedTuple):
+    """What one period did, for a batch: measured state and errors before control (shapes (B, n)), the control.
+
+    A NamedTuple, as it is built every control period; q, qd, e, ed are the loop's records (do not write them).
+    """
+
+    q: NDArray[np.float64]
+    qd: NDArray[np.float64]
+    e: NDArray[np.float64]
+    ed: NDArray[np.float64]
+    control: ControlOutput
+    diverged: NDArray[np.bool_]
+    """Shape (B,): the scenario is (now or already) diverged."""
+
+
+class ClosedLoop:
+    """B scenarios of the plant under feedforward + PID, advanced one control period at a time.
+
+    `model` is the nominal model (planner, feedforward, zoh gravity); `plant` the simulated one (default: the
+    nominal one), with per-simulation `plant_fields` (see BatchPlant). Use `run` for whole references, or
+    `start` (all simulations) / `restart` (some) then `step` to act in between, reading the queries below.
+
+    The records hold the true state and error (the metrics score them); with measurement noise the controller
+    sees the noisy ones. With an actuation delay, `dtau` records the torque the plant received.
+    """
+
+    def __init__(self, model: mujoco.MjModel, config: LoopConfig, *, nsim: int = 1,
+                 plant: mujoco.MjModel | None = None, plant_fields: dict[str, NDArray[np.float64]] | None = None,
+                 nthread: int = 0) -> None:
+        self.model = model
+        self.config = config
+        self.dt = float(model.opt.timestep)
+        self.limit = JointInfo.of(model).torque_limit
+        """Corrective-torque saturation per joint, shape (n,), N m."""
+        self._plant = BatchPlant(plant if plant is not None else model, nsim, nominal=model,
+                                 gravity_comp=config.gravity_comp, substeps=config.substeps, nthread=nthread,
+                                 fields=plant_fields)
+        self._state: _LoopState | None = None
+        self._gains = config.gains.tiled(nsim)
+        self._limit = np.tile(self.limit, (nsim, 1))
+        self._none_diverged = np.zeros(nsim, dtype=bool)
+        self._none_diverged.setflags(write=False)
+        self._probe: DynamicsProbe | None = None
+
+    # -- queries -------------------------------------------------------------------------------------------------
+
+    @property
+    def nsim(self) -> int:
+        """B, the number of simulations."""
+        return self._plant.nsim
+
+    @property
+    def started(self) -> bool:
+        """Whether `start` has been called."""
+        return self._state is not None
+
+    @property
+    def steps(self) -> int:
+        """N, the control periods of the running references."""
+        return self._running().steps
+
+    @property
+    def periods(self) -> NDArray[np.intp]:
+        """Each simulation's next control period, shape (B,); N once it has ended or diverged."""
+        return self._running().periods
+
+    @property
+    def done(self) -> NDArray[np.bool_]:
+        """Shape (B,): the simulation has run its N periods or diverged."""
+        s = self._running()
+        if s.sync is not None:
+            return np.full(self.nsim, s.sync >= s.steps)
+        return s.k >= s.steps
+
+    @property
+    def diverged(self) -> NDArray[np.bool_]:
+        """Shape (B,): the simulation diverged (|e| above the bound, or a non-finite state)."""
+        return self._running().diverged_step >= 0
+
+    @property
+    def positions(self) -> NDArray[np.float64]:
+        """Joint positions now, shape (B, n), rad (a live view: read it, do not keep or write it)."""
+        return self._plant.qpos
+
+    @property
+    def velocities(self) -> NDArray[np.float64]:
+        """Joint velocities now, shape (B, n), rad/s (a live view: read it, do not keep or write it)."""
+        return self._plant.qvel
+
+    def reference(self, offset: int = 0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Each simulation's reference sample at its next period + `offset` (held at N): q_ref and qd_ref, shape
+        (B, n) each, rad and rad/s (read-only use)."""
+        s = self._running()
+        N = s.steps
+        if s.sync is not None:
+            k = min(s.sync + offset, N)
+            return s.q_ref[k], s.qd_ref[k]
+        k = np.minimum(s.k + offset, N)
+        return s.q_ref[k, s.rows], s.qd_ref[k, s.rows]
+
+    def unstable(self) -> NDArray[np.bool_]:
+        """Shape (B,): MuJoCo flagged the simulation numerically unstable since its last start."""
+        return self._plant.unstable()
+
+    def _running(self) -> _LoopState:
+        if self._state is None:
+            raise InvalidInputError("loop: call start(references) first")
+        return self._state
+
+    # -- control -------------------------------------------------------------------------------------------------
+
+    def _check(self, references: Sequence[Reference]) -> None:
+        if len(references) == 0:
+            raise InvalidInputError("references: expected at least one reference, got none")
+        shape = (references[0].steps, references[0].n)
+        for ref in references:
+            if (ref.steps, ref.n) != shape:
+                raise InvalidInputError(f"references: expected all of shape N={shape[0]}, n={shape[1]}; "
+                                        f"{ref.planner!r} has N={ref.steps}, n={ref.n}")
+            if ref.n != self.model.nv:
+                raise InvalidInputError(f"references: expected {self.model.nv} joints, got {ref.n}")
+            if abs(ref.dt - self.dt) > 1e-12:
+                raise InvalidInputError(f"references: expected the control period dt={self.dt} s of the model, "
+                                        f"got {ref.dt} s from {ref.planner!r}")
+
+    def _prepare(self, references: Sequence[Reference], count: int, noise: npt.ArrayLike | None
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
+        """q_ref, qd_ref (N+1, count, n), the feedforward (N, count, n) and the checked noise of `references`."""
+        self._check(references)
+        if len(references) != count:
+            raise InvalidInputError(f"references: expected {count} (one per simulation), got {len(references)}")
+        q_ref = np.stack([r.q for r in references], axis=1)
+        qd_ref = np.stack([r.qd for r in references], axis=1)
+        unique = {id(r): r for r in references}  # a reference shared by many simulations is computed once
+        if self._probe is None:
+            self._probe = DynamicsProbe(self.model, size=q_ref.shape[0] * len(unique))
+        ff_unique = feedforward_many(self.model, list(unique.values()), mode=self.config.feedforward,
+                                     accel=self.config.ff_accel, probe=self._probe)
+        column = {key: b for b, key in enumerate(unique)}
+        ff = ff_unique[:, [column[id(r)] for r in references]]
+        N, n = ff.shape[0], self.model.nv
+        checked = None
+        if noise is not None:
+            checked = np.asarray(noise, dtype=np.float64)
+            if checked.shape != (N, count, 2 * n) or not np.all(np.isfinite(checked)):
+                raise InvalidInputError(f"noise: expected finite values of shape ({N}, {count}, {2 * n}), "
+                                        f"got shape {checked.shape}")
+        return q_ref, qd_ref, ff, checked
+
+    def start(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None) -> None:
+        """(Re)start every simulation at its reference's first sample, with I_{-1} = 0.
+
+        Args:
+          references: one per simulation, all of one length N and of the model's dt.
+          noise: measurement noise added to [q; qd] before control, shape (N, B, 2n) in rad and rad/s; None for
+            exact measurements.
+        """
+        q_ref, qd_ref, ff, checked = self._prepare(references, self.nsim, noise)
+        N, B, n = ff.shape
+        records: dict[str, NDArray[Any]] = {name: np.full((N, B, n), np.nan) for name in RECORDED}
+        records["saturated"] = np.zeros((N, B, n), dtype=bool)
+        self._state = _LoopState(q_ref, qd_ref, ff, np.zeros(B, dtype=np.intp), np.zeros((B, n)),
+                                 np.full(B, -1, dtype=np.int64), records, np.full((B, n), np.nan),
+                                 np.full((B, n), np.nan), noise=checked,
+                                 held=np.zeros((B, n)) if self.config.delay else None)
+        self._plant.reset(q_ref[0], qd_ref[0])
+
+    def restart(self, ids: npt.ArrayLike, references: Sequence[Reference], *,
+                noise: npt.ArrayLike | None = None) -> None:
+        """Restart simulations `ids` (the vector env's autoreset) on `references` of the running N; the others go on.
+
+        Args:
+          noise: as in `start`, shape (N, len(ids), 2n).
+        """
+        s = self._running()
+        rows = np.asarray(ids, dtype=np.intp).reshape(-1)
+        q_ref, qd_ref, ff, checked = self._prepare(references, rows.size, noise)
+        if q_ref.shape[0] != s.q_ref.shape[0]:
+            raise InvalidInputError(f"references: a restart needs references of the running N={s.steps}, got "
+                                    f"N={q_ref.shape[0] - 1}; start all simulations instead")
+        N, n = s.steps, self.model.nv
+        s.desync()
+        s.q_ref[:, rows], s.qd_ref[:, rows], s.tau_ff[:, rows] = q_ref, qd_ref, ff
+        s.k[rows], s.integral[rows], s.diverged_step[rows] = 0, 0.0, -1
+        for name, record in s.records.items():
+            record[:, rows] = False if name == "saturated" else np.nan
+        s.q_final[rows] = s.qd_final[rows] = np.nan
+        if checked is not None or s.noise is not None:
+            if s.noise is None:
+                s.noise = np.zeros((N, self.nsim, 2 * n))
+            s.noise[:, rows] = 0.0 if checked is None else checked
+        if s.held is not None:
+            s.held[rows] = 0.0
+        s.resync()
+        self._plant.reset(q_ref[0], qd_ref[0], rows)
+
+    def step(self, *, residual: NDArray[np.float64] | None = None,
+             override: NDArray[np.float64] | None = None) -> Step:
+        """Advance every simulation by one control period (shapes (B, n) for residual/override, N m).
+
+        A simulation past its last period, or diverged, gets zero corrective torque (it coasts under gravity
+        compensation; a diverged one was stopped at its last pose) and records nothing more.
+        """
+        s = self._running()
+        plant = self._plant
+        N, n = s.steps, self.model.nv
+        if s.sync is not None and s.sync < N:  # every simulation live and at the same period: views, no masks
+            k = s.sync
+            rec = s.records
+            q, qd = rec["q"][k], rec["qd"][k]
+            q[:], qd[:] = plant.qpos, plant.qvel
+            e = np.subtract(s.q_ref[k], q, out=rec["e"][k])
+            ed = np.subtract(s.qd_ref[k], qd, out=rec["ed"][k])
+            if s.noise is None:
+                out = control_law(e, ed, s.integral, s.tau_ff[k], self._gains, self._limit, self.dt,
+                                  anti_windup=self.config.anti_windup, residual=residual, override=override)
+            else:
+                out = control_law(e - s.noise[k, :, :n], ed - s.noise[k, :, n:], s.integral, s.tau_ff[k],
+                                  self._gains, self._limit, self.dt, anti_windup=self.config.anti_windup,
+                                  residual=residual, override=override)
+            s.integral = out.integral
+            if s.held is not None:
+                out = out._replace(dtau=self._delayed(out.dtau, slice(None)))
+            plant.step(out.dtau)
+            rec["tau_ff"][k], rec["tau_fb"][k], rec["dtau"][k], rec["saturated"][k] = (
+                out.tau_ff, out.tau_fb, out.dtau, out.saturated)
+            if k + 1 == N:
+                s.q_final[:], s.qd_final[:] = plant.qpos, plant.qvel
+            s.sync = k + 1
+            error = s.q_ref[k + 1] - plant.qpos
+            if np.abs(error).max() <= self.config.divergence_bound:  # False for NaN too
+                return Step(q, qd, e, ed, out, self._none_diverged)
+            bad = ~np.all(np.abs(error) <= self.config.divergence_bound, axis=1)
+            self._diverge(bad, np.full(self.nsim, k), q, qd)
+            return Step(q, qd, e, ed, out, s.diverged_step >= 0)
+        s.desync()
+        q, qd = plant.state()
+        active = (s.diverged_step < 0) & (s.k < N)
+        k = np.minimum(s.k, N - 1)
+        e = s.q_ref[k, s.rows] - q
+        ed = s.qd_ref[k, s.rows] - qd
+        seen_e, seen_ed = (e, ed) if s.noise is None else (e - s.noise[k, s.rows, :n], ed - s.noise[k, s.rows, n:])
+        out = control_law(seen_e, seen_ed, s.integral, s.tau_ff[k, s.rows], self._gains, self._limit, self.dt,
+                          anti_windup=self.config.anti_windup, residual=residual, override=override)
+        dtau = np.where(active[:, None], out.dtau, 0.0)
+        if s.held is not None:
+            dtau = np.where(active[:, None], self._delayed(dtau, active), 0.0)
+        s.integral = np.where(active[:, None], out.integral, s.integral)
+        plant.step(dtau)
+        control = ControlOutput(out.tau_ff, out.tau_fb, dtau, out.saturated & active[:, None], out.integral)
+        live, kl = s.rows[active], k[active]
+        for name, value in zip(RECORDED, (q, qd, e, ed, control.tau_ff, control.tau_fb, dtau, control.saturated),
+                               strict=True):
+            s.records[name][kl, live] = value[active]
+        error = s.q_ref[np.minimum(s.k + 1, N), s.rows] - plant.qpos
+        bad = active & ~np.all(np.abs(error) <= self.config.divergence_bound, axis=1)
+        s.k[:] = np.where(active, s.k + 1, s.k)
+        ended = active & (s.k == N)
+        s.q_final[ended], s.qd_final[ended] = plant.qpos[ended], plant.qvel[ended]
+        self._diverge(bad, k, q, qd)
+        s.resync()
+        return Step(q, qd, e, ed, control, s.diverged_step >= 0)
+
+    def _delayed(self, command: NDArray[np.float64], rows: slice | NDArray[np.bool_]) -> NDArray[np.float64]:
+        """The delayed actuator: apply the held torque of `rows`, hold `command` for the next period."""
+        s = self._running()
+        assert s.held is not None
+        applied = s.held.copy()
+        s.held[rows] = command[rows]
+        return applied
+
+    def _diverge(self, bad: NDArray[np.bool_], k: NDArray[np.intp], q: NDArray[np.float64],
+                 qd: NDArray[np.float64]) -> None:
+        """Mark simulations `bad` diverged at period k, stop them at their last pose, blank what they recorded."""
+        if not bad.any():
+            return
+        s = self._running()
+        s.desync()
+        rows = np.flatnonzero(bad)
+        s.diverged_step[rows] = k[rows]
+        s.k[rows] = s.steps
+        s.q_final[rows] = s.qd_final[rows] = np.nan
+        self._plant.reset(q[rows], np.zeros_like(qd[rows]), rows)
+
+    def rollout(self, ids: npt.ArrayLike | None = None) -> Rollout:
+        """What simulations `ids` (all if None) recorded since their start, as a Rollout (rows in `ids` order)."""
+        s = self._running()
+        rows = s.rows if ids is None else np.asarray(ids, dtype=np.intp).reshape(-1)
+        rec = {name: np.ascontiguousarray(s.records[name][:, rows].swapaxes(0, 1)) for name in RECORDED}
+        q_final, qd_final = s.q_final[rows].copy(), s.qd_final[rows].copy()
+        return Rollout(**rec, q_final=q_final, qd_final=qd_final, e_final=s.q_ref[s.steps, rows] - q_final,
+                       diverged_step=s.diverged_step[rows].copy(), dt=self.dt)
+
+    def run(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None) -> Rollout:
+        """Execute one reference per simulation from its first sample to its end; all share N and dt.
+
+        `noise`: measurement noise, shape (N, B, 2n), as in `start`.
+        """
+        self.start(references, noise=noise)
+        for _ in range(self.steps):
+            self.step()
+        return self.rollout()

@@ -1,0 +1,58 @@
+"""The stated PID gain rule: diagonal gains from the inertia each joint presents along the move."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+from numpy.typing import NDArray
+
+from mjtraj.checks import positive, positive_int, vector
+from mjtraj.core.controller import PIDGains
+
+GAIN_RULE = (
+    "joint i presents the inertia 1/(D(q)^-1)_ii with the other joints free; over 21 poses on the segment q0->qg "
+    "its least is J_min and its largest J_max. Tune the lightest case to natural frequency w = 2 pi/(20 dt) (a "
+    "twentieth of the sampling rate) with damping ratio 1, and put the integral corner a decade below the lowest "
+    "natural frequency the joint reaches along the move, w_low = w sqrt(J_min/J_max): kp = J_min w^2, "
+    "kd = 2 J_min w, ki = kp w_low/10")
+
+
+def mass_matrix(model: mujoco.MjModel, q: npt.ArrayLike) -> NDArray[np.float64]:
+    """D(q), shape (n, n), kg m^2."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = vector("q", q, model.nq)
+    mujoco.mj_forward(model, data)
+    D = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, D)
+    return D
+
+
+def free_inertia(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, *, samples: int = 21
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Least and largest 1/(D(q)^-1)_ii over `samples` poses on the segment q0->qg; shape (n,) each, kg m^2.
+
+    1/(D^-1)_ii is the inertia joint i presents when the other joints are free. Unlike D_ii it sees the
+    strongly coupled shoulder-elbow mode, so diagonal gains sized from it keep that mode in bounds.
+    """
+    a, b = vector("q0", q0, model.nq), vector("qg", qg, model.nq)
+    poses = a + np.linspace(0.0, 1.0, positive_int("samples", samples))[:, None] * (b - a)
+    inertia = np.array([1.0 / np.diag(np.linalg.inv(mass_matrix(model, q))) for q in poses])
+    return inertia.min(axis=0), inertia.max(axis=0)
+
+
+def gain_rule(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, dt: float, *,
+              bandwidth: float | None = None, damping: float = 1.0, integral_ratio: float = 0.1) -> PIDGains:
+    """The default gains (GAIN_RULE): kp = J_min w^2, kd = 2 zeta J_min w, ki = kp w_low integral_ratio.
+
+    Args:
+      q0, qg: the move, shape (n,), rad. dt: control period, s.
+      bandwidth: w in rad/s; None for 2 pi / (20 dt).
+    """
+    w = 2 * np.pi / (20 * positive("dt", dt)) if bandwidth is None else positive("bandwidth", bandwidth)
+    zeta = positive("damping", damping)
+    ratio = positive("integral_ratio", integral_ratio)
+    lightest, heaviest = free_inertia(model, q0, qg)
+    w_low = w * np.sqrt(lightest / heaviest)
+    kp = lightest * w**2
+    return PIDGains.create(kp, kp * ratio * w_low, 2 * zeta * lightest * w, model.nv)

@@ -1,0 +1,81 @@
+"""The UR5 3-DoF plant model: loading the shipped MJCF and reading joint facts from it."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.checks import positive
+from mjtraj.exceptions import ModelError
+
+MODEL_FILE = "ur5_3dof.xml"
+
+
+def default_model_path() -> Path:
+    """Path of the shipped `ur5_3dof.xml` (installed as package data `mjtraj.assets`)."""
+    return Path(str(resources.files("mjtraj.assets").joinpath(MODEL_FILE)))
+
+
+def load_model(path: str | os.PathLike[str] | None = None, *, dt: float | None = None) -> mujoco.MjModel:
+    """Load the plant model.
+
+    Args:
+      path: an MJCF file; None for the shipped UR5 3-DoF model.
+      dt: control period in s; sets `opt.timestep` when given (the model's own 0.02 s otherwise).
+
+    Raises:
+      ModelError: the file is missing or MuJoCo cannot compile it.
+    """
+    file = default_model_path() if path is None else Path(path)
+    if not file.is_file():
+        raise ModelError(f"model file not found: {file}")
+    try:
+        model = mujoco.MjModel.from_xml_path(str(file))
+    except ValueError as e:
+        raise ModelError(f"cannot load model {file}: {e}") from e
+    if model.nu != model.nv or model.nv != model.njnt:
+        raise ModelError(f"model {file}: expected one hinge joint and one motor per degree of freedom, "
+                         f"got njnt={model.njnt}, nv={model.nv}, nu={model.nu}")
+    if dt is not None:
+        model.opt.timestep = positive("dt", dt)
+    return model
+
+
+@dataclass(frozen=True)
+class JointInfo:
+    """Joint names and limits of a model; arrays of shape (n,)."""
+
+    names: tuple[str, ...]
+    lower: NDArray[np.float64]
+    """Lower position limits, rad."""
+    upper: NDArray[np.float64]
+    """Upper position limits, rad."""
+    torque_limit: NDArray[np.float64]
+    """Corrective-torque saturation |dtau_i| from the motors' ctrlrange, N m."""
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> JointInfo:
+        """Read the joints of `model` (limits of an unlimited joint are +-inf)."""
+        names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
+                      for j in range(model.njnt))
+        limited = model.jnt_limited.astype(bool)
+        lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
+        upper = np.where(limited, model.jnt_range[:, 1], np.inf)
+        ctrl = np.where(model.actuator_ctrllimited.astype(bool), np.abs(model.actuator_ctrlrange).min(axis=1),
+                        np.inf)
+        torque = np.empty(model.nv)
+        torque[model.actuator_trnid[:, 0]] = ctrl
+        for array in (lower, upper, torque):
+            array.setflags(write=False)
+        return cls(names, lower, upper, torque)
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return len(self.names)

@@ -1,0 +1,104 @@
+"""The planner protocol and the registry that maps names to planner classes."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol, TypeVar, runtime_checkable
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.core.reference import Reference
+from mjtraj.core.task import Task
+from mjtraj.exceptions import InvalidInputError, MjtrajError
+
+
+@runtime_checkable
+class Planner(Protocol):
+    """Anything with `plan(task, model) -> Reference`; planners hold configuration only, no state.
+
+    `plan_many` plans several tasks, each entry the Reference or the MjtrajError its planning raised. Planners
+    that derive from Planner inherit the loop below; a planner that can batch (the optimal one) overrides it.
+    Use `plan_all` to call it on any planner, derived or not.
+    """
+
+    name: str
+
+    def plan(self, task: Task, model: mujoco.MjModel) -> Reference:
+        """Plan `task` on the nominal `model`; samples at t_k = k task.dt, k = 0..N."""
+        ...
+
+    def plan_many(self, tasks: Sequence[Task], model: mujoco.MjModel) -> list[Reference | MjtrajError]:
+        """Plan every task; a task that cannot be planned gets its error, and the others go on."""
+        out: list[Reference | MjtrajError] = []
+        for task in tasks:
+            try:
+                out.append(self.plan(task, model))
+            except MjtrajError as e:
+                out.append(e)
+        return out
+
+
+def plan_all(planner: Planner, tasks: Sequence[Task], model: mujoco.MjModel) -> list[Reference | MjtrajError]:
+    """`planner.plan_many(tasks, model)`, or Planner's default loop for a planner that does not derive from it."""
+    method = getattr(planner, "plan_many", None)
+    if method is not None:
+        return list(method(tasks, model))
+    return Planner.plan_many(planner, tasks, model)
+
+
+_REGISTRY: dict[str, type] = {}
+P = TypeVar("P", bound=type)
+
+
+def register(name: str) -> Callable[[P], P]:
+    """Class decorator: make a planner class available under `name`."""
+
+    def add(cls: P) -> P:
+        _REGISTRY[name] = cls
+        return cls
+
+    return add
+
+
+def available() -> tuple[str, ...]:
+    """Names of the registered planners, in registration order."""
+    return tuple(_REGISTRY)
+
+
+def check_name(argument: str, name: str) -> str:
+    """`name` if a planner is registered under it; InvalidInputError naming `argument` and the valid names."""
+    if name not in _REGISTRY:
+        raise InvalidInputError(f"{argument}: unknown planner {name!r}; valid: {', '.join(_REGISTRY)}")
+    return name
+
+
+def make(name: str, **options: Any) -> Planner:
+    """Build the registered planner `name` with keyword `options`.
+
+    Raises:
+      InvalidInputError: unknown name or option (the message lists the valid ones).
+    """
+    check_name("planner", name)
+    cls = _REGISTRY[name]
+    fields = [f.name for f in dataclasses.fields(cls) if f.init]
+    unknown = sorted(set(options) - set(fields))
+    if unknown:
+        raise InvalidInputError(f"planner {name!r}: unknown option {unknown[0]!r}; valid: "
+                                f"{', '.join(fields) if fields else '(none)'}")
+    planner: Planner = cls(**options)
+    return planner
+
+
+def sampled_reference(name: str, task: Task, s_q: NDArray[np.float64], s_qd: NDArray[np.float64],
+                      s_qdd: NDArray[np.float64], **extra: Any) -> Reference:
+    """Reference q = q0 + dq*s(t) from a time-scaling s sampled on the task grid.
+
+    Args:
+      s_q, s_qd, s_qdd: s(t_k), s'(t_k) in 1/s, s''(t_k) in 1/s^2; shape (N+1,) each.
+    """
+    dq = task.displacement
+    return Reference(planner=name, t=task.times, q=task.q0 + np.outer(s_q, dq), qd=np.outer(s_qd, dq),
+                     qdd=np.outer(s_qdd, dq), **extra)

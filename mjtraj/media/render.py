@@ -1,0 +1,95 @@
+"""Off-screen frames of the arm at its executed pose, with the reference pose as a translucent ghost."""
+
+from __future__ import annotations
+
+from types import TracebackType
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+from numpy.typing import NDArray
+
+from mjtraj.checks import positive_int, vector
+from mjtraj.exceptions import InvalidInputError, RenderError
+from mjtraj.media.gl import INSTALL_HINT, use_backend
+
+GHOST_RGBA = (0.95, 0.55, 0.15, 0.3)
+"""Colour of the reference (ghost) arm: translucent orange."""
+GHOST_SCALE = 1.04
+"""The ghost's geoms are this much thicker, so that it wraps the executed arm as a shell (no z-fighting)."""
+
+
+def cameras(model: mujoco.MjModel) -> tuple[str, ...]:
+    """Names of the model's cameras."""
+    return tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_CAMERA, i) for i in range(model.ncam))
+
+
+def check_render_options(model: mujoco.MjModel, width: int, height: int, camera: str) -> tuple[int, int, str]:
+    """Validate an image size against the offscreen buffer and a camera name; return them (no GL needed)."""
+    width, height = positive_int("width", width), positive_int("height", height)
+    valid = cameras(model)
+    if camera not in valid:
+        raise InvalidInputError(f"camera: unknown camera {camera!r}; valid: {', '.join(valid)}")
+    for name, size, limit, attribute in (("width", width, model.vis.global_.offwidth, "offwidth"),
+                                         ("height", height, model.vis.global_.offheight, "offheight")):
+        if size > limit:
+            raise InvalidInputError(
+                f"{name}: expected at most the offscreen buffer's {limit} pixels, got {size}; raise it with "
+                f"the MJCF attribute <visual><global {attribute}=\"{size}\"/></visual>")
+    return width, height, camera
+
+
+class ArmRenderer:
+    """Renders `model` at joint positions q, optionally with a ghost arm at q_ref; close() it (or use `with`).
+
+    Args:
+      width, height: image size in pixels, at most the model's offscreen buffer
+        (MJCF `<visual><global offwidth=... offheight=...>`).
+      camera: one of the model's named cameras.
+    """
+
+    def __init__(self, model: mujoco.MjModel, *, width: int = 640, height: int = 480, camera: str = "front") -> None:
+        self.width, self.height, self.camera = check_render_options(model, width, height, camera)
+        self.model = model
+        self._data = mujoco.MjData(model)
+        self._ghost = mujoco.MjData(model)
+        self._option = mujoco.MjvOption()
+        self._perturb = mujoco.MjvPerturb()
+        backend = use_backend()
+        try:
+            self._renderer = mujoco.Renderer(model, self.height, self.width)
+        except Exception as e:  # the GL backends raise many kinds
+            raise RenderError(f"cannot open an off-screen OpenGL context with the {backend!r} backend: "
+                              f"{type(e).__name__}: {e}. {INSTALL_HINT}") from e
+
+    def frame(self, q: npt.ArrayLike, q_ref: npt.ArrayLike | None = None) -> NDArray[np.uint8]:
+        """The image, shape (height, width, 3) uint8, of the arm at q (rad) and the ghost at q_ref (if given)."""
+        self._data.qpos[:] = vector("q", q, self.model.nq)
+        mujoco.mj_kinematics(self.model, self._data)
+        mujoco.mj_camlight(self.model, self._data)
+        self._renderer.update_scene(self._data, self.camera)
+        if q_ref is not None:
+            self._ghost.qpos[:] = vector("q_ref", q_ref, self.model.nq)
+            mujoco.mj_kinematics(self.model, self._ghost)
+            scene = self._renderer.scene
+            first = scene.ngeom
+            mujoco.mjv_addGeoms(self.model, self._ghost, self._option, self._perturb,
+                                mujoco.mjtCatBit.mjCAT_DYNAMIC, scene)
+            for i in range(first, scene.ngeom):
+                scene.geoms[i].rgba[:] = GHOST_RGBA
+                scene.geoms[i].size[:] *= GHOST_SCALE
+        return self._renderer.render()
+
+    def close(self) -> None:
+        """Free the GL context (OSMesa complains at interpreter exit otherwise)."""
+        renderer = getattr(self, "_renderer", None)
+        if renderer is not None:
+            renderer.close()
+            self._renderer = None
+
+    def __enter__(self) -> ArmRenderer:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        self.close()

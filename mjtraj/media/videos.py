@@ -1,0 +1,136 @@
+"""`mjtraj render`: execution videos per planner, a 2x2 side-by-side clip, and the paper's Fig. 1 snapshot strip."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.files import atomic_path
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.media.render import ArmRenderer
+from mjtraj.study.comparison import Comparison
+
+VIDEO_FORMATS = ("mp4", "gif")
+SNAPSHOT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)
+"""Fractions of T at which the snapshot strip shows each planner."""
+
+
+def check_formats(formats: Sequence[str]) -> None:
+    """Raise InvalidInputError for a video format other than VIDEO_FORMATS."""
+    for fmt in formats:
+        if fmt not in VIDEO_FORMATS:
+            raise InvalidInputError(f"format: unknown format {fmt!r}; valid: {', '.join(VIDEO_FORMATS)}")
+
+
+def executed_pose(result: Comparison, b: int, k: int) -> NDArray[np.float64]:
+    """q at period k of rollout row b (k = N: the final state), rad."""
+    return result.rollout.q[b, k] if k < result.rollout.q.shape[1] else result.rollout.q_final[b]
+
+
+def label(image: NDArray[np.uint8], lines: Sequence[str], *, size: int = 16) -> NDArray[np.uint8]:
+    """`image` with `lines` of text drawn top-left on a dark band; a new array."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    picture = Image.fromarray(image)
+    draw = ImageDraw.Draw(picture)
+    font = ImageFont.load_default(size=size)
+    draw.rectangle((0, 0, picture.width, 6 + (size + 4) * len(lines)), fill=(20, 20, 24))
+    for i, line in enumerate(lines):
+        draw.text((6, 3 + (size + 4) * i), line, fill=(240, 240, 240), font=font)
+    return np.asarray(picture)
+
+
+def frames(result: Comparison, planner: str, renderer: ArmRenderer, *, every: int = 1,
+           text: bool = True) -> list[NDArray[np.uint8]]:
+    """Frames of one planner's execution: period k shows q_k with the ghost at q_ref,k, and the live error."""
+    b = result.planners.index(planner)
+    ref = result.references[planner]
+    images = []
+    for k in range(0, ref.steps + 1, every):
+        q = executed_pose(result, b, k)
+        image = renderer.frame(q, ref.q[k])
+        if text:
+            error = np.abs(ref.q[k] - q).max()
+            image = label(image, [f"{planner}", f"t = {k * ref.dt:4.2f} s  max|e| = {1e3 * error:6.2f} mrad"])
+        images.append(image)
+    return images
+
+
+def _write(path: Path, images: Sequence[NDArray[np.uint8]], fps: float) -> None:
+    """Write a video or image atomically (a failure leaves no partial file)."""
+    import imageio.v3 as iio
+
+    with atomic_path(path) as tmp:
+        if path.suffix == ".mp4":
+            iio.imwrite(tmp, np.stack(images), fps=fps, codec="libx264", macro_block_size=8)
+        elif path.suffix == ".gif":
+            iio.imwrite(tmp, np.stack(images), duration=1000.0 / fps, loop=0)
+        else:
+            iio.imwrite(tmp, images[0])
+
+
+def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4",), width: int = 640,
+               height: int = 480, camera: str = "front", every: int = 1,
+               progress: Callable[[int], None] | None = None) -> list[Path]:
+    """Write `<scenario>_<planner>.<fmt>` per planner, `<scenario>_grid.<fmt>` (2x2 of up to four planners) and
+    `<scenario>_snapshots.png`; return the paths. `every` keeps one control period in `every` (fps = 1/(every dt)).
+
+    Args:
+      progress: called with the number of frames just rendered.
+    """
+    check_formats(formats)
+    plant = result.scenario.model
+    name = result.scenario.name
+    fps = 1.0 / (every * result.scenario.task.dt)
+    written: list[Path] = []
+    clips = {}
+    with ArmRenderer(plant, width=width, height=height, camera=camera) as renderer:
+        for planner in result.planners:
+            clips[planner] = frames(result, planner, renderer, every=every)
+            if progress:
+                progress(len(clips[planner]))
+            for fmt in formats:
+                path = out / f"{name}_{planner}.{fmt}"
+                _write(path, clips[planner], fps)
+                written.append(path)
+        grid = _grid([clips[p] for p in result.planners[:4]])
+        for fmt in formats:
+            path = out / f"{name}_grid.{fmt}"
+            _write(path, grid, fps)
+            written.append(path)
+        strip = snapshot_strip(result, renderer)
+        if progress:
+            progress(len(SNAPSHOT_TIMES) * len(result.planners))
+        path = out / f"{name}_snapshots.png"
+        _write(path, [strip], fps)
+        written.append(path)
+    return written
+
+
+def _grid(clips: Sequence[Sequence[NDArray[np.uint8]]]) -> list[NDArray[np.uint8]]:
+    """Tile up to four equally long clips 2x2 (missing tiles black)."""
+    h, w, _ = clips[0][0].shape
+    black = np.zeros((h, w, 3), dtype=np.uint8)
+    out = []
+    for k in range(len(clips[0])):
+        tiles = [clip[k] for clip in clips] + [black] * (4 - len(clips))
+        out.append(np.vstack([np.hstack(tiles[:2]), np.hstack(tiles[2:])]))
+    return out
+
+
+def snapshot_strip(result: Comparison, renderer: ArmRenderer) -> NDArray[np.uint8]:
+    """The paper's Fig. 1: one row per planner, one column per time in SNAPSHOT_TIMES (executed + ghost)."""
+    rows = []
+    for planner in result.planners:
+        b = result.planners.index(planner)
+        ref = result.references[planner]
+        tiles = []
+        for fraction in SNAPSHOT_TIMES:
+            k = round(fraction * ref.steps)
+            q = executed_pose(result, b, k)
+            tiles.append(label(renderer.frame(q, ref.q[k]), [f"{planner}  t = {k * ref.dt:.2f} s"]))
+        rows.append(np.hstack(tiles))
+    return np.vstack(rows)

@@ -1,0 +1,120 @@
+"""The study layer: scenarios and their families, the evaluation pipeline, comparisons, sweeps and their
+store, backends, statistics, the audit, reports and plots. It never imports envs or rl. Every name below loads
+on first use."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from mjtraj._lazy import lazy_exports
+
+_EXPORTS = {
+    "Scenario": "mjtraj.study.scenario",
+    "load_scenario": "mjtraj.study.scenario",
+    "scenario_from_dict": "mjtraj.study.scenario",
+    "default_scenario_path": "mjtraj.study.scenario",
+    "FAMILIES": "mjtraj.study.families",
+    "FAMILY_ID": "mjtraj.study.families",
+    "FamilyScenario": "mjtraj.study.families",
+    "Perturbation": "mjtraj.study.families",
+    "draw_scenario": "mjtraj.study.families",
+    "perturbed_plant": "mjtraj.study.families",
+    "plant_fields": "mjtraj.study.families",
+    "measurement_noise": "mjtraj.study.families",
+    "Actor": "mjtraj.study.pipeline",
+    "Job": "mjtraj.study.pipeline",
+    "Outcome": "mjtraj.study.pipeline",
+    "execute": "mjtraj.study.pipeline",
+    "execute_batch": "mjtraj.study.pipeline",
+    "plan_failure": "mjtraj.study.pipeline",
+    "one_line": "mjtraj.study.pipeline",
+    "STATUSES": "mjtraj.study.pipeline",
+    "Row": "mjtraj.study.rows",
+    "EXTRA_METRICS": "mjtraj.study.rows",
+    "Comparison": "mjtraj.study.comparison",
+    "compare": "mjtraj.study.comparison",
+    "comparison_record": "mjtraj.study.comparison",
+    "SweepSettings": "mjtraj.study.sweep",
+    "UnitResult": "mjtraj.study.sweep",
+    "ActorSpec": "mjtraj.study.sweep",
+    "run_unit": "mjtraj.study.sweep",
+    "plan_scenarios": "mjtraj.study.sweep",
+    "unit_scenarios": "mjtraj.study.sweep",
+    "scoring_weights": "mjtraj.study.sweep",
+    "jobs_for": "mjtraj.study.sweep",
+    "fixed_columns": "mjtraj.study.sweep",
+    "columns": "mjtraj.study.sweep",
+    "planner_names": "mjtraj.study.sweep",
+    "DEFAULT_PLANNERS": "mjtraj.study.sweep",
+    "VARIANTS": "mjtraj.study.sweep",
+    "SWEPT": "mjtraj.study.sweep",
+    "ResultsFile": "mjtraj.study.store",
+    "read_rows": "mjtraj.study.store",
+    "numeric": "mjtraj.study.store",
+    "csv_text": "mjtraj.study.store",
+    "append_rows": "mjtraj.study.store",
+    "VERSION_COLUMNS": "mjtraj.study.store",
+    "SweepReport": "mjtraj.study.runner",
+    "run_sweep": "mjtraj.study.runner",
+    "BACKENDS": "mjtraj.study.backends",
+    "PairedRatio": "mjtraj.study.stats",
+    "paired_ratio": "mjtraj.study.stats",
+    "cvar": "mjtraj.study.stats",
+    "Condition": "mjtraj.study.audit",
+    "SweepData": "mjtraj.study.audit",
+    "write_audit": "mjtraj.study.audit",
+    "PAPER_TABLE": "mjtraj.study.paper",
+    "format_report": "mjtraj.study.report",
+    "results_csv": "mjtraj.study.report",
+}
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
+
+if TYPE_CHECKING:
+    from mjtraj.study.scenario import Scenario, default_scenario_path, load_scenario, scenario_from_dict
+    from mjtraj.study.families import (
+        FAMILIES,
+        FAMILY_ID,
+        FamilyScenario,
+        Perturbation,
+        draw_scenario,
+        measurement_noise,
+        perturbed_plant,
+        plant_fields,
+    )
+    from mjtraj.study.pipeline import Actor, Job, Outcome, STATUSES, execute, execute_batch, one_line, plan_failure
+    from mjtraj.study.rows import EXTRA_METRICS, Row
+    from mjtraj.study.comparison import Comparison, compare, comparison_record
+    from mjtraj.study.sweep import (
+        ActorSpec,
+        DEFAULT_PLANNERS,
+        SWEPT,
+        SweepSettings,
+        UnitResult,
+        VARIANTS,
+        columns,
+        fixed_columns,
+        jobs_for,
+        plan_scenarios,
+        planner_names,
+        run_unit,
+        scoring_weights,
+        unit_scenarios,
+    )
+    from mjtraj.study.store import ResultsFile, VERSION_COLUMNS, append_rows, csv_text, numeric, read_rows
+    from mjtraj.study.runner import SweepReport, run_sweep
+    from mjtraj.study.backends import BACKENDS
+    from mjtraj.study.stats import PairedRatio, cvar, paired_ratio
+    from mjtraj.study.audit import Condition, SweepData, write_audit
+    from mjtraj.study.paper import PAPER_TABLE
+    from mjtraj.study.report import format_report, results_csv
+
+__all__ = [
+    "Actor", "ActorSpec", "BACKENDS", "Comparison", "Condition", "DEFAULT_PLANNERS", "EXTRA_METRICS", "FAMILIES",
+    "FAMILY_ID", "FamilyScenario", "Job", "Outcome", "PAPER_TABLE", "PairedRatio", "Perturbation", "ResultsFile",
+    "Row", "STATUSES", "SWEPT", "Scenario", "SweepData", "SweepReport", "SweepSettings", "UnitResult", "VARIANTS",
+    "VERSION_COLUMNS", "append_rows", "columns", "compare", "comparison_record", "csv_text", "cvar",
+    "default_scenario_path", "draw_scenario", "execute", "execute_batch", "fixed_columns", "format_report",
+    "jobs_for", "load_scenario", "measurement_noise", "numeric", "one_line", "paired_ratio", "perturbed_plant",
+    "plan_failure", "plan_scenarios", "planner_names", "plant_fields", "read_rows", "results_csv", "run_sweep",
+    "run_unit", "scenario_from_dict", "scoring_weights", "unit_scenarios", "write_audit",
+]

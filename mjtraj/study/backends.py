@@ -1,0 +1,123 @@
+"""Where a sweep's units run: in this process, on a local process pool, or on a Ray cluster.
+
+A backend maps `run_unit` over units and yields the results in unit order, so that the file is written in the
+same order whichever backend computes it.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import socket
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+from mjtraj.exceptions import BackendError, InvalidInputError
+from mjtraj.study.sweep import SweepSettings, UnitResult, run_unit
+
+BACKENDS = ("local", "ray")
+
+
+def _run(settings_dict: dict[str, Any], unit: tuple[str, int]) -> UnitResult:
+    """run_unit from plain data (what crosses process and machine boundaries, pickled)."""
+    return run_unit(SweepSettings(**settings_dict), unit)
+
+
+def _import_ray():  # noqa: ANN202
+    try:
+        import ray
+    except ImportError as e:
+        raise BackendError("backend 'ray' needs Ray: pip install 'mjtraj[ray]'") from e
+    return ray
+
+
+def check_backend(backend: str, ray_address: str | None) -> None:
+    """Everything about the backend that can be checked before a file is written.
+
+    Raises:
+      InvalidInputError: unknown backend, or a Ray address without the Ray backend.
+      BackendError: Ray is not installed, or nothing answers at `ray_address` (see check_ray_address).
+    """
+    if backend not in BACKENDS:
+        raise InvalidInputError(f"backend: unknown value {backend!r}; valid: {', '.join(BACKENDS)}")
+    if backend == "local" and ray_address is not None:
+        raise InvalidInputError("ray_address: only meaningful with --backend ray")
+    if backend == "ray":
+        _import_ray()
+        check_ray_address(ray_address)
+
+
+def local_map(settings: SweepSettings, units: Sequence[tuple[str, int]], workers: int) -> Iterator[UnitResult]:
+    """Units on `workers` processes (1: this process), results in order."""
+    if workers <= 1 or len(units) <= 1:
+        for unit in units:
+            yield run_unit(settings, unit)
+        return
+    from concurrent.futures import ProcessPoolExecutor
+
+    data = settings.as_dict()
+    context = multiprocessing.get_context("spawn")  # no fork of a process that may hold MuJoCo threads
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        futures = [pool.submit(_run, data, unit) for unit in units]
+        try:
+            for future in futures:
+                yield future.result()
+        finally:
+            for future in futures:
+                future.cancel()
+
+
+def check_ray_address(address: str | None, timeout: float = 5.0) -> None:
+    """Fail fast, before anything is written, when a Ray address names a host:port that does not answer.
+
+    Raises:
+      BackendError: the address is malformed or nothing listens there.
+    """
+    if address is None or address in ("auto", "local"):
+        return
+    target = address.split("://", 1)[-1]
+    host, _, port = target.rpartition(":")
+    if not host or not port.isdigit():
+        raise BackendError(f"ray_address: expected HOST:PORT or ray://HOST:PORT, got {address!r}")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout):
+            pass
+    except OSError as e:
+        raise BackendError(f"ray_address: cannot reach a Ray cluster at {address} ({e.strerror or e}); start one "
+                           f"with `ray start --head` there, or leave out --ray-address to start a local one") from e
+
+
+def ray_map(settings: SweepSettings, units: Sequence[tuple[str, int]], address: str | None,
+            workers: int) -> Iterator[UnitResult]:
+    """Units as Ray tasks (one CPU each) on the cluster at `address` (None: a local instance with `workers`
+    CPUs), results in order. The cluster's nodes need mjtraj installed, at this version."""
+    ray = _import_ray()
+    started = not ray.is_initialized()
+    if started:
+        try:
+            if address is None:
+                ray.init(num_cpus=max(1, workers), include_dashboard=False, log_to_driver=False,
+                         runtime_env={"env_vars": {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}})
+            else:
+                ray.init(address=address, log_to_driver=False)
+        except Exception as e:  # noqa: BLE001 - Ray raises ConnectionError, RuntimeError, ...
+            raise BackendError(f"ray_address: cannot connect to Ray at {address or 'a new local instance'}: "
+                               f"{' '.join(str(e).split())}") from e
+    try:
+        task = ray.remote(num_cpus=1)(_run)
+        data = settings.as_dict()
+        pending = [task.remote(data, unit) for unit in units]
+        for ref in pending:
+            yield ray.get(ref)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def backend_map(backend: str, settings: SweepSettings, units: Sequence[tuple[str, int]], *, workers: int,
+                ray_address: str | None = None) -> Iterator[UnitResult]:
+    """The results of `units` on `backend`, in order. Call `check_backend` first: here a bad backend or address
+    shows only when the iteration starts."""
+    if backend == "local":
+        return local_map(settings, units, workers)
+    return ray_map(settings, units, ray_address, workers)

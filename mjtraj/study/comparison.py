@@ -1,0 +1,108 @@
+"""The paper's study: plan with every planner, execute through one batched closed loop, score."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from mjtraj.versions import versions
+from mjtraj.core.gains import GAIN_RULE
+from mjtraj.core.metrics import Metrics
+from mjtraj.core.planners import available, check_name
+from mjtraj.core.reference import Reference
+from mjtraj.core.rollout import Rollout
+from mjtraj.core.stability import spectral_radii
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.study.paper import PAPER_TABLE
+from mjtraj.study.pipeline import Job, execute_batch
+from mjtraj.study.scenario import Scenario
+
+PAPER_ORDER = ("optimal", "cubic", "quintic", "trapezoidal")
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Planners' references, the batched rollout (row b = planners[b]) and each planner's Metrics."""
+
+    scenario: Scenario
+    planners: tuple[str, ...]
+    references: dict[str, Reference]
+    rollout: Rollout
+    metrics: dict[str, Metrics]
+    stability: dict[str, float]
+    """Frozen-time spectral radii of the linearised closed loop: 'at_rest' and 'moving' (see mjtraj.core.stability)."""
+
+    def reduction(self, planner: str, metric: str) -> float:
+        """100 (M_planner - M_optimal) / M_planner in %; NaN without an optimal row."""
+        if "optimal" not in self.metrics:
+            return float("nan")
+        value = getattr(self.metrics[planner], metric)
+        return 100.0 * (value - getattr(self.metrics["optimal"], metric)) / value
+
+
+def compare(scenario: Scenario, planners: Sequence[str] | None = None, *,
+            progress: Callable[[str], None] | None = None) -> Comparison:
+    """Plan `scenario.task` with each planner (default: all registered, paper order first) and execute all
+    references together through the evaluation pipeline with the scenario's controller and scoring.
+
+    Args:
+      progress: called with a short label before each stage (for a progress bar).
+
+    Raises:
+      InvalidInputError: no planner, an unknown or repeated one, or a task outside the joint ranges.
+      InfeasibleError, SolverError: a planner could not plan the task.
+    """
+    names = tuple(planners) if planners is not None else tuple(
+        [p for p in PAPER_ORDER if p in available()] + [p for p in available() if p not in PAPER_ORDER])
+    if not names:
+        raise InvalidInputError("planners: expected at least one planner, got none")
+    for name in names:
+        check_name("planners", name)
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise InvalidInputError(f"planners: expected distinct planners, got {', '.join(repeated)} more than once")
+    model = scenario.model
+    scenario.task.check_limits(model)
+    references = {}
+    for name in names:
+        if progress:
+            progress(f"plan {name}")
+        references[name] = scenario.planner(name).plan(scenario.task, model)
+    if progress:
+        progress("execute")
+    weights = (scenario.Q_exec, scenario.R_exec)
+    rollout, outcomes = execute_batch(model, scenario.loop, [Job(references[n], weights) for n in names], nthread=0)
+    if progress:
+        progress("stability check")
+    scored = {name: Metrics(**result.metrics) if result.status == "ok" else Metrics.nan()
+              for name, result in zip(names, outcomes, strict=True)}
+    return Comparison(scenario=scenario, planners=names, references=references, rollout=rollout, metrics=scored,
+                      stability=stability(scenario, names, references))
+
+
+def stability(scenario: Scenario, names: tuple[str, ...], references: dict[str, Reference]) -> dict[str, float]:
+    """The spectral radii of `mjtraj.core.stability.spectral_radii` along the planners' references, computed once
+    per scenario and set of planners."""
+    key = ("stability", names)
+    if key not in scenario.memo:
+        scenario.memo[key] = spectral_radii(scenario.model, scenario.loop.gains, [references[n] for n in names])
+    return dict(scenario.memo[key])
+
+
+def comparison_record(result: Comparison) -> dict[str, Any]:
+    """Everything about a comparison as JSON-ready data (results.json)."""
+    planners = {}
+    for name in result.planners:
+        ref = result.references[name]
+        planners[name] = {
+            "metrics": result.metrics[name].as_dict(),
+            "reduction_pct": {"int_dtau": result.reduction(name, "int_dtau"), "cost": result.reduction(name, "cost"),
+                              "rms_dtau": result.reduction(name, "rms_dtau"),
+                              "rms_err": result.reduction(name, "rms_err")} if name != "optimal" else None,
+            "diverged_step": int(result.rollout.diverged_step[result.planners.index(name)]),
+            "plan": {k: v for k, v in ref.info.items()},
+        }
+    return {"scenario": result.scenario.as_dict(), "scenario_file": result.scenario.source,
+            "gain_rule": GAIN_RULE, "stability": result.stability, "versions": versions(), "planners": planners,
+            "paper_table_i": PAPER_TABLE}

@@ -1,0 +1,145 @@
+"""Scenario families of sweeps: seeded random tasks, and for `mismatch` a perturbed plant.
+
+Scenario i of family F under seed s draws everything from `numpy.random.default_rng([s, FAMILY_ID[F], i])`, so a
+scenario is the same whichever batch, worker or machine computes it.
+
+Rules (stated once, used by every sweep):
+- nominal: start uniform in the joint ranges, goal uniform in the ranges within +-1.5 rad of it per joint
+  (`mjtraj.core.task.random_task`), T = 2 s.
+- aggressive: the same tasks with T uniform in [0.5, 1.0] s, rounded to the control period.
+- mismatch: nominal tasks on a plant that differs from the nominal model (planner and feedforward keep the
+  nominal one): a point payload of U(0, 5) kg at the flange (attachment_site; a 5 cm sphere, not gravity
+  compensated); each link's mass and rotational inertia scaled by independent U(0.8, 1.2) factors, its gravity
+  compensation still that of the nominal mass (body_gravcomp = 1/scale); joint viscous damping U(0, 1) N m s/rad
+  and Coulomb friction U(0, 3) N m (2 % of the rated 150 N m) per joint.
+  Optional (sweep settings): measurement noise of std sigma on q and sqrt(2) sigma / dt on qd (the noise of a
+  finite-difference velocity), and a one-period actuation delay.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.core.model import default_model_path
+from mjtraj.core.task import Task, random_task
+
+FAMILIES = ("nominal", "aggressive", "mismatch")
+FAMILY_ID = {"nominal": 0, "aggressive": 1, "mismatch": 2}
+MAX_DISPLACEMENT = 1.5
+"""rad per joint."""
+NOMINAL_DURATION = 2.0
+"""s."""
+AGGRESSIVE_DURATION = (0.5, 1.0)
+"""s, uniform."""
+PAYLOAD_MASS = (0.0, 5.0)
+"""kg, uniform."""
+PAYLOAD_RADIUS = 0.05
+"""m; the payload's inertia is that of a solid sphere."""
+LINK_SCALE = (0.8, 1.2)
+DAMPING = (0.0, 1.0)
+"""N m s/rad, uniform per joint."""
+FRICTION = (0.0, 3.0)
+"""N m, uniform per joint."""
+LINKS = ("shoulder_link", "upper_arm_link", "forearm_link")
+FLANGE_SITE = "attachment_site"
+PERTURBATION_FIELDS = ("mass_scale", "inertia_scale", "damping", "friction")
+"""The per-link or per-joint fields of a Perturbation, in column order."""
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """How one mismatch scenario's plant differs from the nominal model. Shapes (n,) per link or joint."""
+
+    payload: float
+    """kg at the flange."""
+    mass_scale: NDArray[np.float64]
+    inertia_scale: NDArray[np.float64]
+    damping: NDArray[np.float64]
+    """N m s/rad."""
+    friction: NDArray[np.float64]
+    """N m."""
+
+    def as_dict(self) -> dict[str, float]:
+        """Flat columns for a results row."""
+        out = {"payload_kg": self.payload}
+        for name in PERTURBATION_FIELDS:
+            out.update({f"{name}_{j}": float(v) for j, v in enumerate(getattr(self, name))})
+        return out
+
+
+@dataclass(frozen=True)
+class FamilyScenario:
+    """Scenario `index` of `family`: the task, the plant perturbation (None: the nominal plant), and the rng
+    state that draws its measurement noise."""
+
+    family: str
+    index: int
+    task: Task
+    perturbation: Perturbation | None
+    noise_seed: int
+
+
+def draw_scenario(family: str, seed: int, index: int, model: mujoco.MjModel, dt: float) -> FamilyScenario:
+    """Draw scenario `index` of `family` (see the module rules)."""
+    rng = np.random.default_rng([seed, FAMILY_ID[family], index])
+    duration = NOMINAL_DURATION
+    if family == "aggressive":
+        duration = round(rng.uniform(*AGGRESSIVE_DURATION) / dt) * dt
+    task = random_task(rng, model, max_displacement=MAX_DISPLACEMENT, duration=duration, dt=dt)
+    perturbation = None
+    if family == "mismatch":
+        n = model.nv
+        perturbation = Perturbation(payload=float(rng.uniform(*PAYLOAD_MASS)),
+                                    mass_scale=rng.uniform(*LINK_SCALE, n), inertia_scale=rng.uniform(*LINK_SCALE, n),
+                                    damping=rng.uniform(*DAMPING, n), friction=rng.uniform(*FRICTION, n))
+    return FamilyScenario(family, index, task, perturbation, int(rng.integers(2**63 - 1)))
+
+
+def measurement_noise(scenarios: list[FamilyScenario], steps: int, n: int, sigma: float, dt: float
+                      ) -> NDArray[np.float64]:
+    """Noise on [q; qd] for each scenario, shape (N, S, 2n): std sigma (rad) on q, sqrt(2) sigma / dt on qd."""
+    out = np.empty((steps, len(scenarios), 2 * n))
+    scale = np.concatenate([np.full(n, sigma), np.full(n, np.sqrt(2.0) * sigma / dt)])
+    for b, s in enumerate(scenarios):
+        out[:, b] = np.random.default_rng(s.noise_seed).standard_normal((steps, 2 * n)) * scale
+    return out
+
+
+def perturbed_plant(model: mujoco.MjModel) -> mujoco.MjModel:
+    """The nominal model with a payload body (mass set per simulation) welded at the flange, gravcomp 0."""
+    spec = mujoco.MjSpec.from_file(str(default_model_path()))
+    site = spec.site(FLANGE_SITE)
+    parent = site.parent
+    body = parent.add_body(name="payload", pos=site.pos, gravcomp=0.0)
+    body.explicitinertial = True
+    body.mass = 1.0
+    body.inertia = [0.4 * PAYLOAD_RADIUS**2] * 3
+    plant = spec.compile()
+    plant.opt.timestep = model.opt.timestep
+    return plant
+
+
+def plant_fields(plant: mujoco.MjModel, perturbations: list[Perturbation]) -> dict[str, NDArray[np.float64]]:
+    """Per-simulation model fields of `plant` (from `perturbed_plant`) for `perturbations`, one per simulation."""
+    links = [plant.body(name).id for name in LINKS]
+    payload = plant.body("payload").id
+    S = len(perturbations)
+    mass = np.tile(plant.body_mass, (S, 1))
+    inertia = np.tile(plant.body_inertia, (S, 1, 1))
+    comp = np.tile(plant.body_gravcomp, (S, 1))
+    damping = np.empty((S, plant.nv))
+    friction = np.empty((S, plant.nv))
+    for b, p in enumerate(perturbations):
+        mass[b, links] *= p.mass_scale
+        inertia[b, links] *= p.inertia_scale[:, None]
+        comp[b, links] = plant.body_gravcomp[links] / p.mass_scale
+        mass[b, payload] = p.payload
+        inertia[b, payload] = 0.4 * p.payload * PAYLOAD_RADIUS**2
+        comp[b, payload] = 0.0
+        damping[b], friction[b] = p.damping, p.friction
+    return {"body_mass": mass, "body_inertia": inertia, "body_gravcomp": comp, "dof_damping": damping,
+            "dof_frictionloss": friction}

@@ -1,0 +1,146 @@
+"""The one evaluation pipeline: references (+ scoring weights, plant perturbation, measurement noise) through the
+one closed loop, optionally with an actor adding torque, to statuses, reasons and metric values.
+
+`mjtraj compare`, sweeps, `mjtraj rl eval` and the RL learning curve all execute here; planning happens before
+(`plan_all`), writing after (`mjtraj.study.rows`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
+from mjtraj.core.metrics import METRIC_NAMES, metrics_arrays
+from mjtraj.core.reference import Reference
+from mjtraj.core.rollout import Rollout
+from mjtraj.exceptions import InfeasibleError, InvalidInputError, MjtrajError
+from mjtraj.study.families import Perturbation, plant_fields
+
+STATUSES = ("ok", "infeasible", "solver_error", "diverged", "unstable", "error")
+"""Every status a row can have: executed (ok), planning failed (infeasible, solver_error), execution failed
+(diverged, unstable), or an unexpected error (error)."""
+
+
+class Actor(Protocol):
+    """Adds torque inside the closed loop (an RL policy): `begin` once the loop has started on `references`, then
+    `act` before every control period."""
+
+    action_mode: str
+    """'residual' (added to feedforward + PID before the saturation) or 'torque' (the whole corrective torque)."""
+
+    def begin(self, loop: ClosedLoop, references: Sequence[Reference]) -> None:
+        """A new batch of episodes has started on `loop`."""
+        ...
+
+    def act(self, loop: ClosedLoop) -> NDArray[np.float64]:
+        """The torque for the next period, shape (B, n), N m."""
+        ...
+
+
+@dataclass(frozen=True)
+class Job:
+    """One execution to run: a reference, the diagonal weights that score it (Q_exec (2n,), R_exec (n,)), and
+    optionally how the plant differs from the nominal one and the measurement noise on [q; qd] ((N, 2n))."""
+
+    reference: Reference
+    weights: tuple[NDArray[np.float64], NDArray[np.float64]]
+    perturbation: Perturbation | None = None
+    noise: NDArray[np.float64] | None = None
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How one execution went: status (see STATUSES), a one-line reason if not ok, and every metric if ok."""
+
+    status: str
+    reason: str = ""
+    metrics: dict[str, float] = field(default_factory=dict)
+
+
+def one_line(error: BaseException) -> str:
+    """An error as one line: 'Type: message'."""
+    return " ".join(f"{type(error).__name__}: {error}".split())
+
+
+def plan_failure(error: MjtrajError) -> Outcome:
+    """The outcome of a job whose planning failed."""
+    return Outcome("infeasible" if isinstance(error, InfeasibleError) else "solver_error", one_line(error))
+
+
+def outcome(arrays: dict[str, NDArray[np.float64]], j: int, unstable: bool, diverged_step: int,
+            config: LoopConfig) -> Outcome:
+    """Execution j of a batch: unstable, diverged (no metrics) or ok."""
+    if unstable:
+        return Outcome("unstable", "MuJoCo flagged the simulation numerically unstable (bad qacc/qpos/qvel)")
+    if diverged_step >= 0:
+        return Outcome("diverged", f"|e| > {config.divergence_bound:.4g} rad at step {diverged_step}")
+    return Outcome("ok", "", {m: float(arrays[m][j]) for m in METRIC_NAMES})
+
+
+def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *,
+                  plant: mujoco.MjModel | None = None, actor: Actor | None = None, nthread: int = 1,
+                  seconds: dict[str, float] | None = None) -> tuple[Rollout, list[Outcome]]:
+    """Execute `jobs` (references of one length N) together on one ClosedLoop; the rollout and each outcome.
+
+    Args:
+      plant: the simulated model whose fields the jobs' perturbations set (`mjtraj.study.families.perturbed_plant`);
+        None for the nominal `model` (the jobs must then carry no perturbation).
+      actor: adds torque every period (None: the controller alone).
+      seconds: if given, 'execute' and 'metrics' accumulate the wall time of each stage.
+    """
+    clock = time.perf_counter()
+    references = [job.reference for job in jobs]
+    perturbed = [job.perturbation for job in jobs if job.perturbation is not None]
+    if perturbed and (plant is None or len(perturbed) != len(jobs)):
+        raise InvalidInputError("jobs: perturbed jobs need the perturbed plant model, and a batch is either all "
+                                "perturbed or all nominal")
+    fields = plant_fields(plant, perturbed) if plant is not None and perturbed else None
+    loop = ClosedLoop(model, config, nsim=len(jobs), plant=plant, plant_fields=fields, nthread=nthread)
+    noise = None
+    if any(job.noise is not None for job in jobs):
+        N, n = references[0].steps, model.nv
+        noise = np.stack([job.noise if job.noise is not None else np.zeros((N, 2 * n)) for job in jobs], axis=1)
+    if actor is None:
+        rollout = loop.run(references, noise=noise)
+    else:
+        loop.start(references, noise=noise)
+        actor.begin(loop, references)
+        residual = actor.action_mode == "residual"
+        for _ in range(loop.steps):
+            torque = actor.act(loop)
+            loop.step(residual=torque if residual else None, override=None if residual else torque)
+        rollout = loop.rollout()
+    unstable = loop.unstable()
+    middle = time.perf_counter()
+    q_diag = np.array([job.weights[0] for job in jobs])
+    r_diag = np.array([job.weights[1] for job in jobs])
+    arrays = metrics_arrays(rollout, q_diag, r_diag)
+    outcomes = [outcome(arrays, j, bool(unstable[j]), int(rollout.diverged_step[j]), config)
+                for j in range(len(jobs))]
+    if seconds is not None:
+        seconds["execute"] = seconds.get("execute", 0.0) + middle - clock
+        seconds["metrics"] = seconds.get("metrics", 0.0) + time.perf_counter() - middle
+    return rollout, outcomes
+
+
+def execute(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *, plant: mujoco.MjModel | None = None,
+            actor: Actor | None = None, nthread: int = 1, seconds: dict[str, float] | None = None) -> list[Outcome]:
+    """`execute_batch` over jobs of any lengths (grouped by N, shortest first); outcomes in the order of `jobs`."""
+    groups: dict[int, list[int]] = {}
+    for i, job in enumerate(jobs):
+        groups.setdefault(job.reference.steps, []).append(i)
+    out: list[Outcome | None] = [None] * len(jobs)
+    for steps in sorted(groups):
+        ids = groups[steps]
+        _, outcomes = execute_batch(model, config, [jobs[i] for i in ids], plant=plant, actor=actor,
+                                    nthread=nthread, seconds=seconds)
+        for i, result in zip(ids, outcomes, strict=True):
+            out[i] = result
+    return [result for result in out if result is not None]

@@ -1,0 +1,99 @@
+"""Text tables: our Table I in the paper's columns, and the paper's own numbers for reference."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+
+from mjtraj.core.gains import GAIN_RULE
+from mjtraj.study.comparison import Comparison
+from mjtraj.study.paper import PAPER_TABLE
+
+HEADER = ("Planner", "RMS dtau", "Int. dtau", "RMS Err.", "Cost", "dtau Red.", "Cost Red.", "RMS fb", "Peak dtau")
+UNITS = ("", "N m", "N m s", "rad", "-", "%", "%", "N m", "N m")
+
+
+def _fmt(value: float, kind: str) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "--"
+    if kind == "err":
+        return f"{value:.3e}"
+    if kind == "pct":
+        return f"{value:.2f}"
+    return f"{value:.3f}"
+
+
+def _grid(rows: list[tuple[str, ...]]) -> str:
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(cell.ljust(w) if i == 0 else cell.rjust(w) for i, (cell, w) in enumerate(zip(r, widths)))
+             for r in rows]
+    lines.insert(2, "-" * len(lines[0]))
+    return "\n".join(lines)
+
+
+def table_rows(result: Comparison) -> list[tuple[str, ...]]:
+    """Our Table I rows (strings), header and units first."""
+    rows = [HEADER, UNITS]
+    for name in result.planners:
+        m = result.metrics[name]
+        red = name != "optimal"
+        rows.append((name, _fmt(m.rms_dtau, "num"), _fmt(m.int_dtau, "num"), _fmt(m.rms_err, "err"),
+                     _fmt(m.cost, "num"), _fmt(result.reduction(name, "int_dtau") if red else float("nan"), "pct"),
+                     _fmt(result.reduction(name, "cost") if red else float("nan"), "pct"),
+                     _fmt(m.rms_fb, "num"), _fmt(m.peak_dtau, "num")))
+    return rows
+
+
+def paper_rows() -> list[tuple[str, ...]]:
+    """The paper's Table I rows (strings), in the same columns; RMS fb and peak are not published."""
+    rows = [HEADER, UNITS]
+    for name, p in PAPER_TABLE.items():
+        rows.append((name, _fmt(p["rms_dtau"], "num"), _fmt(p["int_dtau"], "num"), _fmt(p["rms_err"], "err"),
+                     _fmt(p["cost"], "num"), _fmt(p.get("dtau_red", float("nan")), "pct"),
+                     _fmt(p.get("cost_red", float("nan")), "pct"), "n/a", "n/a"))
+    return rows
+
+
+def format_report(result: Comparison) -> str:
+    """The text `mjtraj compare` prints: settings, our table, the paper's table, and the facts behind them."""
+    s = result.scenario
+    g = s.loop.gains
+    fmt = lambda a: "[" + ", ".join(f"{x:.6g}" for x in a) + "]"  # noqa: E731
+    diverged = [n for i, n in enumerate(result.planners) if result.rollout.diverged_step[i] >= 0]
+    lines = [
+        f"Scenario '{s.name}' ({s.source or 'in memory'})",
+        f"  q0 = {fmt(s.task.q0)} rad, qg = {fmt(s.task.qg)} rad, T = {s.task.duration:g} s, dt = {s.task.dt:g} s, "
+        f"N = {s.task.steps}",
+        f"  feedforward = {s.loop.feedforward}, ff_accel = {s.loop.ff_accel}, gravity_comp = {s.loop.gravity_comp}, "
+        f"anti_windup = {s.loop.anti_windup}, substeps = {s.loop.substeps}",
+        f"  kp = {fmt(g.kp)}, ki = {fmt(g.ki)}, kd = {fmt(g.kd)}",
+        f"  gain rule: {GAIN_RULE}",
+        f"  closed-loop spectral radius (frozen-time, linearised): at rest on every reference pose "
+        f"{result.stability['at_rest']:.4f}, along the moving references {result.stability['moving']:.4f}",
+        f"  Q_exec = diag{fmt(s.Q_exec)}, R_exec = diag{fmt(s.R_exec)}",
+        "",
+        "Table I (ours: MuJoCo UR5 3-DoF, identical FF+PID, |dtau| <= 60 N m; dtau Red. = reduction of Int. dtau)",
+        _grid(table_rows(result)),
+    ]
+    if diverged:
+        lines.append(f"  diverged (metrics NaN): {', '.join(diverged)}")
+    if "optimal" in result.references:
+        info = result.references["optimal"].info
+        lines.append(f"  optimal plan: {info['solver']} {info['status']}, {info['iterations']} iterations, "
+                     f"terminal residual {info['terminal_residual']:.2e}, plan time {1e3 * info['plan_time']:.1f} ms")
+    lines += ["", "Table I as published (paper.tex; for reference only, never a target)", _grid(paper_rows())]
+    return "\n".join(lines)
+
+
+def results_csv(result: Comparison) -> str:
+    """results.csv: one row per planner, every metric and the reduction columns."""
+    out = io.StringIO()
+    metric_names = list(result.metrics[result.planners[0]].as_dict())
+    writer = csv.writer(out)
+    writer.writerow(["planner", *metric_names, "int_dtau_red_pct", "cost_red_pct"])
+    for name in result.planners:
+        m = result.metrics[name].as_dict()
+        writer.writerow([name, *(repr(m[k]) for k in metric_names), repr(result.reduction(name, "int_dtau")),
+                         repr(result.reduction(name, "cost"))])
+    return out.getvalue()

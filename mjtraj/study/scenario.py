@@ -1,0 +1,229 @@
+"""Scenarios: every setting of a comparison (model, task, controller, planner options, scoring) in one place.
+
+A scenario file (TOML) has the layout of `Scenario.as_dict`:
+
+    name = "paper"
+    model = "path/to/arm.xml"          # optional; the shipped UR5 3-DoF model when absent
+    [task]        q0, qg (lists, rad), duration, dt (s)
+    [controller]  kp, ki, kd (lists) and the loop options declared in mjtraj.core.closed_loop.LoopConfig
+    [planners.<name>]  keyword options of each registered planner
+    [cost]        Q_exec, R_exec (lists: fixed diagonal weights), or rule = "bryson" (Bryson's rule per task)
+
+Types are enforced: a number where a list is expected (or `true` where a number is) is an error naming the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+from dataclasses import dataclass, field
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.core.closed_loop import LoopConfig
+from mjtraj.core.controller import PIDGains
+from mjtraj.core.model import JointInfo, load_model
+from mjtraj.core.options import from_mapping, option_names
+from mjtraj.core.planners import Planner, available, make
+from mjtraj.core.scoring import Scoring
+from mjtraj.core.task import Task
+from mjtraj.exceptions import InvalidInputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+TASK_KEYS = ("q0", "qg", "duration", "dt")
+GAIN_KEYS = ("kp", "ki", "kd")
+SECTIONS = ("name", "model", "task", "controller", "planners", "cost")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A comparison's settings.
+
+    Attributes:
+      name: a label for outputs (a name, not a path).
+      task: the motion.
+      loop: the controller, identical for every planner.
+      planner_options: planner name -> keyword options.
+      scoring: how executions are scored (J_exec's weights), independent of any planner's own weights.
+      model_path: the MJCF plant model; None for the shipped UR5 3-DoF model.
+      source: the file it was read from ('' in memory).
+    """
+
+    name: str
+    task: Task
+    loop: LoopConfig
+    planner_options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    scoring: Scoring = field(default_factory=Scoring)
+    model_path: str | None = None
+    source: str = ""
+    memo: dict[Any, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
+    """Results computed once per scenario (the model's stability check); a replaced scenario starts empty."""
+
+    @cached_property
+    def model(self) -> mujoco.MjModel:
+        """The nominal plant model at the task's control period, loaded once per scenario."""
+        return load_model(self.model_path, dt=self.task.dt)
+
+    @property
+    def torque_limit(self) -> NDArray[np.float64]:
+        """The corrective-torque saturation of the model, shape (n,), N m."""
+        return JointInfo.of(self.model).torque_limit
+
+    @property
+    def Q_exec(self) -> NDArray[np.float64]:
+        """diag(Q_exec) that scores this scenario's task, shape (2n,)."""
+        return self.scoring.weights(self.task, self.torque_limit)[0]
+
+    @property
+    def R_exec(self) -> NDArray[np.float64]:
+        """diag(R_exec) that scores this scenario's task, shape (n,)."""
+        return self.scoring.weights(self.task, self.torque_limit)[1]
+
+    def planner(self, name: str) -> Planner:
+        """The registered planner `name` with this scenario's options for it."""
+        return make(name, **self.planner_options.get(name, {}))
+
+    def replace(self, *, task: dict[str, Any] | None = None, loop: dict[str, Any] | None = None,
+                **changes: Any) -> Scenario:
+        """A copy with fields changed; `task` and `loop` dicts edit fields of the task or the loop configuration."""
+        new_task = self.task
+        if task:
+            values = {"q0": self.task.q0, "qg": self.task.qg, "duration": self.task.duration, "dt": self.task.dt,
+                      **task}
+            new_task = Task.create(**values, n=self.task.n)
+        new_loop = dataclasses.replace(self.loop, **loop) if loop else self.loop
+        return dataclasses.replace(self, task=new_task, loop=new_loop, **changes)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready settings, laid out as the scenario file."""
+        g = self.loop.gains
+        out: dict[str, Any] = {"name": self.name}
+        if self.model_path is not None:
+            out["model"] = self.model_path
+        out["task"] = {"q0": self.task.q0.tolist(), "qg": self.task.qg.tolist(), "duration": self.task.duration,
+                       "dt": self.task.dt}
+        out["controller"] = {"kp": g.kp.tolist(), "ki": g.ki.tolist(), "kd": g.kd.tolist(),
+                             **{name: getattr(self.loop, name) for name in option_names(LoopConfig)}}
+        out["planners"] = {k: dict(v) for k, v in self.planner_options.items()}
+        out["cost"] = self.scoring.as_dict()
+        return out
+
+
+def default_scenario_path() -> Path:
+    """The shipped `paper.toml`."""
+    return Path(str(resources.files("mjtraj.study.scenarios").joinpath("paper.toml")))
+
+
+def load_scenario(path: str | os.PathLike[str] | None = None) -> Scenario:
+    """Read a scenario file (TOML); None for the shipped paper scenario.
+
+    Raises:
+      InvalidInputError: missing or unreadable file, TOML syntax, unknown or missing keys (valid ones are listed),
+        values of the wrong type, bad values.
+    """
+    file = default_scenario_path() if path is None else Path(path)
+    if not file.is_file():
+        raise InvalidInputError(f"config: scenario file not found: {file}")
+    try:
+        text = file.read_bytes().decode("utf-8")
+        data = tomllib.loads(text)
+    except UnicodeDecodeError as e:
+        raise InvalidInputError(f"config: {file} is not a text file (not UTF-8 at byte {e.start})") from e
+    except tomllib.TOMLDecodeError as e:
+        raise InvalidInputError(f"config: {file} is not valid TOML: {e}") from e
+    except OSError as e:
+        raise InvalidInputError(f"config: cannot read {file}: {e.strerror or e}") from e
+    return scenario_from_dict(data, source=str(file))
+
+
+def _section(data: dict[str, Any], name: str, *, required: bool = True) -> dict[str, Any]:
+    section = data.get(name, None if required else {})
+    if section is None:
+        raise InvalidInputError(f"config: missing section [{name}]")
+    if not isinstance(section, dict):
+        raise InvalidInputError(f"config: [{name}] must be a table, got {section!r}")
+    return section
+
+
+def _require(section: dict[str, Any], name: str, key: str) -> Any:
+    if key not in section:
+        raise InvalidInputError(f"config: missing key {key!r} in [{name}]")
+    return section[key]
+
+
+def _numbers(section: dict[str, Any], name: str, key: str) -> list[float]:
+    """A list of numbers (not a scalar, not booleans)."""
+    value = _require(section, name, key)
+    if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                              for v in value):
+        raise InvalidInputError(f"config: {key} in [{name}]: expected a list of numbers, got {value!r}")
+    return value
+
+
+def _number(section: dict[str, Any], name: str, key: str) -> float:
+    value = _require(section, name, key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InvalidInputError(f"config: {key} in [{name}]: expected a number, got {value!r}")
+    return float(value)
+
+
+def _only(section: dict[str, Any], name: str, valid: tuple[str, ...]) -> None:
+    for key in section:
+        if key not in valid:
+            raise InvalidInputError(f"config: unknown key {key!r} in [{name}]; valid: {', '.join(valid)}")
+
+
+def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
+    """Build a Scenario from the scenario file's layout (see `Scenario.as_dict` and the module docstring)."""
+    for key in data:
+        if key not in SECTIONS:
+            raise InvalidInputError(f"config: unknown key {key!r}; valid: {', '.join(SECTIONS)}")
+    name = data.get("name", "scenario")
+    if not isinstance(name, str) or not name:
+        raise InvalidInputError(f"config: name: expected a non-empty string, got {name!r}")
+    model_path = data.get("model")
+    if model_path is not None and not isinstance(model_path, str):
+        raise InvalidInputError(f"config: model: expected a file path (a string), got {model_path!r}")
+    t = _section(data, "task")
+    _only(t, "task", TASK_KEYS)
+    task = Task.create(_numbers(t, "task", "q0"), _numbers(t, "task", "qg"), _number(t, "task", "duration"),
+                       _number(t, "task", "dt"))
+    c = _section(data, "controller")
+    _only(c, "controller", GAIN_KEYS + option_names(LoopConfig))
+    gains = PIDGains.create(*(_numbers(c, "controller", k) for k in GAIN_KEYS), n=task.n)
+    loop = LoopConfig(gains, **from_mapping(LoopConfig, {k: v for k, v in c.items() if k not in GAIN_KEYS},
+                                            where=" in [controller]"))
+    planners: dict[str, dict[str, Any]] = {}
+    for planner, options in _section(data, "planners", required=False).items():
+        if planner not in available():
+            raise InvalidInputError(f"config: unknown planner [planners.{planner}]; valid: {', '.join(available())}")
+        if not isinstance(options, dict):
+            raise InvalidInputError(f"config: [planners.{planner}] must be a table of options, got {options!r}")
+        planners[planner] = {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
+        try:
+            make(planner, **planners[planner])  # validates the options now
+        except TypeError as e:
+            raise InvalidInputError(f"config: [planners.{planner}]: {e}") from e
+    cost = _section(data, "cost")
+    if "rule" in cost:
+        _only(cost, "cost", ("rule",))
+        if cost["rule"] != "bryson":
+            raise InvalidInputError(f"config: rule in [cost]: unknown value {cost['rule']!r}; valid: bryson (or give "
+                                    f"Q_exec and R_exec)")
+        scoring = Scoring()
+    else:
+        _only(cost, "cost", ("Q_exec", "R_exec", "rule"))
+        scoring = Scoring.fixed(_numbers(cost, "cost", "Q_exec"), _numbers(cost, "cost", "R_exec"), task.n)
+    return Scenario(name=name, task=task, loop=loop, planner_options=planners, scoring=scoring,
+                    model_path=model_path, source=source)

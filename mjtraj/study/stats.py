@@ -1,0 +1,84 @@
+"""Statistics of sweeps: paired ratios with percentile-bootstrap intervals, win rates, CVaR.
+
+Planners are compared on the same scenarios (paired): a scenario enters a comparison when both planners executed
+it (status ok). The bootstrap resamples scenarios with a fixed seed, so the same file gives the same intervals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from numpy.typing import NDArray
+
+from mjtraj.checks import positive_int
+from mjtraj.exceptions import InvalidInputError
+
+BOOTSTRAP_SEED = 20261121
+BOOTSTRAP_RESAMPLES = 2000
+
+
+@dataclass(frozen=True)
+class PairedRatio:
+    """mean(a) / mean(b) over paired scenarios, its 95 % percentile-bootstrap interval, and how often a < b."""
+
+    ratio: float
+    low: float
+    high: float
+    win_rate: float
+    """Fraction of scenarios where b is strictly lower than a (b 'wins')."""
+    count: int
+
+    @property
+    def reduction(self) -> tuple[float, float, float]:
+        """The paper's reduction of b relative to a, 100 (a - b) / a = 100 (1 - 1/ratio), in % (estimate, low,
+        high)."""
+        return tuple(100.0 * (1.0 - 1.0 / r) for r in (self.ratio, self.low, self.high))  # type: ignore[return-value]
+
+
+def _pair(a: npt.ArrayLike, b: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    x = np.asarray(a, dtype=np.float64)
+    y = np.asarray(b, dtype=np.float64)
+    if x.shape != y.shape or x.ndim != 1:
+        raise InvalidInputError(f"a, b: expected paired 1-D samples of one length, got shapes {x.shape}, {y.shape}")
+    keep = np.isfinite(x) & np.isfinite(y)
+    return x[keep], y[keep]
+
+
+def paired_ratio(a: npt.ArrayLike, b: npt.ArrayLike, *, resamples: int = BOOTSTRAP_RESAMPLES,
+                 seed: int = BOOTSTRAP_SEED, level: float = 0.95) -> PairedRatio:
+    """mean(a) / mean(b) over the scenarios where both are finite, with a percentile-bootstrap interval.
+
+    Args:
+      a, b: one value per scenario, shape (S,) each (a planner's metric and the optimal one's).
+    """
+    x, y = _pair(a, b)
+    if x.size == 0:
+        nan = float("nan")
+        return PairedRatio(nan, nan, nan, nan, 0)
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, x.size, size=(positive_int("resamples", resamples), x.size))
+    ratios = x[picks].mean(axis=1) / y[picks].mean(axis=1)
+    tail = 100.0 * (1.0 - level) / 2.0
+    low, high = np.percentile(ratios, [tail, 100.0 - tail])
+    return PairedRatio(float(x.mean() / y.mean()), float(low), float(high), float(np.mean(y < x)), int(x.size))
+
+
+def cvar(values: npt.ArrayLike, alpha: float = 0.9) -> float:
+    """Conditional value at risk: the mean of the worst (1 - alpha) fraction of the finite `values` (upper tail).
+
+    With n values sorted ascending and m = (1 - alpha) n, the mean of the top floor(m) values and the fraction
+    m - floor(m) of the next one (Rockafellar-Uryasev on the empirical distribution).
+    """
+    x = np.sort(np.asarray(values, dtype=np.float64)[np.isfinite(np.asarray(values, dtype=np.float64))])
+    if not 0.0 <= alpha < 1.0:
+        raise InvalidInputError(f"alpha: expected a level in [0, 1), got {alpha!r}")
+    if x.size == 0:
+        return float("nan")
+    m = (1.0 - alpha) * x.size
+    whole = int(np.floor(m + 1e-9))
+    part = m - whole
+    top = x[::-1]
+    total = top[:whole].sum() + (part * top[whole] if whole < x.size and part > 1e-9 else 0.0)
+    return float(total / m)

@@ -1,0 +1,336 @@
+"""Sweeps: every planner on thousands of seeded scenarios through the one batched closed loop.
+
+The work is cut into units (a family's scenarios [u * batch, (u + 1) * batch)). `run_unit` computes one unit's
+rows from the settings alone, so any backend (this process, a process pool, a Ray cluster) gives the same rows,
+bit for bit. Rows are one per scenario, controller variant (ff_accel x gravity_comp) and planner.
+
+Rules shared by every scenario (stated once here, recorded with every row):
+- the controller is the base scenario's (default: the shipped paper.toml): its gains, feedforward mode,
+  anti-windup and substeps, for every task and planner;
+- the optimal planner's Q, R and the execution cost's Q_exec, R_exec follow Bryson's rule per task
+  (`mjtraj.core.scoring.bryson_weights`), the rule paper.toml states for its own task;
+- the planners' other options are the base scenario's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.checks import choice, positive_int
+from mjtraj.versions import versions as all_versions
+from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
+from mjtraj.core.controller import PIDGains
+from mjtraj.core.options import choices, option_names
+from mjtraj.core.planners import Planner, available, make, plan_all
+from mjtraj.core.reference import Reference
+from mjtraj.core.scoring import Scoring
+from mjtraj.exceptions import InvalidInputError, MjtrajError
+from mjtraj.study.families import FAMILIES, FamilyScenario, draw_scenario, measurement_noise, perturbed_plant
+from mjtraj.study.pipeline import Actor, Job, Outcome, execute, one_line, plan_failure
+from mjtraj.study.rows import Row
+from mjtraj.study.scenario import Scenario, load_scenario
+from mjtraj.study.store import VERSION_COLUMNS
+
+DEFAULT_PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
+VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "optimal_start": ("optimal", {"linearization": "start"}),
+    "min_effort": ("optimal", {"state_weight": (0.0,) * 6}),
+}
+"""Planner variants a sweep can name besides the registered planners: the optimal planner linearised at the
+start pose (claim 6 of the audit), and with Q = 0, the minimum-effort reference of the linear model."""
+SWEPT = ("ff_accel", "gravity_comp")
+"""The controller options a sweep runs every value of (its controller variants)."""
+SCORING = Scoring()
+"""Sweeps score every scenario by Bryson's rule on its task."""
+
+
+def planner_names() -> tuple[str, ...]:
+    """Every name a sweep accepts in `planners`."""
+    return tuple(available()) + tuple(VARIANTS)
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """Everything that determines a sweep's rows (all of it is written into every row).
+
+    Attributes:
+      families: scenario families (see mjtraj.study.families).
+      scenarios: scenarios per family.
+      seed: the sweep's seed.
+      planners: registered planners and VARIANTS.
+      ff_accel, gravity_comp: the controller variants; every combination runs on every scenario.
+      batch: scenarios per unit of work (rows depend on it only through floating-point summation order).
+      sensor_noise: std of the position measurement noise in mismatch scenarios, rad (0: none).
+      delay: actuation delay of mismatch scenarios, control periods (0 or 1).
+      model_error: also measure the linear model's prediction error of optimal-type planners.
+      config: the base scenario file (None: the shipped paper.toml).
+    """
+
+    families: tuple[str, ...] = ("nominal",)
+    scenarios: int = 1000
+    seed: int = 0
+    planners: tuple[str, ...] = DEFAULT_PLANNERS
+    ff_accel: tuple[str, ...] = ("sample",)
+    gravity_comp: tuple[str, ...] = ("native",)
+    batch: int = 250
+    sensor_noise: float = 0.0
+    delay: int = 0
+    model_error: bool = False
+    config: str | None = None
+    base: Scenario = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for name, values, valid in (("family", self.families, FAMILIES), ("planner", self.planners, planner_names()),
+                                    *((axis, getattr(self, axis), choices(LoopConfig, axis)) for axis in SWEPT)):
+            if not values:
+                raise InvalidInputError(f"{name}: expected at least one value, got none")
+            for value in values:
+                choice(name, value, valid)
+            if len(set(values)) != len(values):
+                raise InvalidInputError(f"{name}: expected distinct values, got {', '.join(values)}")
+        positive_int("scenarios", self.scenarios)
+        positive_int("batch", self.batch)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InvalidInputError(f"seed: expected a whole number >= 0, got {self.seed!r}")
+        if not (np.isfinite(self.sensor_noise) and self.sensor_noise >= 0):
+            raise InvalidInputError(f"sensor_noise: expected a number >= 0 (rad), got {self.sensor_noise!r}")
+        object.__setattr__(self, "base", load_scenario(self.config))
+        self.loop_config(self.ff_accel[0], self.gravity_comp[0], mismatch=True)  # validates delay
+
+    def units(self) -> list[tuple[str, int]]:
+        """(family, unit index) of every unit of work, in output order."""
+        per_family = -(-self.scenarios // self.batch)
+        return [(family, u) for family in self.families for u in range(per_family)]
+
+    def unit_rows(self, unit: tuple[str, int]) -> int:
+        """Rows unit `unit` writes."""
+        _, u = unit
+        count = min(self.batch, self.scenarios - u * self.batch)
+        return count * len(self.planners) * len(self.ff_accel) * len(self.gravity_comp)
+
+    def loop_config(self, ff_accel: str, gravity_comp: str, *, mismatch: bool) -> LoopConfig:
+        """The base scenario's controller in one controller variant (the delay applies to mismatch scenarios)."""
+        return dataclasses.replace(self.base.loop, ff_accel=ff_accel, gravity_comp=gravity_comp,
+                                   delay=self.delay if mismatch else 0)
+
+    def record(self) -> dict[str, Any]:
+        """The settings as row columns (each a str, int or float): the sweep's own, then the base scenario's
+        controller options that are not swept, dt and the gains."""
+        g = self.base.loop.gains
+        base = json.dumps(self.base.as_dict(), sort_keys=True)
+        return {"sweep_families": "+".join(self.families), "sweep_scenarios": self.scenarios,
+                "sweep_seed": self.seed, "sweep_planners": "+".join(self.planners),
+                **{f"sweep_{axis}": "+".join(getattr(self, axis)) for axis in SWEPT},
+                "sweep_batch": self.batch, "sensor_noise": self.sensor_noise, "delay": self.delay,
+                "model_error_measured": int(self.model_error),
+                "config": self.config or "paper.toml (shipped)",
+                "config_sha256": hashlib.sha256(base.encode()).hexdigest()[:16],
+                **{name: getattr(self.base.loop, name) for name in option_names(LoopConfig) if name not in SWEPT},
+                "dt": self.base.task.dt,
+                **{f"{name}_{j}": float(v) for name in ("kp", "ki", "kd") for j, v in enumerate(getattr(g, name))}}
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready settings (for a worker on another machine)."""
+        out = asdict(self)
+        out.pop("base", None)
+        return out
+
+
+def versions() -> dict[str, str]:
+    """The versions every row records (VERSION_COLUMNS of `mjtraj.versions.versions`)."""
+    every = all_versions()
+    return {name: every[name] for name in VERSION_COLUMNS}
+
+
+@dataclass(frozen=True)
+class ActorSpec:
+    """An actor evaluated beside the planners (`mjtraj rl eval`'s policies): its rows carry `label` in the planner
+    column and `columns` after the settings; it tracks `planner`'s references in the sweep's first controller
+    variant."""
+
+    label: str
+    planner: str
+    actor: Actor
+    columns: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class UnitResult:
+    """One unit's rows (dicts with the same keys, in output order) and the seconds each stage took."""
+
+    unit: tuple[str, int]
+    rows: list[dict[str, Any]]
+    seconds: dict[str, float]
+
+
+def planner_for(settings: SweepSettings, name: str) -> Planner:
+    """The planner (or variant) `name` with the base scenario's options and Bryson's rule for its weights."""
+    registered, extra = VARIANTS.get(name, (name, {}))
+    options = dict(settings.base.planner_options.get(registered, {}))
+    if registered == "optimal":
+        options.pop("state_weight", None)
+        options.pop("input_weight", None)
+    return make(registered, **{**options, **extra})
+
+
+def plan_scenarios(settings: SweepSettings, scenarios: Sequence[FamilyScenario],
+                   planners: Sequence[str] | None = None) -> dict[str, list[Reference | MjtrajError]]:
+    """Each planner's reference for each scenario, or the MjtrajError its planning raised (`planners`: default
+    the settings' own)."""
+    tasks = [s.task for s in scenarios]
+    return {name: plan_all(planner_for(settings, name), tasks, settings.base.model)
+            for name in (settings.planners if planners is None else planners)}
+
+
+def _model_errors(model: mujoco.MjModel, refs: list[Reference]) -> NDArray[np.float64]:
+    """RMS of q_pred - q of each reference's u_plan applied open loop to the nominal nonlinear plant, rad."""
+    n = model.nv
+    zero = PIDGains.create(np.zeros(n), np.zeros(n), np.zeros(n), n)
+    loop = ClosedLoop(model, LoopConfig(zero, feedforward="planned", divergence_bound=100.0), nsim=len(refs),
+                      nthread=1)
+    rollout = loop.run(refs)
+    out = np.sqrt(np.mean(np.square(rollout.e), axis=(1, 2)))
+    return np.where(rollout.diverged, np.inf, out)
+
+
+def unit_scenarios(settings: SweepSettings, unit: tuple[str, int]) -> list[FamilyScenario]:
+    """The scenarios of unit `unit` = (family, index): [index * batch, (index + 1) * batch) of the family."""
+    family, u = unit
+    first = u * settings.batch
+    return [draw_scenario(family, settings.seed, i, settings.base.model, settings.base.task.dt)
+            for i in range(first, min(first + settings.batch, settings.scenarios))]
+
+
+def scoring_weights(settings: SweepSettings, scenarios: Sequence[FamilyScenario]
+                    ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """diag(Q_exec) (2n,) and diag(R_exec) (n,) of each scenario: Bryson's rule for its task."""
+    limit = settings.base.torque_limit
+    return [SCORING.weights(s.task, limit) for s in scenarios]
+
+
+def jobs_for(settings: SweepSettings, scenarios: Sequence[FamilyScenario], references: Sequence[Reference],
+             weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]]) -> list[Job]:
+    """The pipeline's jobs of scenarios[b] tracking references[b]: their perturbation and, for mismatch scenarios
+    under sensor noise, their measurement noise."""
+    model = settings.base.model
+    out = []
+    for s, ref, w in zip(scenarios, references, weights, strict=True):
+        noise = None
+        if s.perturbation is not None and settings.sensor_noise > 0:
+            noise = measurement_noise([s], ref.steps, model.nv, settings.sensor_noise, model.opt.timestep)[:, 0]
+        out.append(Job(ref, w, s.perturbation, noise))
+    return out
+
+
+def run_unit(settings: SweepSettings, unit: tuple[str, int], *, actors: Sequence[ActorSpec] = ()) -> UnitResult:
+    """Compute unit `unit` = (family, index): plan, execute, score; then each of `actors` on the same scenarios,
+    plans and plants. Never raises for a scenario's failure: a failed plan, a divergence or an unexpected error
+    becomes that row's status and reason."""
+    seconds = {"sample": 0.0, "plan": 0.0, "execute": 0.0, "metrics": 0.0}
+    clock = time.perf_counter()
+    family, u = unit
+    scenarios = unit_scenarios(settings, unit)
+    weights = scoring_weights(settings, scenarios)
+    seconds["sample"] += time.perf_counter() - clock
+    try:
+        rows = _unit_rows(settings, unit, scenarios, weights, seconds, actors)
+    except Exception as e:  # noqa: BLE001 - recorded, and the sweep goes on
+        fixed = fixed_columns(settings)
+        failed = Outcome("error", one_line(e))
+        rows = [Row(family=family, scenario=s.index, unit=u, planner=planner, ff_accel=ff, gravity_comp=gc,
+                    outcome=failed, task=s.task, perturbation=s.perturbation, settings=fixed).columns()
+                for s in scenarios
+                for ff in settings.ff_accel for gc in settings.gravity_comp for planner in settings.planners]
+    return UnitResult(unit, rows, seconds)
+
+
+def _unit_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: list[FamilyScenario],
+               weights: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+               seconds: dict[str, float], actors: Sequence[ActorSpec] = ()) -> list[dict[str, Any]]:
+    family, u = unit
+    model = settings.base.model
+    clock = time.perf_counter()
+    plans = plan_scenarios(settings, scenarios)
+    extras: dict[tuple[int, str], dict[str, float]] = {}
+    for name, refs in plans.items():
+        for b, ref in enumerate(refs):
+            if isinstance(ref, Reference) and ref.u_plan is not None:
+                extras[(b, name)] = {"plan_effort": float(np.sqrt(np.mean(np.square(ref.u_plan))))}
+    if settings.model_error:
+        keyed = [(key, plans[key[1]][key[0]]) for key in extras]
+        for steps in sorted({ref.steps for _, ref in keyed}):
+            group = [(key, ref) for key, ref in keyed if ref.steps == steps]
+            errors = _model_errors(model, [ref for _, ref in group])
+            for (key, _), value in zip(group, errors, strict=True):
+                extras[key]["model_error"] = float(value)
+    seconds["plan"] += time.perf_counter() - clock
+    mismatch = family == "mismatch"
+    plant = perturbed_plant(model) if mismatch else None
+    live = [(b, name) for b in range(len(scenarios)) for name in settings.planners
+            if isinstance(plans[name][b], Reference)]
+    references = [plans[name][b] for b, name in live]
+    jobs = jobs_for(settings, [scenarios[b] for b, _ in live], references, [weights[b] for b, _ in live])
+    outcomes: dict[tuple[int, str, str, str], Outcome] = {}
+    for ff in settings.ff_accel:
+        for gc in settings.gravity_comp:
+            config = settings.loop_config(ff, gc, mismatch=mismatch)
+            for (b, name), result in zip(live, execute(model, config, jobs, plant=plant, seconds=seconds),
+                                         strict=True):
+                outcomes[(b, name, ff, gc)] = result
+    rows = []
+    fixed = fixed_columns(settings)
+    for b, s in enumerate(scenarios):
+        for ff in settings.ff_accel:
+            for gc in settings.gravity_comp:
+                for name in settings.planners:
+                    plan = plans[name][b]
+                    if isinstance(plan, MjtrajError):
+                        result, extra, solver = plan_failure(plan), {}, ""
+                    else:
+                        result, extra, solver = outcomes[(b, name, ff, gc)], extras.get((b, name), {}), \
+                            str(plan.info.get("solver", ""))
+                    rows.append(Row(family=family, scenario=s.index, unit=u, planner=name, ff_accel=ff,
+                                    gravity_comp=gc, outcome=result, extras=extra, solver=solver, task=s.task,
+                                    perturbation=s.perturbation, settings=fixed).columns())
+    ff, gc = settings.ff_accel[0], settings.gravity_comp[0]
+    config = settings.loop_config(ff, gc, mismatch=mismatch)
+    for spec in actors:
+        refs = plans[spec.planner]
+        ids = [b for b, ref in enumerate(refs) if isinstance(ref, Reference)]
+        try:
+            mine = jobs_for(settings, [scenarios[b] for b in ids], [refs[b] for b in ids], [weights[b] for b in ids])
+            done = dict(zip(ids, execute(model, config, mine, plant=plant, actor=spec.actor), strict=True))
+        except Exception as e:  # noqa: BLE001 - recorded, and the evaluation goes on
+            done = {b: Outcome("error", one_line(e)) for b in range(len(scenarios))}
+        for b, s in enumerate(scenarios):
+            plan = refs[b]
+            result = done[b] if b in done else plan_failure(plan) if isinstance(plan, MjtrajError) else \
+                Outcome("error", "not executed")
+            rows.append(Row(family=family, scenario=s.index, unit=u, planner=spec.label, ff_accel=ff,
+                            gravity_comp=gc, outcome=result, task=s.task, perturbation=s.perturbation,
+                            settings=fixed, more=spec.columns).columns())
+    return rows
+
+
+def fixed_columns(settings: SweepSettings) -> dict[str, Any]:
+    """The columns every row of a sweep shares: its settings and the versions."""
+    return {**settings.record(), **versions()}
+
+
+def columns(settings: SweepSettings) -> list[str]:
+    """The header of a results file for `settings` (a mismatch row carries every column)."""
+    probe = draw_scenario("mismatch", settings.seed, 0, settings.base.model, settings.base.task.dt)
+    row = Row(family="mismatch", scenario=0, unit=0, planner=settings.planners[0], ff_accel=settings.ff_accel[0],
+              gravity_comp=settings.gravity_comp[0], outcome=Outcome("ok"), task=probe.task,
+              perturbation=probe.perturbation, settings=fixed_columns(settings))
+    return list(row.columns())

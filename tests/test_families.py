@@ -1,0 +1,39 @@
+"""Scenario families: seeded draws, and a perturbed plant that reproduces the nominal one when unperturbed."""
+
+
+from __future__ import annotations
+
+import numpy as np
+
+from mjtraj.core.closed_loop import ClosedLoop
+from mjtraj.core.planners import make
+from mjtraj.study.families import Perturbation, draw_scenario, perturbed_plant, plant_fields
+
+SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
+
+
+
+def test_unperturbed_plant_reproduces_the_nominal_one(model, scenario):
+    """The payload body and per-simulation fields change nothing when the perturbation is the identity."""
+    ref = make("cubic").plan(scenario.task, model)
+    identity = Perturbation(0.0, np.ones(3), np.ones(3), np.zeros(3), np.zeros(3))
+    plant = perturbed_plant(model)
+    nominal = ClosedLoop(model, scenario.loop, nsim=2).run([ref, ref])
+    perturbed = ClosedLoop(model, scenario.loop, nsim=2, plant=plant,
+                           plant_fields=plant_fields(plant, [identity, identity])).run([ref, ref])
+    np.testing.assert_allclose(perturbed.q, nominal.q, atol=1e-12)
+    heavy = Perturbation(5.0, np.ones(3), np.ones(3), np.zeros(3), np.zeros(3))
+    sagging = ClosedLoop(model, scenario.loop, nsim=1, plant=plant,
+                         plant_fields=plant_fields(plant, [heavy])).run([ref])
+    assert np.abs(sagging.e).max() > 10 * np.abs(nominal.e).max()
+    assert model.nbody == 4  # the nominal model is untouched
+
+
+
+def test_mismatch_scenarios_are_seeded(model):
+    a, b = draw_scenario("mismatch", 3, 17, model, 0.02), draw_scenario("mismatch", 3, 17, model, 0.02)
+    assert np.array_equal(a.task.q0, b.task.q0) and a.perturbation.payload == b.perturbation.payload
+    assert 0 <= a.perturbation.payload <= 5 and np.all(np.abs(a.task.displacement) <= 1.5)
+    c = draw_scenario("aggressive", 3, 17, model, 0.02)
+    assert 0.5 <= c.task.duration <= 1.0
+

@@ -1,0 +1,39 @@
+"""Statistics: CVaR closed forms and the paired bootstrap ratio's exact cases and coverage."""
+
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.study.stats import cvar, paired_ratio
+
+SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
+
+
+
+def test_cvar_closed_forms():
+    assert cvar(np.arange(1, 101), 0.9) == pytest.approx(95.5)
+    assert cvar([5.0] * 7, 0.9) == pytest.approx(5.0)
+    x = np.random.default_rng(0).exponential(size=400_000)  # CVaR_0.9 = ln 10 + 1
+    assert cvar(x, 0.9) == pytest.approx(np.log(10) + 1, rel=5e-3)
+    with pytest.raises(InvalidInputError, match=r"^alpha: expected a level in \[0, 1\), got 1.0$"):
+        cvar(x, 1.0)
+
+
+
+def test_paired_ratio_exact_cases_and_coverage():
+    b = np.random.default_rng(1).uniform(1, 2, 300)
+    r = paired_ratio(2 * b, b)
+    assert (r.ratio, r.low, r.high, r.win_rate) == (pytest.approx(2), pytest.approx(2), pytest.approx(2), 1.0)
+    assert r.reduction[0] == pytest.approx(50.0)
+    rng = np.random.default_rng(2)
+    covered = 0
+    for _ in range(40):  # true ratio of means 1.5
+        y = rng.exponential(size=200)
+        x = 1.5 * rng.exponential(size=200)
+        ci = paired_ratio(x, y, resamples=500)
+        covered += ci.low <= 1.5 <= ci.high
+    assert covered >= 34  # nominal 95 %: 38 of 40 expected
+
