@@ -52,5 +52,5 @@ if TYPE_CHECKING:
     from mjtraj.envs.vector import UR5TrackVectorEnv
 
 __all__ = ["ACTION_MODES", "ENV_ID", "MAX_EPISODE_STEPS", "STEP_INFO", "TASKS", "EnvOptions", "TrackCore",
-           "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults", "observation_space",
-           "observe", "register_envs", "resolve", "scale_action"]
+           "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
+           "observation_space", "observe", "register_envs", "resolve", "scale_action"]

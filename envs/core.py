@@ -11,10 +11,10 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from mjtraj.envs.settings import TrackSettings
 from numpy.typing import NDArray
 
 from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, metrics_arrays, step_cost
-from mjtraj.envs.settings import TrackSettings
 from mjtraj.exceptions import InvalidInputError
 
 STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort")

@@ -12,8 +12,7 @@ from mjtraj.envs.core import TrackCore
 from mjtraj.envs.settings import RENDER_MODES, TrackSettings, resolve
 from numpy.typing import NDArray
 
-from mjtraj.core import JointInfo
-from mjtraj.core import ClosedLoop
+from mjtraj.core import ClosedLoop, JointInfo
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.media import ArmRenderer
 

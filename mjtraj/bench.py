@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from mujoco.batch import Batch
@@ -56,11 +57,11 @@ def bench_loop(scenario: Scenario, sizes: tuple[int, ...] = LOOP_SIZES, *, nthre
         loop = ClosedLoop(model, scenario.loop, nsim=B, nthread=nthread)
         loop.start([reference] * B)
 
-        def raw_pass() -> None:
+        def raw_pass(raw: Batch = raw) -> None:
             for _ in range(N):
                 raw.step(nstep=scenario.loop.substeps)
 
-        def loop_pass() -> None:
+        def loop_pass(loop: ClosedLoop = loop, B: int = B) -> None:
             loop.start([reference] * B)
             for _ in range(N):
                 loop.step()
@@ -133,11 +134,11 @@ def bench_vector_env(sizes: tuple[int, ...] = (64, 1024), *, rounds: int = 3) ->
         raw = Batch(model, B)
         actions = np.zeros((B, model.nu), dtype=np.float32)
 
-        def env_pass() -> None:
+        def env_pass(env: Any = env, steps: int = steps, actions: np.ndarray = actions) -> None:
             for _ in range(steps + 1):  # + the autoreset step
                 env.step(actions)
 
-        def raw_pass() -> None:
+        def raw_pass(raw: Batch = raw, steps: int = steps) -> None:
             for _ in range(steps + 1):
                 raw.step()
 

@@ -157,9 +157,8 @@ def _json_safe(value: Any) -> Any:
 
 
 def _scenario(args: argparse.Namespace):  # noqa: ANN202
-    from mjtraj.study.scenario import load_scenario
-
     from mjtraj.core import LoopConfig, option_names
+    from mjtraj.study.scenario import load_scenario
 
     scenario = load_scenario(args.config)
     task = {k: getattr(args, k) for k in ("q0", "qg", "duration", "dt") if getattr(args, k, None) is not None}
@@ -209,7 +208,8 @@ def _bench(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.config)
     if args.what in ("plan", "all"):
-        print("optimal planner (linearise + solve; the exact active-set Riccati solver, OSQP as fallback), median wall time; target N=100 <= 2 ms")
+        print("optimal planner (linearise + solve; the exact active-set Riccati solver, OSQP as fallback), median "
+              "wall time; target N=100 <= 2 ms")
         print(f"{'N':>6} {'median ms':>10} {'ratio to N=100':>15}")
         for row in bench_plan(scenario):
             print(f"{row['N']:>6} {row['median_ms']:>10.2f} {row['ratio_to_first']:>15.2f}")
@@ -307,8 +307,8 @@ def _render(args: argparse.Namespace) -> int:
 
 
 def _doctor(args: argparse.Namespace) -> int:
-    from mjtraj.versions import versions
     from mjtraj.media import gl
+    from mjtraj.versions import versions
 
     print("versions: " + ", ".join(f"{k} {v}" for k, v in versions().items()))
     user = gl.user_backend()

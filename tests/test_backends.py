@@ -1,4 +1,5 @@
-"""Sweep backends: a bad backend or an unreachable Ray cluster fails before any file is written; Ray gives the local rows."""
+"""Sweep backends: a bad backend or an unreachable Ray cluster fails before any file is written; Ray gives the
+local rows."""
 
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ def test_bad_backend_and_unreachable_ray(tmp_path):
 
 
 
+@pytest.mark.slow
 def test_ray_backend_gives_the_local_rows(tmp_path):
     pytest.importorskip("ray")
     settings = SweepSettings(**SMALL)

@@ -9,8 +9,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjtraj.core.model import default_model_path
 from mjtraj.core.closed_loop import ClosedLoop
+from mjtraj.core.model import default_model_path
 from mjtraj.core.planners import make
 from mjtraj.core.reference import Reference
 from mjtraj.exceptions import InvalidInputError

@@ -164,7 +164,7 @@ def test_divergence_terminates_with_nan_metrics():
     env = UR5TrackEnv(action_mode="torque", task="explicit", q0=[0, -1.5707963267948966, 0],
                       qg=[0, -1.5707963267948966, 0])
     env.reset(seed=0)
-    for k in range(100):  # full torque one way: the arm leaves the (constant) reference by more than pi
+    for k in range(100):  # noqa: B007 - full torque one way: the arm leaves the (constant) reference by more than pi
         _, _, terminated, _, info = env.step(np.ones(3))
         if terminated:
             break

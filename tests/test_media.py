@@ -3,6 +3,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import gymnasium as gym
 import imageio.v3 as iio
 import numpy as np
@@ -79,3 +82,17 @@ def test_doctor_reports_a_working_backend(capsys):
     assert "mujoco" in out and "gymnasium" in out and "osqp" in out and "numpy" in out
     assert "works" in out
 
+
+
+def test_the_backend_is_chosen_at_the_first_renderer_and_never_overrides_the_user():
+    code = ("import os, numpy as np; from mjtraj.core import load_model; from mjtraj.media import ArmRenderer, "
+            "active_backend; m = load_model(); r = ArmRenderer(m, width=64, height=48); "
+            "print(active_backend(), os.environ.get('MUJOCO_GL'), int(r.frame(np.zeros(3)).max() > 0)); r.close()")
+    import os
+
+    clean = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    chosen = subprocess.run([sys.executable, "-c", code], env=clean, capture_output=True, text=True, check=True)
+    assert chosen.stdout.split() == ["osmesa", "None", "1"]  # chosen for the renderer; the environment untouched
+    user = subprocess.run([sys.executable, "-c", code], env={**clean, "MUJOCO_GL": "egl"}, capture_output=True,
+                          text=True)
+    assert "egl" in (user.stdout + user.stderr)  # the user's choice is used (it may fail here), never replaced

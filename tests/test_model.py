@@ -36,7 +36,7 @@ def frames(q: np.ndarray) -> list[np.ndarray]:
     """DH frames 1..6 in the world with the wrist at zero."""
     theta = list(q) + [0.0, 0.0, 0.0]
     T, out = np.eye(4), []
-    for (a, d, alpha), th in zip(DH, theta):
+    for (a, d, alpha), th in zip(DH, theta, strict=True):
         T = T @ dh(th, a, d, alpha)
         out.append(T)
     return out
@@ -44,7 +44,7 @@ def frames(q: np.ndarray) -> list[np.ndarray]:
 
 def potential(q: np.ndarray) -> float:
     """sum m g z_com, from the table by DH forward kinematics."""
-    return sum(m * 9.81 * (F[:3, :3] @ np.array(c) + F[:3, 3])[2] for m, c, F in zip(MASS, COM, frames(q)))
+    return sum(m * 9.81 * (F[:3, :3] @ np.array(c) + F[:3, 3])[2] for m, c, F in zip(MASS, COM, frames(q), strict=True))
 
 
 def cylinder(m: float, r: float, L: float, axis: int) -> np.ndarray:
@@ -57,7 +57,7 @@ def cylinder(m: float, r: float, L: float, axis: int) -> np.ndarray:
 def test_published_cylinder_inertias_match_the_table():
     published = [(0.014972, 0.010406, 0.014972), (0.015107, 0.133886, 0.133886), (0.004194, 0.031971, 0.031971),
                  (0.002014, 0.002194, 0.002014), (0.001831, 0.002194, 0.001831), (0.0000806, 0.0000806, 0.000132)]
-    for m, (r, L, axis), p in zip(MASS, CYL, published):
+    for m, (r, L, axis), p in zip(MASS, CYL, published, strict=True):
         np.testing.assert_allclose(np.diag(cylinder(m, r, L, axis)), p, atol=6e-7)
 
 

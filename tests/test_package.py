@@ -21,8 +21,8 @@ def test_all_names_import():
 
 
 
-def test_documented_loop_defaults_match_design():
-    """DESIGN §3 defaults: feedforward inverse, sample acceleration, native gravity comp, no anti-windup."""
+def test_documented_loop_defaults_match_the_docs():
+    """docs/design.md's defaults: feedforward inverse, sample acceleration, native gravity comp, no anti-windup."""
     import dataclasses
 
     from mjtraj.core.closed_loop import LoopConfig
@@ -41,7 +41,42 @@ def test_wheel_contains_model_and_scenario(tmp_path):
     wheel = next(tmp_path.glob("mjtraj-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
     assert "mjtraj/assets/ur5_3dof.xml" in names
-    assert "mjtraj/scenarios/paper.toml" in names
+    assert "mjtraj/study/scenarios/paper.toml" in names
+    assert {"mjtraj/envs/__init__.py", "mjtraj/envs/ur5_track.py", "mjtraj/core/closed_loop.py"} <= set(names)
     assert "mjtraj/py.typed" in names
     assert not any(n.startswith(("envs/", "tests/")) for n in names)
 
+
+
+def _fresh(code: str, **env: str) -> str:
+    """Run `code` in a new interpreter without MUJOCO_GL (unless given); its stdout."""
+    import os
+
+    clean = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    done = subprocess.run([sys.executable, "-c", code], env={**clean, **env}, capture_output=True, text=True,
+                          check=True)
+    return done.stdout.strip()
+
+
+def test_import_is_light_and_sets_no_environment():
+    """`import mjtraj` and the pure-numpy `mjtraj.core.lqr` load neither MuJoCo, SciPy nor Gymnasium, and leave
+    MUJOCO_GL unset."""
+    out = _fresh("import os, sys; import mjtraj, mjtraj.core.lqr; "
+                 "print([m for m in ('mujoco', 'scipy', 'gymnasium', 'mjtraj.core.closed_loop') if m in sys.modules]);"
+                 " print(os.environ.get('MUJOCO_GL'))")
+    assert out.splitlines() == ["[]", "None"]
+
+
+def test_lazy_names_resolve_to_their_modules():
+    out = _fresh("import sys, mjtraj; c = mjtraj.compare; "
+                 "print(c.__module__, 'mjtraj.study.comparison' in sys.modules)")
+    assert out == "mjtraj.study.comparison True"
+
+
+@pytest.mark.parametrize("code", [
+    "import gymnasium as gym; import mjtraj; gym.make('UR5Track-v0').reset(seed=0)",
+    "import mjtraj.envs, gymnasium as gym; gym.make('UR5Track-v0').reset(seed=0)",
+    "import gymnasium as gym; gym.make('mjtraj:UR5Track-v0').reset(seed=0)",
+])
+def test_env_registration(code):
+    _fresh(code + "; print('ok')", MUJOCO_GL="osmesa")

@@ -138,6 +138,7 @@ def test_pid_through_the_policy_path_is_the_sweep(model):
                 assert zero[i].metrics[name] == pid[i].metrics[name]
 
 
+@pytest.mark.slow
 def test_saved_policy_reloads_with_identical_actions(tmp_path):
     """Oracle: SB3's own path (VecNormalize.normalize_obs + predict) on the in-memory model."""
     venv = VecNormalize(SB3TrackVecEnv(2, action_mode="torque", task="random"), clip_obs=10.0)
@@ -155,6 +156,7 @@ def test_saved_policy_reloads_with_identical_actions(tmp_path):
 
 
 
+@pytest.mark.slow
 def test_train_writes_every_artifact(trained):
     run = json.loads((trained / "run.json").read_text())
     assert run["status"] == "complete" and run["timesteps"] == 240
@@ -180,6 +182,7 @@ def test_train_writes_every_artifact(trained):
 
 
 
+@pytest.mark.slow
 def test_plot_redraws_a_run(trained, tmp_path, capsys):
     png = trained / "learning_curve.png"
     png.unlink()
@@ -191,6 +194,7 @@ def test_plot_redraws_a_run(trained, tmp_path, capsys):
 
 
 
+@pytest.mark.slow
 def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
     code = main(["rl", "eval", "--policy", str(trained / "policy.zip"), "--family", "aggressive", "--scenarios", "5",
                  "--seed", "3", "--planners", "cubic,optimal", "--out", str(tmp_path)])
@@ -229,6 +233,7 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
 
 
 
+@pytest.mark.slow
 def test_eval_scenarios_are_held_out_from_training(trained):
     """No eval task is a task the run trained on (replayed from its recorded streams), and a policy whose record
     claims plain gym seeds (the hazard) is refused."""
@@ -255,6 +260,7 @@ def test_eval_scenarios_are_held_out_from_training(trained):
 
 
 
+@pytest.mark.slow
 def test_same_seed_same_policy(tmp_path):
     settings = TrainSettings(algo="td3", action_mode="torque", seed=5, num_envs=2, **TINY)
     a, b = train(settings, tmp_path / "a", progress=False), train(settings, tmp_path / "b", progress=False)
@@ -267,6 +273,7 @@ def test_same_seed_same_policy(tmp_path):
 
 
 
+@pytest.mark.slow
 def test_ppo_trains_and_reloads(tmp_path):
     report = train(TrainSettings(algo="ppo", action_mode="residual", task="paper", num_envs=8, **TINY),
                    tmp_path / "ppo", progress=False)
@@ -294,6 +301,7 @@ def test_cli_bad_input(argv, message, capsys, tmp_path, monkeypatch):
 
 
 
+@pytest.mark.slow
 def test_policy_for_another_space_is_refused(trained, tmp_path):
     """A zip whose spaces are not the env's its record describes: the message says which space and both shapes."""
     other = SAC("MlpPolicy", "Pendulum-v1", seed=0, device="cpu")
@@ -315,6 +323,7 @@ def test_policy_for_another_space_is_refused(trained, tmp_path):
 
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("record", "message"), [
     (None, r"^policy: no record p\.json beside p\.zip; mjtraj rl train writes the two together$"),
     ("{not json", r"^policy: .*p\.json is not valid JSON \(Expecting property name"),
@@ -337,6 +346,7 @@ def test_broken_policy_records(trained, tmp_path, record, message):
 
 
 
+@pytest.mark.slow
 def test_policy_and_engine_argument_checks(trained):
     policy = load_policy(trained / "policy.zip")
     with pytest.raises(InvalidInputError, match=r"^obs: expected shape \(B, 19\), got \(19,\)$"):
@@ -346,6 +356,7 @@ def test_policy_and_engine_argument_checks(trained):
 
 
 
+@pytest.mark.slow
 def test_eval_refuses_policies_trained_on_another_controller(trained, tmp_path):
     def variant(name, **env):
         body = json.loads((trained / "policy.json").read_text())
@@ -367,6 +378,7 @@ def test_eval_refuses_policies_trained_on_another_controller(trained, tmp_path):
 
 
 
+@pytest.mark.slow
 def test_train_refuses_a_folder_with_a_run(trained):
     with pytest.raises(InvalidInputError, match=r"already holds a training run \(run\.json\); choose another"):
         train(TrainSettings(**TINY), trained, progress=False)
@@ -385,6 +397,7 @@ def test_missing_rl_extra_says_how_to_install(monkeypatch, capsys):
 
 
 
+@pytest.mark.slow
 def test_a_failed_training_run_is_recorded(tmp_path, monkeypatch):
     import mjtraj.rl.train as train_module
 
@@ -404,6 +417,7 @@ def test_a_failed_training_run_is_recorded(tmp_path, monkeypatch):
 
 
 
+@pytest.mark.slow
 def test_a_policy_failing_in_eval_is_recorded_and_eval_goes_on(trained, tmp_path, monkeypatch):
     from mjtraj.rl.episodes import PolicyActor
 

@@ -18,6 +18,7 @@ SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
 
 
 
+@pytest.mark.slow
 def test_resume_after_kill_gives_the_uninterrupted_file(tmp_path):
     args = ["--scenarios", "40", "--batch", "4", "--planners", "optimal,cubic", "--workers", "1", "--no-progress"]
     whole, cut = tmp_path / "whole.csv", tmp_path / "cut.csv"

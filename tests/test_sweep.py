@@ -21,13 +21,19 @@ def test_unit_rows_are_deterministic_and_backend_independent(tmp_path):
     settings = SweepSettings(**SMALL)
     one, two = run_unit(settings, ("nominal", 1)), run_unit(settings, ("nominal", 1))
     assert one.rows == two.rows or all(
-        all((a[k] == b[k]) or (a[k] != a[k] and b[k] != b[k]) for k in a) for a, b in zip(one.rows, two.rows, strict=True))
+        all((a[k] == b[k]) or (a[k] != a[k] and b[k] != b[k]) for k in a)
+        for a, b in zip(one.rows, two.rows, strict=True))
     run_sweep(settings, tmp_path / "a.csv", workers=1, progress=False)
     run_sweep(settings, tmp_path / "b.csv", workers=2, progress=False)
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
     rows = list(csv.DictReader(open(tmp_path / "a.csv")))
     assert len(rows) == 12 and {r["status"] for r in rows} == {"ok"}
-    assert {r["mjtraj"] for r in rows} and rows[0]["sweep_seed"] == "0"
+    from mjtraj.versions import versions
+
+    every = versions()
+    assert {(r["mjtraj"], r["mujoco"], r["numpy"]) for r in rows} == {(every["mjtraj"], every["mujoco"],
+                                                                       every["numpy"])}
+    assert {r["sweep_seed"] for r in rows} == {"0"} and {r["sweep_planners"] for r in rows} == {"optimal+cubic"}
 
 
 

@@ -65,24 +65,24 @@ _EXPORTS = {
 __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
-    from mjtraj.core.model import JointInfo, default_model_path, load_model
-    from mjtraj.core.task import Task, random_task
-    from mjtraj.core.reference import Reference
-    from mjtraj.core.plant import BatchPlant, GRAVITY_COMP
-    from mjtraj.core.dynamics import DynamicsProbe
-    from mjtraj.core.linearize import discretize_zoh, linearize_many
-    from mjtraj.core.qp import CondensedQP, QPSolution, build_qp, solve_qp
-    from mjtraj.core.lqr import BoxLQRSolution, box_lqr
-    from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many
-    from mjtraj.core.controller import ANTI_WINDUP, ControlOutput, PIDGains, control_law
     from mjtraj.core.closed_loop import ClosedLoop, LoopConfig, Step
-    from mjtraj.core.rollout import Rollout
-    from mjtraj.core.metrics import METRIC_NAMES, METRIC_UNITS, Metrics, metrics_arrays, reduction
-    from mjtraj.core.scoring import JOINT_SPEED_LIMIT, Scoring, bryson_weights, executed_cost, step_cost
+    from mjtraj.core.controller import ANTI_WINDUP, ControlOutput, PIDGains, control_law
+    from mjtraj.core.dynamics import DynamicsProbe
+    from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many
     from mjtraj.core.gains import GAIN_RULE, gain_rule
-    from mjtraj.core.stability import spectral_radii
-    from mjtraj.core.planners import Planner, available, check_name, make, plan_all, register
+    from mjtraj.core.linearize import discretize_zoh, linearize_many
+    from mjtraj.core.lqr import BoxLQRSolution, box_lqr
+    from mjtraj.core.metrics import METRIC_NAMES, METRIC_UNITS, Metrics, metrics_arrays, reduction
+    from mjtraj.core.model import JointInfo, default_model_path, load_model
     from mjtraj.core.options import check_options, declared_options, from_mapping, option, option_names
+    from mjtraj.core.planners import Planner, available, check_name, make, plan_all, register
+    from mjtraj.core.plant import GRAVITY_COMP, BatchPlant
+    from mjtraj.core.qp import CondensedQP, QPSolution, build_qp, solve_qp
+    from mjtraj.core.reference import Reference
+    from mjtraj.core.rollout import Rollout
+    from mjtraj.core.scoring import JOINT_SPEED_LIMIT, Scoring, bryson_weights, executed_cost, step_cost
+    from mjtraj.core.stability import spectral_radii
+    from mjtraj.core.task import Task, random_task
 
 __all__ = [
     "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "ClosedLoop", "CondensedQP", "ControlOutput", "DynamicsProbe",

@@ -35,7 +35,7 @@ class Task:
         size = model.nq if model is not None else (n if n is not None else int(np.size(q0)))
         task = cls(frozen(vector("q0", q0, size)), frozen(vector("qg", qg, size)),
                    positive("duration", duration), positive("dt", dt))
-        task.steps  # validates the grid
+        _ = task.steps  # validates the grid
         if model is not None:
             task.check_limits(model)
         return task

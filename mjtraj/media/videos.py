@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.files import atomic_path
 from mjtraj.exceptions import InvalidInputError
+from mjtraj.files import atomic_path
 from mjtraj.media.render import ArmRenderer
 from mjtraj.study.comparison import Comparison
 

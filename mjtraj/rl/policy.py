@@ -17,9 +17,9 @@ import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
-from mjtraj.files import atomic_path, write_text_atomic
 from mjtraj.envs import TrackSettings, action_space, observation_space, resolve
 from mjtraj.exceptions import InvalidInputError
+from mjtraj.files import atomic_path, write_text_atomic
 from mjtraj.rl import ALGORITHMS
 from mjtraj.rl.extra import require_sb3
 

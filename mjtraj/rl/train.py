@@ -22,18 +22,18 @@ from typing import Any
 
 import numpy as np
 
-from mjtraj.files import write_text_atomic
 from mjtraj.checks import choice, positive_int
 from mjtraj.core import LoopConfig, check_name, option_names
 from mjtraj.envs import TASKS, TrackSettings, resolve
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.study import Outcome
+from mjtraj.files import write_text_atomic
 from mjtraj.rl import ACTION_MODES, ALGORITHMS
 from mjtraj.rl.curve import CurveFile, plot_curve
 from mjtraj.rl.episodes import run_episodes
 from mjtraj.rl.extra import require_sb3, rl_versions
 from mjtraj.rl.policy import Normalization, Policy
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, check_seed, training_entropies
+from mjtraj.study import Outcome
 
 RUN_FORMAT = "mjtraj-rl-run/1"
 DEFAULT_NUM_ENVS = {"sac": 4, "td3": 4, "ppo": 8}

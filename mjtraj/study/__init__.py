@@ -70,7 +70,9 @@ _EXPORTS = {
 __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
-    from mjtraj.study.scenario import Scenario, default_scenario_path, load_scenario, scenario_from_dict
+    from mjtraj.study.audit import Condition, SweepData, write_audit
+    from mjtraj.study.backends import BACKENDS
+    from mjtraj.study.comparison import Comparison, compare, comparison_record
     from mjtraj.study.families import (
         FAMILIES,
         FAMILY_ID,
@@ -81,16 +83,21 @@ if TYPE_CHECKING:
         perturbed_plant,
         plant_fields,
     )
-    from mjtraj.study.pipeline import Actor, Job, Outcome, STATUSES, execute, execute_batch, one_line, plan_failure
+    from mjtraj.study.paper import PAPER_TABLE
+    from mjtraj.study.pipeline import STATUSES, Actor, Job, Outcome, execute, execute_batch, one_line, plan_failure
+    from mjtraj.study.report import format_report, results_csv
     from mjtraj.study.rows import EXTRA_METRICS, Row
-    from mjtraj.study.comparison import Comparison, compare, comparison_record
+    from mjtraj.study.runner import SweepReport, run_sweep
+    from mjtraj.study.scenario import Scenario, default_scenario_path, load_scenario, scenario_from_dict
+    from mjtraj.study.stats import PairedRatio, cvar, paired_ratio
+    from mjtraj.study.store import VERSION_COLUMNS, ResultsFile, append_rows, csv_text, numeric, read_rows
     from mjtraj.study.sweep import (
-        ActorSpec,
         DEFAULT_PLANNERS,
         SWEPT,
+        VARIANTS,
+        ActorSpec,
         SweepSettings,
         UnitResult,
-        VARIANTS,
         columns,
         fixed_columns,
         jobs_for,
@@ -100,13 +107,6 @@ if TYPE_CHECKING:
         scoring_weights,
         unit_scenarios,
     )
-    from mjtraj.study.store import ResultsFile, VERSION_COLUMNS, append_rows, csv_text, numeric, read_rows
-    from mjtraj.study.runner import SweepReport, run_sweep
-    from mjtraj.study.backends import BACKENDS
-    from mjtraj.study.stats import PairedRatio, cvar, paired_ratio
-    from mjtraj.study.audit import Condition, SweepData, write_audit
-    from mjtraj.study.paper import PAPER_TABLE
-    from mjtraj.study.report import format_report, results_csv
 
 __all__ = [
     "Actor", "ActorSpec", "BACKENDS", "Comparison", "Condition", "DEFAULT_PLANNERS", "EXTRA_METRICS", "FAMILIES",

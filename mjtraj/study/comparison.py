@@ -6,7 +6,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from mjtraj.versions import versions
 from mjtraj.core.gains import GAIN_RULE
 from mjtraj.core.metrics import Metrics
 from mjtraj.core.planners import available, check_name
@@ -17,6 +16,7 @@ from mjtraj.exceptions import InvalidInputError
 from mjtraj.study.paper import PAPER_TABLE
 from mjtraj.study.pipeline import Job, execute_batch
 from mjtraj.study.scenario import Scenario
+from mjtraj.versions import versions
 
 PAPER_ORDER = ("optimal", "cubic", "quintic", "trapezoidal")
 

@@ -81,7 +81,7 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
     metric_labels = (("rms_dtau", "RMS Δτ [N m]"), ("int_dtau", "Int. Δτ [N m s]"), ("rms_err", "RMS err [rad]"),
                      ("cost", "J_exec"))
     fig, axes = plt.subplots(1, len(metric_labels), figsize=(11, 3.2))
-    for ax, (key, label) in zip(axes, metric_labels):
+    for ax, (key, label) in zip(axes, metric_labels, strict=True):
         values = [getattr(result.metrics[name], key) for name in names]
         ax.bar(range(len(names)), values, color=[colors[nm] for nm in names])
         ax.set_xticks(range(len(names)), names, rotation=30, fontsize=8)

@@ -27,7 +27,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.checks import choice, positive_int
-from mjtraj.versions import versions as all_versions
 from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
 from mjtraj.core.controller import PIDGains
 from mjtraj.core.options import choices, option_names
@@ -40,6 +39,7 @@ from mjtraj.study.pipeline import Actor, Job, Outcome, execute, one_line, plan_f
 from mjtraj.study.rows import Row
 from mjtraj.study.scenario import Scenario, load_scenario
 from mjtraj.study.store import VERSION_COLUMNS
+from mjtraj.versions import versions as all_versions
 
 DEFAULT_PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {

@@ -17,8 +17,8 @@ from mjtraj.core.lqr import box_lqr
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners.base import Planner, register
 from mjtraj.core.qp import CondensedQP, build_qp, solve_qp
-from mjtraj.core.scoring import bryson_weights
 from mjtraj.core.reference import Reference
+from mjtraj.core.scoring import bryson_weights
 from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, MjtrajError
 

@@ -1,0 +1,80 @@
+"""The audit's verdict rules on synthetic sweep rows whose answers are known: holds, does not hold, inconclusive,
+depends. Inverting a rule fails here."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mjtraj.core.metrics import METRIC_NAMES
+from mjtraj.study.audit import SweepData, below, write_audit
+from mjtraj.study.rows import EXTRA_METRICS
+from mjtraj.study.store import VERSION_COLUMNS, csv_text
+
+PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
+
+
+def synthetic(path, costs, *, scenarios=40, families=("nominal",)):
+    """A sweep file whose J_exec of a planner in scenario i is costs[family][planner] * d_i, d_i a random scenario
+    difficulty shared by the planners (paired, as real scenarios are); every other metric equals the cost."""
+    rng = np.random.default_rng(0)
+    rows = []
+    for family in families:
+        for i in range(scenarios):
+            difficulty = rng.uniform(0.5, 1.5)
+            for planner in PLANNERS:
+                value = costs[family][planner] * difficulty
+                row = {"family": family, "scenario": i, "unit": 0, "planner": planner, "ff_accel": "sample",
+                       "gravity_comp": "native", "status": "ok", "reason": "",
+                       **{m: value for m in METRIC_NAMES}, **{m: value for m in EXTRA_METRICS},
+                       "max_displacement": 1.2, **{v: "x" for v in VERSION_COLUMNS}, "sweep_seed": 0}
+                rows.append(row)
+    columns = list(rows[0])
+    path.write_text(csv_text(columns, rows))
+    return path
+
+
+def verdicts(text):
+    table = text.split("## Verdicts", 1)[1].split("\n\nVerdict rule")[0]
+    return {line.split("|")[1].strip(): line.split("|")[3].strip() for line in table.strip().splitlines()[2:]}
+
+
+def test_a_clear_win_holds_a_clear_loss_does_not(tmp_path):
+    """The optimal planner at half the classical cost: claims 1-3 hold; at twice it: they do not."""
+    win = {"nominal": {"optimal": 1.0, "cubic": 2.0, "quintic": 2.0, "trapezoidal": 3.0}}
+    loss = {"nominal": {"optimal": 4.0, "cubic": 2.0, "quintic": 2.5, "trapezoidal": 3.0}}
+    good = verdicts(write_audit([synthetic(tmp_path / "w.csv", win)], tmp_path / "w.md", figures=False))
+    bad = verdicts(write_audit([synthetic(tmp_path / "l.csv", loss)], tmp_path / "l.md", figures=False))
+    assert [good[k] for k in "123"] == ["holds"] * 3
+    assert [bad[k] for k in "123"] == ["does not hold"] * 3
+    assert good["4"] == "holds" and bad["4"] == "does not hold"  # trapezoidal is worst; then optimal is
+    # quintic > cubic holds; a tie holds in no condition, which the stated rule reports as "does not hold"
+    assert good["5"] == "does not hold" and bad["5"] == "holds"
+
+
+def test_equal_planners_are_inconclusive_in_their_condition(tmp_path):
+    """Per condition, a tie is inconclusive (the overall column then reads 'does not hold', as the stated rule says:
+    it holds in no condition)."""
+    same = {"nominal": dict.fromkeys(PLANNERS, 2.0)}
+    text = write_audit([synthetic(tmp_path / "s.csv", same)], tmp_path / "s.md", figures=False)
+    for claim in "123":
+        detail = text.split(f"## Claim {claim}:", 1)[1].split("## ", 1)[0]
+        assert detail.count("| nominal, ff_accel=sample, gravity_comp=native |") == 1
+        assert detail.rstrip().splitlines()[-1].rsplit("|", 2)[1].strip().startswith("inconclusive")
+
+
+def test_a_claim_true_in_one_family_only_depends(tmp_path):
+    costs = {"nominal": {"optimal": 1.0, "cubic": 2.0, "quintic": 2.0, "trapezoidal": 3.0},
+             "mismatch": {"optimal": 4.0, "cubic": 2.0, "quintic": 2.0, "trapezoidal": 3.0}}
+    path = synthetic(tmp_path / "d.csv", costs, families=("nominal", "mismatch"))
+    result = verdicts(write_audit([path], tmp_path / "d.md", figures=False))
+    assert result["3"] == "depends: holds only in nominal (every controller variant)"
+
+
+@pytest.mark.parametrize(("ratio", "expected"), [(2.0, "yes"), (0.5, "no"), (1.0, "inconclusive")])
+def test_below_reads_the_interval(tmp_path, ratio, expected):
+    """'A below B' is yes when the whole 95 % interval of mean(B)/mean(A) lies above 1, no when below 1."""
+    costs = {"nominal": {"optimal": 1.0, "cubic": ratio, "quintic": 1.0, "trapezoidal": 1.0}}
+    data = SweepData([synthetic(tmp_path / "b.csv", costs)])
+    verdict, r = below(data, data.conditions[0], "optimal", "cubic", "cost")
+    assert verdict == expected and r.ratio == pytest.approx(ratio, rel=0.01)

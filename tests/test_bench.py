@@ -1,0 +1,30 @@
+"""`mjtraj bench`: the ratios it prints are the ones it measured (no timing assertion: machines are noisy)."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from mjtraj.bench import bench_loop
+from mjtraj.cli import main
+
+
+def test_loop_ratio_is_loop_rate_over_raw_rate(scenario):
+    rows = bench_loop(scenario, (1, 8), rounds=1)
+    assert [row["scenarios"] for row in rows] == [1, 8]
+    for row in rows:
+        assert np.isfinite(row["raw_steps_per_s"]) and row["raw_steps_per_s"] > 0
+        assert np.isfinite(row["loop_steps_per_s"]) and row["loop_steps_per_s"] > 0
+        assert row["ratio"] == pytest.approx(row["loop_steps_per_s"] / row["raw_steps_per_s"], rel=1e-12)
+
+
+def test_printed_table_carries_the_measured_ratios(capsys):
+    assert main(["bench", "loop", "--sizes", "1,8"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].startswith("closed loop (FF + PID + plant) vs raw mujoco.batch stepping")
+    table = [re.split(r"\s+", line.strip()) for line in lines[2:]]
+    assert [int(cells[0]) for cells in table] == [1, 8]
+    for _, raw, loop, ratio in table:
+        assert float(ratio) == pytest.approx(float(loop) / float(raw), abs=0.006)
