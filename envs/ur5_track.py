@@ -28,9 +28,10 @@ def observation_space(settings: TrackSettings) -> spaces.Box:
     q_low, q_high = joints.lower - np.pi, joints.upper + np.pi
     e_max = joints.upper - joints.lower + np.pi
     v = np.full(settings.n, VELOCITY_BOUND)
-    low = [q_low, -v, q_low, -v, -e_max, -2 * v, [0.0]] + [q_low, -v] * settings.preview
-    high = [q_high, v, q_high, v, e_max, 2 * v, [1.0]] + [q_high, v] * settings.preview
-    return spaces.Box(np.concatenate(low), np.concatenate(high), dtype=np.float64)
+    zero, one = np.zeros(1), np.ones(1)
+    low = [q_low, -v, q_low, -v, -e_max, -2 * v, zero] + [q_low, -v] * settings.preview
+    high = [q_high, v, q_high, v, e_max, 2 * v, one] + [q_high, v] * settings.preview
+    return spaces.Box(np.concatenate(low), np.concatenate(high), dtype=np.float64)  # type: ignore[arg-type]
 
 
 def action_space(settings: TrackSettings) -> spaces.Box:
@@ -138,8 +139,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         render_mode = self.settings.render_mode
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.settings.dt)}
-        self.observation_space = observation_space(self.settings)
-        self.action_space = action_space(self.settings)
+        self.observation_space = observation_space(self.settings)  # type: ignore[assignment]
+        self.action_space = action_space(self.settings)  # type: ignore[assignment]
         self._core = TrackCore(self.settings, 1)
         self._running = False
         self._renderer: ArmRenderer | None = None

@@ -15,7 +15,6 @@ import sys
 from typing import TYPE_CHECKING
 
 from mjtraj._lazy import lazy_exports
-from mjtraj.versions import __version__
 from mjtraj.exceptions import (
     BackendError,
     InfeasibleError,
@@ -26,6 +25,7 @@ from mjtraj.exceptions import (
     RenderError,
     SolverError,
 )
+from mjtraj.versions import __version__
 
 _EXPORTS = {
     "ENV_ID": "mjtraj.envs",

@@ -37,7 +37,10 @@ def bench_plan(scenario: Scenario, steps: tuple[int, ...] = PLAN_STEPS, *, repea
     for N in steps:
         task = Task.create(scenario.task.q0, scenario.task.qg, N * scenario.task.dt, scenario.task.dt, model=model)
         planner.plan(task, model)  # warm-up
-        seconds = _median_time(lambda t=task: planner.plan(t, model), repeats if N <= 200 else max(3, repeats // 3))
+        def plan(t: Task = task) -> object:
+            return planner.plan(t, model)
+
+        seconds = _median_time(plan, repeats if N <= 200 else max(3, repeats // 3))
         rows.append({"N": N, "median_ms": 1e3 * seconds, "ratio_to_first": 1e3 * seconds / rows[0]["median_ms"]
                      if rows else 1.0})
     return rows
@@ -87,9 +90,10 @@ def bench_env(*, episodes: int = 20, rounds: int = 5) -> dict[str, float]:
 
     env = gym.make("UR5Track-v0")
     env.reset(seed=0)
-    model = env.unwrapped.settings.model
+    settings: Any = getattr(env.unwrapped, "settings")  # noqa: B009 - UR5TrackEnv's
+    model = settings.model
     data = mujoco.MjData(model)
-    steps = env.unwrapped.settings.steps
+    steps = settings.steps
     action = env.action_space.sample()
 
     def env_pass() -> float:
@@ -129,8 +133,9 @@ def bench_vector_env(sizes: tuple[int, ...] = (64, 1024), *, rounds: int = 3) ->
     for B in sizes:
         env = gym.make_vec("UR5Track-v0", num_envs=B, vectorization_mode="vector_entry_point")
         env.reset(seed=0)
-        model = env.unwrapped.settings.model
-        steps = env.unwrapped.settings.steps
+        settings: Any = getattr(env.unwrapped, "settings")  # noqa: B009 - UR5TrackVectorEnv's
+        model = settings.model
+        steps = settings.steps
         raw = Batch(model, B)
         actions = np.zeros((B, model.nu), dtype=np.float32)
 
@@ -142,7 +147,8 @@ def bench_vector_env(sizes: tuple[int, ...] = (64, 1024), *, rounds: int = 3) ->
             for _ in range(steps + 1):
                 raw.step()
 
-        env_pass(), raw_pass()
+        env_pass()
+        raw_pass()
         env_times, raw_times = [], []
         for _ in range(rounds):
             raw_times.append(_median_time(raw_pass, 1))

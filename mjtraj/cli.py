@@ -222,14 +222,14 @@ def _bench(args: argparse.Namespace) -> int:
     if args.what == "sweep":
         from mjtraj.bench import bench_sweep
 
-        row = bench_sweep(args.scenarios, workers=args.workers)
+        sweep: dict[str, Any] = bench_sweep(args.scenarios, workers=args.workers)
         print(f"sweep: {args.scenarios} nominal scenarios x 4 planners end to end (plan, execute, metrics, write) on "
-              f"{row['workers']} worker processes; target <= 60 s")
+              f"{sweep['workers']} worker processes; target <= 60 s")
         print(f"{'wall s':>7} {'rows':>7} {'rows/s':>8}")
-        print(f"{row['wall']:>7.1f} {row['rows']:>7} {row['rows'] / row['wall']:>8.0f}")
+        print(f"{sweep['wall']:>7.1f} {sweep['rows']:>7} {sweep['rows'] / sweep['wall']:>8.0f}")
         print("per stage, CPU seconds summed over workers (share of their total):")
-        total = sum(row["stages"].values())
-        for stage, seconds in row["stages"].items():
+        total = sum(sweep["stages"].values())
+        for stage, seconds in sweep["stages"].items():
             print(f"  {stage:<8} {seconds:>7.1f} s {100 * seconds / total:>5.1f} %")
     if args.what in ("env", "all"):
         from mjtraj.bench import bench_env, bench_render, bench_vector_env
@@ -246,8 +246,8 @@ def _bench(args: argparse.Namespace) -> int:
                   f"{row['ratio']:>6.2f}")
         print("rendering (env.render, executed arm + ghost)")
         print(f"{'size':>9} {'backend':>8} {'frames/s':>9}")
-        for row in bench_render():
-            print(f"{row['size']:>9} {row['backend']:>8} {row['fps']:>9.1f}")
+        for frame_row in bench_render():
+            print(f"{frame_row['size']:>9} {frame_row['backend']:>8} {frame_row['fps']:>9.1f}")
     return 0
 
 
@@ -373,10 +373,10 @@ def _rl(args: argparse.Namespace) -> int:
     from mjtraj.rl.evaluate import evaluate
     from mjtraj.study.sweep import DEFAULT_PLANNERS
 
-    report = evaluate(args.policies, family=args.family, scenarios=args.scenarios, seed=args.seed,
-                      planners=tuple(args.planners or DEFAULT_PLANNERS), out=args.out)
-    print(report.table)
-    print(f"\nwrote {report.csv} and {report.markdown}")
+    evaluation = evaluate(args.policies, family=args.family, scenarios=args.scenarios, seed=args.seed,
+                          planners=tuple(args.planners or DEFAULT_PLANNERS), out=args.out)
+    print(evaluation.table)
+    print(f"\nwrote {evaluation.csv} and {evaluation.markdown}")
     return 0
 
 

@@ -198,10 +198,10 @@ class ClosedLoop:
         s = self._running()
         N = s.steps
         if s.sync is not None:
-            k = min(s.sync + offset, N)
-            return s.q_ref[k], s.qd_ref[k]
-        k = np.minimum(s.k + offset, N)
-        return s.q_ref[k, s.rows], s.qd_ref[k, s.rows]
+            now = min(s.sync + offset, N)
+            return s.q_ref[now], s.qd_ref[now]
+        ks = np.minimum(s.k + offset, N)
+        return s.q_ref[ks, s.rows], s.qd_ref[ks, s.rows]
 
     def unstable(self) -> NDArray[np.bool_]:
         """Shape (B,): MuJoCo flagged the simulation numerically unstable since its last start."""
@@ -341,11 +341,11 @@ class ClosedLoop:
         s.desync()
         q, qd = plant.state()
         active = (s.diverged_step < 0) & (s.k < N)
-        k = np.minimum(s.k, N - 1)
-        e = s.q_ref[k, s.rows] - q
-        ed = s.qd_ref[k, s.rows] - qd
-        seen_e, seen_ed = (e, ed) if s.noise is None else (e - s.noise[k, s.rows, :n], ed - s.noise[k, s.rows, n:])
-        out = control_law(seen_e, seen_ed, s.integral, s.tau_ff[k, s.rows], self._gains, self._limit, self.dt,
+        ks = np.minimum(s.k, N - 1)
+        e = s.q_ref[ks, s.rows] - q
+        ed = s.qd_ref[ks, s.rows] - qd
+        seen_e, seen_ed = (e, ed) if s.noise is None else (e - s.noise[ks, s.rows, :n], ed - s.noise[ks, s.rows, n:])
+        out = control_law(seen_e, seen_ed, s.integral, s.tau_ff[ks, s.rows], self._gains, self._limit, self.dt,
                           anti_windup=self.config.anti_windup, residual=residual, override=override)
         dtau = np.where(active[:, None], out.dtau, 0.0)
         if s.held is not None:
@@ -353,7 +353,7 @@ class ClosedLoop:
         s.integral = np.where(active[:, None], out.integral, s.integral)
         plant.step(dtau)
         control = ControlOutput(out.tau_ff, out.tau_fb, dtau, out.saturated & active[:, None], out.integral)
-        live, kl = s.rows[active], k[active]
+        live, kl = s.rows[active], ks[active]
         for name, value in zip(RECORDED, (q, qd, e, ed, control.tau_ff, control.tau_fb, dtau, control.saturated),
                                strict=True):
             s.records[name][kl, live] = value[active]
@@ -362,7 +362,7 @@ class ClosedLoop:
         s.k[:] = np.where(active, s.k + 1, s.k)
         ended = active & (s.k == N)
         s.q_final[ended], s.qd_final[ended] = plant.qpos[ended], plant.qvel[ended]
-        self._diverge(bad, k, q, qd)
+        self._diverge(bad, ks, q, qd)
         s.resync()
         return Step(q, qd, e, ed, control, s.diverged_step >= 0)
 

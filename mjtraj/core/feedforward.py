@@ -47,7 +47,7 @@ def feedforward_many(model: mujoco.MjModel, references: Sequence[Reference], *, 
             if ref.u_plan is None:
                 raise InvalidInputError(f"feedforward: mode 'planned' needs a planner that publishes u_plan; "
                                         f"the {ref.planner!r} reference has none; valid for it: inverse, none")
-        return np.stack([ref.u_plan for ref in references], axis=1)
+        return np.stack([ref.u_plan for ref in references if ref.u_plan is not None], axis=1)
     q = np.stack([ref.q[:N] for ref in references], axis=1)
     qd = np.stack([ref.qd[:N] for ref in references], axis=1)
     if accel == "sample":

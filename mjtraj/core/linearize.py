@@ -59,9 +59,10 @@ def linearize(model: mujoco.MjModel, q: npt.ArrayLike, qd: npt.ArrayLike | None 
               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """`linearize_many` at one point: q, qd, u of shape (n,) (qd, u default 0); A_c (2n, 2n), B_c (2n, n)."""
     n = model.nv
-    point = [vector(name, value, n)[None] if value is not None else None
-             for name, value in (("q", q), ("qd", qd), ("u", u))]
-    A, B = linearize_many(model, *point, eps=eps)
+    q1, qd1, u1 = (vector(name, value, n)[None] if value is not None else None
+                   for name, value in (("q", q), ("qd", qd), ("u", u)))
+    assert q1 is not None
+    A, B = linearize_many(model, q1, qd1, u1, eps=eps)
     return A[0], B[0]
 
 

@@ -92,6 +92,7 @@ class BatchPlant:
                int(mujoco.mjtWarning.mjWARN_BADQVEL)]
         if self.batch is not None:
             return np.any(self.batch.warning[:, bad, 1] > 0, axis=1)
+        assert self.data is not None
         return np.array([any(self.data.warning[i].number > 0 for i in bad)])
 
     def state(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -118,5 +119,5 @@ class BatchPlant:
             self._applied[:] = np.clip(self._probe_gravity + clipped, self._frc_lo, self._frc_hi) - clipped
         if self.data is not None:
             mujoco.mj_step(self.model, self.data, self.substeps)
-        else:
+        elif self.batch is not None:
             self.batch.step(None, self.substeps)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -47,5 +48,6 @@ class Rollout:
     def scenario(self, b: int) -> Rollout:
         """The records of scenario b alone, as a batch of one."""
         pick = slice(b, b + 1)
-        return Rollout(**{name: getattr(self, name)[pick] if name != "dt" else self.dt
-                          for name in self.__dataclass_fields__})
+        fields: dict[str, Any] = {name: getattr(self, name)[pick] if name != "dt" else self.dt
+                                  for name in self.__dataclass_fields__}
+        return Rollout(**fields)

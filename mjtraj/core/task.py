@@ -62,7 +62,7 @@ class Task:
     @property
     def times(self) -> NDArray[np.float64]:
         """Sample times t_k = k dt, k = 0..N; shape (N+1,), s."""
-        return np.arange(self.steps + 1) * self.dt
+        return np.arange(self.steps + 1, dtype=np.float64) * self.dt
 
     @property
     def displacement(self) -> NDArray[np.float64]:

@@ -79,9 +79,8 @@ class TrainSettings:
         choice("task", self.task, tuple(t for t in TASKS if t != "explicit"))
         positive_int("steps", self.steps)
         check_seed("seed", self.seed)
-        if self.num_envs is None:
-            object.__setattr__(self, "num_envs", DEFAULT_NUM_ENVS[self.algo])
-        positive_int("num_envs", self.num_envs)
+        object.__setattr__(self, "num_envs", positive_int(
+            "num_envs", DEFAULT_NUM_ENVS[self.algo] if self.num_envs is None else self.num_envs))
         for name in ("checkpoints", "evaluations", "validation"):
             positive_int(name, getattr(self, name))
         if self.threads is not None:
@@ -97,7 +96,7 @@ class TrainSettings:
     def hyperparameters(self) -> dict[str, Any]:
         """The keyword arguments given to the SB3 algorithm besides SB3's defaults (JSON-ready)."""
         if self.algo == "ppo":
-            return {"n_steps": max(1, 2048 // self.num_envs)}
+            return {"n_steps": max(1, 2048 // int(self.num_envs or 1))}
         if self.algo == "td3":
             return {"action_noise": {"type": "NormalActionNoise", "std": TD3_NOISE_STD}}
         return {}
@@ -153,11 +152,11 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
 
     from mjtraj.rl.sb3_env import SB3TrackVecEnv
 
-    out = Path(out)
-    if (out / "run.json").exists():
+    folder = Path(out)
+    if (folder / "run.json").exists():
         raise InvalidInputError(f"out: {out} already holds a training run (run.json); choose another folder")
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "checkpoints").mkdir(exist_ok=True)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "checkpoints").mkdir(exist_ok=True)
     if settings.threads is not None:
         torch.set_num_threads(settings.threads)
     env_kwargs = settings.env_kwargs()
@@ -173,7 +172,7 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
                                    "count": 1 if env.fixed_task is not None else settings.validation}},
         "versions": rl_versions(), "torch_threads": torch.get_num_threads(),
         "started": datetime.now(timezone.utc).isoformat(timespec="seconds")}
-    _write_json(out / "run.json", record)
+    _write_json(folder / "run.json", record)
     clock = time.perf_counter()
     try:
         venv = VecNormalize(VecMonitor(SB3TrackVecEnv(num_envs, **env_kwargs)), clip_obs=CLIP_OBS)
@@ -185,10 +184,10 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
                                                     **kwargs)
         venv.gamma = model.gamma  # VecNormalize discounts rewards with the algorithm's gamma
         record["hyperparameters"]["resolved"] = _resolved(model)
-        _write_json(out / "run.json", record)
+        _write_json(folder / "run.json", record)
         references, weights = validation_set(settings, env)
         pid = _summary(run_episodes(None, env, references, weights))
-        curve = CurveFile(out / "learning_curve.csv")
+        curve = CurveFile(folder / "learning_curve.csv")
         policy_record = {k: record[k] for k in ("format", "settings", "env", "hyperparameters", "normalization",
                                                 "streams", "versions", "torch_threads")}
 
@@ -241,7 +240,7 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
                 if t >= settings.steps:  # the last update is yet to come: the final policy is saved after it
                     return True
                 if t >= self.next_save:
-                    snapshot().save(out / "checkpoints" / f"step_{t:09d}.zip")
+                    snapshot().save(folder / "checkpoints" / f"step_{t:09d}.zip")
                     self.next_save += every_save
                 if t >= self.next_eval:
                     self.validate()
@@ -255,18 +254,18 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
         tracker = Tracker()
         model.learn(total_timesteps=settings.steps, callback=tracker)
         final = tracker.validate()
-        policy_path = snapshot().save(out / "policy.zip")
-        plot_curve(out / "learning_curve.csv", out / "learning_curve.png", title=_title(settings))
+        policy_path = snapshot().save(folder / "policy.zip")
+        plot_curve(folder / "learning_curve.csv", folder / "learning_curve.png", title=_title(settings))
     except BaseException as e:
         record.update(status="failed", error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - clock)
-        _write_json(out / "run.json", record)
+        _write_json(folder / "run.json", record)
         raise
     wall = time.perf_counter() - clock
     record.update(status="complete", timesteps=int(model.num_timesteps), wall_s=wall,
                   finished=datetime.now(timezone.utc).isoformat(timespec="seconds"),
                   final_validation={"policy": final, "pid": pid})
-    _write_json(out / "run.json", record)
-    return TrainReport(out, policy_path, int(model.num_timesteps), wall, final)
+    _write_json(folder / "run.json", record)
+    return TrainReport(folder, policy_path, int(model.num_timesteps), wall, final)
 
 
 def _title(settings: TrainSettings) -> str:

@@ -37,14 +37,15 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
     written = []
 
     def per_joint(filename: str, series: dict[str, np.ndarray], ylabel: str, times: np.ndarray) -> None:
-        fig, axes = plt.subplots(n, 1, figsize=(7, 2.1 * n), sharex=True)
-        for j, ax in enumerate(np.atleast_1d(axes)):
+        fig, grid = plt.subplots(n, 1, figsize=(7, 2.1 * n), sharex=True, squeeze=False)
+        axes = grid[:, 0]
+        for j, ax in enumerate(axes):
             for name in names:
                 ax.plot(times, series[name][:, j], label=name, color=colors[name], lw=1.4)
             ax.set_ylabel(f"{joints[j]}\n{ylabel}")
             ax.grid(alpha=0.3)
-        np.atleast_1d(axes)[0].legend(ncol=len(names), fontsize=8, loc="upper right")
-        np.atleast_1d(axes)[-1].set_xlabel("time [s]")
+        axes[0].legend(ncol=len(names), fontsize=8, loc="upper right")
+        axes[-1].set_xlabel("time [s]")
         fig.suptitle(FIGURES[filename])
         fig.tight_layout()
         fig.savefig(out / filename, dpi=dpi)

@@ -34,7 +34,7 @@ def _grid(rows: list[tuple[str, ...]]) -> str:
 
 def table_rows(result: Comparison) -> list[tuple[str, ...]]:
     """Our Table I rows (strings), header and units first."""
-    rows = [HEADER, UNITS]
+    rows: list[tuple[str, ...]] = [HEADER, UNITS]
     for name in result.planners:
         m = result.metrics[name]
         red = name != "optimal"
@@ -47,7 +47,7 @@ def table_rows(result: Comparison) -> list[tuple[str, ...]]:
 
 def paper_rows() -> list[tuple[str, ...]]:
     """The paper's Table I rows (strings), in the same columns; RMS fb and peak are not published."""
-    rows = [HEADER, UNITS]
+    rows: list[tuple[str, ...]] = [HEADER, UNITS]
     for name, p in PAPER_TABLE.items():
         rows.append((name, _fmt(p["rms_dtau"], "num"), _fmt(p["int_dtau"], "num"), _fmt(p["rms_err"], "err"),
                      _fmt(p["cost"], "num"), _fmt(p.get("dtau_red", float("nan")), "pct"),

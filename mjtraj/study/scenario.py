@@ -201,7 +201,8 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
                        _number(t, "task", "dt"))
     c = _section(data, "controller")
     _only(c, "controller", GAIN_KEYS + option_names(LoopConfig))
-    gains = PIDGains.create(*(_numbers(c, "controller", k) for k in GAIN_KEYS), n=task.n)
+    kp, ki, kd = (_numbers(c, "controller", k) for k in GAIN_KEYS)
+    gains = PIDGains.create(kp, ki, kd, n=task.n)
     loop = LoopConfig(gains, **from_mapping(LoopConfig, {k: v for k, v in c.items() if k not in GAIN_KEYS},
                                             where=" in [controller]"))
     planners: dict[str, dict[str, Any]] = {}

@@ -267,7 +267,7 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: list[F
             if isinstance(ref, Reference) and ref.u_plan is not None:
                 extras[(b, name)] = {"plan_effort": float(np.sqrt(np.mean(np.square(ref.u_plan))))}
     if settings.model_error:
-        keyed = [(key, plans[key[1]][key[0]]) for key in extras]
+        keyed = [(key, ref) for key in extras if isinstance(ref := plans[key[1]][key[0]], Reference)]
         for steps in sorted({ref.steps for _, ref in keyed}):
             group = [(key, ref) for key, ref in keyed if ref.steps == steps]
             errors = _model_errors(model, [ref for _, ref in group])
@@ -278,7 +278,7 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: list[F
     plant = perturbed_plant(model) if mismatch else None
     live = [(b, name) for b in range(len(scenarios)) for name in settings.planners
             if isinstance(plans[name][b], Reference)]
-    references = [plans[name][b] for b, name in live]
+    references = [ref for b, name in live if isinstance(ref := plans[name][b], Reference)]
     jobs = jobs_for(settings, [scenarios[b] for b, _ in live], references, [weights[b] for b, _ in live])
     outcomes: dict[tuple[int, str, str, str], Outcome] = {}
     for ff in settings.ff_accel:
@@ -308,7 +308,8 @@ def _unit_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: list[F
         refs = plans[spec.planner]
         ids = [b for b, ref in enumerate(refs) if isinstance(ref, Reference)]
         try:
-            mine = jobs_for(settings, [scenarios[b] for b in ids], [refs[b] for b in ids], [weights[b] for b in ids])
+            mine = jobs_for(settings, [scenarios[b] for b in ids], [r for r in refs if isinstance(r, Reference)],
+                            [weights[b] for b in ids])
             done = dict(zip(ids, execute(model, config, mine, plant=plant, actor=spec.actor), strict=True))
         except Exception as e:  # noqa: BLE001 - recorded, and the evaluation goes on
             done = {b: Outcome("error", one_line(e)) for b in range(len(scenarios))}

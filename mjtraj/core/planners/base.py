@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Sequence
-from typing import Any, Protocol, TypeVar, runtime_checkable
+from typing import Any, ClassVar, Protocol, TypeVar, runtime_checkable
 
 import mujoco
 import numpy as np
@@ -24,7 +24,7 @@ class Planner(Protocol):
     Use `plan_all` to call it on any planner, derived or not.
     """
 
-    name: str
+    name: ClassVar[str]
 
     def plan(self, task: Task, model: mujoco.MjModel) -> Reference:
         """Plan `task` on the nominal `model`; samples at t_k = k task.dt, k = 0..N."""
