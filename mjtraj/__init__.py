@@ -12,8 +12,10 @@ Importing `mjtraj` imports none of them: the names below load on first use.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
+from mjtraj import _checkout
 from mjtraj._lazy import lazy_exports
 from mjtraj.exceptions import (
     BackendError,
@@ -26,6 +28,8 @@ from mjtraj.exceptions import (
     SolverError,
 )
 from mjtraj.versions import __version__
+
+_checkout.install(Path(__file__).resolve().parent)
 
 _EXPORTS = {
     "ENV_ID": "mjtraj.envs",

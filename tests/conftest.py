@@ -2,14 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
-# Test the installed package: `python -m pytest` puts the checkout first on sys.path, where mjtraj/ lacks the
-# envs/ and assets/ that installation maps into it.
-_ROOT = Path(__file__).resolve().parents[1]
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _ROOT]
-
 import numpy as np
 import pytest
 
