@@ -5,17 +5,16 @@ The package is layered (docs/design.md, "Layers"): `mjtraj.core` (plant, planner
 `mjtraj.envs` (Gymnasium environments), `mjtraj.rl` (RL tracking policies) and the `mjtraj` command on top.
 Importing `mjtraj` imports none of them: the names below load on first use.
 
-`gym.make("mjtraj:UR5Track-v0")` works without any import; `gym.make("UR5Track-v0")` after `import mjtraj.envs`
-(or after `import mjtraj` once Gymnasium is imported).
+`gym.make("UR5Track-v0")` works after `import mjtraj` (which imports Gymnasium only when something else does), and
+`gym.make("mjtraj:UR5Track-v0")` without any import.
 """
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from mjtraj import _checkout
+from mjtraj import _checkout, _registration
 from mjtraj._lazy import lazy_exports
 from mjtraj.exceptions import (
     BackendError,
@@ -72,8 +71,7 @@ if TYPE_CHECKING:
     from mjtraj.study.scenario import Scenario, load_scenario
     from mjtraj.study.sweep import SweepSettings
 
-if "gymnasium" in sys.modules:  # gym.make("UR5Track-v0") after `import gymnasium; import mjtraj`
-    import mjtraj.envs  # noqa: F401  (registers the envs)
+_registration.register()  # gym.make("UR5Track-v0") after `import mjtraj`, whichever is imported first
 
 __all__ = [
     "ENV_ID", "BackendError", "ClosedLoop", "Comparison", "InfeasibleError", "InvalidInputError", "LoopConfig",

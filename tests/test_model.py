@@ -1,4 +1,4 @@
-"""The plant model against its parameter table (shared/ur5_params.md), closed forms and Pinocchio."""
+"""The plant model against its parameter table (docs/ur5_model.md), closed forms and Pinocchio."""
 
 from __future__ import annotations
 

@@ -75,6 +75,9 @@ def test_lazy_names_resolve_to_their_modules():
 
 @pytest.mark.parametrize("code", [
     "import gymnasium as gym; import mjtraj; gym.make('UR5Track-v0').reset(seed=0)",
+    "import mjtraj; import gymnasium as gym; gym.make('UR5Track-v0').reset(seed=0)",
+    "import mjtraj.core.lqr, gymnasium as gym; gym.make_vec('UR5Track-v0', num_envs=2, "
+    "vectorization_mode='vector_entry_point').reset(seed=0)",
     "import mjtraj.envs, gymnasium as gym; gym.make('UR5Track-v0').reset(seed=0)",
     "import gymnasium as gym; gym.make('mjtraj:UR5Track-v0').reset(seed=0)",
 ])

@@ -1,4 +1,5 @@
-"""The closed loop of DESIGN §3, once: plant + feedforward + PID, batched; the executor, env and sweeps use it."""
+"""The closed loop (docs/design.md, "Controller"), once: plant + feedforward + PID, batched; compare, sweeps, rl eval
+and the envs all run it."""
 
 from __future__ import annotations
 

@@ -57,7 +57,7 @@ def control_law(e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArr
                 tau_ff: NDArray[np.float64], gains: PIDGains, limit: NDArray[np.float64], dt: float, *,
                 anti_windup: str = "none", residual: NDArray[np.float64] | None = None,
                 override: NDArray[np.float64] | None = None) -> ControlOutput:
-    """The corrective torque of DESIGN §3 for a batch; every array of shape (B, n) except `limit` (n,).
+    """The corrective torque (docs/design.md, "Controller") for a batch; arrays (B, n) except `limit` (n,).
 
     I_k = I_{k-1} + e_k dt;  tau_fb = Kp e + Ki I_k + Kd ed;  dtau = clip(tau_ff + tau_fb [+ residual], +-limit).
     The arguments are validated where they are configured (LoopConfig), not here in the loop.
