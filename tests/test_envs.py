@@ -80,6 +80,27 @@ def test_pid_paper_episode_is_compare(planner, scenario):
 
 
 
+def test_reward_terms_and_info(scenario):
+    """The reward's two terms are -(x^T Q_exec x) and -(dtau^T R_exec dtau) with the paper scenario's weights, and
+    residual mode adds 60 a N m before the saturation."""
+    env = UR5TrackEnv(action_mode="residual")
+    env.reset(seed=0)
+    action = np.array([0.5, -0.2, 0.1], dtype=np.float32)
+    _, reward, _, _, info = env.step(action)
+    e, dtau = info["e"], info["dtau"]
+    assert np.array_equal(e, np.zeros(3)) and np.array_equal(scenario.task.q0, env.reference.q[0])
+    np.testing.assert_allclose(dtau, np.clip(info["tau_ff"] + 60 * action.astype(float), -60, 60), rtol=0, atol=1e-12)
+    assert info["reward_tracking"] == 0.0  # the arm starts on the reference, at rest
+    assert info["reward_effort"] == pytest.approx(-np.sum(dtau**2 * scenario.R_exec), rel=1e-14)
+    _, reward, _, _, info = env.step(np.zeros(3, dtype=np.float32))  # now the error is not zero
+    x = np.concatenate([info["e"], env.unwrapped.reference.qd[1] - env.unwrapped.loop.rollout().qd[0, 1]])
+    assert info["reward_tracking"] == pytest.approx(-np.sum(x**2 * scenario.Q_exec), rel=1e-12)
+    assert info["reward_tracking"] < 0.0
+    assert reward == info["reward_tracking"] + info["reward_effort"]
+    assert set(info) == {"tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort"}
+    env.close()
+
+
 def test_observation_layout():
     env = UR5TrackEnv(preview=2, task="random")
     obs, _ = env.reset(seed=3)

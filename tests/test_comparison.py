@@ -1,0 +1,40 @@
+"""compare: the pipeline's numbers, planners named once, the stability check computed once per scenario."""
+
+from __future__ import annotations
+
+import pytest
+
+from mjtraj.core.closed_loop import ClosedLoop
+from mjtraj.core.metrics import metrics
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.study.comparison import compare
+
+
+def test_metrics_are_the_loops(scenario, model):
+    result = compare(scenario, ("cubic", "optimal"))
+    refs = [result.references[name] for name in result.planners]
+    rollout = ClosedLoop(model, scenario.loop, nsim=2).run(refs)
+    expected = metrics(rollout, scenario.Q_exec, scenario.R_exec)
+    assert [result.metrics[n] for n in result.planners] == expected
+    assert result.reduction("cubic", "cost") == pytest.approx(
+        100 * (expected[0].cost - expected[1].cost) / expected[0].cost, rel=1e-12)
+
+
+def test_stability_is_computed_once_per_scenario(scenario):
+    fresh = scenario.replace(name="fresh")
+    first = compare(fresh, ("cubic",))
+    key = ("stability", ("cubic",))
+    assert fresh.memo[key] == first.stability
+    fresh.memo[key] = {"at_rest": -1.0, "moving": -1.0}  # a second compare reads the memo
+    assert compare(fresh, ("cubic",)).stability == {"at_rest": -1.0, "moving": -1.0}
+    assert "stability" not in str(fresh.replace(name="other").memo)  # a replaced scenario starts afresh
+
+
+@pytest.mark.parametrize(("planners", "message"), [
+    ((), r"^planners: expected at least one planner, got none$"),
+    (("cubic", "spline"), r"^planners: unknown planner 'spline'; valid: cubic, optimal, quintic, trapezoidal$"),
+    (("cubic", "cubic"), r"^planners: expected distinct planners, got cubic more than once$"),
+])
+def test_bad_planner_lists(scenario, planners, message):
+    with pytest.raises(InvalidInputError, match=message):
+        compare(scenario, planners)
