@@ -14,7 +14,7 @@ import numpy.typing as npt
 from mjtraj.envs.settings import TrackSettings
 from numpy.typing import NDArray
 
-from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, metrics_arrays, step_cost
+from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, gravity_along, metrics_arrays, step_cost
 from mjtraj.exceptions import InvalidInputError
 
 STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort")
@@ -109,7 +109,8 @@ class TrackCore:
     def metrics(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
         """The episode Metrics of simulations `ids` (NaN for a diverged one): name -> shape (len(ids),)."""
         rollout = self.loop.rollout(ids)
-        arrays = metrics_arrays(rollout, self._q_diag[ids], self._r_diag[ids])
+        arrays = metrics_arrays(rollout, self._q_diag[ids], self._r_diag[ids],
+                                gravity=gravity_along(self.model, rollout))
         return {name: np.where(rollout.diverged, np.nan, arrays[name]) for name in METRIC_NAMES}
 
     def reference_pose(self, row: int) -> NDArray[np.float64]:

@@ -14,7 +14,7 @@ def test_metrics_are_the_loops(scenario, model):
     result = compare(scenario, ("cubic", "optimal"))
     refs = [result.references[name] for name in result.planners]
     rollout = ClosedLoop(model, scenario.loop, nsim=2).run(refs)
-    expected = metrics(rollout, scenario.Q_exec, scenario.R_exec)
+    expected = metrics(rollout, scenario.Q_exec, scenario.R_exec, model=model)
     assert [result.metrics[n] for n in result.planners] == expected
     assert result.reduction("cubic", "cost") == pytest.approx(
         100 * (expected[0].cost - expected[1].cost) / expected[0].cost, rel=1e-12)

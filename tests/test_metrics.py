@@ -59,3 +59,25 @@ def test_diverged_scenario_gives_nan():
     m = metrics(bad, np.eye(4), np.eye(2))[0]
     assert all(np.isnan(getattr(m, name)) for name in METRIC_NAMES)
 
+
+
+def test_norm_and_total_torque_definitions(model, scenario):
+    """rms_dtau_norm = sqrt(n) rms_dtau; rms_tau_total uses G(q_k) by mj_forward at the recorded poses."""
+    import mujoco
+
+    from mjtraj.core.closed_loop import ClosedLoop
+    from mjtraj.core.metrics import gravity_along, metrics_arrays
+    from mjtraj.core.planners import make
+
+    rollout = ClosedLoop(model, scenario.loop).run([make("cubic").plan(scenario.task, model)])
+    arrays = metrics_arrays(rollout, scenario.Q_exec, scenario.R_exec, gravity=gravity_along(model, rollout))
+    assert arrays["rms_dtau_norm"][0] == pytest.approx(np.sqrt(3) * arrays["rms_dtau"][0], rel=1e-12)
+    data = mujoco.MjData(model)
+    gravity = []
+    for q in rollout.q[0]:
+        data.qpos[:], data.qvel[:] = q, 0.0
+        mujoco.mj_forward(model, data)
+        gravity.append(data.qfrc_bias.copy())
+    total = np.sqrt(np.mean(np.square(np.array(gravity) + rollout.dtau[0])))
+    assert arrays["rms_tau_total"][0] == pytest.approx(total, rel=1e-12)
+    assert np.isnan(metrics_arrays(rollout, scenario.Q_exec, scenario.R_exec)["rms_tau_total"][0])

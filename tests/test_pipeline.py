@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from mjtraj.core.closed_loop import ClosedLoop
-from mjtraj.core.metrics import METRIC_NAMES, metrics_arrays
+from mjtraj.core.metrics import METRIC_NAMES, gravity_along, metrics_arrays
 from mjtraj.core.planners import make
 from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, SolverError
@@ -20,7 +20,8 @@ def test_a_batch_is_the_loop_run_by_hand(model, scenario):
     rollout, outcomes = execute_batch(model, scenario.loop, [Job(r, weights) for r in refs])
     by_hand = ClosedLoop(model, scenario.loop, nsim=2).run(refs)
     np.testing.assert_array_equal(rollout.dtau, by_hand.dtau)
-    arrays = metrics_arrays(by_hand, np.tile(scenario.Q_exec, (2, 1)), np.tile(scenario.R_exec, (2, 1)))
+    arrays = metrics_arrays(by_hand, np.tile(scenario.Q_exec, (2, 1)), np.tile(scenario.R_exec, (2, 1)),
+                            gravity=gravity_along(model, by_hand))
     for j, outcome in enumerate(outcomes):
         assert outcome.status == "ok" and outcome.reason == ""
         assert outcome.metrics == {m: float(arrays[m][j]) for m in METRIC_NAMES}

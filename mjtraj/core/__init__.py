@@ -41,6 +41,7 @@ _EXPORTS = {
     "METRIC_NAMES": "mjtraj.core.metrics",
     "METRIC_UNITS": "mjtraj.core.metrics",
     "metrics_arrays": "mjtraj.core.metrics",
+    "gravity_along": "mjtraj.core.metrics",
     "reduction": "mjtraj.core.metrics",
     "Scoring": "mjtraj.core.scoring",
     "bryson_weights": "mjtraj.core.scoring",
@@ -72,7 +73,7 @@ if TYPE_CHECKING:
     from mjtraj.core.gains import GAIN_RULE, gain_rule
     from mjtraj.core.linearize import discretize_zoh, linearize_many
     from mjtraj.core.lqr import BoxLQRSolution, box_lqr
-    from mjtraj.core.metrics import METRIC_NAMES, METRIC_UNITS, Metrics, metrics_arrays, reduction
+    from mjtraj.core.metrics import METRIC_NAMES, METRIC_UNITS, Metrics, gravity_along, metrics_arrays, reduction
     from mjtraj.core.model import JointInfo, default_model_path, load_model
     from mjtraj.core.options import check_options, declared_options, from_mapping, option, option_names
     from mjtraj.core.planners import Planner, available, check_name, make, plan_all, register
@@ -90,7 +91,7 @@ __all__ = [
     "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics", "PIDGains", "Planner", "QPSolution", "Reference",
     "Rollout", "Scoring", "Step", "Task", "available", "box_lqr", "bryson_weights", "build_qp", "check_name",
     "check_options", "control_law", "declared_options", "default_model_path", "discretize_zoh", "executed_cost",
-    "feedforward_many", "from_mapping", "gain_rule", "linearize_many", "load_model", "make", "metrics_arrays",
-    "option", "option_names", "plan_all", "random_task", "reduction", "register", "solve_qp", "spectral_radii",
-    "step_cost",
+    "feedforward_many", "from_mapping", "gain_rule", "gravity_along", "linearize_many", "load_model", "make",
+    "metrics_arrays", "option", "option_names", "plan_all", "random_task", "reduction", "register", "solve_qp",
+    "spectral_radii", "step_cost",
 ]

@@ -5,18 +5,24 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import mujoco
 import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
+from mjtraj.core.dynamics import DynamicsProbe
 from mjtraj.core.rollout import Rollout
 from mjtraj.core.scoring import executed_cost
 from mjtraj.exceptions import InvalidInputError
 
 METRIC_NAMES = ("rms_err", "rms_dtau", "int_dtau", "cost", "rms_fb", "peak_dtau", "saturated_frac", "max_err",
-                "terminal_err")
+                "terminal_err", "rms_dtau_norm", "rms_tau_total")
 METRIC_UNITS = {"rms_err": "rad", "rms_dtau": "N m", "int_dtau": "N m s", "cost": "-", "rms_fb": "N m",
-                "peak_dtau": "N m", "saturated_frac": "-", "max_err": "rad", "terminal_err": "rad"}
+                "peak_dtau": "N m", "saturated_frac": "-", "max_err": "rad", "terminal_err": "rad",
+                "rms_dtau_norm": "N m", "rms_tau_total": "N m"}
+"""rms_dtau is over every joint and step; rms_dtau_norm is the RMS over steps of the torque vector's norm,
+sqrt(1/N sum_k |dtau_k|^2) = sqrt(n) rms_dtau; rms_tau_total is rms_dtau's definition applied to the total torque
+G(q_k) + dtau_k (gravity compensation included, G of the nominal model at the measured pose)."""
 
 
 def rms(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -48,6 +54,8 @@ class Metrics:
     saturated_frac: float
     max_err: float
     terminal_err: float
+    rms_dtau_norm: float
+    rms_tau_total: float
 
     def as_dict(self) -> dict[str, float]:
         """Field name -> value."""
@@ -70,11 +78,13 @@ def _diagonal(name: str, weight: npt.ArrayLike) -> NDArray[np.float64]:
     return w
 
 
-def metrics_arrays(rollout: Rollout, Q_exec: npt.ArrayLike, R_exec: npt.ArrayLike) -> dict[str, NDArray[np.float64]]:
+def metrics_arrays(rollout: Rollout, Q_exec: npt.ArrayLike, R_exec: npt.ArrayLike, *,
+                   gravity: NDArray[np.float64] | None = None) -> dict[str, NDArray[np.float64]]:
     """Every metric for every execution of `rollout`: name -> shape (B,).
 
     Q_exec and R_exec are the diagonals of J_exec's weights (`mjtraj.core.scoring`), shapes (2n,) and (n,) shared
-    by every execution or (B, 2n) and (B, n), one pair each (a diagonal matrix is also accepted).
+    by every execution or (B, 2n) and (B, n), one pair each (a diagonal matrix is also accepted). `gravity` is
+    G(q_k) at the recorded poses, shape (B, N, n), N m (`gravity_along`); without it rms_tau_total is NaN.
     """
     e, dtau = rollout.e, rollout.dtau
     cost = executed_cost(e, rollout.ed, dtau, _diagonal("Q_exec", Q_exec), _diagonal("R_exec", R_exec))
@@ -88,12 +98,26 @@ def metrics_arrays(rollout: Rollout, Q_exec: npt.ArrayLike, R_exec: npt.ArrayLik
         "saturated_frac": np.mean(rollout.saturated, axis=(-2, -1)).astype(np.float64),
         "max_err": np.max(np.abs(e), axis=(-2, -1)),
         "terminal_err": np.linalg.norm(rollout.e_final, axis=-1),
+        "rms_dtau_norm": np.sqrt(np.mean(np.sum(np.square(dtau), axis=-1), axis=-1)),
+        "rms_tau_total": rms(gravity + dtau) if gravity is not None else np.full(e.shape[0], np.nan),
     }
 
 
-def metrics(rollout: Rollout, Q_exec: npt.ArrayLike, R_exec: npt.ArrayLike) -> list[Metrics]:
-    """One Metrics per scenario of `rollout` (NaN for a diverged one)."""
-    arrays = metrics_arrays(rollout, Q_exec, R_exec)
+def gravity_along(model: mujoco.MjModel, rollout: Rollout) -> NDArray[np.float64]:
+    """G(q_k) of `model` at every recorded pose of `rollout`, shape (B, N, n), N m (NaN where nothing was
+    recorded)."""
+    q = rollout.q.reshape(-1, rollout.q.shape[-1])
+    seen = np.all(np.isfinite(q), axis=1)
+    out = np.full(q.shape, np.nan)
+    if seen.any():
+        out[seen] = DynamicsProbe(model, size=int(seen.sum())).gravity(q[seen])
+    return out.reshape(rollout.q.shape)
+
+
+def metrics(rollout: Rollout, Q_exec: npt.ArrayLike, R_exec: npt.ArrayLike, *,
+            model: mujoco.MjModel | None = None) -> list[Metrics]:
+    """One Metrics per scenario of `rollout` (NaN for a diverged one); with the nominal `model`, rms_tau_total too."""
+    arrays = metrics_arrays(rollout, Q_exec, R_exec, gravity=None if model is None else gravity_along(model, rollout))
     out = []
     for b in range(rollout.diverged_step.size):
         values = {name: float("nan") if rollout.diverged[b] else float(arrays[name][b]) for name in METRIC_NAMES}

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
-from mjtraj.core.metrics import METRIC_NAMES, metrics_arrays
+from mjtraj.core.metrics import METRIC_NAMES, gravity_along, metrics_arrays
 from mjtraj.core.reference import Reference
 from mjtraj.core.rollout import Rollout
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, MjtrajError
@@ -121,7 +121,7 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
     middle = time.perf_counter()
     q_diag = np.array([job.weights[0] for job in jobs])
     r_diag = np.array([job.weights[1] for job in jobs])
-    arrays = metrics_arrays(rollout, q_diag, r_diag)
+    arrays = metrics_arrays(rollout, q_diag, r_diag, gravity=gravity_along(model, rollout))
     outcomes = [outcome(arrays, j, bool(unstable[j]), int(rollout.diverged_step[j]), config)
                 for j in range(len(jobs))]
     if seconds is not None:

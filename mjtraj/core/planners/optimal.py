@@ -40,8 +40,12 @@ class Optimal(Planner):
     Attributes:
       linearization: 'midpoint' (q_bar = (q0+qg)/2), 'start' or 'goal'; ignored when q_bar is given.
       q_bar: a user linearisation pose, shape (n,), rad.
-      state_weight: diag(Q), shape (2n,); None for Bryson's rule (`bryson_weights`).
+      state_weight: diag(Q), shape (2n,); None for Bryson's rule (`bryson_weights`) scaled by `alpha` and `split`.
       input_weight: diag(R), shape (n,); None for Bryson's rule.
+      alpha: scale of Bryson's state weight, >= 0 (its weight frontier: 0 is the minimum-effort plan of the linear
+        model, 1 Bryson's rule); with state_weight None only.
+      split: share of the state weight on positions, in [0, 1]: Q = alpha diag(2 split Q_pos, 2 (1 - split) Q_vel)
+        with Bryson's Q_pos, Q_vel (0.5: Bryson's own balance); with state_weight None only.
       torque_bound: |u_k| bound, shape (n,) or scalar, N m; None for the model's ctrlrange.
       fd_eps: finite-difference step of the linearisation.
       solver: 'auto' = the exact active-set Riccati solver (`mjtraj.core.lqr.box_lqr`: the same optimum, verified by
@@ -53,6 +57,8 @@ class Optimal(Planner):
     q_bar: tuple[float, ...] | None = None
     state_weight: tuple[float, ...] | None = None
     input_weight: tuple[float, ...] | None = None
+    alpha: float = 1.0
+    split: float = 0.5
     torque_bound: float | tuple[float, ...] | None = None
     fd_eps: float = 1e-6
     solver: str = "auto"
@@ -63,6 +69,13 @@ class Optimal(Planner):
         choice("linearization", self.linearization, LINEARIZATION_POINTS)
         choice("solver", self.solver, SOLVERS)
         positive("fd_eps", self.fd_eps)
+        for name, low, high in (("alpha", 0.0, np.inf), ("split", 0.0, 1.0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+                raise InvalidInputError(f"{name}: expected a number in [{low:g}, {high:g}], got {value!r}")
+        if self.state_weight is not None and (self.alpha != 1.0 or self.split != 0.5):
+            raise InvalidInputError("alpha, split: they scale Bryson's state weight; give them or state_weight, not "
+                                    "both")
 
     def operating_point(self, task: Task) -> NDArray[np.float64]:
         """q_bar for `task`; shape (n,), rad."""
@@ -73,7 +86,12 @@ class Optimal(Planner):
     def weights(self, task: Task, bound: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(Q, R) as full matrices, shapes (2n, 2n) and (n, n)."""
         q_default, r_default = bryson_weights(task, bound)
-        q_diag = q_default if self.state_weight is None else vector("state_weight", self.state_weight, 2 * task.n)
+        if self.state_weight is None:
+            n = task.n
+            share = np.concatenate([np.full(n, 2.0 * self.split), np.full(n, 2.0 * (1.0 - self.split))])
+            q_diag = float(self.alpha) * (share * q_default)
+        else:
+            q_diag = vector("state_weight", self.state_weight, 2 * task.n)
         r_diag = r_default if self.input_weight is None else vector("input_weight", self.input_weight, task.n)
         if np.any(q_diag < 0) or np.any(r_diag <= 0):
             raise InvalidInputError(f"state_weight, input_weight: expected Q >= 0 and R > 0, got "
