@@ -59,6 +59,20 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
     c.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
 
+    f = sub.add_parser("frontier", help="the optimal planner over its weight frontier (Q = alpha Q_bryson), beside the "
+                       "other planners, by the scenario's fixed score")
+    f.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
+    f.add_argument("--alphas", type=_floats, help="alpha values (default: 0 and 33 values from 1e-6 to 1e2)")
+    f.add_argument("--splits", type=_floats, help="shares of the state weight on positions, in [0, 1] (default 0.5, "
+                   "Bryson's balance)")
+    f.add_argument("--family", help="nominal | aggressive | mismatch: medians over a family's scenarios instead of "
+                   "the scenario's task")
+    f.add_argument("--scenarios", type=int, default=100, help="scenarios of --family (default 100)")
+    f.add_argument("--seed", type=int, default=0, help="seed of --family's scenarios (default 0)")
+    f.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
+    f.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
+    f.add_argument("--no-figures", action="store_true", help="skip the frontier figure")
+
     b = sub.add_parser("bench", help="speed ratios measured in one run")
     b.add_argument("what", choices=("plan", "loop", "env", "sweep", "all"), nargs="?", default="all",
                    help="what to time ('all' skips the minute-long sweep)")
@@ -199,6 +213,32 @@ def _compare(args: argparse.Namespace) -> int:
         print(format_report(result))
         print(f"\nwrote {args.out / 'results.json'}, {args.out / 'results.csv'}"
               + (f" and {len(figures)} figures" if figures else ""))
+    return 0
+
+
+def _frontier(args: argparse.Namespace) -> int:
+    from mjtraj.files import write_text_atomic
+    from mjtraj.study.frontier import DEFAULT_ALPHAS, DEFAULT_SPLITS, frontier
+    from mjtraj.study.report import format_frontier
+    from mjtraj.study.scenario import load_scenario
+
+    scenario = load_scenario(args.config)
+    result = frontier(scenario, alphas=args.alphas if args.alphas is not None else DEFAULT_ALPHAS,
+                      splits=args.splits if args.splits is not None else DEFAULT_SPLITS, family=args.family,
+                      scenarios=args.scenarios, seed=args.seed)
+    name = "frontier" if args.family is None else f"frontier_{args.family}"
+    record = _json_safe({"setting": result.setting, "rows": [row.as_dict() for row in result.rows]})
+    write_text_atomic(args.out / f"{name}.json", json.dumps(record, indent=2) + "\n")
+    figure = None
+    if not args.no_figures:
+        from mjtraj.study.plots import frontier_figure
+
+        figure = frontier_figure(result, args.out / f"{name}.png")
+    if args.json:
+        print(json.dumps(record, indent=2))
+    else:
+        print(format_frontier(result))
+        print(f"\nwrote {args.out / (name + '.json')}" + (f" and {figure}" if figure else ""))
     return 0
 
 
@@ -385,7 +425,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        commands = {"compare": _compare, "bench": _bench, "gains": _gains, "render": _render, "doctor": _doctor,
+        commands = {"compare": _compare, "frontier": _frontier, "bench": _bench, "gains": _gains, "render": _render,
+                    "doctor": _doctor,
                     "sweep": _sweep, "audit": _audit, "rl": _rl}
         return commands[args.command](args)
     except MjtrajError as e:

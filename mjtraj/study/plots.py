@@ -8,6 +8,7 @@ import numpy as np
 
 from mjtraj.core.scoring import step_cost
 from mjtraj.study.comparison import Comparison
+from mjtraj.study.frontier import Frontier
 
 FIGURES = {
     "fig2_planned_acceleration.png": "Planned joint accelerations",
@@ -94,3 +95,47 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
     plt.close(fig)
     written.append(out / "fig7_metrics.png")
     return written
+
+
+def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120) -> Path:
+    """Corrective effort (RMS dtau) against tracking error (RMS error), log-log: the optimal planner's curve over
+    alpha for each split, labelled by alpha, and every other planner as a point. Written atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from mjtraj.files import atomic_path
+
+    s = result.setting
+    fig, ax = plt.subplots(figsize=(7.5, 5.2))
+    optimal = [r for r in result.rows if r.planner == "optimal"]
+    for k, split in enumerate(dict.fromkeys(r.split for r in optimal)):
+        curve = [r for r in optimal if r.split == split and np.isfinite(r.metrics["rms_dtau"])]
+        x = [r.metrics["rms_dtau"] for r in curve]
+        y = [r.metrics["rms_err"] for r in curve]
+        ax.plot(x, y, "o-", ms=3, lw=1.2, color=f"C{k}", label=f"optimal, split {split:g}")
+        best = min(range(len(curve)), key=lambda i: curve[i].metrics["cost"]) if curve else -1
+        for i, r in enumerate(curve):
+            assert r.alpha is not None
+            decade = r.alpha > 0 and abs(np.log10(r.alpha) - round(np.log10(r.alpha))) < 1e-9
+            if r.alpha == 0.0 or (decade and r.alpha >= 1e-3) or i == best:
+                text = f"α={r.alpha:.2g}" + (" (least J_exec)" if i == best else " (Bryson)" if r.alpha == 1 else "")
+                ax.annotate(text, (x[i], y[i]), textcoords="offset points", fontsize=7, color=f"C{k}",
+                            xytext=(6, -10) if i == best else (-14, 8) if r.alpha == 0 else (5, 3))
+    for k, r in enumerate(row for row in result.rows if row.planner != "optimal"):
+        ax.plot(r.metrics["rms_dtau"], r.metrics["rms_err"], "s", ms=8, color=f"C{k + 5}", label=r.planner)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("corrective effort: RMS Δτ [N m]" + (" (median)" if s["task"] != "scenario" else ""))
+    ax.set_ylabel("tracking error: RMS e [rad]" + (" (median)" if s["task"] != "scenario" else ""))
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    where = "the scenario's task" if s["task"] == "scenario" else f"{s['scenarios']} {s['task']} scenarios"
+    ax.set_title(f"Weight frontier on {where}; score: {s['score']}; controller: the scenario's FF + PID",
+                 fontsize=9)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi)
+    plt.close(fig)
+    return path

@@ -6,8 +6,12 @@ import csv
 import io
 import math
 
+import numpy as np
+
 from mjtraj.core.gains import GAIN_RULE
+from mjtraj.core.metrics import METRIC_UNITS
 from mjtraj.study.comparison import Comparison
+from mjtraj.study.frontier import TABLE_METRICS, Frontier
 from mjtraj.study.paper import PAPER_TABLE
 
 HEADER = ("Planner", "RMS dtau", "Int. dtau", "RMS Err.", "Cost", "dtau Red.", "Cost Red.", "RMS fb", "Peak dtau")
@@ -98,3 +102,34 @@ def results_csv(result: Comparison) -> str:
         writer.writerow([name, *(repr(m[k]) for k in metric_names), repr(result.reduction(name, "int_dtau")),
                          repr(result.reduction(name, "cost"))])
     return out.getvalue()
+
+
+def format_frontier(result: Frontier) -> str:
+    """The frontier table: each alpha's metrics and their ratio to cubic (medians and 95 % intervals on a family)."""
+    s = result.setting
+    family = s["task"] != "scenario"
+    head = ["planner", "alpha", "split"]
+    for metric in TABLE_METRICS:
+        head += [LABELS[metric], "/ cubic"]
+    head.append("failed")
+    units = ["", "", ""] + [u for metric in TABLE_METRICS for u in (METRIC_UNITS[metric], "")] + [""]
+    rows: list[tuple[str, ...]] = [tuple(head), tuple(units)]
+    for row in result.rows:
+        cells = [row.planner, "" if row.alpha is None else f"{row.alpha:.3g}",
+                 "" if row.split is None else f"{row.split:g}"]
+        for metric in TABLE_METRICS:
+            r = row.ratio[metric]
+            cells.append(_fmt(row.metrics[metric], "err" if metric == "rms_err" else "num"))
+            cells.append("--" if not np.isfinite(r.value) else f"{r.value:.3f}" if not family else
+                         f"{r.value:.3f} [{r.low:.3f}, {r.high:.3f}]")
+        cells.append(str(row.failed))
+        rows.append(tuple(cells))
+    where = (f"the scenario's task ({s['scenario']})" if not family else
+             f"{s['scenarios']} {s['task']} scenarios (seed {s['seed']}); medians, [95 % bootstrap interval]")
+    return "\n".join([f"Weight frontier of the optimal planner: Q = alpha * Q_bryson (position/velocity split), "
+                      f"R = R_bryson, on {where}; score: {s['score']}; controller: the scenario's",
+                      _grid(rows)])
+
+
+LABELS = {"rms_dtau": "RMS dtau", "int_dtau": "Int. dtau", "rms_err": "RMS Err.", "peak_dtau": "Peak dtau",
+          "cost": "J_exec"}

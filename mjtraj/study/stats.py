@@ -82,3 +82,29 @@ def cvar(values: npt.ArrayLike, alpha: float = 0.9) -> float:
     top = x[::-1]
     total = top[:whole].sum() + (part * top[whole] if whole < x.size and part > 1e-9 else 0.0)
     return float(total / m)
+
+
+@dataclass(frozen=True)
+class Median:
+    """The median of the finite values, its 95 % percentile-bootstrap interval, and how many values it used."""
+
+    value: float
+    low: float
+    high: float
+    count: int
+
+
+def median_interval(values: npt.ArrayLike, *, resamples: int = BOOTSTRAP_RESAMPLES, seed: int = BOOTSTRAP_SEED,
+                    level: float = 0.95) -> Median:
+    """Median of the finite `values` (shape (S,)) with a percentile-bootstrap interval over the S values."""
+    x = np.asarray(values, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        nan = float("nan")
+        return Median(nan, nan, nan, 0)
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, x.size, size=(positive_int("resamples", resamples), x.size))
+    medians = np.median(x[picks], axis=1)
+    tail = 100.0 * (1.0 - level) / 2.0
+    low, high = np.percentile(medians, [tail, 100.0 - tail])
+    return Median(float(np.median(x)), float(low), float(high), int(x.size))
