@@ -73,6 +73,21 @@ def _parser() -> argparse.ArgumentParser:
     f.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     f.add_argument("--no-figures", action="store_true", help="skip the frontier figure")
 
+    u = sub.add_parser("tune", help="tune every planner's free parameters with an equal, held-out budget; writes a "
+                       "scenario file with the tuned options and the tuning record")
+    u.add_argument("--config", type=Path, help="base scenario TOML (default: the shipped paper scenario)")
+    u.add_argument("--planners", type=_names, default=["optimal", "trapezoidal"],
+                   help="planners to tune (default optimal, trapezoidal; cubic and quintic have no parameters)")
+    u.add_argument("--family", default="nominal", help="family whose rules draw the training scenarios (default "
+                   "nominal)")
+    u.add_argument("--scenarios", type=int, default=50, help="training scenarios (default 50)")
+    u.add_argument("--seed", type=int, default=0, help="seed of the training scenarios and of the optimiser")
+    u.add_argument("--budget", type=int, default=32, help="evaluations per planner (default 32)")
+    u.add_argument("--on-task", action="store_true", help="oracle mode: tune on the scenario's own task (labelled; "
+                   "not a held-out result)")
+    u.add_argument("--out", type=Path, default=Path("tuned.toml"), help="the tuned scenario file (default "
+                   "tuned.toml)")
+
     b = sub.add_parser("bench", help="speed ratios measured in one run")
     b.add_argument("what", choices=("plan", "loop", "env", "sweep", "all"), nargs="?", default="all",
                    help="what to time ('all' skips the minute-long sweep)")
@@ -239,6 +254,33 @@ def _frontier(args: argparse.Namespace) -> int:
     else:
         print(format_frontier(result))
         print(f"\nwrote {args.out / (name + '.json')}" + (f" and {figure}" if figure else ""))
+    return 0
+
+
+def _tune(args: argparse.Namespace) -> int:
+    from mjtraj.files import write_text_atomic
+    from mjtraj.study.scenario import load_scenario
+    from mjtraj.study.toml_text import dumps
+    from mjtraj.study.tuning import tune
+
+    base = load_scenario(args.config)
+    tuned, results = tune(base, planners=args.planners, family=args.family, scenarios=args.scenarios,
+                          seed=args.seed, budget=args.budget, on_task=args.on_task)
+    import textwrap
+
+    use = ("ORACLE: tuned on the scenario's own task, to show what that task allows; never a held-out result."
+           if args.on_task else "Evaluate on held-out scenarios with `mjtraj compare --config` or `mjtraj sweep "
+           "--config`.")
+    header = textwrap.fill(f"Written by `mjtraj tune{' --on-task' if args.on_task else ''}` from "
+                           f"{args.config or 'the shipped paper.toml'}: the planner options below were tuned by the "
+                           f"rules recorded in [tuning]. {use}", 110)
+    write_text_atomic(args.out, dumps(tuned.as_dict(), header=header))
+    for result in results:
+        best = result.best
+        shown = ", ".join(f"{k} = {v:.4g}" for k, v in best.parameters.items()) or "(no parameters)"
+        print(f"{result.planner}: {shown}; mean J_exec {best.objective:.4g} over {tuned.tuning['scenarios']} "  # type: ignore[index]
+              f"training scenarios ({len(result.trials)} evaluations)")
+    print(f"wrote {args.out} ({tuned.tuning['mode']})")  # type: ignore[index]
     return 0
 
 
@@ -425,9 +467,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        commands = {"compare": _compare, "frontier": _frontier, "bench": _bench, "gains": _gains, "render": _render,
-                    "doctor": _doctor,
-                    "sweep": _sweep, "audit": _audit, "rl": _rl}
+        commands = {"compare": _compare, "frontier": _frontier, "tune": _tune, "bench": _bench, "gains": _gains,
+                    "render": _render, "doctor": _doctor, "sweep": _sweep, "audit": _audit, "rl": _rl}
         return commands[args.command](args)
     except MjtrajError as e:
         print(f"mjtraj: error: {e}", file=sys.stderr)

@@ -37,13 +37,13 @@ def test_unknown_section_and_planner(tmp_path):
                                                 r"optimal, quintic, trapezoidal$"):
         load_scenario(write(tmp_path, paper_text() + "\n[planners.spline]\norder = 3\n"))
     with pytest.raises(InvalidInputError, match=r"^config: unknown key 'extra'; valid: name, model, task, "
-                                                r"controller, planners, cost$"):
+                                                r"controller, planners, cost, tuning$"):
         load_scenario(write(tmp_path, "extra = 1\n" + paper_text()))
 
 
 
 def test_missing_file_and_bad_toml(tmp_path):
-    with pytest.raises(InvalidInputError, match=r"^config: scenario file not found: .*missing\.toml$"):
+    with pytest.raises(InvalidInputError, match=r"^config: scenario file not found: .*missing\.toml \(shipped "):
         load_scenario(tmp_path / "missing.toml")
     with pytest.raises(InvalidInputError, match=r"^config: .* is not valid TOML: "):
         load_scenario(write(tmp_path, "name = \n"))

@@ -83,9 +83,11 @@ class FamilyScenario:
     noise_seed: int
 
 
-def draw_scenario(family: str, seed: int, index: int, model: mujoco.MjModel, dt: float) -> FamilyScenario:
-    """Draw scenario `index` of `family` (see the module rules)."""
-    rng = np.random.default_rng([seed, FAMILY_ID[family], index])
+def draw_scenario(family: str, seed: int, index: int, model: mujoco.MjModel, dt: float, *,
+                  stream: int | None = None) -> FamilyScenario:
+    """Draw scenario `index` of `family` (see the module rules) from the stream [seed, stream, index]; the family's
+    own stream FAMILY_ID[family] unless another is given (tuning draws its training scenarios elsewhere)."""
+    rng = np.random.default_rng([seed, FAMILY_ID[family] if stream is None else stream, index])
     duration = NOMINAL_DURATION
     if family == "aggressive":
         duration = round(rng.uniform(*AGGRESSIVE_DURATION) / dt) * dt

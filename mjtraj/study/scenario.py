@@ -8,6 +8,7 @@ A scenario file (TOML) has the layout of `Scenario.as_dict`:
     [controller]  kp, ki, kd (lists) and the loop options declared in mjtraj.core.closed_loop.LoopConfig
     [planners.<name>]  keyword options of each registered planner
     [cost]        Q_exec, R_exec (lists: fixed diagonal weights), or rule = "bryson" (Bryson's rule per task)
+    [tuning]      optional: the record of `mjtraj tune` that chose the planner options (kept, not interpreted)
 
 Types are enforced: a number where a list is expected (or `true` where a number is) is an error naming the key.
 """
@@ -43,7 +44,7 @@ else:  # pragma: no cover
 
 TASK_KEYS = ("q0", "qg", "duration", "dt")
 GAIN_KEYS = ("kp", "ki", "kd")
-SECTIONS = ("name", "model", "task", "controller", "planners", "cost")
+SECTIONS = ("name", "model", "task", "controller", "planners", "cost", "tuning")
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,7 @@ class Scenario:
       scoring: how executions are scored (J_exec's weights), independent of any planner's own weights.
       model_path: the MJCF plant model; None for the shipped UR5 3-DoF model.
       source: the file it was read from ('' in memory).
+      tuning: the record of the tuning that chose the planner options (`mjtraj tune`), or None.
     """
 
     name: str
@@ -67,6 +69,7 @@ class Scenario:
     scoring: Scoring = field(default_factory=Scoring)
     model_path: str | None = None
     source: str = ""
+    tuning: dict[str, Any] | None = None
     memo: dict[Any, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
     """Results computed once per scenario (the model's stability check); a replaced scenario starts empty."""
 
@@ -117,6 +120,8 @@ class Scenario:
                              **{name: getattr(self.loop, name) for name in option_names(LoopConfig)}}
         out["planners"] = {k: dict(v) for k, v in self.planner_options.items()}
         out["cost"] = self.scoring.as_dict()
+        if self.tuning is not None:
+            out["tuning"] = self.tuning
         return out
 
 
@@ -125,16 +130,24 @@ def default_scenario_path() -> Path:
     return Path(str(resources.files("mjtraj.study.scenarios").joinpath("paper.toml")))
 
 
+def shipped_scenarios() -> tuple[str, ...]:
+    """Names of the scenario files shipped with mjtraj (`load_scenario` takes them by name)."""
+    return tuple(sorted(p.stem for p in default_scenario_path().parent.glob("*.toml")))
+
+
 def load_scenario(path: str | os.PathLike[str] | None = None) -> Scenario:
-    """Read a scenario file (TOML); None for the shipped paper scenario.
+    """Read a scenario file (TOML), or a shipped scenario by name (`shipped_scenarios`); None for the paper one.
 
     Raises:
       InvalidInputError: missing or unreadable file, TOML syntax, unknown or missing keys (valid ones are listed),
         values of the wrong type, bad values.
     """
     file = default_scenario_path() if path is None else Path(path)
+    if not file.is_file() and path is not None and str(path) in shipped_scenarios():
+        file = default_scenario_path().with_name(f"{path}.toml")
     if not file.is_file():
-        raise InvalidInputError(f"config: scenario file not found: {file}")
+        raise InvalidInputError(f"config: scenario file not found: {file} (shipped scenarios, by name: "
+                                f"{', '.join(shipped_scenarios())})")
     try:
         text = file.read_bytes().decode("utf-8")
         data = tomllib.loads(text)
@@ -226,5 +239,8 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
     else:
         _only(cost, "cost", ("Q_exec", "R_exec", "rule"))
         scoring = Scoring.fixed(_numbers(cost, "cost", "Q_exec"), _numbers(cost, "cost", "R_exec"), task.n)
+    tuning = data.get("tuning")
+    if tuning is not None and not isinstance(tuning, dict):
+        raise InvalidInputError(f"config: [tuning] must be a table, got {tuning!r}")
     return Scenario(name=name, task=task, loop=loop, planner_options=planners, scoring=scoring,
-                    model_path=model_path, source=source)
+                    model_path=model_path, source=source, tuning=tuning)
