@@ -235,7 +235,8 @@ def _header(data: SweepData, paths: Sequence[str | os.PathLike[str]]) -> list[st
             f"gravity_comp {s.get('sweep_gravity_comp')}, sensor noise {s.get('sensor_noise')} rad, delay "
             f"{s.get('delay')}; {len(data.rows)} rows. Versions: "
             + ", ".join(f"{k} {v}" for k, v in data.versions.items()) + ".", "",
-            "Scenario rules are in `mjtraj/families.py`; controller and weights rules in `mjtraj/sweep.py`.", ""]
+            "Scenario rules are in `mjtraj/study/families.py`; controller and weights rules in "
+            "`mjtraj/study/sweep.py`.", ""]
 
 
 def _summary_table(data: SweepData) -> list[str]:
