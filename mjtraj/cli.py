@@ -76,8 +76,8 @@ def _parser() -> argparse.ArgumentParser:
     u = sub.add_parser("tune", help="tune every planner's free parameters with an equal, held-out budget; writes a "
                        "scenario file with the tuned options and the tuning record")
     u.add_argument("--config", type=Path, help="base scenario TOML (default: the shipped paper scenario)")
-    u.add_argument("--planners", type=_names, default=["optimal", "trapezoidal"],
-                   help="planners to tune (default optimal, trapezoidal; cubic and quintic have no parameters)")
+    u.add_argument("--planners", type=_names, default=["optimal", "trapezoidal", "scurve"],
+                   help="planners to tune (default optimal, trapezoidal, scurve; cubic and quintic have no parameters)")
     u.add_argument("--family", default="nominal", help="family whose rules draw the training scenarios (default "
                    "nominal)")
     u.add_argument("--scenarios", type=int, default=50, help="training scenarios (default 50)")

@@ -23,7 +23,7 @@ def test_compare_writes_everything(tmp_path, capsys, scenario):
     for name in ("optimal", "cubic", "quintic", "trapezoidal"):
         assert record["planners"][name]["metrics"] == expected.metrics[name].as_dict()  # deterministic
     rows = list(csv.DictReader((tmp_path / "results.csv").open()))
-    assert [r["planner"] for r in rows] == ["optimal", "cubic", "quintic", "trapezoidal"]
+    assert [r["planner"] for r in rows] == ["optimal", "cubic", "quintic", "trapezoidal", "scurve"]
     assert float(rows[1]["cost"]) == expected.metrics["cubic"].cost
     for figure in FIGURES:
         assert (tmp_path / figure).stat().st_size > 10_000
@@ -50,7 +50,7 @@ def test_compare_json_and_overrides(tmp_path, capsys):
     (["--dt", "0.03"], "mjtraj: error: duration: expected a whole number of control periods dt=0.03 s, got 2.0 s "
                        "(66.6667 periods)"),
     (["--planners", "spline"], "mjtraj: error: planners: unknown planner 'spline'; valid: cubic, optimal, quintic, "
-                               "trapezoidal"),
+                               "scurve, trapezoidal"),
     (["--ff", "model"], "mjtraj: error: feedforward: unknown value 'model'; valid: inverse, planned, none"),
     (["--ff", "planned", "--planners", "cubic"], "mjtraj: error: feedforward: mode 'planned' needs a planner that "
      "publishes u_plan; the 'cubic' reference has none; valid for it: inverse, none"),

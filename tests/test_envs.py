@@ -294,9 +294,10 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
-    ({"planner": "spline"}, r"^planner: unknown planner 'spline'; valid: cubic, optimal, quintic, trapezoidal$"),
-    ({"planner": 3}, r"^planner: expected a registered name \(cubic, optimal, quintic, trapezoidal\) or an object "
-                     r"with plan\(task, model\), got 3$"),
+    ({"planner": "spline"}, r"^planner: unknown planner 'spline'; valid: cubic, optimal, quintic, scurve, "
+                            r"trapezoidal$"),
+    ({"planner": 3}, r"^planner: expected a registered name \(cubic, optimal, quintic, scurve, trapezoidal\) or an "
+                     r"object with plan\(task, model\), got 3$"),
     ({"action_mode": "velocity"}, r"^action_mode: unknown value 'velocity'; valid: pid, residual, torque$"),
     ({"task": "circle"}, r"^task: unknown value 'circle'; valid: paper, random, explicit$"),
     ({"camera": "wrist"}, r"^camera: unknown camera 'wrist'; valid: front, side, top$"),

@@ -69,7 +69,8 @@ def test_cli_writes_the_table_json_and_figure(tmp_path, capsys):
     assert out.startswith("Weight frontier of the optimal planner: Q = alpha * Q_bryson")
     assert "score: the scenario's (fixed)" in out
     record = json.loads((tmp_path / "frontier.json").read_text())
-    assert [r["alpha"] for r in record["rows"]] == [0.0, 0.01, 1.0, None, None, None]
+    assert [r["alpha"] for r in record["rows"]] == [0.0, 0.01, 1.0, None, None, None, None]
+    assert [r["planner"] for r in record["rows"]][3:] == ["cubic", "quintic", "trapezoidal", "scurve"]
     assert set(METRIC_NAMES) <= set(record["rows"][0])
     assert (tmp_path / "frontier.png").stat().st_size > 10_000
     assert main(["frontier", "--alphas", "-1", "--out", str(tmp_path / "x")]) == 2

@@ -84,7 +84,7 @@ def test_trapezoid_zero_move_is_constant(model):
 
 def test_unknown_planner_and_option():
     with pytest.raises(InvalidInputError, match=r"^planner: unknown planner 'spline'; valid: cubic, optimal, "
-                                                r"quintic, trapezoidal$"):
+                                                r"quintic, scurve, trapezoidal$"):
         make("spline")
     with pytest.raises(InvalidInputError, match=r"^planner 'cubic': unknown option 'order'; valid: \(none\)$"):
         make("cubic", order=3)

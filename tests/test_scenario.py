@@ -34,7 +34,7 @@ def test_unknown_key(tmp_path):
 
 def test_unknown_section_and_planner(tmp_path):
     with pytest.raises(InvalidInputError, match=r"^config: unknown planner \[planners.spline\]; valid: cubic, "
-                                                r"optimal, quintic, trapezoidal$"):
+                                                r"optimal, quintic, scurve, trapezoidal$"):
         load_scenario(write(tmp_path, paper_text() + "\n[planners.spline]\norder = 3\n"))
     with pytest.raises(InvalidInputError, match=r"^config: unknown key 'extra'; valid: name, model, task, "
                                                 r"controller, planners, cost, tuning$"):

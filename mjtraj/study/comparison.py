@@ -41,6 +41,11 @@ class Comparison:
         return 100.0 * (value - getattr(self.metrics["optimal"], metric)) / value
 
 
+def default_planners() -> tuple[str, ...]:
+    """Every registered planner, the paper's four first in the paper's order."""
+    return tuple([p for p in PAPER_ORDER if p in available()] + [p for p in available() if p not in PAPER_ORDER])
+
+
 def compare(scenario: Scenario, planners: Sequence[str] | None = None, *,
             progress: Callable[[str], None] | None = None) -> Comparison:
     """Plan `scenario.task` with each planner (default: all registered, paper order first) and execute all
@@ -53,8 +58,7 @@ def compare(scenario: Scenario, planners: Sequence[str] | None = None, *,
       InvalidInputError: no planner, an unknown or repeated one, or a task outside the joint ranges.
       InfeasibleError, SolverError: a planner could not plan the task.
     """
-    names = tuple(planners) if planners is not None else tuple(
-        [p for p in PAPER_ORDER if p in available()] + [p for p in available() if p not in PAPER_ORDER])
+    names = tuple(planners) if planners is not None else default_planners()
     if not names:
         raise InvalidInputError("planners: expected at least one planner, got none")
     for name in names:

@@ -18,6 +18,7 @@ from mjtraj.core.planners import Planner, make, plan_all
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
 from mjtraj.exceptions import InvalidInputError, MjtrajError
+from mjtraj.study.comparison import default_planners
 from mjtraj.study.families import FAMILIES, FamilyScenario, draw_scenario, perturbed_plant
 from mjtraj.study.pipeline import Job, Outcome, execute, plan_failure
 from mjtraj.study.scenario import Scenario
@@ -28,7 +29,6 @@ DEFAULT_ALPHAS = (0.0, *(float(a) for a in np.logspace(-6, 2, 33)))
 DEFAULT_SPLITS = (0.5,)
 """Bryson's own balance of position and velocity weights."""
 TABLE_METRICS = ("rms_dtau", "int_dtau", "rms_err", "peak_dtau", "cost")
-OTHERS = ("cubic", "quintic", "trapezoidal")
 REFERENCE = "cubic"
 """The planner every row is compared with (the minimum-effort plan of a constant-inertia arm)."""
 
@@ -111,7 +111,8 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
     weights = [scoring.weights(t, scenario.torque_limit) for t in tasks]
     planners: list[tuple[str, float | None, float | None, Planner]] = [
         ("optimal", a, s, optimal_at(scenario, a, s)) for s in splits for a in alphas]
-    planners += [(name, None, None, scenario.planner(name)) for name in OTHERS]
+    others = tuple(name for name in default_planners() if name != "optimal")
+    planners += [(name, None, None, scenario.planner(name)) for name in others]
     plans = [plan_all(p, tasks, model) for *_, p in planners]
     plant = perturbed_plant(model) if family == "mismatch" else None
     jobs, where = [], []
@@ -124,7 +125,7 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
                                       for ref in refs] for refs in plans]
     for (i, b), result in zip(where, execute(model, scenario.loop, jobs, plant=plant), strict=True):
         outcomes[i][b] = result
-    cubic = outcomes[len(planners) - len(OTHERS) + OTHERS.index(REFERENCE)]
+    cubic = outcomes[len(planners) - len(others) + others.index(REFERENCE)]
     rows = [_row(name, a, s, mine, cubic) for (name, a, s, _), mine in zip(planners, outcomes, strict=True)]
     setting = {"task": "scenario" if family is None else family, "scenarios": len(draws), "seed": seed,
                "score": "the scenario's (fixed)" if family is None else "Bryson's rule per task",

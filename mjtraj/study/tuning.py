@@ -2,7 +2,8 @@
 
 Rules (stated once, recorded in every tuned scenario file):
 - the free parameters (PARAMETERS): the optimal planner's alpha (log-uniform in [1e-6, 1e2]) and split ([0, 1]);
-  the trapezoid's cruise_factor ((1, 2]); cubic and quintic have none;
+  the trapezoid's cruise_factor ((1, 2]); the S-curve's acceleration_factor ((4, 16]) and jerk_factor (log-uniform
+  in [30, 1000]); cubic and quintic have none;
 - the optimiser is the same for every planner: a scrambled Sobol sequence of `budget` points over the parameter box
   (scipy.stats.qmc.Sobol, seeded), every point evaluated, the best kept. Every tunable planner gets the same
   number of evaluations;
@@ -38,6 +39,7 @@ and 16-17 (RL)."""
 PARAMETERS: dict[str, dict[str, tuple[str, float, float]]] = {
     "optimal": {"alpha": ("log", 1e-6, 1e2), "split": ("linear", 0.0, 1.0)},
     "trapezoidal": {"cruise_factor": ("linear", 1.0, 2.0)},
+    "scurve": {"acceleration_factor": ("linear", 4.0, 16.0), "jerk_factor": ("log", 30.0, 1000.0)},
     "cubic": {},
     "quintic": {},
 }
@@ -121,7 +123,8 @@ def objective(scenario: Scenario, planner: Planner, draws: Sequence[FamilyScenar
     return float(np.mean([o.metrics["cost"] for o in outcomes])), 0
 
 
-def tune(scenario: Scenario, *, planners: Sequence[str] = ("optimal", "trapezoidal"), family: str = "nominal",
+def tune(scenario: Scenario, *, planners: Sequence[str] = ("optimal", "trapezoidal", "scurve"),
+         family: str = "nominal",
          scenarios: int = 50, seed: int = 0, budget: int = 32, on_task: bool = False
          ) -> tuple[Scenario, list[PlannerTuning]]:
     """Tune `planners` (see the module rules); the scenario with the tuned options and its tuning record.

@@ -4,7 +4,8 @@ from mjtraj.core.planners.base import Planner, available, check_name, make, plan
 from mjtraj.core.planners.cubic import Cubic
 from mjtraj.core.planners.optimal import Optimal
 from mjtraj.core.planners.quintic import Quintic
+from mjtraj.core.planners.scurve import SCurve
 from mjtraj.core.planners.trapezoidal import Trapezoidal
 
-__all__ = ["Cubic", "Optimal", "Planner", "Quintic", "Trapezoidal", "available", "check_name", "make", "plan_all",
-           "register"]
+__all__ = ["Cubic", "Optimal", "Planner", "Quintic", "SCurve", "Trapezoidal", "available", "check_name", "make",
+           "plan_all", "register"]
