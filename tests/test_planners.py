@@ -144,3 +144,23 @@ def test_optimal_infeasible_names_the_bound(model):
                               "in T = 0.1 s: the linear model needs at least ")
     assert "the binding bound is joint '" in message and message.endswith("lengthen the duration or raise torque_bound")
 
+
+
+def test_alpha_and_split_scale_brysons_state_weight(model, task):
+    """Q = alpha diag(2 split Q_pos, 2 (1 - split) Q_vel); alpha 1 and split 0.5 are Bryson's rule itself."""
+    from mjtraj.core.planners.optimal import planner_weights
+    from mjtraj.core.scoring import bryson_weights
+
+    bound = np.full(3, 60.0)
+    q_pos_vel, _ = bryson_weights(task, bound)
+    Q, R = planner_weights(task, bound, None, None, 0.3, 0.8)
+    np.testing.assert_allclose(np.diag(Q), 0.3 * np.concatenate([1.6 * q_pos_vel[:3], 0.4 * q_pos_vel[3:]]),
+                               rtol=1e-15)
+    np.testing.assert_array_equal(np.diag(planner_weights(task, bound, None, None, 1.0, 0.5)[0]), q_pos_vel)
+    with pytest.raises(InvalidInputError, match=r"^alpha: expected a number in \[0, inf\], got -1$"):
+        make("optimal", alpha=-1)
+    with pytest.raises(InvalidInputError, match=r"^split: expected a number in \[0, 1\], got 2$"):
+        make("optimal", split=2)
+    with pytest.raises(InvalidInputError, match=r"^alpha, split: they scale Bryson's state weight; give them or "
+                                                r"state_weight, not both$"):
+        make("optimal", alpha=0.5, state_weight=(1.0,) * 6)

@@ -26,6 +26,35 @@ LINEARIZATION_POINTS = ("midpoint", "start", "goal")
 SOLVERS = ("auto", "osqp")
 
 
+def planner_weights(task: Task, bound: NDArray[np.float64], state_weight: tuple[float, ...] | None,
+                    input_weight: tuple[float, ...] | None, alpha: float, split: float
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """An optimal-type planner's (Q, R), full matrices (2n, 2n) and (n, n): the given diagonals, else Bryson's rule
+    for the task with the state weight scaled by alpha and shared by split (see Optimal)."""
+    q_default, r_default = bryson_weights(task, bound)
+    if state_weight is None:
+        n = task.n
+        share = np.concatenate([np.full(n, 2.0 * split), np.full(n, 2.0 * (1.0 - split))])
+        q_diag = float(alpha) * (share * q_default)
+    else:
+        q_diag = vector("state_weight", state_weight, 2 * task.n)
+    r_diag = r_default if input_weight is None else vector("input_weight", input_weight, task.n)
+    if np.any(q_diag < 0) or np.any(r_diag <= 0):
+        raise InvalidInputError(f"state_weight, input_weight: expected Q >= 0 and R > 0, got "
+                                f"{q_diag.tolist()} and {r_diag.tolist()}")
+    return np.diag(q_diag), np.diag(r_diag)
+
+
+def check_weight_options(planner: Any) -> None:
+    """Validate alpha and split of an optimal-type planner, and that they are not given with state_weight."""
+    for name, low, high in (("alpha", 0.0, np.inf), ("split", 0.0, 1.0)):
+        value = getattr(planner, name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+            raise InvalidInputError(f"{name}: expected a number in [{low:g}, {high:g}], got {value!r}")
+    if planner.state_weight is not None and (planner.alpha != 1.0 or planner.split != 0.5):
+        raise InvalidInputError("alpha, split: they scale Bryson's state weight; give them or state_weight, not both")
+
+
 @register("optimal")
 @dataclass(frozen=True)
 class Optimal(Planner):
@@ -69,13 +98,7 @@ class Optimal(Planner):
         choice("linearization", self.linearization, LINEARIZATION_POINTS)
         choice("solver", self.solver, SOLVERS)
         positive("fd_eps", self.fd_eps)
-        for name, low, high in (("alpha", 0.0, np.inf), ("split", 0.0, 1.0)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
-                raise InvalidInputError(f"{name}: expected a number in [{low:g}, {high:g}], got {value!r}")
-        if self.state_weight is not None and (self.alpha != 1.0 or self.split != 0.5):
-            raise InvalidInputError("alpha, split: they scale Bryson's state weight; give them or state_weight, not "
-                                    "both")
+        check_weight_options(self)
 
     def operating_point(self, task: Task) -> NDArray[np.float64]:
         """q_bar for `task`; shape (n,), rad."""
@@ -84,19 +107,8 @@ class Optimal(Planner):
         return {"midpoint": 0.5 * (task.q0 + task.qg), "start": task.q0, "goal": task.qg}[self.linearization]
 
     def weights(self, task: Task, bound: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(Q, R) as full matrices, shapes (2n, 2n) and (n, n)."""
-        q_default, r_default = bryson_weights(task, bound)
-        if self.state_weight is None:
-            n = task.n
-            share = np.concatenate([np.full(n, 2.0 * self.split), np.full(n, 2.0 * (1.0 - self.split))])
-            q_diag = float(self.alpha) * (share * q_default)
-        else:
-            q_diag = vector("state_weight", self.state_weight, 2 * task.n)
-        r_diag = r_default if self.input_weight is None else vector("input_weight", self.input_weight, task.n)
-        if np.any(q_diag < 0) or np.any(r_diag <= 0):
-            raise InvalidInputError(f"state_weight, input_weight: expected Q >= 0 and R > 0, got "
-                                    f"{q_diag.tolist()} and {r_diag.tolist()}")
-        return np.diag(q_diag), np.diag(r_diag)
+        """(Q, R) as full matrices, shapes (2n, 2n) and (n, n) (`planner_weights`)."""
+        return planner_weights(task, bound, self.state_weight, self.input_weight, self.alpha, self.split)
 
     def bounds(self, task: Task, model: mujoco.MjModel) -> NDArray[np.float64]:
         """|u| bound per joint; shape (n,), N m."""
