@@ -32,9 +32,20 @@ def observe(loop: ClosedLoop, preview: int) -> NDArray[np.float64]:
     return np.concatenate(parts, axis=1)
 
 
+def _numeric_like(action: object) -> bool:
+    """A number or a (nested) list or tuple of them; not a string, a dict or another object."""
+    if isinstance(action, (list, tuple)):
+        return all(_numeric_like(a) for a in action)
+    return isinstance(action, (int, float, complex, np.number)) and not isinstance(action, bool)
+
+
 def scale_action(action: npt.ArrayLike, limit: NDArray[np.float64]) -> NDArray[np.float64]:
     """A (B, n) action in [-1, 1] (clipped outside; a flat array of B n values is reshaped) as torque, N m."""
-    a = np.asarray(action, dtype=np.float64)
+    raw = action if isinstance(action, np.ndarray) else np.asarray(action) if _numeric_like(action) else None
+    if raw is None or raw.dtype.kind not in "iuf":
+        kind = type(action).__name__ if raw is None else f"{raw.dtype} values"
+        raise InvalidInputError(f"action: expected real numbers in [-1, 1], got {kind}")
+    a = raw.astype(np.float64, copy=False)
     if a.shape != limit.shape:
         if a.size != limit.size:
             expected = limit.shape[1:] if limit.shape[0] == 1 else limit.shape
@@ -84,10 +95,10 @@ class TrackCore:
         return self.observe()[rows]
 
     def action(self, action: npt.ArrayLike) -> NDArray[np.float64] | None:
-        """Validate a (B, n) action in [-1, 1] (clipped outside) and scale it to torque, N m; None in pid mode."""
-        if self.settings.action_mode == "pid":
-            return None
-        return scale_action(action, self.limit)
+        """Validate a (B, n) action (real, finite; clipped to [-1, 1]) and scale it to torque, N m; None in pid mode,
+        where the action is checked and then ignored."""
+        torque = scale_action(action, self.limit)  # validated in every mode, pid included
+        return None if self.settings.action_mode == "pid" else torque
 
     def step(self, action: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                                    NDArray[np.bool_], dict[str, Any]]:

@@ -6,6 +6,8 @@ import argparse
 import json
 import logging
 import math
+import os
+import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -26,6 +28,31 @@ def _floats(text: str) -> list[float]:
         return [float(x) for x in text.replace(",", " ").split()]
     except ValueError as e:
         raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from e
+
+
+def _counts(text: str) -> list[int]:
+    try:
+        values = [int(x) for x in _names(text)]
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"expected whole numbers separated by commas, got {text!r}") from e
+    if not values or min(values) < 1:
+        raise argparse.ArgumentTypeError(f"expected whole numbers >= 1, got {text!r}")
+    return values
+
+
+NEGATIVE = re.compile(r"-\.?\d")
+"""A value that starts like a negative number ('-6.28,0,0'), which argparse would take for an option."""
+
+
+def _join_negative_values(argv: Sequence[str]) -> list[str]:
+    """`--q0 -6.28,0,0` as `--q0=-6.28,0,0`, so that argparse reads the value as one."""
+    out: list[str] = []
+    for token in argv:
+        if out and out[-1].startswith("--") and "=" not in out[-1] and NEGATIVE.match(token):
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
 
 
 def _names(text: str) -> list[str]:
@@ -92,7 +119,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("what", choices=("plan", "loop", "env", "sweep", "all"), nargs="?", default="all",
                    help="what to time ('all' skips the minute-long sweep)")
     b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
-    b.add_argument("--sizes", type=lambda s: [int(x) for x in _names(s)], help="loop batch sizes")
+    b.add_argument("--sizes", type=_counts, help="loop batch sizes, comma-separated whole numbers >= 1")
     b.add_argument("--scenarios", type=int, default=10_000, help="sweep: nominal scenarios (default 10000)")
     b.add_argument("--workers", type=int, help="sweep: worker processes (default: all cores)")
 
@@ -122,7 +149,8 @@ def _parser() -> argparse.ArgumentParser:
 
     a = sub.add_parser("audit", help="check the paper's claims against sweep files; writes AUDIT.md and figures")
     a.add_argument("sweeps", nargs="+", type=Path, help="sweep CSV files")
-    a.add_argument("--out", type=Path, default=Path("AUDIT.md"), help="output Markdown (default AUDIT.md)")
+    a.add_argument("--out", type=Path, default=Path("results/AUDIT.md"), help="output Markdown (default "
+                   "results/AUDIT.md)")
 
     r = sub.add_parser("render", help="execution videos per planner, a 2x2 clip and the Fig. 1 snapshot strip")
     r.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
@@ -132,7 +160,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--height", type=int, default=480, help="image height, px (default 480)")
     r.add_argument("--camera", default="front", help="front | side | top (default front)")
     r.add_argument("--every", type=int, default=1, help="keep one control period in EVERY (default 1)")
-    r.add_argument("--out", type=Path, default=Path("videos"), help="output folder (default: videos/)")
+    r.add_argument("--out", type=Path, default=Path("results/videos"), help="output folder (default: "
+                   "results/videos/)")
 
     sub.add_parser("doctor", help="which OpenGL backends render here, and the library versions")
 
@@ -464,7 +493,7 @@ def _rl(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (2 on bad input, with a one-line message on stderr)."""
-    args = _parser().parse_args(argv)
+    args = _parser().parse_args(_join_negative_values(sys.argv[1:] if argv is None else argv))
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         commands = {"compare": _compare, "frontier": _frontier, "tune": _tune, "bench": _bench, "gains": _gains,
@@ -472,4 +501,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return commands[args.command](args)
     except MjtrajError as e:
         print(f"mjtraj: error: {e}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # the reader went away (`mjtraj compare --json | head`): nothing more to say
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+    except KeyboardInterrupt:
+        again = " with --resume" if args.command == "sweep" else ""
+        print(f"mjtraj: interrupted; run the same command{again} to continue", file=sys.stderr)
+        return 130
+    except OSError as e:
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"mjtraj: error: {where}{e.strerror or e}", file=sys.stderr)
         return 2

@@ -6,6 +6,7 @@ import csv
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -45,7 +46,8 @@ def test_compare_json_and_overrides(tmp_path, capsys):
 
 @pytest.mark.parametrize(("args", "message"), [
     (["--q0", "0,0"], "mjtraj: error: q0: expected 3 values, got shape (2,)"),
-    (["--qg", "0,0,4"], "mjtraj: error: qg: joint 'elbow_joint' = 4 rad is outside its range [-3.14159, 3.14159]"),
+    (["--qg", "0,0,4"], "mjtraj: error: qg: joint 'elbow_joint' = 4.0 rad is outside its range "
+                        "[-3.141592653589793, 3.141592653589793]"),
     (["--duration", "0"], "mjtraj: error: duration: expected a positive number, got 0.0"),
     (["--dt", "0.03"], "mjtraj: error: duration: expected a whole number of control periods dt=0.03 s, got 2.0 s "
                        "(66.6667 periods)"),
@@ -83,3 +85,61 @@ def test_python_dash_m(tmp_path):
     done = subprocess.run([sys.executable, "-m", "mjtraj", "gains"], capture_output=True, text=True, check=True)
     assert done.stdout.startswith("# gain rule: ")
 
+
+
+def test_negative_vectors_need_no_equals_sign(tmp_path, capsys):
+    assert main(["compare", "--q0", "-1,-1.5707963267948966,0", "--no-figures", "--json", "--out", str(tmp_path)]) == 0
+    assert json.loads(capsys.readouterr().out)["scenario"]["task"]["q0"] == [-1.0, -1.5707963267948966, 0.0]
+
+
+def test_a_zero_move_compares_without_error(tmp_path, capsys):
+    still = "0,-1.5707963267948966,0"
+    assert main(["compare", "--q0", still, "--qg", still, "--no-figures", "--out", str(tmp_path)]) == 0
+    assert "Table I (ours" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["bench", "loop", "--sizes", "0"], "mjtraj: error: argument --sizes: expected whole numbers >= 1, got '0'"),
+    (["compare", "--planners", "cubic,cubic", "--no-figures"],
+     "mjtraj: error: planners: expected distinct planners, got cubic more than once"),
+])
+def test_more_bad_input(args, message, capsys, tmp_path):
+    try:
+        code = main([*args, *(["--out", str(tmp_path / "o")] if args[0] == "compare" else [])])
+    except SystemExit as exit_:
+        code = exit_.code
+    assert code == 2 and capsys.readouterr().err == message + "\n"
+
+
+def test_os_errors_are_one_line(tmp_path, capsys):
+    occupied = tmp_path / "a_file"
+    occupied.write_text("")
+    assert main(["compare", "--no-figures", "--out", str(occupied)]) == 2
+    assert capsys.readouterr().err == f"mjtraj: error: {occupied}: File exists\n"
+
+
+def test_interrupt_exits_130_with_one_line(monkeypatch, capsys):
+    import mjtraj.cli as cli
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_gains", interrupted)
+    assert main(["gains"]) == 130
+    assert capsys.readouterr().err == "mjtraj: interrupted; run the same command to continue\n"
+
+
+def test_a_closed_pipe_is_not_a_traceback(tmp_path):
+    command = f"{sys.executable} -m mjtraj compare --json --no-figures --out {tmp_path} | head -1"
+    done = subprocess.run(["bash", "-o", "pipefail", "-c", command], capture_output=True, text=True)
+    assert done.stdout == "{\n" and "Traceback" not in done.stderr and done.returncode == 0
+
+
+def test_defaults_leave_tracked_files_alone():
+    """Run from a checkout, the commands' default outputs are under results/ (ignored by git)."""
+    from mjtraj.cli import _parser
+
+    parser = _parser()
+    assert parser.parse_args(["render"]).out == Path("results/videos")
+    assert parser.parse_args(["audit", "x.csv"]).out == Path("results/AUDIT.md")
+    assert parser.parse_args(["compare"]).out == Path("results")

@@ -91,3 +91,11 @@ def test_references_must_match_the_control_period(model, scenario, task):
                                                 r"got 0.04 s from 'cubic'$"):
         ClosedLoop(model, scenario.loop).run([slow])
 
+
+
+def test_the_number_of_periods_is_bounded(scenario):
+    from mjtraj.core.task import MAX_STEPS, Task
+
+    with pytest.raises(InvalidInputError, match=rf"^duration, dt: expected at most MAX_STEPS = {MAX_STEPS} control "
+                                                r"periods, got 2.0 s / 1e-09 s = 2e\+09$"):
+        Task.create(scenario.task.q0, scenario.task.qg, 2.0, 1e-9)

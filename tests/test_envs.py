@@ -302,7 +302,7 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     ({"task": "circle"}, r"^task: unknown value 'circle'; valid: paper, random, explicit$"),
     ({"camera": "wrist"}, r"^camera: unknown camera 'wrist'; valid: front, side, top$"),
     ({"task": "explicit", "q0": [0, 0, 4], "qg": [0, 0, 0]},
-     r"^q0: joint 'elbow_joint' = 4 rad is outside its range \[-3.14159, 3.14159\]$"),
+     r"^q0: joint 'elbow_joint' = 4.0 rad is outside its range \[-3.141592653589793, 3.141592653589793\]$"),
     ({"task": "explicit", "q0": [0, 0, 0]}, r"^task: 'explicit' needs both q0 and qg \(rad\)$"),
     ({"q0": [0, 0, 0], "qg": [0, 0, 1]}, r"^q0, qg: only used with task='explicit', got task='paper'$"),
     ({"width": 4000}, r"^width: expected at most the offscreen buffer's 1920 pixels, got 4000; raise it with the "
@@ -336,3 +336,18 @@ def test_user_planner_object(model):
     _, expected, _ = episode(reference, seed=0)
     np.testing.assert_array_equal(rewards, expected)
 
+
+
+@pytest.mark.parametrize("mode", ["pid", "residual", "torque"])
+@pytest.mark.parametrize(("action", "message"), [
+    (np.array([np.nan, 0.0, 0.0]), r"^action: expected finite values in \[-1, 1\], got \[nan, 0.0, 0.0\]$"),
+    ("abc", r"^action: expected real numbers in \[-1, 1\], got str$"),
+    ({"a": 1}, r"^action: expected real numbers in \[-1, 1\], got dict$"),
+    (np.array([1j, 0, 0]), r"^action: expected real numbers in \[-1, 1\], got complex128 values$"),
+    (np.zeros(2), r"^action: expected shape \(3,\), got \(2,\)$"),
+])
+def test_actions_are_checked_in_every_mode(mode, action, message):
+    env = UR5TrackEnv(action_mode=mode)
+    env.reset(seed=0)
+    with pytest.raises(InvalidInputError, match=message):
+        env.step(action)

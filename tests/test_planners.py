@@ -164,3 +164,13 @@ def test_alpha_and_split_scale_brysons_state_weight(model, task):
     with pytest.raises(InvalidInputError, match=r"^alpha, split: they scale Bryson's state weight; give them or "
                                                 r"state_weight, not both$"):
         make("optimal", alpha=0.5, state_weight=(1.0,) * 6)
+
+
+def test_bad_options_fail_at_construction_and_never_spoil_other_tasks(model, task):
+    with pytest.raises(InvalidInputError, match=r"^torque_bound: expected positive values, got -1$"):
+        make("optimal", torque_bound=-1)
+    with pytest.raises(InvalidInputError, match=r"^q_bar: expected finite numbers \(one per joint\), got \(\)$"):
+        make("optimal", q_bar=())
+    wrong = make("optimal", q_bar=(0.0, 0.0))  # two values for three joints: a per-task error
+    results = wrong.plan_many([task, task], model)
+    assert [str(r) for r in results] == ["q_bar: expected 3 values, got shape (2,)"] * 2

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from mjtraj.exceptions import InvalidInputError
@@ -67,6 +68,44 @@ def test_joint_range(model, scenario):
     from mjtraj.core.task import Task
 
     with pytest.raises(InvalidInputError, match=r"^qg: joint 'elbow_joint' = 3.5 rad is outside its range "
-                                                r"\[-3.14159, 3.14159\]$"):
+                                                r"\[-3.141592653589793, 3.141592653589793\]$"):
         Task.create(scenario.task.q0, [0.0, 0.0, 3.5], 2.0, 0.02, model=model)
+    # the message shows every digit: a limit just outside is not printed as equal to the range
+    with pytest.raises(InvalidInputError, match=r"= -3.1415926535897936 rad is outside its range "
+                                                r"\[-3.141592653589793,"):
+        Task.create(scenario.task.q0, [0.0, 0.0, np.nextafter(-np.pi, -4)], 2.0, 0.02, model=model)
 
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda t: t.replace('name = "paper"', 'name = "../escaped"'),
+     r"^config: name: expected a name of letters, digits, '_', '-' and '.' \(not a path\), got '\.\./escaped'$"),
+    (lambda t: t.replace('name = "paper"', 'name = "/abs/path"'), r"^config: name: expected a name"),
+    (lambda t: t + "\n[planners]\ncubic = 5\n", r"^config: \[planners.cubic\] must be a table of options, got 5$"),
+    (lambda t: t.replace("q0 = [0.0, -1.5707963267948966, 0.0]", "q0 = true"),
+     r"^config: q0 in \[task\]: expected a list of numbers, got True$"),
+    (lambda t: t.replace("qg = [1.0, -0.5707963267948966, 1.0]", "qg = 1.0"),
+     r"^config: qg in \[task\]: expected a list of numbers, got 1.0$"),
+    (lambda t: t.replace("duration = 2.0", "duration = true"),
+     r"^config: duration in \[task\]: expected a number, got True$"),
+    (lambda t: t.replace('linearization = "midpoint"', 'linearization = "midpoint"\ntorque_bound = -1'),
+     r"^torque_bound: expected positive values, got -1$"),
+])
+def test_malformed_files_name_the_key(tmp_path, edit, message):
+    with pytest.raises(InvalidInputError, match=message):
+        load_scenario(write(tmp_path, edit(paper_text())))
+
+
+def test_a_binary_file_is_not_a_scenario(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n\x00\xff")
+    with pytest.raises(InvalidInputError, match=r"^config: .*s\.toml is not a text file \(not UTF-8 at byte 0\)$"):
+        load_scenario(path)
+
+
+def test_shipped_scenarios_load_by_name():
+    from mjtraj.study.scenario import shipped_scenarios
+
+    assert shipped_scenarios() == ("paper", "paper_oracle", "paper_tuned")
+    assert load_scenario("paper_tuned").tuning["mode"] == "held out"
+    assert load_scenario("paper_oracle").name == "paper_oracle"

@@ -13,6 +13,9 @@ from mjtraj.checks import frozen, positive, vector
 from mjtraj.core.model import JointInfo
 from mjtraj.exceptions import InvalidInputError
 
+MAX_STEPS = 100_000
+"""Most control periods a task may have (a 100 s motion at 1 ms): each execution records 8 arrays of N x n floats."""
+
 
 @dataclass(frozen=True)
 class Task:
@@ -48,6 +51,9 @@ class Task:
     def steps(self) -> int:
         """N, the number of control periods."""
         ratio = self.duration / self.dt
+        if ratio > MAX_STEPS:
+            raise InvalidInputError(f"duration, dt: expected at most MAX_STEPS = {MAX_STEPS} control periods, got "
+                                    f"{self.duration} s / {self.dt} s = {ratio:.6g}")
         steps = round(ratio)
         if steps < 1 or abs(ratio - steps) > 1e-9 * max(1.0, ratio):
             raise InvalidInputError(f"duration: expected a whole number of control periods dt={self.dt} s, "
@@ -79,8 +85,8 @@ class Task:
             if bad.size:
                 j = int(bad[0])
                 raise InvalidInputError(
-                    f"{label}: joint '{joints.names[j]}' = {q[j]:.6g} rad is outside its range "
-                    f"[{joints.lower[j]:.6g}, {joints.upper[j]:.6g}]")
+                    f"{label}: joint '{joints.names[j]}' = {float(q[j])!r} rad is outside its range "
+                    f"[{float(joints.lower[j])!r}, {float(joints.upper[j])!r}]")
 
 
 def random_task(rng: np.random.Generator, model: mujoco.MjModel, *, max_displacement: float, duration: float,

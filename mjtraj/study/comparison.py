@@ -38,6 +38,8 @@ class Comparison:
         if "optimal" not in self.metrics:
             return float("nan")
         value = getattr(self.metrics[planner], metric)
+        if value == 0.0:
+            return float("nan")  # no reduction of nothing (a zero move)
         return 100.0 * (value - getattr(self.metrics["optimal"], metric)) / value
 
 

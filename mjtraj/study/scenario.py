@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 import sys
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -43,6 +44,8 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 TASK_KEYS = ("q0", "qg", "duration", "dt")
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+"""A scenario name: it names output files, so it is never a path."""
 GAIN_KEYS = ("kp", "ki", "kd")
 SECTIONS = ("name", "model", "task", "controller", "planners", "cost", "tuning")
 
@@ -203,8 +206,9 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
         if key not in SECTIONS:
             raise InvalidInputError(f"config: unknown key {key!r}; valid: {', '.join(SECTIONS)}")
     name = data.get("name", "scenario")
-    if not isinstance(name, str) or not name:
-        raise InvalidInputError(f"config: name: expected a non-empty string, got {name!r}")
+    if not isinstance(name, str) or not NAME.fullmatch(name):
+        raise InvalidInputError(f"config: name: expected a name of letters, digits, '_', '-' and '.' (not a path), "
+                                f"got {name!r}")
     model_path = data.get("model")
     if model_path is not None and not isinstance(model_path, str):
         raise InvalidInputError(f"config: model: expected a file path (a string), got {model_path!r}")

@@ -99,6 +99,16 @@ class Optimal(Planner):
         choice("solver", self.solver, SOLVERS)
         positive("fd_eps", self.fd_eps)
         check_weight_options(self)
+        for name in ("q_bar", "torque_bound"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            array = np.asarray(value, dtype=object).ravel()
+            if array.size == 0 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+                                          for v in array):
+                raise InvalidInputError(f"{name}: expected finite numbers (one per joint), got {value!r}")
+            if name == "torque_bound" and np.any(array.astype(float) <= 0):
+                raise InvalidInputError(f"torque_bound: expected positive values, got {value!r}")
 
     def operating_point(self, task: Task) -> NDArray[np.float64]:
         """q_bar for `task`; shape (n,), rad."""
@@ -156,10 +166,11 @@ class Optimal(Planner):
         for i, task in enumerate(tasks):
             try:
                 task.check_limits(model)
-                prepared.setdefault((task.steps, task.dt), []).append(
-                    (i, task, self.operating_point(task), self.bounds(task, model)))
+                entry = (i, task, self.operating_point(task), self.bounds(task, model))
             except MjtrajError as e:
                 results[i] = e
+                continue
+            prepared.setdefault((task.steps, task.dt), []).append(entry)
         for (steps, dt), group in prepared.items():
             self._plan_group(group, steps, dt, model, results)
         return [r for r in results if r is not None]
