@@ -20,80 +20,135 @@ FIGURES = {
 }
 
 
+def _variant(result: Comparison) -> str:
+    """The controller variant and the score, for every title."""
+    loop = result.scenario.loop
+    return (f"FF ({loop.feedforward}, {loop.ff_accel}) + PID, gravity {loop.gravity_comp}; score: J_exec with "
+            f"{'Bryson weights per task' if result.scenario.scoring.rule == 'bryson' else 'the scenario weights'}")
+
+
+def _dwarfed(series: dict[str, np.ndarray]) -> bool:
+    """One planner's peak is over 3 times the next largest: the others need a zoomed panel."""
+    peaks = sorted((float(np.nanmax(np.abs(v))) for v in series.values()), reverse=True)
+    return len(peaks) > 1 and peaks[1] > 0 and peaks[0] > 3 * peaks[1]
+
+
 def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path]:
-    """Write FIGURES into `out`; returns the paths written."""
+    """Write FIGURES into `out` (each atomically); returns the paths written.
+
+    Per-period signals held over the period (planned ZOH accelerations, corrective torques) are drawn as steps; when
+    one planner dwarfs the others, a second column zooms on the others; the torque figure marks the saturation; the
+    bar chart sets the paper's Table I beside ours; every title names the controller variant and the score.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from mjtraj.files import atomic_path
+    from mjtraj.study.paper import PAPER_TABLE
+
     out.mkdir(parents=True, exist_ok=True)
     names = result.planners
     ro = result.rollout
-    s = result.scenario
     t = np.arange(ro.e.shape[1]) * ro.dt
     n = ro.e.shape[2]
     joints = ("shoulder_pan", "shoulder_lift", "elbow")[:n] if n <= 3 else tuple(f"joint {i}" for i in range(n))
     colors = {name: f"C{i}" for i, name in enumerate(names)}
+    variant = _variant(result)
     written = []
 
-    def per_joint(filename: str, series: dict[str, np.ndarray], ylabel: str, times: np.ndarray) -> None:
-        fig, grid = plt.subplots(n, 1, figsize=(7, 2.1 * n), sharex=True, squeeze=False)
-        axes = grid[:, 0]
-        for j, ax in enumerate(axes):
-            for name in names:
-                ax.plot(times, series[name][:, j], label=name, color=colors[name], lw=1.4)
-            ax.set_ylabel(f"{joints[j]}\n{ylabel}")
-            ax.grid(alpha=0.3)
-        axes[0].legend(ncol=len(names), fontsize=8, loc="upper right")
-        axes[-1].set_xlabel("time [s]")
-        fig.suptitle(FIGURES[filename])
-        fig.tight_layout()
-        fig.savefig(out / filename, dpi=dpi)
+    def save(fig, filename: str) -> None:  # noqa: ANN001
+        with atomic_path(out / filename) as tmp:
+            fig.savefig(tmp, dpi=dpi)
         plt.close(fig)
         written.append(out / filename)
+
+    def per_joint(filename: str, series: dict[str, np.ndarray], ylabel: str, times: np.ndarray, *,
+                  steps: bool = False, limit: float | None = None) -> None:
+        zoom = _dwarfed(series)
+        biggest = max(series, key=lambda k: float(np.nanmax(np.abs(series[k]))))
+        fig, grid = plt.subplots(n, 2 if zoom else 1, figsize=(11 if zoom else 7, 2.1 * n), sharex=True,
+                                 squeeze=False)
+        for j in range(n):
+            for c in range(grid.shape[1]):
+                ax = grid[j, c]
+                for name in names:
+                    if c == 1 and name == biggest:
+                        continue
+                    if steps:
+                        ax.step(times, series[name][:, j], where="post", label=name, color=colors[name], lw=1.3)
+                    else:
+                        ax.plot(times, series[name][:, j], label=name, color=colors[name], lw=1.4)
+                if limit is not None and c == 0:
+                    for sign in (-1, 1):
+                        ax.axhline(sign * limit, color="k", ls="--", lw=0.8)
+                ax.grid(alpha=0.3)
+                if c == 0:
+                    ax.set_ylabel(f"{joints[j]}\n{ylabel}")
+                if j == 0:
+                    ax.set_title("all planners" + (f" (dashed: saturation ±{limit:g})" if limit else "") if c == 0
+                                 else f"zoom: without {biggest}", fontsize=9)
+        grid[0, 0].legend(ncol=len(names), fontsize=7, loc="upper right")
+        for c in range(grid.shape[1]):
+            grid[-1, c].set_xlabel("time [s]")
+        fig.suptitle(f"{FIGURES[filename]} ({variant})", fontsize=10)
+        fig.tight_layout()
+        save(fig, filename)
 
     ref_t = result.references[names[0]].t
-    per_joint("fig2_planned_acceleration.png", {k: result.references[k].qdd for k in names}, "qdd [rad/s²]", ref_t)
+    per_joint("fig2_planned_acceleration.png", {k: result.references[k].qdd for k in names}, "qdd [rad/s²]", ref_t,
+              steps=True)
     per_joint("fig3_tracking_error.png", {k: ro.e[i] for i, k in enumerate(names)}, "e [rad]", t)
-    per_joint("fig4_corrective_torque.png", {k: ro.dtau[i] for i, k in enumerate(names)}, "Δτ [N m]", t)
+    limit = float(np.max(result.scenario.torque_limit))
+    per_joint("fig4_corrective_torque.png", {k: ro.dtau[i] for i, k in enumerate(names)}, "Δτ [N m]", t, steps=True,
+              limit=limit)
 
     def cumulative(filename: str, series: dict[str, np.ndarray], ylabel: str) -> None:
-        fig, ax = plt.subplots(figsize=(7, 3.6))
-        for name in names:
-            ax.plot(t, series[name], label=name, color=colors[name], lw=1.6)
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel(ylabel)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-        ax.set_title(FIGURES[filename])
+        zoom = _dwarfed(series)
+        biggest = max(series, key=lambda k: float(np.nanmax(np.abs(series[k]))))
+        fig, axes = plt.subplots(1, 2 if zoom else 1, figsize=(11 if zoom else 7, 3.6), squeeze=False)
+        for c, ax in enumerate(axes[0]):
+            for name in names:
+                if c == 1 and name == biggest:
+                    continue
+                ax.plot(t, series[name], label=name, color=colors[name], lw=1.6)
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+            if zoom:
+                ax.set_title("all planners" if c == 0 else f"zoom: without {biggest}", fontsize=9)
+        fig.suptitle(f"{FIGURES[filename]} ({variant})", fontsize=10)
         fig.tight_layout()
-        fig.savefig(out / filename, dpi=dpi)
-        plt.close(fig)
-        written.append(out / filename)
+        save(fig, filename)
 
     cumulative("fig5_cumulative_activity.png",
                {k: np.cumsum(np.abs(ro.dtau[i]).sum(axis=1)) * ro.dt for i, k in enumerate(names)},
                "∫ Σ|Δτ| dt [N m s]")
-    tracking, effort = step_cost(ro.e, ro.ed, ro.dtau, s.Q_exec, s.R_exec)
+    tracking, effort = step_cost(ro.e, ro.ed, ro.dtau, result.scenario.Q_exec, result.scenario.R_exec)
     per_step = tracking + effort
     cumulative("fig6_cumulative_cost.png", {k: np.cumsum(per_step[i]) for i, k in enumerate(names)},
                "cumulative J_exec")
 
     metric_labels = (("rms_dtau", "RMS Δτ [N m]"), ("int_dtau", "Int. Δτ [N m s]"), ("rms_err", "RMS err [rad]"),
                      ("cost", "J_exec"))
-    fig, axes = plt.subplots(1, len(metric_labels), figsize=(11, 3.2))
+    fig, axes = plt.subplots(1, len(metric_labels), figsize=(12, 3.6))
+    width = 0.4
     for ax, (key, label) in zip(axes, metric_labels, strict=True):
-        values = [getattr(result.metrics[name], key) for name in names]
-        ax.bar(range(len(names)), values, color=[colors[nm] for nm in names])
-        ax.set_xticks(range(len(names)), names, rotation=30, fontsize=8)
+        x = np.arange(len(names))
+        ours = [getattr(result.metrics[name], key) for name in names]
+        paper = [PAPER_TABLE.get(name, {}).get(key, np.nan) for name in names]
+        ax.bar(x - width / 2, ours, width, color=[colors[nm] for nm in names], label="ours")
+        ax.bar(x + width / 2, paper, width, color="none", edgecolor="k", hatch="//", label="paper (Table I)")
+        ax.set_yscale("log")
+        ax.set_xticks(x, names, rotation=30, fontsize=8)
         ax.set_title(label, fontsize=9)
-        ax.grid(axis="y", alpha=0.3)
-    fig.suptitle(FIGURES["fig7_metrics.png"])
+        ax.grid(axis="y", alpha=0.3, which="both")
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"{FIGURES['fig7_metrics.png']}: ours beside the paper's Table I, log scale ({variant})", fontsize=10)
     fig.tight_layout()
-    fig.savefig(out / "fig7_metrics.png", dpi=dpi)
-    plt.close(fig)
-    written.append(out / "fig7_metrics.png")
+    save(fig, "fig7_metrics.png")
     return written
 
 
