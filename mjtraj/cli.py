@@ -229,7 +229,7 @@ def _compare(args: argparse.Namespace) -> int:
 
     from mjtraj.files import write_text_atomic
     from mjtraj.study.comparison import compare, comparison_record
-    from mjtraj.study.report import format_report, results_csv
+    from mjtraj.study.report import format_report, results_csv, write_series
 
     scenario = _scenario(args)
     scenario.task.check_limits(scenario.model)
@@ -245,6 +245,7 @@ def _compare(args: argparse.Namespace) -> int:
         record = _json_safe(comparison_record(result))
         write_text_atomic(args.out / "results.json", json.dumps(record, indent=2) + "\n")
         write_text_atomic(args.out / "results.csv", results_csv(result))
+        write_series(result, args.out / "results.npz")
         figures = []
         if not args.no_figures:
             from mjtraj.study.plots import write_figures
@@ -255,7 +256,7 @@ def _compare(args: argparse.Namespace) -> int:
         print(json.dumps(record, indent=2))
     else:
         print(format_report(result))
-        print(f"\nwrote {args.out / 'results.json'}, {args.out / 'results.csv'}"
+        print(f"\nwrote {args.out / 'results.json'}, {args.out / 'results.csv'}, {args.out / 'results.npz'}"
               + (f" and {len(figures)} figures" if figures else ""))
     return 0
 

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mjtraj.cli import main
@@ -143,3 +144,13 @@ def test_defaults_leave_tracked_files_alone():
     assert parser.parse_args(["render"]).out == Path("results/videos")
     assert parser.parse_args(["audit", "x.csv"]).out == Path("results/AUDIT.md")
     assert parser.parse_args(["compare"]).out == Path("results")
+
+
+def test_compare_keeps_its_time_series(tmp_path, scenario):
+    assert main(["compare", "--no-figures", "--planners", "cubic,optimal", "--out", str(tmp_path)]) == 0
+    series = np.load(tmp_path / "results.npz")
+    expected = compare(scenario, ("cubic", "optimal"))
+    assert series["planners"].tolist() == ["cubic", "optimal"]
+    np.testing.assert_array_equal(series["dtau"], expected.rollout.dtau)
+    np.testing.assert_array_equal(series["q_ref"][1], expected.references["optimal"].q)
+    assert series["e"].shape == (2, 100, 3) and series["t"].shape == (101,)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -133,3 +134,17 @@ def format_frontier(result: Frontier) -> str:
 
 LABELS = {"rms_dtau": "RMS dtau", "int_dtau": "Int. dtau", "rms_err": "RMS Err.", "peak_dtau": "Peak dtau",
           "cost": "J_exec"}
+
+
+def write_series(result: Comparison, path: Path) -> Path:
+    """results.npz: every planner's time series, to re-plot without re-running. Arrays: planners (B,), t (N+1,) s,
+    q_ref (B, N+1, n) rad, and per period q, e (rad), tau_ff, tau_fb, dtau (N m), shapes (B, N, n); row b is
+    planners[b]. Written atomically."""
+    from mjtraj.files import atomic_path
+
+    ro = result.rollout
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, planners=np.array(result.planners), t=result.references[result.planners[0]].t,
+                 q_ref=np.stack([result.references[name].q for name in result.planners]), q=ro.q, e=ro.e,
+                 tau_ff=ro.tau_ff, tau_fb=ro.tau_fb, dtau=ro.dtau)
+    return path
