@@ -27,7 +27,7 @@ def synthetic(path, costs, *, scenarios=40, families=("nominal",)):
                 row = {"family": family, "scenario": i, "unit": 0, "planner": planner, "ff_accel": "sample",
                        "gravity_comp": "native", "status": "ok", "reason": "",
                        **{m: value for m in METRIC_NAMES}, **{m: value for m in EXTRA_METRICS},
-                       "max_displacement": 1.2, **{v: "x" for v in VERSION_COLUMNS}, "sweep_seed": 0}
+                       "max_displacement": 1.2, "duration": 2.0, **{v: "x" for v in VERSION_COLUMNS}, "sweep_seed": 0}
                 rows.append(row)
     columns = list(rows[0])
     path.write_text(csv_text(columns, rows))
@@ -78,3 +78,14 @@ def test_below_reads_the_interval(tmp_path, ratio, expected):
     data = SweepData([synthetic(tmp_path / "b.csv", costs)])
     verdict, r = below(data, data.conditions[0], "optimal", "cubic", "cost")
     assert verdict == expected and r.ratio == pytest.approx(ratio, rel=0.01)
+
+
+def test_the_papers_columns_with_their_arithmetic(tmp_path):
+    costs = {"nominal": {"optimal": 1.0, "cubic": 2.0, "quintic": 2.0, "trapezoidal": 3.0}}
+    text = write_audit([synthetic(tmp_path / "w.csv", costs)], tmp_path / "w.md", figures=False)
+    section = text.split("## The paper's columns and our definitions", 1)[1].split("\n## ", 1)[0]
+    assert "Int.: 100 (6.329 - 4.535) / 6.329 = 28.35 %; RMS: 28.00 %" in section
+    assert "100 (0.0003622 - 0.0002825) / 0.0003622 = 22.0 %; as an increase over optimal: 28.2 %" in section
+    assert "The paper's Table I gives 0.35 to 0.42" in section
+    # the synthetic rows have int_dtau = rms_dtau = rms_dtau_norm = cost and T = 2: the ratios are 1/6
+    assert "| nominal, ff_accel=sample, gravity_comp=native | cubic | 0.167 | 0.167 |" in section
