@@ -13,8 +13,6 @@ import gymnasium as gym
 from mjtraj._lazy import lazy_exports
 
 ENV_ID = "UR5Track-v0"
-MAX_EPISODE_STEPS = 100
-"""The paper's N = T/dt = 2 s / 0.02 s: the registered episode length."""
 
 
 def register_envs() -> None:
@@ -22,7 +20,8 @@ def register_envs() -> None:
     if ENV_ID in gym.registry:
         return
     gym.register(id=ENV_ID, entry_point="mjtraj.envs.ur5_track:UR5TrackEnv",
-                 vector_entry_point="mjtraj.envs.vector:UR5TrackVectorEnv", max_episode_steps=MAX_EPISODE_STEPS)
+                 vector_entry_point="mjtraj.envs.vector:UR5TrackVectorEnv")
+    # no max_episode_steps: an episode ends by itself after N = duration/dt steps, whatever the duration
 
 
 register_envs()
@@ -51,6 +50,6 @@ if TYPE_CHECKING:
     from mjtraj.envs.ur5_track import UR5TrackEnv, action_space, observation_space
     from mjtraj.envs.vector import UR5TrackVectorEnv
 
-__all__ = ["ACTION_MODES", "ENV_ID", "MAX_EPISODE_STEPS", "STEP_INFO", "TASKS", "EnvOptions", "TrackCore",
+__all__ = ["ACTION_MODES", "ENV_ID", "STEP_INFO", "TASKS", "EnvOptions", "TrackCore",
            "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
            "observation_space", "observe", "register_envs", "resolve", "scale_action"]

@@ -14,7 +14,7 @@ import numpy.typing as npt
 from mjtraj.envs.settings import TrackSettings
 from numpy.typing import NDArray
 
-from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, gravity_along, metrics_arrays, step_cost
+from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, Task, gravity_along, metrics_arrays, step_cost
 from mjtraj.exceptions import InvalidInputError
 
 STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort")
@@ -82,7 +82,15 @@ class TrackCore:
 
     def reset(self, rngs: Sequence[np.random.Generator], ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
         """Start new episodes on simulations `ids` (all if None), one rng each; their observations (len, d)."""
-        planned = [self.plan(rng) for rng in rngs]
+        return self.begin([self.plan(rng) for rng in rngs], ids)
+
+    def plan_task(self, task: Task) -> tuple[Reference, tuple[NDArray[np.float64], NDArray[np.float64]]]:
+        """`task`'s reference and the weights that score it (an episode asked for by reset options)."""
+        return self.settings.planner.plan(task, self.model), self.settings.weights(task)
+
+    def begin(self, planned: Sequence[tuple[Reference, tuple[NDArray[np.float64], NDArray[np.float64]]]],
+              ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+        """Start episodes on `planned` (reference, weights) pairs on simulations `ids` (all if None)."""
         rows = np.arange(self.num) if ids is None else ids
         for row, (reference, (q_diag, r_diag)) in zip(rows, planned, strict=True):
             self.references[row] = reference

@@ -12,10 +12,12 @@ from mjtraj.envs.core import TrackCore
 from mjtraj.envs.settings import RENDER_MODES, TrackSettings, resolve
 from numpy.typing import NDArray
 
-from mjtraj.core import ClosedLoop, JointInfo
+from mjtraj.core import ClosedLoop, JointInfo, Task
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.media import ArmRenderer
 
+RESET_OPTIONS = ("q0", "qg", "duration")
+"""Keys `reset(options=...)` accepts: one episode of that task (the others keep the env's)."""
 VELOCITY_BOUND = 200.0
 """rad/s, the velocity bounds of the observation space: 60 N m on the lightest joint inertia (0.09 kg m^2) cannot
 reach it before the tracking error exceeds pi, which ends the episode."""
@@ -89,14 +91,14 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     The arm rests on the reference's first sample (q0, zero velocity), with the integral of the PID at zero.
     `task="paper"`: the paper scenario's move (q0 = (0, -pi/2, 0), qg = q0 + 1 rad). `task="random"`: q0 uniform
     in the joint ranges, qg uniform in the ranges within +-max_displacement of q0, from `reset(seed=...)`'s
-    generator. `task="explicit"`: your q0 and qg.
+    generator. `task="explicit"`: your q0 and qg. `reset(options={"q0": ..., "qg": ..., "duration": ...})` runs one
+    episode of that task instead (each key defaults to the env's).
 
     ## Episode End
     Terminated after N = duration/dt steps (the motion's horizon is part of the state through the phase), or
-    earlier when the closed loop diverges (|e| above pi on a joint, or a non-finite state). `gym.make` adds
-    `TimeLimit` at the registered 100 steps (the paper's N): pass `max_episode_steps=N` to `gym.make` when you
-    change duration or dt. At the end `info["metrics"]` holds the episode's Metrics (`mjtraj.Metrics` fields;
-    NaN if diverged) and `info["diverged"]` says whether it diverged.
+    earlier when the closed loop diverges (|e| above pi on a joint, or a non-finite state); the episode length
+    follows duration and dt (no TimeLimit is registered). At the end `info["metrics"]` holds the episode's Metrics
+    (`mjtraj.Metrics` fields; NaN if diverged) and `info["diverged"]` says whether it diverged.
 
     ## Info
     Every step: tau_ff, tau_fb, dtau (N m, shape (3,)), saturated (bool (3,)), e (rad, (3,)), reward_tracking,
@@ -158,9 +160,30 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float64], dict[str, Any]]:
         super().reset(seed=seed)
-        obs = self._core.reset([self.np_random])
+        if options:
+            obs = self._core.begin([self._core.plan_task(self._task_of(options))])
+        else:
+            obs = self._core.reset([self.np_random])
         self._running = True
         return obs[0], {}
+
+    def _task_of(self, options: dict[str, Any]) -> Task:
+        """The task `reset(options=...)` asks for: q0, qg (rad) and duration (s), each defaulting to this env's."""
+        unknown = sorted(set(options) - set(RESET_OPTIONS))
+        if unknown:
+            raise InvalidInputError(f"options: unknown key {unknown[0]!r}; valid: {', '.join(RESET_OPTIONS)}")
+        s = self.settings
+        base = s.fixed_task
+        q0 = options.get("q0", None if base is None else base.q0)
+        qg = options.get("qg", None if base is None else base.qg)
+        if q0 is None or qg is None:
+            raise InvalidInputError("options: a random-task env needs both q0 and qg (rad)")
+        return Task.create(q0, qg, options.get("duration", s.duration), s.dt, model=s.model)
+
+    @property
+    def dt(self) -> float:
+        """The control period, s: one step."""
+        return self.settings.dt
 
     def step(self, action: npt.ArrayLike) -> tuple[NDArray[np.float64], float, bool, bool, dict[str, Any]]:
         if not self._running:

@@ -15,7 +15,6 @@ from mjtraj.envs.settings import ACTION_MODES, argument_defaults
 from mjtraj.envs.ur5_track import UR5TrackEnv
 from mjtraj.envs.vector import UR5TrackVectorEnv
 
-import mjtraj
 from mjtraj.core import LoopConfig, option_names
 from mjtraj.core.metrics import METRIC_NAMES
 from mjtraj.core.model import JointInfo
@@ -39,11 +38,36 @@ def episode(env, *, seed=None, actions=None):
 
 
 
-def test_registered_with_the_paper_episode_length():
+def test_registered_and_the_episode_follows_the_duration():
     spec = gym.spec("UR5Track-v0")
-    assert spec.max_episode_steps == 100 == mjtraj.load_scenario().task.steps
-    assert spec.vector_entry_point is not None
+    assert spec.max_episode_steps is None  # the env ends its episodes itself, after N = duration/dt steps
+    for duration, steps in ((2.0, 100), (3.0, 150)):
+        env = gym.make("UR5Track-v0", duration=duration)
+        env.reset(seed=0)
+        count, done = 0, False
+        while not done:
+            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+            done = terminated or truncated
+            count += 1
+        assert count == steps and terminated and not truncated
+        assert env.unwrapped.dt == 0.02
 
+
+def test_reset_options_run_one_episode_of_that_task(scenario):
+    env = UR5TrackEnv(task="random")
+    obs, _ = env.reset(seed=0, options={"q0": [0.0, -1.0, 0.5], "qg": [0.5, -1.5, 0.0], "duration": 1.0})
+    np.testing.assert_array_equal(obs[:3], [0.0, -1.0, 0.5])
+    assert env.reference.steps == 50 and np.allclose(env.reference.q[-1], [0.5, -1.5, 0.0], atol=1e-15)
+    env.reset(seed=0)
+    assert env.reference.steps == 100  # the next plain reset is the env's own task again
+    with pytest.raises(InvalidInputError, match=r"^options: unknown key 'goal'; valid: q0, qg, duration$"):
+        env.reset(options={"goal": [0, 0, 0]})
+    with pytest.raises(InvalidInputError, match=r"^options: a random-task env needs both q0 and qg \(rad\)$"):
+        env.reset(options={"qg": [0.5, -1.5, 0.0]})
+    paper = UR5TrackEnv()
+    paper.reset(options={"duration": 1.5})
+    np.testing.assert_array_equal(paper.reference.q[0], scenario.task.q0)
+    assert paper.reference.steps == 75
 
 
 def test_make_with_module_prefix_needs_no_prior_import():

@@ -328,19 +328,19 @@ def _definitions(data: SweepData) -> list[str]:
         "G(q) + dtau; `int_dtau` the sum over joints and periods of |dtau| dt, the paper's J_dtau.", "",
         "| paper column | reads as | arithmetic from its Table I |", "|---|---|---|"]
     for name in ("cubic", "quintic", "trapezoidal"):
-        c = p[name]
-        from_int = 100 * (c["int_dtau"] - o["int_dtau"]) / c["int_dtau"]
-        from_rms = 100 * (c["rms_dtau"] - o["rms_dtau"]) / c["rms_dtau"]
-        lines.append(f"| dtau Red. ({name}) = {c['dtau_red']} % | the reduction of Int. dtau (L1), not of RMS dtau | "
-                     f"Int.: 100 ({c['int_dtau']} - {o['int_dtau']}) / {c['int_dtau']} = {from_int:.2f} %; RMS: "
+        row = p[name]
+        from_int = 100 * (row["int_dtau"] - o["int_dtau"]) / row["int_dtau"]
+        from_rms = 100 * (row["rms_dtau"] - o["rms_dtau"]) / row["rms_dtau"]
+        lines.append(f"| dtau Red. ({name}) = {row['dtau_red']} % | the reduction of Int. dtau (L1), not of RMS dtau | "
+                     f"Int.: 100 ({row['int_dtau']} - {o['int_dtau']}) / {row['int_dtau']} = {from_int:.2f} %; RMS: "
                      f"{from_rms:.2f} % |")
     for name, stated in (("cubic", 22), ("quintic", 50), ("trapezoidal", 73)):
-        c = p[name]
-        as_reduction = 100 * (c["rms_err"] - o["rms_err"]) / c["rms_err"]
-        as_increase = 100 * (c["rms_err"] - o["rms_err"]) / o["rms_err"]
+        row = p[name]
+        as_reduction = 100 * (row["rms_err"] - o["rms_err"]) / row["rms_err"]
+        as_increase = 100 * (row["rms_err"] - o["rms_err"]) / o["rms_err"]
         lines.append(f"| RMS error \"increased by approximately {stated} %\" ({name}) | a reduction relative to "
-                     f"{name}, worded as an increase | 100 ({c['rms_err']:.4g} - {o['rms_err']:.4g}) / "
-                     f"{c['rms_err']:.4g} = {as_reduction:.1f} %; as an increase over optimal: {as_increase:.1f} % |")
+                     f"{name}, worded as an increase | 100 ({row['rms_err']:.4g} - {o['rms_err']:.4g}) / "
+                     f"{row['rms_err']:.4g} = {as_reduction:.1f} %; as an increase over optimal: {as_increase:.1f} % |")
     paper_ratio = [p[k]["int_dtau"] / (2.0 * 3 * p[k]["rms_dtau"])
                    for k in ("optimal", "cubic", "quintic", "trapezoidal")]
     lines += ["", "Int. dtau / (T n RMS) is the mean |dtau| over the RMS: near 0.8 for these smooth torques when the "
