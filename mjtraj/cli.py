@@ -94,8 +94,8 @@ def _parser() -> argparse.ArgumentParser:
                    "Bryson's balance)")
     f.add_argument("--family", help="nominal | aggressive | mismatch: medians over a family's scenarios instead of "
                    "the scenario's task")
-    f.add_argument("--scenarios", type=int, default=100, help="scenarios of --family (default 100)")
-    f.add_argument("--seed", type=int, default=0, help="seed of --family's scenarios (default 0)")
+    f.add_argument("--scenarios", type=int, help="scenarios of --family (default 100)")
+    f.add_argument("--seed", type=int, help="seed of --family's scenarios (default 0)")
     f.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
     f.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     f.add_argument("--no-figures", action="store_true", help="skip the frontier figure")
@@ -262,15 +262,21 @@ def _compare(args: argparse.Namespace) -> int:
 
 
 def _frontier(args: argparse.Namespace) -> int:
+    from mjtraj.exceptions import InvalidInputError
     from mjtraj.files import write_text_atomic
     from mjtraj.study.frontier import DEFAULT_ALPHAS, DEFAULT_SPLITS, frontier
     from mjtraj.study.report import format_frontier
     from mjtraj.study.scenario import load_scenario
 
+    for flag, value in (("--scenarios", args.scenarios), ("--seed", args.seed)):
+        if value is not None and args.family is None:
+            raise InvalidInputError(f"{flag}: only used with --family (without it the frontier is on the scenario's "
+                                    f"task)")
     scenario = load_scenario(args.config)
     result = frontier(scenario, alphas=args.alphas if args.alphas is not None else DEFAULT_ALPHAS,
                       splits=args.splits if args.splits is not None else DEFAULT_SPLITS, family=args.family,
-                      scenarios=args.scenarios, seed=args.seed)
+                      scenarios=100 if args.scenarios is None else args.scenarios,
+                      seed=0 if args.seed is None else args.seed)
     name = "frontier" if args.family is None else f"frontier_{args.family}"
     record = _json_safe({"setting": result.setting, "rows": [row.as_dict() for row in result.rows]})
     write_text_atomic(args.out / f"{name}.json", json.dumps(record, indent=2) + "\n")

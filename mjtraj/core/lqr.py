@@ -134,7 +134,11 @@ def box_lqr(Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.floa
         below = (a == 0) & (Ut < -b * (1 + tol))
         release = ((a == 1) & (grad > g_tol)) | ((a == -1) & (grad < -g_tol))
         changed = (above | below | release).any(axis=(1, 2))
-        failed = ~np.isfinite(Ut).all(axis=(1, 2))  # the free inputs cannot reach x_N = 0: left to OSQP
+        # the free inputs cannot reach x_N = 0 (W_0 singular: NaN), or every input sits on a bound and the end state
+        # is missed: left to OSQP, which solves or proves the problem infeasible
+        scale = np.maximum(1.0, np.abs(x0[todo]).max(axis=1))
+        missed = np.abs(Xt[:, -1]).max(axis=1) > 1e-6 * scale
+        failed = ~np.isfinite(Ut).all(axis=(1, 2)) | ~np.isfinite(grad).all(axis=(1, 2)) | missed
         changed &= ~failed
         new = np.where(above, 1, np.where(below, -1, np.where(release, 0, a))).astype(np.int8)
         active[todo] = new

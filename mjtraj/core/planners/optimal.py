@@ -233,7 +233,9 @@ class Optimal(Planner):
         info = {**info, "objective": objective, "terminal_residual": float(np.max(np.abs(X[-1]))),
                 "bound_violation": float(max(0.0, np.max(np.abs(U) - bound))), **facts}
         info["plan_time"] = info["build_time"] + info["solve_time"]
-        return Reference(planner=self.name, t=task.times, q=X[:, :n] + task.qg, qd=qd, qdd=qdd, u_plan=U, info=info)
+        q = X[:, :n] + task.qg
+        q[0] = task.q0  # exactly where the task starts ((q0 - qg) + qg may differ from q0 in the last bit)
+        return Reference(planner=self.name, t=task.times, q=q, qd=qd, qdd=qdd, u_plan=U, info=info)
 
 
 def _infeasibility_message(qp: CondensedQP, bound: NDArray[np.float64], task: Task, model: mujoco.MjModel) -> str:
