@@ -3,29 +3,9 @@
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 
 from mjtraj.core.controller import PIDGains, control_law
-from mjtraj.core.reference import Reference
-
-
-def realisable_reference(model, rng, steps=60, substeps=1):
-    """Simulate the nominal plant under random torques; the samples are a reference it can follow exactly."""
-    data = mujoco.MjData(model)
-    data.qpos[:] = [0.2, -1.2, 0.6]
-    u = rng.uniform(-20, 20, size=(steps, 3))
-    q, qd = [data.qpos.copy()], [data.qvel.copy()]
-    for k in range(steps):
-        data.ctrl[:] = u[k]
-        for _ in range(substeps):
-            mujoco.mj_step(model, data)
-        q.append(data.qpos.copy())
-        qd.append(data.qvel.copy())
-    dt = model.opt.timestep * substeps
-    return Reference("realisable", np.arange(steps + 1) * dt, np.array(q), np.array(qd),
-                     np.zeros((steps + 1, 3)), u_plan=u)
-
 
 
 def test_control_law_by_hand():

@@ -8,9 +8,6 @@ import numpy as np
 
 from mjtraj.core.dynamics import DynamicsProbe
 
-SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
-
-
 
 def test_probe_matches_mj_inverse_and_mj_forward(model, rng):
     q, qd, qdd = rng.uniform(-3, 3, (50, 3)), rng.uniform(-2, 2, (50, 3)), rng.uniform(-5, 5, (50, 3))

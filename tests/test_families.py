@@ -9,9 +9,6 @@ from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.planners import make
 from mjtraj.study.families import Perturbation, draw_scenario, perturbed_plant, plant_fields
 
-SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
-
-
 
 def test_unperturbed_plant_reproduces_the_nominal_one(model, scenario):
     """The payload body and per-simulation fields change nothing when the perturbation is the identity."""
@@ -27,7 +24,6 @@ def test_unperturbed_plant_reproduces_the_nominal_one(model, scenario):
                          plant_fields=plant_fields(plant, [heavy])).run([ref])
     assert np.abs(sagging.e).max() > 10 * np.abs(nominal.e).max()
     assert model.nbody == 4  # the nominal model is untouched
-
 
 
 def test_mismatch_scenarios_are_seeded(model):

@@ -9,26 +9,7 @@ import pytest
 
 from mjtraj.core.feedforward import feedforward
 from mjtraj.core.planners import make
-from mjtraj.core.reference import Reference
 from mjtraj.exceptions import InvalidInputError
-
-
-def realisable_reference(model, rng, steps=60, substeps=1):
-    """Simulate the nominal plant under random torques; the samples are a reference it can follow exactly."""
-    data = mujoco.MjData(model)
-    data.qpos[:] = [0.2, -1.2, 0.6]
-    u = rng.uniform(-20, 20, size=(steps, 3))
-    q, qd = [data.qpos.copy()], [data.qvel.copy()]
-    for k in range(steps):
-        data.ctrl[:] = u[k]
-        for _ in range(substeps):
-            mujoco.mj_step(model, data)
-        q.append(data.qpos.copy())
-        qd.append(data.qvel.copy())
-    dt = model.opt.timestep * substeps
-    return Reference("realisable", np.arange(steps + 1) * dt, np.array(q), np.array(qd),
-                     np.zeros((steps + 1, 3)), u_plan=u)
-
 
 
 def test_feedforward_inverse_by_definition(model, task):
@@ -46,7 +27,6 @@ def test_feedforward_inverse_by_definition(model, task):
     np.testing.assert_allclose(step[k], D @ ((ref.qd[k + 1] - ref.qd[k]) / task.dt) + data.qfrc_bias
                                - data.qfrc_gravcomp, atol=1e-9)
     np.testing.assert_array_equal(feedforward(model, ref, mode="none"), 0.0)
-
 
 
 def test_planned_feedforward_needs_u_plan(model, task):

@@ -6,18 +6,6 @@ from __future__ import annotations
 import numpy as np
 
 from mjtraj.core.gains import gain_rule
-from mjtraj.study.scenario import default_scenario_path
-
-
-def write(tmp_path, text):
-    path = tmp_path / "s.toml"
-    path.write_text(text)
-    return path
-
-
-def paper_text():
-    return default_scenario_path().read_text()
-
 
 
 def test_gains_follow_the_rule(model, scenario):

@@ -8,23 +8,6 @@ import scipy.signal
 
 from mjtraj.core.gains import mass_matrix
 from mjtraj.core.linearize import discretize_zoh, linearize
-from mjtraj.core.task import Task
-
-
-def unit_task(model, n_move=1.0):
-    q0 = np.array([0.0, -1.5, 0.5])
-    return Task.create(q0, q0 + n_move, 2.0, 0.02, model=model)
-
-
-def kkt_solve(qp):
-    """Dense KKT solve of the equality-constrained QP (bounds dropped)."""
-    n, m = qp.H.shape[0], qp.A_eq.shape[0]
-    K = np.block([[qp.H, qp.A_eq.T], [qp.A_eq, np.zeros((m, m))]])
-    return np.linalg.solve(K, np.concatenate([-qp.f, qp.b_eq]))[:n]
-
-
-WEIGHTS = {"state_weight": (1.0, 1.0, 1.0, 0.1, 0.1, 0.1), "input_weight": (1 / 3600,) * 3}
-
 
 
 def test_linearization_at_rest(model):
@@ -33,7 +16,6 @@ def test_linearization_at_rest(model):
     np.testing.assert_allclose(A, np.block([[np.zeros((3, 3)), np.eye(3)], [np.zeros((3, 3)), np.zeros((3, 3))]]),
                                atol=1e-6)
     np.testing.assert_allclose(B, np.vstack([np.zeros((3, 3)), np.linalg.inv(mass_matrix(model, q_bar))]), atol=1e-6)
-
 
 
 def test_zoh_matches_scipy(model, rng):

@@ -8,9 +8,6 @@ import numpy as np
 from mjtraj.core.planners import make
 from mjtraj.core.task import random_task
 
-SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
-
-
 
 def test_active_set_riccati_equals_osqp(model, rng):
     """The exact solver and OSQP agree on random tasks, with and without active torque bounds."""

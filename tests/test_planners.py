@@ -4,26 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from oracles import WEIGHTS, kkt_solve, unit_task
 
 from mjtraj.core.planners import available, make
 from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError
-
-
-def unit_task(model, n_move=1.0):
-    q0 = np.array([0.0, -1.5, 0.5])
-    return Task.create(q0, q0 + n_move, 2.0, 0.02, model=model)
-
-
-def kkt_solve(qp):
-    """Dense KKT solve of the equality-constrained QP (bounds dropped)."""
-    n, m = qp.H.shape[0], qp.A_eq.shape[0]
-    K = np.block([[qp.H, qp.A_eq.T], [qp.A_eq, np.zeros((m, m))]])
-    return np.linalg.solve(K, np.concatenate([-qp.f, qp.b_eq]))[:n]
-
-
-WEIGHTS = {"state_weight": (1.0, 1.0, 1.0, 0.1, 0.1, 0.1), "input_weight": (1 / 3600,) * 3}
-
 
 
 @pytest.mark.parametrize("name", available())
@@ -43,7 +28,6 @@ def test_contract(name, model, task):
     np.testing.assert_array_equal(again.q, ref.q)  # deterministic, bit for bit
 
 
-
 @pytest.mark.parametrize("name", ["cubic", "quintic", "trapezoidal"])
 def test_kinematic_velocity_and_acceleration_are_derivatives(name, model, task):
     ref = make(name).plan(task, model)
@@ -51,7 +35,6 @@ def test_kinematic_velocity_and_acceleration_are_derivatives(name, model, task):
     # central differences of the samples (trapezoid: away from its acceleration jumps)
     qd_fd = (ref.q[2:] - ref.q[:-2]) / (2 * dt)
     np.testing.assert_allclose(qd_fd, ref.qd[1:-1], atol=2e-3 if name != "trapezoidal" else 1e-2)
-
 
 
 def test_golden_unit_move(model):
@@ -66,7 +49,6 @@ def test_golden_unit_move(model):
     assert trap.info["blend_time"] == pytest.approx(2.0 / 3.0, abs=1e-15)
 
 
-
 @pytest.mark.parametrize("factor", [1.0, 2.5, float("nan")])
 def test_trapezoid_factor_out_of_range(factor):
     with pytest.raises(InvalidInputError, match=r"^cruise_factor: expected a value in \(1, 2\] \(cruise velocity "
@@ -74,12 +56,10 @@ def test_trapezoid_factor_out_of_range(factor):
         make("trapezoidal", cruise_factor=factor)
 
 
-
 def test_trapezoid_zero_move_is_constant(model):
     task = Task.create([0.1, -1.0, 0.2], [0.1, -1.0, 0.2], 1.0, 0.02, model=model)
     ref = make("trapezoidal").plan(task, model)
     np.testing.assert_array_equal(ref.q, np.tile(task.q0, (task.steps + 1, 1)))
-
 
 
 def test_unknown_planner_and_option():
@@ -90,7 +70,6 @@ def test_unknown_planner_and_option():
         make("cubic", order=3)
     with pytest.raises(InvalidInputError, match=r"^linearization: unknown value 'end'; valid: midpoint, start, goal$"):
         make("optimal", linearization="end")
-
 
 
 def test_optimal_with_tight_bounds(model):
@@ -108,7 +87,6 @@ def test_optimal_with_tight_bounds(model):
     assert ref.info["terminal_residual"] <= 1e-8
 
 
-
 def test_optimal_solution_satisfies_kkt_conditions(model, task):
     """Independent optimality check with bounds active: projected gradient stationarity on the free set."""
     planner = make("optimal")
@@ -124,13 +102,11 @@ def test_optimal_solution_satisfies_kkt_conditions(model, task):
     assert np.all(residual[at_upper] <= 1e-6) and np.all(residual[at_lower] >= -1e-6)
 
 
-
 @pytest.mark.parametrize("point", ["start", "goal", "midpoint"])
 def test_linearization_points(model, task, point):
     planner = make("optimal", linearization=point)
     expected = {"start": task.q0, "goal": task.qg, "midpoint": (task.q0 + task.qg) / 2}[point]
     np.testing.assert_array_equal(planner.operating_point(task), expected)
-
 
 
 def test_optimal_infeasible_names_the_bound(model):
@@ -143,7 +119,6 @@ def test_optimal_infeasible_names_the_bound(model):
                               "(shoulder_pan_joint +-60 N m, shoulder_lift_joint +-60 N m, elbow_joint +-60 N m) "
                               "in T = 0.1 s: the linear model needs at least ")
     assert "the binding bound is joint '" in message and message.endswith("lengthen the duration or raise torque_bound")
-
 
 
 def test_alpha_and_split_scale_brysons_state_weight(model, task):

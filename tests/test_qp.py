@@ -5,27 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from oracles import WEIGHTS, kkt_solve, unit_task
 
 from mjtraj.core.linearize import discretize_zoh, linearize
 from mjtraj.core.planners import make
 from mjtraj.core.qp import build_qp, solve_qp
-from mjtraj.core.task import Task
-
-
-def unit_task(model, n_move=1.0):
-    q0 = np.array([0.0, -1.5, 0.5])
-    return Task.create(q0, q0 + n_move, 2.0, 0.02, model=model)
-
-
-def kkt_solve(qp):
-    """Dense KKT solve of the equality-constrained QP (bounds dropped)."""
-    n, m = qp.H.shape[0], qp.A_eq.shape[0]
-    K = np.block([[qp.H, qp.A_eq.T], [qp.A_eq, np.zeros((m, m))]])
-    return np.linalg.solve(K, np.concatenate([-qp.f, qp.b_eq]))[:n]
-
-
-WEIGHTS = {"state_weight": (1.0, 1.0, 1.0, 0.1, 0.1, 0.1), "input_weight": (1 / 3600,) * 3}
-
 
 
 def test_condensed_prediction_matches_simulation(model, rng):
@@ -44,12 +28,10 @@ def test_condensed_prediction_matches_simulation(model, rng):
     assert qp.objective(U) == pytest.approx(direct, rel=1e-10)
 
 
-
 def test_solve_qp_checks_its_answer(model, task):
     qp, _ = make("optimal").build(task, model)
     solution = solve_qp(qp)
     assert solution.is_optimal() and solution.polished
-
 
 
 def test_solver_failure_reports_status(model, task):
@@ -59,7 +41,6 @@ def test_solver_failure_reports_status(model, task):
     with pytest.raises(SolverError, match=r"^OSQP did not solve the QP: status 'maximum iterations reached' after 3 "
                                           r"iterations$"):
         planner.plan(task, model)
-
 
 
 def test_optimal_equals_dense_kkt_when_bounds_inactive(model):

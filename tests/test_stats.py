@@ -9,9 +9,6 @@ import pytest
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.study.stats import cvar, paired_ratio
 
-SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
-
-
 
 def test_cvar_closed_forms():
     assert cvar(np.arange(1, 101), 0.9) == pytest.approx(95.5)
@@ -20,7 +17,6 @@ def test_cvar_closed_forms():
     assert cvar(x, 0.9) == pytest.approx(np.log(10) + 1, rel=5e-3)
     with pytest.raises(InvalidInputError, match=r"^alpha: expected a level in \[0, 1\), got 1.0$"):
         cvar(x, 1.0)
-
 
 
 def test_paired_ratio_exact_cases_and_coverage():

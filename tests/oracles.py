@@ -1,0 +1,23 @@
+"""Oracles and tasks shared by the planner and QP tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mjtraj.core.task import Task
+
+WEIGHTS = {"state_weight": (1.0, 1.0, 1.0, 0.1, 0.1, 0.1), "input_weight": (1 / 3600,) * 3}
+"""Fixed optimal-planner weights (Bryson's for a 1 rad move)."""
+
+
+def unit_task(model, n_move=1.0):
+    """From (0, -1.5, 0.5) rad, every joint by n_move rad, in 2 s at 0.02 s."""
+    q0 = np.array([0.0, -1.5, 0.5])
+    return Task.create(q0, q0 + n_move, 2.0, 0.02, model=model)
+
+
+def kkt_solve(qp):
+    """Dense KKT solve of the equality-constrained QP (bounds dropped): the independent solve."""
+    n, m = qp.H.shape[0], qp.A_eq.shape[0]
+    K = np.block([[qp.H, qp.A_eq.T], [qp.A_eq, np.zeros((m, m))]])
+    return np.linalg.solve(K, np.concatenate([-qp.f, qp.b_eq]))[:n]
