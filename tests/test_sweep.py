@@ -83,3 +83,11 @@ def test_delay_and_noise(model, scenario):
     assert np.all(delayed.dtau[0, 0] == 0.0)
     np.testing.assert_array_equal(delayed.dtau[0, 1:], command[0, :-1])
 
+
+
+def test_variants_run_on_a_tuned_scenario():
+    """min_effort (alpha = 0) and optimal_start keep working when the base scenario carries tuned alpha and split."""
+    settings = SweepSettings(scenarios=2, batch=2, planners=("min_effort", "optimal_start", "optimal"),
+                             config="paper_tuned")
+    rows = run_unit(settings, ("nominal", 0)).rows
+    assert {r["status"] for r in rows} == {"ok"} and len(rows) == 6

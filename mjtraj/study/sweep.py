@@ -44,7 +44,7 @@ from mjtraj.versions import versions as all_versions
 DEFAULT_PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "optimal_start": ("optimal", {"linearization": "start"}),
-    "min_effort": ("optimal", {"state_weight": (0.0,) * 6}),
+    "min_effort": ("optimal", {"alpha": 0.0}),
 }
 """Planner variants a sweep can name besides the registered planners: the optimal planner linearised at the
 start pose (claim 6 of the audit), and with Q = 0, the minimum-effort reference of the linear model."""
