@@ -14,7 +14,7 @@ from mjtraj.study.store import VERSION_COLUMNS, csv_text
 PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
 
 
-def synthetic(path, costs, *, scenarios=40, families=("nominal",)):
+def synthetic(path, costs, *, scenarios=40, families=("nominal",), config="paper.toml (shipped)"):
     """A sweep file whose J_exec of a planner in scenario i is costs[family][planner] * d_i, d_i a random scenario
     difficulty shared by the planners (paired, as real scenarios are); every other metric equals the cost."""
     rng = np.random.default_rng(0)
@@ -27,7 +27,8 @@ def synthetic(path, costs, *, scenarios=40, families=("nominal",)):
                 row = {"family": family, "scenario": i, "unit": 0, "planner": planner, "ff_accel": "sample",
                        "gravity_comp": "native", "status": "ok", "reason": "",
                        **{m: value for m in METRIC_NAMES}, **{m: value for m in EXTRA_METRICS},
-                       "max_displacement": 1.2, "duration": 2.0, **{v: "x" for v in VERSION_COLUMNS}, "sweep_seed": 0}
+                       "max_displacement": 1.2, "duration": 2.0, **{v: "x" for v in VERSION_COLUMNS}, "sweep_seed": 0,
+                       "config": config}
                 rows.append(row)
     columns = list(rows[0])
     path.write_text(csv_text(columns, rows))
@@ -89,3 +90,21 @@ def test_the_papers_columns_with_their_arithmetic(tmp_path):
     assert "The paper's Table I gives 0.35 to 0.42" in section
     # the synthetic rows have int_dtau = rms_dtau = rms_dtau_norm = cost and T = 2: the ratios are 1/6
     assert "| nominal, ff_accel=sample, gravity_comp=native | cubic | 0.167 | 0.167 |" in section
+
+
+def test_several_weight_sets_side_by_side(tmp_path):
+    """A Bryson-weighted sweep and a tuned one: one verdict column each, never mixed."""
+    bryson = {"nominal": {"optimal": 4.0, "cubic": 2.0, "quintic": 2.5, "trapezoidal": 3.0}}
+    tuned = {"nominal": {"optimal": 1.0, "cubic": 2.0, "quintic": 2.5, "trapezoidal": 3.0}}
+    paths = [synthetic(tmp_path / "b.csv", bryson), synthetic(tmp_path / "t.csv", tuned, config="paper_tuned")]
+    text = write_audit(paths, tmp_path / "a.md", figures=False)
+    table = text.split("## Verdicts", 1)[1].split("\n\nVerdict rule")[0].strip().splitlines()
+    assert table[0] == "| # | claim (paper) | Bryson weights (paper.toml) | paper_tuned |"
+    claim3 = next(line for line in table if line.startswith("| 3 |"))
+    assert claim3.endswith("| does not hold | holds |")
+
+
+def test_too_few_scenarios_get_no_verdict(tmp_path):
+    costs = {"nominal": {"optimal": 1.0, "cubic": 2.0, "quintic": 2.0, "trapezoidal": 3.0}}
+    text = write_audit([synthetic(tmp_path / "one.csv", costs, scenarios=1)], tmp_path / "one.md", figures=False)
+    assert verdicts(text)["3"] == "no verdict (fewer than 10 paired scenarios)"

@@ -9,6 +9,7 @@ inconclusive otherwise. A claim holds in a condition when all its comparisons ho
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,7 @@ from numpy.typing import NDArray
 
 from mjtraj.core.metrics import METRIC_NAMES
 from mjtraj.exceptions import InvalidInputError
+from mjtraj.files import atomic_path
 from mjtraj.study.families import FAMILIES
 from mjtraj.study.paper import PAPER_TABLE
 from mjtraj.study.stats import PairedRatio, cvar, paired_ratio
@@ -29,16 +31,28 @@ LARGE_MOTION = 1.0
 NUMERIC = METRIC_NAMES + ("model_error", "plan_effort", "max_displacement", "duration")
 
 
+MIN_SCENARIOS = 10
+"""A comparison on fewer paired scenarios gets no verdict (its bootstrap interval would mean nothing)."""
+
+
 @dataclass(frozen=True)
 class Condition:
-    """One family under one controller variant."""
+    """One family under one controller variant, with one set of planner weights (the sweep's scenario file; ''
+    when the audit reads a single one)."""
 
     family: str
     ff_accel: str
     gravity_comp: str
+    weights: str = ""
 
     def __str__(self) -> str:
-        return f"{self.family}, ff_accel={self.ff_accel}, gravity_comp={self.gravity_comp}"
+        where = f"{self.family}, ff_accel={self.ff_accel}, gravity_comp={self.gravity_comp}"
+        return f"{self.weights}: {where}" if self.weights else where
+
+
+def weights_label(config: str) -> str:
+    """How a sweep's scenario file is named in the audit: Bryson's weights for the shipped paper scenario."""
+    return "Bryson weights (paper.toml)" if config == "paper.toml (shipped)" else f"{config}"
 
 
 class SweepData:
@@ -58,11 +72,15 @@ class SweepData:
         self.rows = rows
         self.versions = {k: rows[0][k] for k in VERSION_COLUMNS}
         self.settings = {k: v for k, v in rows[0].items() if k.startswith("sweep_") or k in ("sensor_noise", "delay")}
+        configs = list(dict.fromkeys(r.get("config", "") for r in rows))
+        self.weights = [weights_label(c) for c in configs] if len(configs) > 1 else [""]
         by_condition: dict[Condition, list[dict[str, str]]] = {}
         for r in rows:
-            by_condition.setdefault(Condition(r["family"], r["ff_accel"], r["gravity_comp"]), []).append(r)
+            label = weights_label(r.get("config", "")) if len(configs) > 1 else ""
+            by_condition.setdefault(Condition(r["family"], r["ff_accel"], r["gravity_comp"], label), []).append(r)
         order = {family: k for k, family in enumerate(FAMILIES)}
-        self.conditions = sorted(by_condition, key=lambda c: (order.get(c.family, len(order)), c.ff_accel,
+        self.conditions = sorted(by_condition, key=lambda c: (self.weights.index(c.weights),
+                                                               order.get(c.family, len(order)), c.ff_accel,
                                                                c.gravity_comp))
         self.planners = list(dict.fromkeys(r["planner"] for r in rows))
         self._tables: dict[Condition, dict[str, dict[str, NDArray[np.float64]]]] = {}
@@ -99,7 +117,8 @@ def below(data: SweepData, c: Condition, a: str, b: str, metric: str, mask: NDAr
     if mask is not None:
         x, y = x[mask], y[mask]
     r = paired_ratio(x, y)
-    verdict = "yes" if r.low > 1.0 else "no" if r.high < 1.0 else "inconclusive"
+    verdict = ("too few" if r.count < MIN_SCENARIOS else "yes" if r.low > 1.0 else "no" if r.high < 1.0
+               else "inconclusive")
     return verdict, r
 
 
@@ -113,11 +132,16 @@ def _fmt_red(r: PairedRatio) -> str:
 
 
 def _claim_holds(parts: list[str]) -> str:
+    if any(p == "too few" for p in parts):
+        return f"no verdict (fewer than {MIN_SCENARIOS} paired scenarios)"
     return "holds" if all(p == "yes" for p in parts) else "does not hold" if any(p == "no" for p in parts) \
         else "inconclusive"
 
 
 def _overall(per_condition: dict[Condition, str]) -> str:
+    per_condition = {c: v for c, v in per_condition.items() if not v.startswith("no verdict")}
+    if not per_condition:
+        return f"no verdict (fewer than {MIN_SCENARIOS} paired scenarios)"
     held = [c for c, v in per_condition.items() if v == "holds"]
     if len(held) == len(per_condition):
         return "holds"
@@ -191,8 +215,15 @@ def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[
               "4": "the trapezoidal planner tracks worst",
               "5": "higher-order smoothness does not lower effort (quintic needs more than cubic)",
               "6": "midpoint linearisation beats start-point linearisation for large motions"}
+    if len(data.weights) > 1:
+        lines[-2:] = ["| # | claim (paper) | " + " | ".join(data.weights) + " |",
+                      "|---|---|" + "---|" * len(data.weights)]
     for k, text in claims.items():
-        lines.append(f"| {k} | {text} | {_overall(verdicts[k]) if verdicts[k] else 'not measured (planner absent)'} |")
+        cells = []
+        for label in data.weights:
+            mine = {c: v for c, v in verdicts[k].items() if c.weights == label}
+            cells.append(_overall(mine) if mine else "not measured (planner absent)")
+        lines.append(f"| {k} | {text} | " + " | ".join(cells) + " |")
     lines += ["", "Verdict rule: " + " ".join((__doc__ or "").split("Verdict rule, ")[1].split()), ""]
     headers = {
         "1": ("RMS tracking error: paired ratio mean(planner)/mean(optimal), 95 % bootstrap interval",
@@ -237,7 +268,10 @@ def _header(data: SweepData, paths: Sequence[str | os.PathLike[str]]) -> list[st
             f"{s.get('delay')}; {len(data.rows)} rows. Versions: "
             + ", ".join(f"{k} {v}" for k, v in data.versions.items()) + ".", "",
             "Scenario rules are in `mjtraj/study/families.py`; controller and weights rules in "
-            "`mjtraj/study/sweep.py`.", ""]
+            "`mjtraj/study/sweep.py`.", ""] + (
+        [f"Weights compared, each a sweep's scenario file, never mixed: {', '.join(data.weights)}. Each column of "
+         "the verdicts reads only its own sweep's rows; the sweep settings above are the first file's.", ""]
+        if len(data.weights) > 1 else [])
 
 
 def _summary_table(data: SweepData) -> list[str]:
@@ -292,6 +326,7 @@ def _figures(data: SweepData, out: Path) -> list[str]:
 
     folder = out.parent / (out.stem + "_figures")
     folder.mkdir(parents=True, exist_ok=True)
+    written = set()
     lines = ["## Figures", ""]
     for c in data.conditions:
         if not data.has(c, "optimal"):
@@ -310,10 +345,16 @@ def _figures(data: SweepData, out: Path) -> list[str]:
             ax.set_title(f"{metric}: planner / optimal", fontsize=9)
         fig.suptitle(str(c), fontsize=9)
         fig.tight_layout()
-        name = f"ratios_{c.family}_{c.ff_accel}_{c.gravity_comp}.png"
-        fig.savefig(folder / name, dpi=90)
+        slug = re.sub(r"[^A-Za-z0-9]+", "_", c.weights).strip("_")
+        name = f"ratios_{slug + '_' if slug else ''}{c.family}_{c.ff_accel}_{c.gravity_comp}.png"
+        with atomic_path(folder / name) as tmp:
+            fig.savefig(tmp, dpi=90)
         plt.close(fig)
+        written.add(name)
         lines.append(f"![{c}]({folder.name}/{name})")
+    for stale in folder.glob("ratios_*.png"):  # the figures of an earlier audit into the same file
+        if stale.name not in written:
+            stale.unlink()
     return lines + [""]
 
 
