@@ -6,6 +6,7 @@ loop only through ClosedLoop's public queries.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -14,7 +15,7 @@ import numpy.typing as npt
 from mjtraj.envs.settings import TrackSettings
 from numpy.typing import NDArray
 
-from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, Task, gravity_along, metrics_arrays, step_cost
+from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, Task, metrics_arrays, step_cost
 from mjtraj.exceptions import InvalidInputError
 
 STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort")
@@ -39,20 +40,27 @@ def _numeric_like(action: object) -> bool:
     return isinstance(action, (int, float, complex, np.number)) and not isinstance(action, bool)
 
 
-def scale_action(action: npt.ArrayLike, limit: NDArray[np.float64]) -> NDArray[np.float64]:
-    """A (B, n) action in [-1, 1] (clipped outside; a flat array of B n values is reshaped) as torque, N m."""
+def check_action(action: npt.ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
+    """The action as float64 of `shape` (a flat array of as many values is reshaped): real and finite, or
+    InvalidInputError."""
     raw = action if isinstance(action, np.ndarray) else np.asarray(action) if _numeric_like(action) else None
     if raw is None or raw.dtype.kind not in "iuf":
         kind = type(action).__name__ if raw is None else f"{raw.dtype} values"
         raise InvalidInputError(f"action: expected real numbers in [-1, 1], got {kind}")
     a = raw.astype(np.float64, copy=False)
-    if a.shape != limit.shape:
-        if a.size != limit.size:
-            expected = limit.shape[1:] if limit.shape[0] == 1 else limit.shape
+    if a.shape != shape:
+        if a.size != math.prod(shape):
+            expected = shape[1:] if shape[0] == 1 else shape
             raise InvalidInputError(f"action: expected shape {expected}, got {np.shape(action)}")
-        a = a.reshape(limit.shape)
+        a = a.reshape(shape)
     if not np.isfinite(a).all():
         raise InvalidInputError(f"action: expected finite values in [-1, 1], got {np.asarray(action).tolist()}")
+    return a
+
+
+def scale_action(action: npt.ArrayLike, limit: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A (B, n) action in [-1, 1] (clipped outside; a flat array of B n values is reshaped) as torque, N m."""
+    a = check_action(action, limit.shape)
     return np.minimum(np.maximum(a, -1.0), 1.0) * limit
 
 
@@ -105,8 +113,10 @@ class TrackCore:
     def action(self, action: npt.ArrayLike) -> NDArray[np.float64] | None:
         """Validate a (B, n) action (real, finite; clipped to [-1, 1]) and scale it to torque, N m; None in pid mode,
         where the action is checked and then ignored."""
-        torque = scale_action(action, self.limit)  # validated in every mode, pid included
-        return None if self.settings.action_mode == "pid" else torque
+        if self.settings.action_mode == "pid":
+            check_action(action, self.limit.shape)  # checked in every mode, then ignored
+            return None
+        return scale_action(action, self.limit)
 
     def step(self, action: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                                    NDArray[np.bool_], dict[str, Any]]:
@@ -128,8 +138,7 @@ class TrackCore:
     def metrics(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
         """The episode Metrics of simulations `ids` (NaN for a diverged one): name -> shape (len(ids),)."""
         rollout = self.loop.rollout(ids)
-        arrays = metrics_arrays(rollout, self._q_diag[ids], self._r_diag[ids],
-                                gravity=gravity_along(self.model, rollout))
+        arrays = metrics_arrays(rollout, self._q_diag[ids], self._r_diag[ids])  # rms_tau_total: NaN (see pipeline)
         return {name: np.where(rollout.diverged, np.nan, arrays[name]) for name in METRIC_NAMES}
 
     def reference_pose(self, row: int) -> NDArray[np.float64]:

@@ -21,3 +21,9 @@ def kkt_solve(qp):
     n, m = qp.H.shape[0], qp.A_eq.shape[0]
     K = np.block([[qp.H, qp.A_eq.T], [qp.A_eq, np.zeros((m, m))]])
     return np.linalg.solve(K, np.concatenate([-qp.f, qp.b_eq]))[:n]
+
+
+def same_outcome(a, b) -> bool:
+    """Outcomes equal bit for bit, NaN metrics (not measured) included."""
+    return (a.status, a.reason, sorted(a.metrics)) == (b.status, b.reason, sorted(b.metrics)) and all(
+        np.array_equal(a.metrics[k], b.metrics[k], equal_nan=True) for k in a.metrics)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from oracles import same_outcome
 
 from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.metrics import METRIC_NAMES, gravity_along, metrics_arrays
@@ -17,7 +18,7 @@ from mjtraj.study.pipeline import Job, Outcome, execute, execute_batch, plan_fai
 def test_a_batch_is_the_loop_run_by_hand(model, scenario):
     refs = [make(name).plan(scenario.task, model) for name in ("cubic", "quintic")]
     weights = (scenario.Q_exec, scenario.R_exec)
-    rollout, outcomes = execute_batch(model, scenario.loop, [Job(r, weights) for r in refs])
+    rollout, outcomes = execute_batch(model, scenario.loop, [Job(r, weights) for r in refs], total_torque=True)
     by_hand = ClosedLoop(model, scenario.loop, nsim=2).run(refs)
     np.testing.assert_array_equal(rollout.dtau, by_hand.dtau)
     arrays = metrics_arrays(by_hand, np.tile(scenario.Q_exec, (2, 1)), np.tile(scenario.R_exec, (2, 1)),
@@ -33,7 +34,7 @@ def test_jobs_of_several_lengths_keep_their_order(model, scenario):
     jobs = [Job(make("cubic").plan(t, model), weights) for t in tasks]
     together = execute(model, scenario.loop, jobs)
     alone = [execute(model, scenario.loop, [job])[0] for job in jobs]
-    assert together == alone
+    assert all(same_outcome(a, b) for a, b in zip(together, alone, strict=True))
 
 
 class Nothing:
@@ -52,7 +53,7 @@ class Nothing:
 def test_an_actor_adding_nothing_is_the_controller_alone(model, scenario):
     job = Job(make("cubic").plan(scenario.task, model), (scenario.Q_exec, scenario.R_exec))
     actor = Nothing()
-    assert execute(model, scenario.loop, [job], actor=actor) == execute(model, scenario.loop, [job])
+    assert same_outcome(execute(model, scenario.loop, [job], actor=actor)[0], execute(model, scenario.loop, [job])[0])
     assert actor.calls == scenario.task.steps
 
 

@@ -134,8 +134,8 @@ def test_pid_through_the_policy_path_is_the_sweep(model):
                        actor=PolicyActor(lambda obs: np.zeros((len(obs), 3), np.float32), env))
         for i, row in enumerate(rows):
             for name in METRIC_NAMES:
-                assert pid[i].metrics[name] == numeric(row[name]), (family, i, name)
-                assert zero[i].metrics[name] == pid[i].metrics[name]
+                assert np.array_equal(pid[i].metrics[name], numeric(row[name]), equal_nan=True), (family, i, name)
+                assert np.array_equal(zero[i].metrics[name], pid[i].metrics[name], equal_nan=True)
 
 
 @pytest.mark.slow

@@ -22,7 +22,8 @@ METRIC_UNITS = {"rms_err": "rad", "rms_dtau": "N m", "int_dtau": "N m s", "cost"
                 "rms_dtau_norm": "N m", "rms_tau_total": "N m"}
 """rms_dtau is over every joint and step; rms_dtau_norm is the RMS over steps of the torque vector's norm,
 sqrt(1/N sum_k |dtau_k|^2) = sqrt(n) rms_dtau; rms_tau_total is rms_dtau's definition applied to the total torque
-G(q_k) + dtau_k (gravity compensation included, G of the nominal model at the measured pose)."""
+G(q_k) + dtau_k (gravity compensation included, G of the nominal model at the measured pose). rms_tau_total costs a
+G(q) per recorded pose: compare and frontier measure it; sweeps and the env leave it NaN."""
 
 
 def rms(x: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -78,7 +78,8 @@ def compare(scenario: Scenario, planners: Sequence[str] | None = None, *,
     if progress:
         progress("execute")
     weights = (scenario.Q_exec, scenario.R_exec)
-    rollout, outcomes = execute_batch(model, scenario.loop, [Job(references[n], weights) for n in names], nthread=0)
+    rollout, outcomes = execute_batch(model, scenario.loop, [Job(references[n], weights) for n in names], nthread=0,
+                                      total_torque=True)
     if progress:
         progress("stability check")
     scored = {name: Metrics(**result.metrics) if result.status == "ok" else Metrics.nan()

@@ -123,7 +123,7 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
                 where.append((i, b))
     outcomes: list[list[Outcome]] = [[plan_failure(ref) if isinstance(ref, MjtrajError) else Outcome("error")
                                       for ref in refs] for refs in plans]
-    for (i, b), result in zip(where, execute(model, scenario.loop, jobs, plant=plant), strict=True):
+    for (i, b), result in zip(where, execute(model, scenario.loop, jobs, plant=plant, total_torque=True), strict=True):
         outcomes[i][b] = result
     cubic = outcomes[len(planners) - len(others) + others.index(REFERENCE)]
     rows = [_row(name, a, s, mine, cubic) for (name, a, s, _), mine in zip(planners, outcomes, strict=True)]

@@ -86,7 +86,8 @@ def outcome(arrays: dict[str, NDArray[np.float64]], j: int, unstable: bool, dive
 
 def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *,
                   plant: mujoco.MjModel | None = None, actor: Actor | None = None, nthread: int = 1,
-                  seconds: dict[str, float] | None = None) -> tuple[Rollout, list[Outcome]]:
+                  seconds: dict[str, float] | None = None, total_torque: bool = False
+                  ) -> tuple[Rollout, list[Outcome]]:
     """Execute `jobs` (references of one length N) together on one ClosedLoop; the rollout and each outcome.
 
     Args:
@@ -94,6 +95,8 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
         None for the nominal `model` (the jobs must then carry no perturbation).
       actor: adds torque every period (None: the controller alone).
       seconds: if given, 'execute' and 'metrics' accumulate the wall time of each stage.
+      total_torque: also measure rms_tau_total (G(q) at every recorded pose: about 3 us a state, so compare and
+        frontier measure it and sweeps do not; NaN otherwise).
     """
     clock = time.perf_counter()
     references = [job.reference for job in jobs]
@@ -121,7 +124,8 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
     middle = time.perf_counter()
     q_diag = np.array([job.weights[0] for job in jobs])
     r_diag = np.array([job.weights[1] for job in jobs])
-    arrays = metrics_arrays(rollout, q_diag, r_diag, gravity=gravity_along(model, rollout))
+    arrays = metrics_arrays(rollout, q_diag, r_diag,
+                            gravity=gravity_along(model, rollout) if total_torque else None)
     outcomes = [outcome(arrays, j, bool(unstable[j]), int(rollout.diverged_step[j]), config)
                 for j in range(len(jobs))]
     if seconds is not None:
@@ -131,7 +135,8 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
 
 
 def execute(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *, plant: mujoco.MjModel | None = None,
-            actor: Actor | None = None, nthread: int = 1, seconds: dict[str, float] | None = None) -> list[Outcome]:
+            actor: Actor | None = None, nthread: int = 1, seconds: dict[str, float] | None = None,
+            total_torque: bool = False) -> list[Outcome]:
     """`execute_batch` over jobs of any lengths (grouped by N, shortest first); outcomes in the order of `jobs`."""
     groups: dict[int, list[int]] = {}
     for i, job in enumerate(jobs):
@@ -140,7 +145,7 @@ def execute(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *, p
     for steps in sorted(groups):
         ids = groups[steps]
         _, outcomes = execute_batch(model, config, [jobs[i] for i in ids], plant=plant, actor=actor,
-                                    nthread=nthread, seconds=seconds)
+                                    nthread=nthread, seconds=seconds, total_torque=total_torque)
         for i, result in zip(ids, outcomes, strict=True):
             out[i] = result
     return [result for result in out if result is not None]
