@@ -108,3 +108,14 @@ def test_too_few_scenarios_get_no_verdict(tmp_path):
     costs = {"nominal": {"optimal": 1.0, "cubic": 2.0, "quintic": 2.0, "trapezoidal": 3.0}}
     text = write_audit([synthetic(tmp_path / "one.csv", costs, scenarios=1)], tmp_path / "one.md", figures=False)
     assert verdicts(text)["3"] == "no verdict (fewer than 10 paired scenarios)"
+
+
+def test_conclusions_and_where_it_pays_read_the_rows(tmp_path):
+    win = {"nominal": {"optimal": 1.0, "cubic": 2.0, "quintic": 2.0, "trapezoidal": 3.0}}
+    text = write_audit([synthetic(tmp_path / "w.csv", win)], tmp_path / "w.md", figures=False)
+    conclusions = text.split("## Conclusions", 1)[1].split("\n## ", 1)[0]
+    assert ("- these weights, nominal motions (40 scenarios): J_exec lower than the cubic's, ratio 0.500 [0.500, "
+            "0.500], won in 100 % of them; RMS tracking error ratio 0.500 [0.500, 0.500].") in conclusions
+    pays = text.split("## Where control-aware planning pays", 1)[1].split("\n## ", 1)[0]
+    assert ("| nominal, ff_accel=sample, gravity_comp=native | max abs(dq) in (1, 1.5] rad | 40 | "
+            "2.000 [2.000, 2.000] | 100 % |") in pays

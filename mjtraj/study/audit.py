@@ -243,6 +243,8 @@ def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[
     for k, (title, head) in headers.items():
         lines += [f"## Claim {k}: {claims[k]}", "", title, "", head,
                   "|" + "---|" * (head.count("|") - 1)] + (detail[k] or ["| (not measured) |"]) + [""]
+    lines += _conclusions(data)
+    lines += _where_it_pays(data)
     lines += _min_effort(data)
     lines += ["## Per-condition summary", "", "Mean and median per planner; CVaR(90 %) of the RMS tracking error "
               "(the mean of the worst 10 % of scenarios); failures are rows whose status is not ok.", ""] + summary
@@ -289,6 +291,65 @@ def _summary_table(data: SweepData) -> list[str]:
                        f"{np.nanmean(j):.4g} / {np.nanmedian(j):.4g} |" if ok else
                        f"| {c} | {p} | 0 | {data.failures(c, p)} | - | - | - | - | - |")
     return out + [""]
+
+
+def _conclusions(data: SweepData) -> list[str]:
+    """Plain sentences from the numbers: per set of weights and family (first controller variant), the optimal
+    planner's J_exec and tracking error against the cubic's."""
+    lines = ["## Conclusions", "",
+             "The optimal planner against the cubic (the minimum-effort reference of a constant-inertia arm), in "
+             "the first controller variant of each family, as mean ratios over paired scenarios [95 % interval]:",
+             ""]
+    seen: set[tuple[str, str]] = set()
+    for c in data.conditions:
+        if (c.weights, c.family) in seen or not (data.has(c, "optimal") and data.has(c, "cubic")):
+            continue
+        seen.add((c.weights, c.family))
+        cost = paired_ratio(data.values(c, "optimal", "cost"), data.values(c, "cubic", "cost"))
+        err = paired_ratio(data.values(c, "optimal", "rms_err"), data.values(c, "cubic", "rms_err"))
+        if cost.count < MIN_SCENARIOS:
+            continue
+        verdict = ("lower than" if cost.high < 1.0 else "higher than" if cost.low > 1.0 else
+                   "not distinguishable from")
+        weights = c.weights or "these weights"
+        lines.append(f"- {weights}, {c.family} motions ({cost.count} scenarios): J_exec {verdict} the cubic's, "
+                     f"ratio {_fmt_ratio(cost)}, won in {100 * (1 - cost.win_rate):.0f} % of them; RMS tracking "
+                     f"error ratio {_fmt_ratio(err)}.")
+    return lines + [""] if len(lines) > 4 else []
+
+
+DISPLACEMENT_BINS = (0.0, 0.5, 1.0, 1.5)
+"""rad: the largest joint displacement's bins of the "where it pays" table."""
+DURATION_BINS = (0.0, 0.7, 0.85, 1.0, 2.0)
+"""s: the duration bins (the aggressive family spans 0.5 to 1 s; nominal moves take 2 s)."""
+
+
+def _where_it_pays(data: SweepData) -> list[str]:
+    """J_exec of cubic over the optimal planner's, per condition and bin of displacement and duration: above 1 (the
+    whole interval) is where control-aware planning pays."""
+    lines = ["## Where control-aware planning pays", "",
+             "Paired ratio mean(J_exec cubic) / mean(J_exec optimal) [95 % bootstrap interval] and the share of "
+             "scenarios the optimal planner wins, per bin of the largest joint displacement and of the duration. "
+             f"Above 1 is where it pays; bins with fewer than {MIN_SCENARIOS} scenarios are left out.", "",
+             "| condition | bin | scenarios | cubic / optimal | optimal wins |", "|---|---|---|---|---|"]
+    rows = 0
+    for c in data.conditions:
+        if not (data.has(c, "optimal") and data.has(c, "cubic")):
+            continue
+        move, duration = data.values(c, "optimal", "max_displacement"), data.values(c, "optimal", "duration")
+        for label, values, edges, unit in (("max abs(dq)", move, DISPLACEMENT_BINS, "rad"),
+                                           ("T", duration, DURATION_BINS, "s")):
+            for low, high in zip(edges[:-1], edges[1:], strict=True):
+                mask = (values > low) & (values <= high)
+                if mask.sum() < MIN_SCENARIOS:
+                    continue
+                r = paired_ratio(data.values(c, "cubic", "cost")[mask], data.values(c, "optimal", "cost")[mask])
+                if r.count < MIN_SCENARIOS:
+                    continue
+                lines.append(f"| {c} | {label} in ({low:g}, {high:g}] {unit} | {r.count} | {_fmt_ratio(r)} | "
+                             f"{100 * r.win_rate:.0f} % |")
+                rows += 1
+    return lines + ([] if rows else ["| (not measured: optimal and cubic are both needed) | | | | |"]) + [""]
 
 
 def _min_effort(data: SweepData) -> list[str]:
