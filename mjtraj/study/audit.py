@@ -362,11 +362,20 @@ def _min_effort(data: SweepData) -> list[str]:
         "boundary conditions make it the cubic planner's q0 + dq (3 s^2 - 2 s^3), whatever D and R are. Its "
         "effort is 12 dq^T (D R D) dq / T^3; the quintic's is 120/7 = 17.14 (1.43 times, so 1.195 times the RMS "
         "torque), the trapezoid's with V = 1.5 dq/T is 13.5 (1.125 times, 1.061 in RMS). So on such an arm "
-        "claim 5 is a theorem, and no planner can need less feedforward effort than the cubic.", "",
+        "claim 5 is a theorem, and no planner that moves along the straight joint path needs less L2 "
+        "feedforward effort than the cubic.", "",
+        "That bound holds only under its assumptions: constant inertia, effort measured as the L2 norm of the "
+        "torque, and the straight joint-space path. The UR5's inertia varies with the pose and couples the joints, "
+        "so a reference that leaves the straight path (folding the elbow to cut the inertia the big joints move) "
+        "can need less torque than the cubic; the true bound is the minimum-effort reference of the nonlinear "
+        "dynamics within the joint ranges and speed limits, which mjtraj does not compute yet. Nor is L1 effort "
+        "(Int. dtau) minimised by the cubic.", "",
         "The paper's optimal planner minimises a different objective: it adds the state weight Q, which pays for "
-        "being away from the goal at every step. That pulls the motion forward and costs effort; with Q = 0 its "
-        "QP is exactly the discrete minimum-effort problem of its own linear model (the `min_effort` variant in "
-        "the sweep). How far the optimal planner's effort lies from it:", ""]
+        "being away from the goal at every step. That pulls the motion forward and costs effort. With Q = 0 its "
+        "QP is the discrete minimum-effort problem of its own linear model (the `min_effort` variant): for the "
+        "constant-inertia linear model that is the cubic's torque held over each period, the zero-order-held "
+        "cubic, which tracks with the same effort and less error than the sampled cubic (see `mjtraj frontier` at "
+        "alpha = 0). How far the optimal planner's effort lies from it:", ""]
     rows = ["| condition | planned RMS u: optimal/min_effort | executed RMS dtau: optimal/min_effort | executed "
             "RMS dtau: cubic/min_effort |", "|---|---|---|---|"]
     for c in data.conditions:
