@@ -199,3 +199,24 @@ def bench_sweep(scenarios: int = 10_000, *, workers: int | None = None) -> dict[
         wall = time.perf_counter() - start
     return {"wall": wall, "rows": report.rows, "stages": report.seconds,
             "workers": workers if workers is not None else os.cpu_count() or 1}
+
+
+def bench_startup(*, repeats: int = 3) -> dict[str, float]:
+    """Wall time of `mjtraj compare` on the paper scenario (no figures), imports included, against
+    `python -c "import mujoco, gymnasium, scipy"`, each in a fresh interpreter; medians of `repeats` runs."""
+    import subprocess
+    import sys
+    import tempfile
+
+    def wall(command: list[str]) -> float:
+        times = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            subprocess.run(command, check=True, capture_output=True)
+            times.append(time.perf_counter() - start)
+        return float(np.median(times))
+
+    imports = wall([sys.executable, "-c", "import mujoco, gymnasium, scipy"])
+    with tempfile.TemporaryDirectory() as folder:
+        compare = wall([sys.executable, "-m", "mjtraj", "compare", "--no-figures", "--out", folder])
+    return {"imports_s": imports, "compare_s": compare, "ratio": compare / imports}

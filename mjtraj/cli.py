@@ -116,7 +116,7 @@ def _parser() -> argparse.ArgumentParser:
                    "tuned.toml)")
 
     b = sub.add_parser("bench", help="speed ratios measured in one run")
-    b.add_argument("what", choices=("plan", "loop", "env", "sweep", "all"), nargs="?", default="all",
+    b.add_argument("what", choices=("plan", "loop", "env", "startup", "sweep", "all"), nargs="?", default="all",
                    help="what to time ('all' skips the minute-long sweep)")
     b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     b.add_argument("--sizes", type=_counts, help="loop batch sizes, comma-separated whole numbers >= 1")
@@ -349,6 +349,14 @@ def _bench(args: argparse.Namespace) -> int:
         total = sum(sweep["stages"].values())
         for stage, seconds in sweep["stages"].items():
             print(f"  {stage:<8} {seconds:>7.1f} s {100 * seconds / total:>5.1f} %")
+    if args.what in ("startup", "all"):
+        from mjtraj.bench import bench_startup
+
+        start = bench_startup()
+        print("mjtraj compare on the paper scenario (no figures), imports included, vs python -c \"import mujoco, "
+              "gymnasium, scipy\", fresh interpreters, same run; target ratio <= 1.5")
+        print(f"{'imports s':>10} {'compare s':>10} {'ratio':>6}")
+        print(f"{start['imports_s']:>10.2f} {start['compare_s']:>10.2f} {start['ratio']:>6.2f}")
     if args.what in ("env", "all"):
         from mjtraj.bench import bench_env, bench_render, bench_vector_env
 

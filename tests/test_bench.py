@@ -28,3 +28,11 @@ def test_printed_table_carries_the_measured_ratios(capsys):
     assert [int(cells[0]) for cells in table] == [1, 8]
     for _, raw, loop, ratio in table:
         assert float(ratio) == pytest.approx(float(loop) / float(raw), abs=0.006)
+
+
+def test_startup_ratio_is_compare_over_imports():
+    from mjtraj.bench import bench_startup
+
+    row = bench_startup(repeats=1)
+    assert row["imports_s"] > 0 and row["compare_s"] > 0
+    assert row["ratio"] == pytest.approx(row["compare_s"] / row["imports_s"], rel=1e-12)
