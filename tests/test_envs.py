@@ -378,3 +378,20 @@ def test_actions_are_checked_in_every_mode(mode, action, message):
     env.reset(seed=0)
     with pytest.raises(InvalidInputError, match=message):
         env.step(action)
+
+
+def test_native_vector_env_is_gymnasiums_sync_vector_env():
+    """Oracle: Gymnasium's own SyncVectorEnv over single envs. Observations, rewards, terminated and truncated
+    agree bit for bit over several episodes and autoresets."""
+    kwargs = {"task": "random", "duration": 0.4}
+    sync = gym.make_vec("UR5Track-v0", num_envs=2, vectorization_mode="sync", **kwargs)
+    native = gym.make_vec("UR5Track-v0", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+    first_sync, _ = sync.reset(seed=5)
+    first_native, _ = native.reset(seed=5)
+    np.testing.assert_array_equal(first_sync, first_native)
+    actions = np.random.default_rng(0).uniform(-0.05, 0.05, (45, 2, 3)).astype(np.float32)
+    for action in actions:  # 20 steps an episode, with NEXT_STEP autoresets in between
+        for expected, got in zip(sync.step(action)[:4], native.step(action)[:4], strict=True):
+            np.testing.assert_array_equal(got, expected)
+    sync.close()
+    native.close()
