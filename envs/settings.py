@@ -32,7 +32,7 @@ from mjtraj.study import Scenario, load_scenario
 
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
-RENDER_MODES = ("rgb_array",)
+RENDER_MODES = ("rgb_array", "depth_array")
 ENV_OWN = ("planner", "q0", "qg", "Q_exec", "R_exec", "render_mode")
 """Arguments that are not declared options (objects, vectors or None)."""
 

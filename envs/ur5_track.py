@@ -123,7 +123,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | preview          | 0          | future reference samples in the observation                             |
     | Q_exec           | None       | diag of Q_exec, 6 weights (None: Bryson's rule for each task)           |
     | R_exec           | None       | diag of R_exec, 3 weights (None: Bryson's rule)                         |
-    | render_mode      | None       | None or "rgb_array"                                                     |
+    | render_mode      | None       | None, "rgb_array" or "depth_array"                                      |
     | width            | 640        | image width, px                                                         |
     | height           | 480        | image height, px                                                        |
     | camera           | "front"    | front, side or top                                                      |
@@ -197,8 +197,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             out["diverged"] = bool(self._core.loop.diverged[0])
         return obs[0], float(reward[0]), done, False, out
 
-    def render(self) -> NDArray[np.uint8] | None:
-        """rgb_array: the executed arm and, translucent, the reference pose it tracks; (height, width, 3) uint8."""
+    def render(self) -> NDArray[np.uint8] | NDArray[np.float32] | None:
+        """rgb_array: the executed arm and, translucent, the reference pose it tracks, (height, width, 3) uint8;
+        depth_array: the executed arm's depth image, (height, width) float32, m."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' to gym.make")
             return None
@@ -207,6 +208,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         if self._renderer is None:
             s = self.settings
             self._renderer = ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera)
+        if self.render_mode == "depth_array":
+            return self._renderer.depth(self._core.loop.positions[0])
         return self._renderer.frame(self._core.loop.positions[0], self._core.reference_pose(0))
 
     def close(self) -> None:

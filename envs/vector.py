@@ -133,14 +133,17 @@ class UR5TrackVectorEnv(VectorEnv):
         obs[ids] = self._core.reset([self._rngs[i] for i in ids], ids)
         self._elapsed[ids] = 0
 
-    def render(self) -> tuple[NDArray[np.uint8], ...] | None:
-        """rgb_array: one frame per sub-env (executed arm and translucent reference), each (height, width, 3)."""
+    def render(self) -> tuple[NDArray[Any], ...] | None:
+        """One frame per sub-env: rgb_array (executed arm and translucent reference), (height, width, 3) uint8;
+        depth_array, (height, width) float32, m."""
         if self.render_mode is None:
             return None
         s = self.settings
         if not self._renderers:
             self._renderers = [ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera)]
         positions = self._core.loop.positions
+        if self.render_mode == "depth_array":
+            return tuple(self._renderers[0].depth(positions[i]) for i in range(self.num_envs))
         return tuple(self._renderers[0].frame(positions[i], self._core.reference_pose(i))
                      for i in range(self.num_envs))
 

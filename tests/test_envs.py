@@ -336,7 +336,7 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                       r"MJCF attribute <visual><global offwidth=\"4000\"/></visual>$"),
     ({"height": 2000}, r"^height: expected at most the offscreen buffer's 1080 pixels, got 2000; raise it with the "
                        r"MJCF attribute <visual><global offheight=\"2000\"/></visual>$"),
-    ({"render_mode": "human"}, r"^render_mode: unsupported mode 'human'; valid: None, rgb_array$"),
+    ({"render_mode": "human"}, r"^render_mode: unsupported mode 'human'; valid: None, rgb_array, depth_array$"),
     ({"preview": -1}, r"^preview: expected a value >= 0, got -1$"),
     ({"Q_exec": [1, 1], "R_exec": [1, 1, 1]}, r"^Q_exec: expected 6 values, got shape \(2,\)$"),
     ({"Q_exec": [1] * 6}, r"^Q_exec, R_exec: give both \(diagonals of 2n and n weights\), or neither for Bryson's "

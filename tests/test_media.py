@@ -96,3 +96,19 @@ def test_the_backend_is_chosen_at_the_first_renderer_and_never_overrides_the_use
     user = subprocess.run([sys.executable, "-c", code], env={**clean, "MUJOCO_GL": "egl"}, capture_output=True,
                           text=True)
     assert "egl" in (user.stdout + user.stderr)  # the user's choice is used (it may fail here), never replaced
+
+
+def test_depth_frames_see_the_arm_at_its_distance():
+    """depth_array: the arm is nearer to the camera than the background, and the image has the requested size."""
+    import gymnasium as gym
+
+    env = gym.make("UR5Track-v0", render_mode="depth_array", width=96, height=72)
+    env.reset(seed=0)
+    depth = env.render()
+    assert depth.shape == (72, 96) and depth.dtype == np.float32 and np.all(np.isfinite(depth))
+    assert depth.min() > 0 and depth.min() < np.median(depth)  # something (the arm) stands in front
+    rgb = gym.make("UR5Track-v0", render_mode="rgb_array", width=96, height=72)
+    rgb.reset(seed=0)
+    assert rgb.render().shape == (72, 96, 3)
+    env.close()
+    rgb.close()

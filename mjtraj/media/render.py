@@ -80,6 +80,18 @@ class ArmRenderer:
                 scene.geoms[i].size[:] *= GHOST_SCALE
         return self._renderer.render()
 
+    def depth(self, q: npt.ArrayLike) -> NDArray[np.float32]:
+        """The depth image of the arm at q (rad), no ghost: distances from the camera, shape (height, width), m."""
+        self._data.qpos[:] = vector("q", q, self.model.nq)
+        mujoco.mj_kinematics(self.model, self._data)
+        mujoco.mj_camlight(self.model, self._data)
+        self._renderer.update_scene(self._data, self.camera)
+        self._renderer.enable_depth_rendering()
+        try:
+            return self._renderer.render()
+        finally:
+            self._renderer.disable_depth_rendering()
+
     def close(self) -> None:
         """Free the GL context (OSMesa complains at interpreter exit otherwise)."""
         renderer = getattr(self, "_renderer", None)
