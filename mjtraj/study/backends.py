@@ -18,6 +18,21 @@ from mjtraj.study.sweep import SweepSettings, UnitResult, run_unit
 BACKENDS = ("local", "ray")
 
 
+def _exit_with(parent: int) -> None:
+    """Worker initializer: end this process as soon as the sweep that started it is gone (a kill -9 of the parent
+    leaves no orphan workers behind)."""
+    import threading
+    import time
+
+    def watch() -> None:
+        while True:
+            if os.getppid() != parent:
+                os._exit(1)
+            time.sleep(0.5)
+
+    threading.Thread(target=watch, name="mjtraj-parent-watch", daemon=True).start()
+
+
 def _run(settings_dict: dict[str, Any], unit: tuple[str, int]) -> UnitResult:
     """run_unit from plain data (what crosses process and machine boundaries, pickled)."""
     return run_unit(SweepSettings(**settings_dict), unit)
@@ -57,7 +72,8 @@ def local_map(settings: SweepSettings, units: Sequence[tuple[str, int]], workers
 
     data = settings.as_dict()
     context = multiprocessing.get_context("spawn")  # no fork of a process that may hold MuJoCo threads
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_exit_with,
+                             initargs=(os.getpid(),)) as pool:
         futures = [pool.submit(_run, data, unit) for unit in units]
         try:
             for future in futures:
