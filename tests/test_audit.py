@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from mjtraj.core.metrics import METRIC_NAMES
+from mjtraj.exceptions import InvalidInputError
 from mjtraj.study.audit import SweepData, below, write_audit
 from mjtraj.study.rows import EXTRA_METRICS
 from mjtraj.study.store import VERSION_COLUMNS, csv_text
@@ -119,3 +120,34 @@ def test_conclusions_and_where_it_pays_read_the_rows(tmp_path):
     pays = text.split("## Where control-aware planning pays", 1)[1].split("\n## ", 1)[0]
     assert ("| nominal, ff_accel=sample, gravity_comp=native | max abs(dq) in (1, 1.5] rad | 40 | "
             "2.000 [2.000, 2.000] | 100 % |") in pays
+
+
+def test_truncated_and_unfinished_sweeps_are_refused(tmp_path):
+    from mjtraj.cli import main
+    from mjtraj.study.runner import run_sweep
+    from mjtraj.study.sweep import SweepSettings
+
+    whole = tmp_path / "whole.csv"
+    run_sweep(SweepSettings(scenarios=6, batch=3, planners=("optimal", "cubic")), whole, workers=1, progress=False)
+    lines = whole.read_text().splitlines(keepends=True)
+    torn = tmp_path / "torn.csv"
+    torn.write_text("".join(lines[:-1]) + lines[-1][:40])  # a row cut early
+    with pytest.raises(InvalidInputError, match=r"^sweep: .*torn\.csv ends inside a row \(a torn write\)"):
+        write_audit([torn], tmp_path / "a.md", figures=False)
+    torn.write_text("".join(lines[:-1]) + lines[-1][:40] + "\n")  # the same, with a line end
+    with pytest.raises(InvalidInputError, match=r"^sweep: .*torn\.csv line 13 has fewer cells than the header"):
+        write_audit([torn], tmp_path / "a.md", figures=False)
+    unfinished = tmp_path / "unfinished.csv"
+    unfinished.write_text("".join(lines[:1 + 6]))  # the first unit only
+    with pytest.raises(InvalidInputError, match=r"^sweep: .*unfinished\.csv is incomplete: 6 of 12 rows; finish it "
+                                                r"with the same mjtraj sweep command and --resume, or pass --partial"):
+        write_audit([unfinished], tmp_path / "a.md", figures=False)
+    cut_mid_unit = tmp_path / "mid.csv"
+    cut_mid_unit.write_text("".join(lines[:1 + 8]))  # a unit and a part of the next
+    with pytest.raises(InvalidInputError, match=r"is incomplete: 6 of its 8 rows are in complete units"):
+        write_audit([cut_mid_unit], tmp_path / "a.md", figures=False)
+    text = write_audit([cut_mid_unit], tmp_path / "a.md", figures=False, partial=True)
+    assert "Partial audit: " in text and "2 rows of incomplete units left out" in text
+    binary = tmp_path / "binary.csv"
+    binary.write_bytes(b"\xff\xfe\x00\x01binary")
+    assert main(["audit", str(binary), "--out", str(tmp_path / "b.md")]) == 2

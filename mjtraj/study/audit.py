@@ -55,15 +55,64 @@ def weights_label(config: str) -> str:
     return "Bryson weights (paper.toml)" if config == "paper.toml (shipped)" else f"{config}"
 
 
+def expected_rows(row: dict[str, str]) -> int:
+    """The rows a whole sweep writes, from the settings every row records (0 if they are not recorded)."""
+    try:
+        counts = [len(row[k].split("+")) for k in ("sweep_families", "sweep_planners", "sweep_ff_accel",
+                                                     "sweep_gravity_comp")]
+        return int(row["sweep_scenarios"]) * int(np.prod(counts))
+    except (KeyError, ValueError):
+        return 0
+
+
+def complete_units(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    """The rows of the units that hold every row they should (scenarios of the unit x planners x variants)."""
+    if not rows or "sweep_batch" not in rows[0] or "unit" not in rows[0]:
+        return rows
+    try:
+        per_scenario = int(np.prod([len(rows[0][k].split("+")) for k in ("sweep_planners", "sweep_ff_accel",
+                                                                          "sweep_gravity_comp")]))
+        batch, scenarios = int(rows[0]["sweep_batch"]), int(rows[0]["sweep_scenarios"])
+        planners = set(rows[0]["sweep_planners"].split("+"))
+        counts: dict[tuple[str, str], int] = {}
+        for r in rows:  # rows of other controllers (rl eval's policies) ride along with their unit
+            if r["planner"] in planners:
+                counts[(r["family"], r["unit"])] = counts.get((r["family"], r["unit"]), 0) + 1
+        whole = {key for key, n in counts.items()
+                 if n == per_scenario * min(batch, scenarios - int(key[1]) * batch)}
+    except (KeyError, ValueError) as e:
+        raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
+    return [r for r in rows if (r["family"], r["unit"]) in whole]
+
+
 class SweepData:
     """A sweep's rows as per-planner arrays aligned by scenario, per condition."""
 
-    def __init__(self, paths: Sequence[str | os.PathLike[str]]) -> None:
+    def __init__(self, paths: Sequence[str | os.PathLike[str]], *, partial: bool = False) -> None:
         rows = []
+        self.missing: dict[str, str] = {}
+        """File -> what `partial` left out of it."""
         for path in paths:
             if not Path(path).is_file():
                 raise InvalidInputError(f"sweep: file not found: {path}")
-            rows += read_rows(path)
+            mine = read_rows(path)
+            complete = complete_units(mine)
+            if len(complete) < len(mine):
+                expected = expected_rows(mine[0]) if mine else 0
+                if not partial:
+                    raise InvalidInputError(
+                        f"sweep: {path} is incomplete: {len(complete)} of its {len(mine)} rows are in complete "
+                        f"units, {expected} expected; finish it with the same mjtraj sweep command and --resume, or "
+                        f"pass --partial to audit the complete units only")
+                self.missing[str(path)] = f"{len(mine) - len(complete)} rows of incomplete units left out"
+            elif mine and len(mine) < expected_rows(mine[0]):
+                if not partial:
+                    raise InvalidInputError(
+                        f"sweep: {path} is incomplete: {len(mine)} of {expected_rows(mine[0])} rows; finish it with "
+                        f"the same mjtraj sweep command and --resume, or pass --partial to audit what is there")
+                self.missing[str(path)] = f"{expected_rows(mine[0]) - len(mine)} of {expected_rows(mine[0])} rows " \
+                                          f"not computed yet"
+            rows += complete
         if not rows:
             raise InvalidInputError(f"sweep: no rows in {', '.join(map(str, paths))}")
         missing = [c for c in ("family", "scenario", "planner", "status", *NUMERIC) if c not in rows[0]]
@@ -158,9 +207,13 @@ def _overall(per_condition: dict[Condition, str]) -> str:
     return "depends: holds only in " + "; ".join(parts)
 
 
-def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], *, figures: bool = True) -> str:
-    """Write the audit of the sweep files `paths` to `out` (Markdown) and its figures beside it; return the text."""
-    data = SweepData(paths)
+def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], *, figures: bool = True,
+                partial: bool = False) -> str:
+    """Write the audit of the sweep files `paths` to `out` (Markdown) and its figures beside it; return the text.
+
+    An incomplete sweep file is refused unless `partial`, which audits its complete units and says what is missing.
+    """
+    data = SweepData(paths, partial=partial)
     out = Path(out)
     lines: list[str] = []
     verdicts: dict[str, dict[Condition, str]] = {str(i): {} for i in range(1, 7)}
@@ -273,7 +326,9 @@ def _header(data: SweepData, paths: Sequence[str | os.PathLike[str]]) -> list[st
             "`mjtraj/study/sweep.py`.", ""] + (
         [f"Weights compared, each a sweep's scenario file, never mixed: {', '.join(data.weights)}. Each column of "
          "the verdicts reads only its own sweep's rows; the sweep settings above are the first file's.", ""]
-        if len(data.weights) > 1 else [])
+        if len(data.weights) > 1 else []) + (
+        ["Partial audit: " + "; ".join(f"{path}: {what}" for path, what in data.missing.items()) + ".", ""]
+        if data.missing else [])
 
 
 def _summary_table(data: SweepData) -> list[str]:

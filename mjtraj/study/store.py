@@ -52,9 +52,32 @@ def append_rows(path: Path, columns: list[str], rows: list[dict[str, Any]]) -> N
 
 
 def read_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
-    """The rows of a results file as dicts of strings (use `numeric` for the numbers)."""
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
+    """The rows of a results file as dicts of strings (use `numeric` for the numbers).
+
+    Raises:
+      InvalidInputError: the file is not text, or a row has more or fewer cells than the header (a torn write:
+        the message names the line).
+    """
+    with open(path, "rb") as raw:
+        size = raw.seek(0, os.SEEK_END)
+        if size:
+            raw.seek(size - 1)
+            if raw.read(1) != b"\n":
+                raise InvalidInputError(f"sweep: {path} ends inside a row (a torn write); resume the sweep to repair "
+                                        f"it")
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            reader = csv.DictReader(f)
+            rows = []
+            for row in reader:
+                if None in row or None in row.values():
+                    raise InvalidInputError(f"sweep: {path} line {reader.line_num} has "
+                                            f"{'more' if None in row else 'fewer'} cells than the header (a torn or "
+                                            f"damaged file); resume the sweep to repair it")
+                rows.append(row)
+            return rows
+    except UnicodeDecodeError as e:
+        raise InvalidInputError(f"sweep: {path} is not a text results file (not UTF-8 at byte {e.start})") from e
 
 
 def numeric(value: str) -> float:
