@@ -76,6 +76,7 @@ def run_sweep(settings: SweepSettings, out: str | os.PathLike[str], *, resume: b
             path.unlink()  # nothing but a header was written: leave nothing behind
         raise
     finally:
+        results.close()
         if bar is not None:
             bar.close()
     report.wall = time.perf_counter() - start

@@ -2,8 +2,9 @@
 
 Each unit's rows go out in one write, flushed and fsynced, so an interrupted sweep leaves whole units and at most
 one torn unit at the end. Resuming checks that the file was written by the same versions with the same
-settings, cuts the torn tail, and reports which units are done. Floats are written as repr(), which reads back
-to the same bits.
+settings, cuts the torn tail, refuses anything an interruption cannot explain (a damaged row before the end, a
+unit twice), and reports which units are done. A lock keeps two sweeps from writing one file at once. Floats
+are written as repr(), which reads back to the same bits.
 """
 
 from __future__ import annotations
@@ -12,9 +13,8 @@ import csv
 import io
 import math
 import os
-from collections import Counter
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from mjtraj.exceptions import InvalidInputError
 
@@ -86,18 +86,27 @@ def numeric(value: str) -> float:
 
 
 class ResultsFile:
-    """Append-only writer of one sweep's rows; create with `open`."""
+    """Append-only writer of one sweep's rows; create with `open`, release with `close`.
 
-    def __init__(self, path: Path, columns: list[str], done: set[tuple[str, int]]) -> None:
+    While open it holds an exclusive lock on the file (POSIX `flock`), so a second sweep writing the same file
+    at the same time is refused instead of interleaving units. The lock dies with the process.
+    """
+
+    def __init__(self, path: Path, columns: list[str], done: set[tuple[str, int]], lock: IO[bytes] | None = None
+                 ) -> None:
         self.path = path
         self.columns = columns
         self.done = done
         """(family, unit) already in the file."""
+        self._lock = lock
 
     @classmethod
     def open(cls, path: str | os.PathLike[str], columns: list[str], settings: dict[str, Any],
              unit_rows: dict[tuple[str, int], int], *, resume: bool) -> ResultsFile:
         """Start `path` afresh (it must not exist unless `resume`), or continue it.
+
+        On resume, only an interruption is repaired: a torn last line and an unfinished last unit are cut.
+        Anything else that a sweep cannot have written is refused and the file is left untouched.
 
         Args:
           columns: the header.
@@ -105,33 +114,72 @@ class ResultsFile:
           unit_rows: rows of each complete unit.
 
         Raises:
-          InvalidInputError: the file exists without resume; or it was written by other versions, with other
-            settings or other columns (the message names the first difference).
+          InvalidInputError: the file exists without resume; another sweep is writing it; it was written by
+            other versions, with other settings or other columns; or it is damaged (a row cut short or too long
+            before the end, a unit twice, an unfinished unit followed by others, a unit this sweep does not
+            have). The message names the first problem and its line.
         """
         file = Path(path)
         if file.exists() and not resume:
             raise InvalidInputError(f"out: {file} exists; pass --resume to continue that sweep, or choose another "
                                     f"path")
-        if not file.exists() or file.stat().st_size == 0:
-            file.parent.mkdir(parents=True, exist_ok=True)
-            append_rows(file, columns, [dict(zip(columns, columns, strict=True))])  # absent or empty: the header
-            return cls(file, columns, set())
-        done, keep = _check(file, columns, settings, unit_rows)
-        with open(file, "r+b") as f:
-            f.truncate(keep)
-        return cls(file, columns, done)
+        file.parent.mkdir(parents=True, exist_ok=True)
+        lock = _lock(file)
+        try:
+            if file.stat().st_size == 0:  # absent or empty: the header
+                append_rows(file, columns, [dict(zip(columns, columns, strict=True))])
+                return cls(file, columns, set(), lock)
+            done, keep = _check(file, columns, settings, unit_rows)
+            if keep < file.stat().st_size:
+                with open(file, "r+b") as f:
+                    f.truncate(keep)
+            return cls(file, columns, done, lock)
+        except BaseException:
+            if lock is not None:
+                lock.close()
+            raise
 
     def append(self, rows: list[dict[str, Any]]) -> None:
         """Write a unit's rows at once and make them durable."""
         append_rows(self.path, self.columns, rows)
 
+    def close(self) -> None:
+        """Release the file's lock (idempotent)."""
+        if self._lock is not None:
+            self._lock.close()
+            self._lock = None
+
+
+def _lock(file: Path) -> IO[bytes] | None:
+    """An open handle on `file` (created if absent) holding its exclusive lock; None where flock is unavailable.
+
+    Raises:
+      InvalidInputError: another process holds the lock.
+    """
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock, as before
+        file.touch()
+        return None
+    handle = open(file, "ab")
+    try:
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        handle.close()
+        raise InvalidInputError(f"out: {file} is being written by another sweep right now (it holds the file's "
+                                f"lock); wait for that sweep to end, or choose another path") from None
+    return handle
+
 
 def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: dict[tuple[str, int], int]
            ) -> tuple[set[tuple[str, int]], int]:
     """Validate a file to resume; return its complete units and the byte length that holds them."""
-    data = file.read_bytes()
-    lines = data.split(b"\n")
-    header = next(csv.reader([lines[0].decode()]))
+    lines = file.read_bytes().split(b"\n")
+    try:
+        header = next(csv.reader([lines[0].decode()]))
+    except UnicodeDecodeError as e:
+        raise InvalidInputError(f"out: cannot resume {file}: it is not a text results file (not UTF-8 at byte "
+                                f"{e.start})") from e
     if header != columns:
         missing = [c for c in columns if c not in header]
         extra = [c for c in header if c not in columns]
@@ -139,35 +187,56 @@ def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: 
                                 f"(missing {missing[:5]}, unexpected {extra[:5]}); it was written by another "
                                 f"mjtraj version; start a new file")
     index = {c: i for i, c in enumerate(columns)}
-    counts: Counter[tuple[str, int]] = Counter()
-    offset = len(lines[0]) + 1
-    keep = offset
-    order: list[tuple[str, int]] = []
-    complete = lines[-1] == b""  # the last line ended with a newline
-    body = lines[1:-1] if complete else lines[1:]
+    expected = {name: str(value) if name in VERSION_COLUMNS else _cell(value) for name, value in settings.items()}
+    body = lines[1:-1]  # the last piece follows the last newline: empty, or a torn line that is cut
+    damaged = "; the file was damaged or edited (an interruption only tears the last line or unit): start a new file"
+    offset = keep = len(lines[0]) + 1
+    runs: list[tuple[tuple[str, int], int, int]] = []  # (unit, first line, rows) for each run of one unit
     for number, raw in enumerate(body, start=2):
         offset += len(raw) + 1
-        if not complete and number == len(body) + 1:
-            break  # a torn last line
-        cells = next(csv.reader([raw.decode()]))
+        try:
+            cells = next(csv.reader([raw.decode()]), [])
+        except UnicodeDecodeError:
+            cells = []
         if len(cells) != len(columns):
-            break
-        if number == 2:
-            for name in VERSION_COLUMNS:
-                if cells[index[name]] != str(settings[name]):
+            raise InvalidInputError(f"out: cannot resume {file}: line {number} has {len(cells)} cells, the header "
+                                    f"{len(columns)}{damaged}")
+        for name, value in expected.items():
+            if cells[index[name]] != value:
+                if name in VERSION_COLUMNS:
                     raise InvalidInputError(f"out: cannot resume {file}: it was written by {name} "
-                                            f"{cells[index[name]]}, this is {name} {settings[name]}; start a new "
-                                            f"file")
-            for name, value in settings.items():
-                if name not in VERSION_COLUMNS and cells[index[name]] != _cell(value):
-                    raise InvalidInputError(f"out: cannot resume {file}: setting {name!r} differs (file: "
-                                            f"{cells[index[name]]!r}, now: {_cell(value)!r}); resume with the same "
-                                            f"settings or start a new file")
-        unit = (cells[index["family"]], int(cells[index["unit"]]))
-        if not order or order[-1] != unit:
-            order.append(unit)
-        counts[unit] += 1
-        if counts[unit] == unit_rows.get(unit, -1):
+                                            f"{cells[index[name]]} (line {number}), this is {name} {value}; start "
+                                            f"a new file")
+                raise InvalidInputError(f"out: cannot resume {file}: setting {name!r} differs (file: "
+                                        f"{cells[index[name]]!r}, now: {value!r}) at line {number}; resume with "
+                                        f"the same settings or start a new file")
+        try:
+            unit = (cells[index["family"]], int(cells[index["unit"]]))
+        except ValueError:
+            unit = (cells[index["family"]], -1)
+        if unit not in unit_rows:
+            raise InvalidInputError(f"out: cannot resume {file}: line {number} belongs to unit {unit[0]} "
+                                    f"{cells[index['unit']]!r}, which this sweep does not have{damaged}")
+        if runs and runs[-1][0] == unit:
+            runs[-1] = (unit, runs[-1][1], runs[-1][2] + 1)
+        else:
+            if runs and runs[-1][2] != unit_rows[runs[-1][0]]:
+                last = runs[-1]
+                raise InvalidInputError(f"out: cannot resume {file}: unit {last[0][0]} {last[0][1]} (line "
+                                        f"{last[1]}) has {last[2]} of its {unit_rows[last[0]]} rows and other "
+                                        f"units follow it{damaged}")
+            runs.append((unit, number, 1))
+        if runs[-1][2] > unit_rows[unit]:
+            raise InvalidInputError(f"out: cannot resume {file}: unit {unit[0]} {unit[1]} has more than its "
+                                    f"{unit_rows[unit]} rows (line {number}){damaged}")
+        if runs[-1][2] == unit_rows[unit]:
             keep = offset
-    done = {unit for unit in order if counts[unit] == unit_rows.get(unit, -1)}
+    seen: dict[tuple[str, int], int] = {}
+    for unit, first, _ in runs:
+        if unit in seen:
+            raise InvalidInputError(f"out: cannot resume {file}: unit {unit[0]} {unit[1]} appears twice (lines "
+                                    f"{seen[unit]} and {first}); two sweeps wrote this file at once, or it was "
+                                    f"edited; start a new file")
+        seen[unit] = first
+    done = {unit for unit, _, rows in runs if rows == unit_rows[unit]}
     return done, keep
