@@ -36,6 +36,7 @@ _EXPORTS = {
     "scale_action": "mjtraj.envs.core",
     "STEP_INFO": "mjtraj.envs.core",
     "ACTION_MODES": "mjtraj.envs.settings",
+    "RESIDUAL_SCALE": "mjtraj.envs.settings",
     "TASKS": "mjtraj.envs.settings",
     "EnvOptions": "mjtraj.envs.settings",
     "TrackSettings": "mjtraj.envs.settings",
@@ -46,10 +47,18 @@ __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
     from mjtraj.envs.core import STEP_INFO, TrackCore, observe, scale_action
-    from mjtraj.envs.settings import ACTION_MODES, TASKS, EnvOptions, TrackSettings, argument_defaults, resolve
+    from mjtraj.envs.settings import (
+        ACTION_MODES,
+        RESIDUAL_SCALE,
+        TASKS,
+        EnvOptions,
+        TrackSettings,
+        argument_defaults,
+        resolve,
+    )
     from mjtraj.envs.ur5_track import UR5TrackEnv, action_space, observation_space
     from mjtraj.envs.vector import UR5TrackVectorEnv
 
-__all__ = ["ACTION_MODES", "ENV_ID", "STEP_INFO", "TASKS", "EnvOptions", "TrackCore",
+__all__ = ["ACTION_MODES", "ENV_ID", "RESIDUAL_SCALE", "STEP_INFO", "TASKS", "EnvOptions", "TrackCore",
            "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
            "observation_space", "observe", "register_envs", "resolve", "scale_action"]

@@ -73,7 +73,7 @@ class TrackCore:
         self.model = settings.model
         self.loop = ClosedLoop(self.model, settings.loop, nsim=num)
         n = settings.n
-        self.limit = np.tile(self.loop.limit, (num, 1))
+        self.limit = np.tile(settings.action_scale, (num, 1))
         task = settings.fixed_task
         self.fixed = (settings.planner.plan(task, self.model), settings.weights(task)) if task is not None else None
         self.references: list[Reference | None] = [None] * num

@@ -33,6 +33,10 @@ from mjtraj.study import Scenario, load_scenario
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
 RENDER_MODES = ("rgb_array", "depth_array")
+RESIDUAL_SCALE = 10.0
+"""N m, the default authority of a residual action: the median per-joint RMS feedback torque of PID on the mismatch
+family (cubic references, 1000 scenarios: 10.2 N m, see docs/design.md), rounded to one significant figure. The
+residual is meant to supply what feedback supplies under model error, not the 60 N m saturation."""
 ENV_OWN = ("planner", "q0", "qg", "Q_exec", "R_exec", "render_mode")
 """Arguments that are not declared options (objects, vectors or None)."""
 
@@ -43,6 +47,8 @@ class EnvOptions:
 
     action_mode: str = option("pid", "pid (the controller alone), residual (added to feedforward + PID) or torque "
                               "(the whole corrective torque)", choices=ACTION_MODES)
+    residual_scale: float = option(RESIDUAL_SCALE, "N m per unit of action in residual mode (torque mode scales by "
+                                   "the saturation)", positive=True)
     task: str = option("paper", "paper, random or explicit", choices=TASKS)
     max_displacement: float = option(1.5, "largest abs(qg - q0) per joint of task='random', rad", positive=True)
     duration: float = option(2.0, "T, s (a whole number of dt)", positive=True)
@@ -73,6 +79,8 @@ class TrackSettings:
     planner: Planner
     planner_name: str
     action_mode: str
+    residual_scale: float
+    """N m per unit of action in residual mode."""
     task_mode: str
     fixed_task: Task | None
     """The task of every episode ('paper', 'explicit'); None for 'random'."""
@@ -106,6 +114,13 @@ class TrackSettings:
     def torque_limit(self) -> NDArray[np.float64]:
         """The corrective-torque saturation, shape (n,), N m."""
         return JointInfo.of(self.model).torque_limit
+
+    @property
+    def action_scale(self) -> NDArray[np.float64]:
+        """N m per unit of action, shape (n,): residual_scale in residual mode, else the saturation."""
+        if self.action_mode == "residual":
+            return np.full(self.n, self.residual_scale)
+        return self.torque_limit
 
     def weights(self, task: Task) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """diag(Q_exec) (2n,) and diag(R_exec) (n,) that score an episode of `task` (`mjtraj.core.scoring`): the
@@ -177,6 +192,7 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
     scoring = Scoring() if Q_exec is None else Scoring.fixed(Q_exec, R_exec, n)  # type: ignore[arg-type]
     width, height, camera = check_render_options(model, own.width, own.height, own.camera)
     return TrackSettings(model=model, planner=planner_obj, planner_name=planner_name, action_mode=own.action_mode,
-                         task_mode=own.task, fixed_task=fixed, max_displacement=own.max_displacement,
+                         residual_scale=float(own.residual_scale), task_mode=own.task, fixed_task=fixed,
+                         max_displacement=own.max_displacement,
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview, scoring=scoring,
                          render_mode=render_mode, width=width, height=height, camera=camera)

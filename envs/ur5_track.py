@@ -54,13 +54,13 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     metrics equal `mjtraj compare`'s for the same planner.
 
     ## Action Space
-    `Box(-1, 1, (3,), float32)`, scaled by the 60 N m saturation. Values outside [-1, 1] are clipped; a
-    non-finite value raises InvalidInputError.
+    `Box(-1, 1, (3,), float32)`, scaled to N m (`residual_scale` s in residual mode, default 10 N m; the 60 N m
+    saturation in torque mode). Values outside [-1, 1] are clipped; a non-finite value raises InvalidInputError.
 
     | action_mode | the action                                                              |
     |-------------|-------------------------------------------------------------------------|
     | pid         | ignored: the paper's controller alone (feedforward + PID)               |
-    | residual    | 60 a N m added to feedforward + PID before the saturation               |
+    | residual    | s a N m added to feedforward + PID before the saturation                |
     | torque      | 60 a N m is the whole corrective torque (gravity compensation stays)    |
 
     ## Observation Space
@@ -109,6 +109,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     |------------------|------------|-------------------------------------------------------------------------|
     | planner          | "cubic"    | registered planner name or an object with plan(task, model)             |
     | action_mode      | "pid"      | pid, residual or torque                                                 |
+    | residual_scale   | 10.0       | s, N m per unit of action in residual mode (> 0)                        |
     | task             | "paper"    | paper, random or explicit                                               |
     | q0               | None       | start, rad (task="explicit")                                            |
     | qg               | None       | goal, rad (task="explicit")                                             |

@@ -176,6 +176,9 @@ def _parser() -> argparse.ArgumentParser:
     t.add_argument("--action-mode", dest="action_mode", default="residual",
                    help="residual (added to feedforward + PID) | torque (the whole corrective torque); default "
                    "residual")
+    t.add_argument("--residual-scale", dest="residual_scale", type=float,
+                   help="N m per unit of action in residual mode (default 10: PID's median per-joint RMS feedback "
+                   "torque on the mismatch family)")
     t.add_argument("--planner", default="cubic", help="planner whose references the policy tracks (default cubic)")
     t.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
     t.add_argument("--steps", type=int, default=100_000, help="environment steps (default 100000)")
@@ -487,7 +490,9 @@ def _rl(args: argparse.Namespace) -> int:
     if args.rl_command == "train":
         from mjtraj.rl.train import TrainSettings, train
 
-        settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, planner=args.planner, task=args.task,
+        scale = {} if args.residual_scale is None else {"residual_scale": args.residual_scale}
+        settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **scale, planner=args.planner,
+                                 task=args.task,
                                  steps=args.steps, seed=args.seed, num_envs=args.num_envs,
                                  checkpoints=args.checkpoints, evaluations=args.evaluations,
                                  validation=args.validation, threads=args.threads)

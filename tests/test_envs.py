@@ -109,14 +109,23 @@ def test_pid_paper_episode_is_compare(planner, scenario):
 
 def test_reward_terms_and_info(scenario):
     """The reward's two terms are -(x^T Q_exec x) and -(dtau^T R_exec dtau) with the paper scenario's weights, and
-    residual mode adds 60 a N m before the saturation."""
+    residual mode adds residual_scale a N m (default 10) before the saturation, torque mode 60 a N m."""
+    action = np.array([0.5, -0.2, 0.1], dtype=np.float32)
+    for kwargs, scale in (({"action_mode": "torque"}, 60.0),
+                          ({"action_mode": "residual", "residual_scale": 100}, 100.0),
+                          ({"action_mode": "torque", "residual_scale": 3.0}, 60.0)):
+        other = UR5TrackEnv(**kwargs)
+        other.reset(seed=0)
+        _, _, _, _, info = other.step(action)
+        base = info["tau_ff"] if kwargs["action_mode"] == "residual" else 0.0
+        np.testing.assert_allclose(info["dtau"], np.clip(base + scale * action.astype(float), -60, 60), rtol=0,
+                                   atol=1e-12)
     env = UR5TrackEnv(action_mode="residual")
     env.reset(seed=0)
-    action = np.array([0.5, -0.2, 0.1], dtype=np.float32)
     _, reward, _, _, info = env.step(action)
     e, dtau = info["e"], info["dtau"]
     assert np.array_equal(e, np.zeros(3)) and np.array_equal(scenario.task.q0, env.reference.q[0])
-    np.testing.assert_allclose(dtau, np.clip(info["tau_ff"] + 60 * action.astype(float), -60, 60), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(dtau, np.clip(info["tau_ff"] + 10 * action.astype(float), -60, 60), rtol=0, atol=1e-12)
     assert info["reward_tracking"] == 0.0  # the arm starts on the reference, at rest
     assert info["reward_effort"] == pytest.approx(-np.sum(dtau**2 * scenario.R_exec), rel=1e-14)
     _, reward, _, _, info = env.step(np.zeros(3, dtype=np.float32))  # now the error is not zero
@@ -280,7 +289,8 @@ def test_docstring_arguments_table_matches_the_code():
     assert documented == code
     env = UR5TrackEnv()  # and those defaults are what an env built without arguments uses
     s = env.settings
-    applied = {"planner": s.planner_name, "action_mode": s.action_mode, "task": s.task_mode,
+    applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,
+               "task": s.task_mode,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
                "width": s.width, "height": s.height, "camera": s.camera, "render_mode": s.render_mode,
                **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}}
@@ -341,10 +351,13 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     ({"Q_exec": [1, 1], "R_exec": [1, 1, 1]}, r"^Q_exec: expected 6 values, got shape \(2,\)$"),
     ({"Q_exec": [1] * 6}, r"^Q_exec, R_exec: give both \(diagonals of 2n and n weights\), or neither for Bryson's "
                           r"rule on each task$"),
-    ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, action_mode, task, "
+    ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, action_mode, "
+                   r"residual_scale, task, "
                    r"max_displacement, duration, dt, preview, width, height, camera, feedforward, ff_accel, "
                    r"gravity_comp, anti_windup, substeps$"),
     ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
+    ({"residual_scale": 0}, r"^residual_scale: expected a positive number, got 0"),
+    ({"residual_scale": -5.0}, r"^residual_scale: expected a positive number, got -5.0"),
     ({"dt": True}, r"^dt: expected a number, got True$"),
     ({"duration": 1.01}, r"^duration: expected a whole number of control periods dt=0.02 s, got 1.01 s"),
 ])

@@ -138,6 +138,40 @@ def test_pid_through_the_policy_path_is_the_sweep(model):
                 assert np.array_equal(zero[i].metrics[name], pid[i].metrics[name], equal_nan=True)
 
 
+@pytest.mark.parametrize("scale", [3.0, 10.0, 60.0])
+def test_the_policy_path_scales_actions_as_the_env(scale):
+    """A constant residual action through the policy path (evaluation) gives the env's episode, cost bit for bit, at
+    any residual_scale; the scale changes the torque (oracle: the env's own step)."""
+    from mjtraj.rl.episodes import PolicyActor
+    from mjtraj.study.pipeline import Job, execute
+
+    action = np.array([0.4, -0.3, 0.2], dtype=np.float32)
+    env = UR5TrackEnv(action_mode="residual", residual_scale=scale)
+    env.reset(seed=0)
+    done, ret = False, 0.0
+    while not done:
+        _, reward, done, _, info = env.step(action)
+        ret += reward
+    s = env.settings
+    job = Job(s.planner.plan(s.fixed_task, s.model), s.weights(s.fixed_task))
+    out = execute(s.model, s.loop, [job], actor=PolicyActor(lambda obs: np.tile(action, (len(obs), 1)), s))
+    assert out[0].metrics["cost"] == info["metrics"]["cost"]
+    assert out[0].metrics["cost"] == pytest.approx(-ret, rel=1e-9)
+    env.close()
+
+
+def test_a_policy_records_its_residual_scale_and_old_records_mean_the_saturation():
+    record = {"settings": {"algo": "sac"},
+              "env": {**TrainSettings(residual_scale=4.0).env_kwargs(), "task": "paper"}}
+    norm = Normalization(np.zeros(19), np.ones(19), 1e-8, 10.0)
+    policy = Policy(None, record, norm, 0)
+    assert policy.settings().residual_scale == 4.0 and policy.label == "cubic+PID+residual SAC (4 N m)"
+    del record["env"]["residual_scale"]  # a record written before residual_scale existed: 60 N m was used
+    legacy = Policy(None, record, norm, 0)
+    assert np.array_equal(legacy.settings().action_scale, np.full(3, 60.0))
+    assert TrainSettings().env_kwargs()["residual_scale"] == 10.0
+
+
 @pytest.mark.slow
 def test_saved_policy_reloads_with_identical_actions(tmp_path):
     """Oracle: SB3's own path (VecNormalize.normalize_obs + predict) on the in-memory model."""
@@ -200,7 +234,7 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
                  "--seed", "3", "--planners", "cubic,optimal", "--out", str(tmp_path)])
     assert code == 0
     table = capsys.readouterr().out
-    assert "| cubic+PID+residual SAC | " in table and "| optimal+PID | " in table
+    assert "| cubic+PID+residual SAC (10 N m) | " in table and "| optimal+PID | " in table
     rows = read_rows(tmp_path / "eval_aggressive.csv")
     sweep = run_unit(SweepSettings(families=("aggressive",), scenarios=5, seed=3, planners=("cubic", "optimal")),
                      ("aggressive", 0)).rows
@@ -211,7 +245,7 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
                    for k, v in want.items() if k not in ("reason",)), got["planner"]
     mine = [r for r in rows if r["policy"]]
     assert [r["scenario"] for r in mine] == [str(i) for i in range(5)]
-    assert all(r["controller"] == "cubic+PID+residual SAC" and r["policy_timesteps"] == "240" for r in mine)
+    assert all(r["controller"] == "cubic+PID+residual SAC (10 N m)" and r["policy_timesteps"] == "240" for r in mine)
     # the policy rows replay: its episodes on the same references, batched as eval batches them (scenarios of one
     # length together: torch's float32 kernels round differently for different batch sizes), give the same numbers
     policy = load_policy(trained / "policy.zip")
@@ -229,7 +263,7 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
             assert mine[i]["status"] == "ok" and numeric(mine[i]["cost"]) == outcomes[j].metrics["cost"]
             replayed += 1
     assert replayed == 5
-    assert (tmp_path / "EVAL_aggressive.md").read_text().count("| cubic+PID+residual SAC |") == 1
+    assert (tmp_path / "EVAL_aggressive.md").read_text().count("| cubic+PID+residual SAC (10 N m) |") == 1
 
 
 
@@ -279,7 +313,7 @@ def test_ppo_trains_and_reloads(tmp_path):
                    tmp_path / "ppo", progress=False)
     policy = load_policy(report.policy)
     assert report.timesteps == 2048 and policy.model.n_steps == 256  # SB3's 2048 transitions per update
-    assert policy.label == "cubic+PID+residual PPO"
+    assert policy.label == "cubic+PID+residual PPO (10 N m)"
     assert len(read_rows(report.out / "learning_curve.csv")) == 3
 
 
@@ -290,6 +324,9 @@ def test_ppo_trains_and_reloads(tmp_path):
      "mjtraj: error: action_mode: unknown value 'pid'; valid: residual, torque\n"),
     (["rl", "train", "--task", "explicit"], "mjtraj: error: task: unknown value 'explicit'; valid: paper, random\n"),
     (["rl", "train", "--steps", "0"], "mjtraj: error: steps: expected a whole number >= 1, got 0\n"),
+    (["rl", "train", "--residual-scale", "0"], "mjtraj: error: residual_scale: expected a positive number, got 0.0\n"),
+    (["rl", "train", "--residual-scale", "-2"],
+     "mjtraj: error: residual_scale: expected a positive number, got -2.0\n"),
     (["rl", "eval", "--policy", "nowhere.zip"], "mjtraj: error: policy: file not found: nowhere.zip\n"),
     (["rl", "eval", "--policy", "p.pt"],
      "mjtraj: error: policy: expected a policy .zip saved by mjtraj rl train, got 'p.pt'\n"),
@@ -428,7 +465,7 @@ def test_a_policy_failing_in_eval_is_recorded_and_eval_goes_on(trained, tmp_path
     evaluate([trained / "policy.zip"], scenarios=3, planners=("cubic",), out=tmp_path)
     rows = read_rows(tmp_path / "eval_nominal.csv")
     assert [(r["controller"], r["status"]) for r in rows] == [("cubic+PID", "ok")] * 3 + [
-        ("cubic+PID+residual SAC", "error")] * 3
+        ("cubic+PID+residual SAC (10 N m)", "error")] * 3
     assert {r["reason"] for r in rows if r["policy"]} == {"RuntimeError: policy exploded"}
-    assert "| cubic+PID+residual SAC | 0 | 3 |" in (tmp_path / "EVAL_nominal.md").read_text()
+    assert "| cubic+PID+residual SAC (10 N m) | 0 | 3 |" in (tmp_path / "EVAL_nominal.md").read_text()
 

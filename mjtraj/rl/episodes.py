@@ -21,8 +21,8 @@ Policy = Callable[[NDArray[np.float64]], NDArray[np.float32]]
 
 
 class PolicyActor:
-    """A policy acting in the env's `settings` (action mode, preview): observations as the env builds them, actions
-    scaled to torque as the env scales them."""
+    """A policy acting in the env's `settings` (action mode, residual scale, preview): observations as the env
+    builds them, actions scaled to torque as the env scales them."""
 
     def __init__(self, policy: Policy, settings: TrackSettings) -> None:
         self.policy = policy
@@ -31,7 +31,7 @@ class PolicyActor:
         self._limit = np.zeros((0, settings.n))
 
     def begin(self, loop: ClosedLoop, references: Sequence[Reference]) -> None:
-        self._limit = np.tile(loop.limit, (loop.nsim, 1))
+        self._limit = np.tile(self.settings.action_scale, (loop.nsim, 1))
 
     def act(self, loop: ClosedLoop) -> NDArray[np.float64]:
         return scale_action(self.policy(observe(loop, self.settings.preview)), self._limit)

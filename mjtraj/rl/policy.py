@@ -24,6 +24,8 @@ from mjtraj.rl import ALGORITHMS
 from mjtraj.rl.extra import require_sb3
 
 FORMAT = "mjtraj-policy/1"
+LEGACY_RESIDUAL_SCALE = 60.0
+"""N m: the residual scale of records written before it was an argument (the saturation)."""
 
 
 @dataclass(frozen=True)
@@ -81,8 +83,10 @@ class Policy:
 
     @property
     def env_kwargs(self) -> dict[str, Any]:
-        """The UR5Track-v0 arguments it trained with."""
-        return dict(self.record["env"])
+        """The UR5Track-v0 arguments it trained with (a record from before residual_scale: the 60 N m then used)."""
+        kwargs = dict(self.record["env"])
+        kwargs.setdefault("residual_scale", LEGACY_RESIDUAL_SCALE)
+        return kwargs
 
     def settings(self) -> TrackSettings:
         """The env settings it acts in (resolved from `env_kwargs` once)."""
@@ -93,10 +97,10 @@ class Policy:
     @property
     def label(self) -> str:
         """How results tables name it: planner+PID+residual SAC, or planner+SAC torque."""
-        env = self.record["env"]
+        env = self.env_kwargs
         algo = self.algo.upper()
         if env["action_mode"] == "residual":
-            return f"{env['planner']}+PID+residual {algo}"
+            return f"{env['planner']}+PID+residual {algo} ({env['residual_scale']:g} N m)"
         return f"{env['planner']}+{algo} torque"
 
     def act(self, obs: npt.ArrayLike) -> NDArray[np.float32]:

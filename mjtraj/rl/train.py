@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from mjtraj.checks import choice, positive_int
+from mjtraj.checks import choice, positive, positive_int
 from mjtraj.core import LoopConfig, check_name, option_names
-from mjtraj.envs import TASKS, TrackSettings, resolve
+from mjtraj.envs import RESIDUAL_SCALE, TASKS, TrackSettings, resolve
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl import ACTION_MODES, ALGORITHMS
@@ -48,6 +48,7 @@ class TrainSettings:
     Attributes:
       algo: sac, ppo or td3.
       action_mode: residual (added to feedforward + PID) or torque (the whole corrective torque).
+      residual_scale: N m per unit of action in residual mode (the env's default rule: RESIDUAL_SCALE).
       planner: the planner whose references the policy tracks.
       task: paper (always the paper's move) or random (a new random move each episode).
       steps: environment steps to train for (PPO rounds up to whole rollouts).
@@ -62,6 +63,7 @@ class TrainSettings:
 
     algo: str = "sac"
     action_mode: str = "residual"
+    residual_scale: float = RESIDUAL_SCALE
     planner: str = "cubic"
     task: str = "random"
     steps: int = 100_000
@@ -75,6 +77,7 @@ class TrainSettings:
     def __post_init__(self) -> None:
         choice("algo", self.algo, ALGORITHMS)
         choice("action_mode", self.action_mode, ACTION_MODES)
+        object.__setattr__(self, "residual_scale", positive("residual_scale", self.residual_scale))
         check_name("planner", self.planner)
         choice("task", self.task, tuple(t for t in TASKS if t != "explicit"))
         positive_int("steps", self.steps)
@@ -88,8 +91,10 @@ class TrainSettings:
 
     def env_kwargs(self) -> dict[str, Any]:
         """UR5Track-v0's arguments, every one that shapes the episodes (defaults written out)."""
-        s = resolve(planner=self.planner, action_mode=self.action_mode, task=self.task)
-        return {"planner": self.planner, "action_mode": self.action_mode, "task": self.task,
+        s = resolve(planner=self.planner, action_mode=self.action_mode, task=self.task,
+                    residual_scale=self.residual_scale)
+        return {"planner": self.planner, "action_mode": self.action_mode, "residual_scale": s.residual_scale,
+                "task": self.task,
                 "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt,
                 **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}, "preview": s.preview}
 
