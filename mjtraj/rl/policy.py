@@ -96,7 +96,7 @@ class Policy:
 
     @property
     def label(self) -> str:
-        """How results tables name it: planner+PID+residual SAC, or planner+SAC torque."""
+        """How results tables name it: planner+PID+residual SAC (its scale, N m), or planner+SAC torque."""
         env = self.env_kwargs
         algo = self.algo.upper()
         if env["action_mode"] == "residual":
