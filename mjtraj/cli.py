@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from mjtraj.exceptions import MjtrajError
+from mjtraj.exceptions import InvalidInputError, MjtrajError
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +41,28 @@ def _counts(text: str) -> list[int]:
 
 
 NEGATIVE = re.compile(r"-\.?\d")
+
+
+def _overrides(file: Path | None, pairs: list[str]) -> dict[str, Any]:
+    """rl train's hyperparameter overrides: the JSON object in `file`, then each NAME=VALUE of `pairs`."""
+    out: dict[str, Any] = {}
+    if file is not None:
+        try:
+            loaded = json.loads(file.read_text())
+        except (OSError, ValueError) as e:
+            raise InvalidInputError(f"hyperparameters: cannot read {file} as JSON ({e})") from e
+        if not isinstance(loaded, dict):
+            raise InvalidInputError(f"hyperparameters: expected a JSON object in {file}, got {type(loaded).__name__}")
+        out.update(loaded)
+    for pair in pairs:
+        name, sep, text = pair.partition("=")
+        if not sep or not name:
+            raise InvalidInputError(f"hyperparameter: expected NAME=VALUE, got {pair!r}")
+        try:
+            out[name] = json.loads(text)
+        except ValueError:
+            out[name] = text
+    return out
 """A value that starts like a negative number ('-6.28,0,0'), which argparse would take for an option."""
 
 
@@ -188,6 +210,10 @@ def _parser() -> argparse.ArgumentParser:
     t.add_argument("--evaluations", type=int, default=20, help="validation points of the learning curve (default 20)")
     t.add_argument("--validation", type=int, default=32, help="validation tasks (default 32)")
     t.add_argument("--threads", type=int, help="PyTorch CPU threads (default: all cores)")
+    t.add_argument("--hyperparameter", dest="hyperparameter", action="append", default=[], metavar="NAME=VALUE",
+                   help="an SB3 argument replacing the default (VALUE as JSON, else a string); repeat for several")
+    t.add_argument("--hyperparameters", type=Path, metavar="FILE",
+                   help="a JSON object of SB3 arguments replacing the defaults (--hyperparameter wins)")
     t.add_argument("--out", type=Path, default=Path("runs/rl"), help="output folder (default runs/rl)")
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
     p = rl_sub.add_parser("plot", help="redraw a run's learning_curve.png from its learning_curve.csv (also of a run "
@@ -267,7 +293,6 @@ def _compare(args: argparse.Namespace) -> int:
 
 
 def _frontier(args: argparse.Namespace) -> int:
-    from mjtraj.exceptions import InvalidInputError
     from mjtraj.files import write_text_atomic
     from mjtraj.study.frontier import DEFAULT_ALPHAS, DEFAULT_SPLITS, frontier
     from mjtraj.study.report import format_frontier
@@ -491,6 +516,7 @@ def _rl(args: argparse.Namespace) -> int:
         from mjtraj.rl.train import TrainSettings, train
 
         scale = {} if args.residual_scale is None else {"residual_scale": args.residual_scale}
+        scale["overrides"] = _overrides(args.hyperparameters, args.hyperparameter)
         settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **scale, planner=args.planner,
                                  task=args.task,
                                  steps=args.steps, seed=args.seed, num_envs=args.num_envs,

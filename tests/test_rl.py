@@ -295,6 +295,20 @@ def test_eval_scenarios_are_held_out_from_training(trained):
 
 
 @pytest.mark.slow
+def test_overrides_reach_the_model_and_the_record(tmp_path):
+    settings = TrainSettings(algo="sac", action_mode="residual", seed=1, num_envs=2,
+                             overrides={"learning_rate": 0.00123, "policy_kwargs": {"net_arch": [16, 16]}}, **TINY)
+    report = train(settings, tmp_path / "hp", progress=False)
+    run = json.loads((report.out / "run.json").read_text())
+    assert run["hyperparameters"]["overrides"] == {"learning_rate": 0.00123, "policy_kwargs": {"net_arch": [16, 16]}}
+    assert run["hyperparameters"]["resolved"]["learning_rate"] == 0.00123
+    policy = load_policy(report.policy)
+    widths = [layer.out_features for layer in policy.model.policy.actor.latent_pi if hasattr(layer, "out_features")]
+    assert widths == [16, 16]
+    assert TrainSettings(**run["settings"]) == settings  # the record rebuilds the run's settings (rl plot)
+
+
+@pytest.mark.slow
 def test_same_seed_same_policy(tmp_path):
     settings = TrainSettings(algo="td3", action_mode="torque", seed=5, num_envs=2, **TINY)
     a, b = train(settings, tmp_path / "a", progress=False), train(settings, tmp_path / "b", progress=False)
@@ -327,6 +341,17 @@ def test_ppo_trains_and_reloads(tmp_path):
     (["rl", "train", "--residual-scale", "0"], "mjtraj: error: residual_scale: expected a positive number, got 0.0\n"),
     (["rl", "train", "--residual-scale", "-2"],
      "mjtraj: error: residual_scale: expected a positive number, got -2.0\n"),
+    (["rl", "train", "--hyperparameter", "learning_rate"],
+     "mjtraj: error: hyperparameter: expected NAME=VALUE, got 'learning_rate'\n"),
+    (["rl", "train", "--algo", "ppo", "--hyperparameter", "buffer_size=10"],
+     "mjtraj: error: hyperparameter: unknown name 'buffer_size' for ppo; valid: learning_rate, n_steps, batch_size, "
+     "n_epochs, gamma, gae_lambda, clip_range, clip_range_vf, normalize_advantage, ent_coef, vf_coef, "
+     "max_grad_norm, use_sde, sde_sample_freq, rollout_buffer_kwargs, target_kl, stats_window_size, "
+     "policy_kwargs\n"),
+    (["rl", "train", "--hyperparameter", "seed=3"], "mjtraj: error: hyperparameter: unknown name 'seed' for sac; "
+     "valid: learning_rate, buffer_size, learning_starts, batch_size, tau, gamma, train_freq, gradient_steps, "
+     "replay_buffer_kwargs, optimize_memory_usage, n_steps, ent_coef, target_update_interval, target_entropy, "
+     "use_sde, sde_sample_freq, use_sde_at_warmup, stats_window_size, policy_kwargs\n"),
     (["rl", "eval", "--policy", "nowhere.zip"], "mjtraj: error: policy: file not found: nowhere.zip\n"),
     (["rl", "eval", "--policy", "p.pt"],
      "mjtraj: error: policy: expected a policy .zip saved by mjtraj rl train, got 'p.pt'\n"),
@@ -335,6 +360,27 @@ def test_cli_bad_input(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 2
     assert capsys.readouterr().err == message
+
+
+def test_hyperparameter_overrides_from_a_file_and_flags(tmp_path, monkeypatch, capsys):
+    """A file's JSON object, then NAME=VALUE flags (JSON values, else strings), replace the rule's defaults; a file
+    that is not a JSON object and a value that is not JSON-able are refused."""
+    from mjtraj.cli import _overrides
+
+    file = tmp_path / "hp.json"
+    file.write_text('{"learning_rate": 0.001, "ent_coef": "auto_0.1", "policy_kwargs": {"net_arch": [64, 64]}}')
+    got = _overrides(file, ["learning_rate=0.0003", "train_freq=[1, \"episode\"]", "ent_coef=auto"])
+    assert got == {"learning_rate": 0.0003, "ent_coef": "auto", "policy_kwargs": {"net_arch": [64, 64]},
+                   "train_freq": [1, "episode"]}
+    settings = TrainSettings(algo="ppo", num_envs=4, overrides={"n_steps": 64, "gamma": 0.95})
+    assert settings.hyperparameters() == {"n_steps": 64, "gamma": 0.95}  # the override replaces the PPO rule
+    assert TrainSettings(algo="ppo", num_envs=4).hyperparameters() == {"n_steps": 512}
+    with pytest.raises(InvalidInputError, match=r"^hyperparameter: learning_rate must be a JSON value"):
+        TrainSettings(overrides={"learning_rate": float("nan")})
+    file.write_text("[1, 2]")
+    monkeypatch.chdir(tmp_path)
+    assert main(["rl", "train", "--hyperparameters", str(file)]) == 2
+    assert capsys.readouterr().err == f"mjtraj: error: hyperparameters: expected a JSON object in {file}, got list\n"
 
 
 

@@ -3,7 +3,8 @@
 Rules (stated once, recorded in run.json):
 - hyperparameters are Stable-Baselines3's defaults for the algorithm, with two additions SB3 leaves to the user:
   PPO collects SB3's default 2048 transitions per update (n_steps = 2048 / num_envs), and TD3 explores with
-  Gaussian action noise of std 0.1 (the TD3 paper's; SB3 adds none). Nothing was tuned on evaluation scenarios;
+  Gaussian action noise of std 0.1 (the TD3 paper's; SB3 adds none). Nothing was tuned on evaluation scenarios.
+  `overrides` (from `--hyperparameter NAME=VALUE` or a JSON file) replace them by name and are recorded as such;
 - observations and rewards are normalised by SB3's VecNormalize (running statistics, clip 10); saved policies
   carry the observation statistics;
 - sub-env i trains on the TRAIN_STREAM seed (seed, i) and continues its stream across episodes; the learning
@@ -12,6 +13,7 @@ Rules (stated once, recorded in run.json):
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import time
@@ -59,6 +61,8 @@ class TrainSettings:
         before training).
       validation: validation tasks (task=random; the paper task is its own single validation task).
       threads: PyTorch CPU threads (None: PyTorch's default, every core).
+      overrides: SB3 keyword arguments that replace the defaults above, name -> JSON value (see
+        `overridable`).
     """
 
     algo: str = "sac"
@@ -73,6 +77,7 @@ class TrainSettings:
     evaluations: int = 20
     validation: int = 32
     threads: int | None = None
+    overrides: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         choice("algo", self.algo, ALGORITHMS)
@@ -88,6 +93,7 @@ class TrainSettings:
             positive_int(name, getattr(self, name))
         if self.threads is not None:
             positive_int("threads", self.threads)
+        check_overrides(self.algo, self.overrides)
 
     def env_kwargs(self) -> dict[str, Any]:
         """UR5Track-v0's arguments, every one that shapes the episodes (defaults written out)."""
@@ -99,12 +105,46 @@ class TrainSettings:
                 **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}, "preview": s.preview}
 
     def hyperparameters(self) -> dict[str, Any]:
-        """The keyword arguments given to the SB3 algorithm besides SB3's defaults (JSON-ready)."""
+        """The keyword arguments given to the SB3 algorithm besides SB3's defaults (JSON-ready): the rules'
+        additions, then the overrides."""
+        rules: dict[str, Any] = {}
         if self.algo == "ppo":
-            return {"n_steps": max(1, 2048 // int(self.num_envs or 1))}
+            rules = {"n_steps": max(1, 2048 // int(self.num_envs or 1))}
         if self.algo == "td3":
-            return {"action_noise": {"type": "NormalActionNoise", "std": TD3_NOISE_STD}}
-        return {}
+            rules = {"action_noise": {"type": "NormalActionNoise", "std": TD3_NOISE_STD}}
+        return {**rules, **self.overrides}
+
+
+NOT_OVERRIDABLE = frozenset({"self", "policy", "env", "verbose", "seed", "device", "_init_setup_model", "action_noise",
+                             "replay_buffer_class", "rollout_buffer_class", "tensorboard_log"})
+"""SB3 arguments that mjtraj sets itself (seed, device, env, ...) or that are not JSON values."""
+
+
+def overridable(algo: str) -> list[str]:
+    """The SB3 keyword arguments of `algo` that overrides may set (its constructor's, minus NOT_OVERRIDABLE)."""
+    import inspect
+
+    sb3 = require_sb3()
+    init = getattr(sb3, algo.upper()).__init__
+    return [name for name in inspect.signature(init).parameters if name not in NOT_OVERRIDABLE]
+
+
+def check_overrides(algo: str, overrides: Any) -> None:
+    """InvalidInputError unless `overrides` maps SB3 arguments of `algo` to JSON values (an unknown name lists the
+    valid ones)."""
+    if not isinstance(overrides, dict):
+        raise InvalidInputError(f"overrides: expected a mapping of SB3 argument names to values, got {overrides!r}")
+    if not overrides:
+        return
+    valid = overridable(algo)
+    for name, value in overrides.items():
+        if name not in valid:
+            raise InvalidInputError(f"hyperparameter: unknown name {name!r} for {algo}; valid: {', '.join(valid)}")
+        try:
+            json.dumps(value, allow_nan=False)
+        except (TypeError, ValueError) as e:
+            raise InvalidInputError(f"hyperparameter: {name} must be a JSON value (number, string, bool, null, list "
+                                    f"or object), got {value!r}") from e
 
 
 @dataclass
@@ -170,7 +210,7 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
     num_envs = int(settings.num_envs)  # type: ignore[arg-type]
     record: dict[str, Any] = {
         "format": RUN_FORMAT, "status": "running", "settings": dataclasses.asdict(settings), "env": env_kwargs,
-        "hyperparameters": {"sb3_defaults_plus": hyper},
+        "hyperparameters": {"sb3_defaults_plus": hyper, "overrides": dict(settings.overrides)},
         "normalization": {"norm_obs": True, "norm_reward": True, "clip_obs": CLIP_OBS},
         "streams": {"train": {"stream": TRAIN_STREAM, "gym_seeds": training_entropies(settings.seed, num_envs)},
                     "validation": {"stream": VALIDATION_STREAM,
@@ -181,7 +221,7 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
     clock = time.perf_counter()
     try:
         venv = VecNormalize(VecMonitor(SB3TrackVecEnv(num_envs, **env_kwargs)), clip_obs=CLIP_OBS)
-        kwargs = dict(hyper)
+        kwargs = copy.deepcopy(hyper)  # SB3 edits policy_kwargs in place; the record keeps what was given
         if settings.algo == "td3":
             n = env.n
             kwargs["action_noise"] = NormalActionNoise(np.zeros(n), np.full(n, TD3_NOISE_STD))
