@@ -22,14 +22,17 @@ STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "r
 """Keys of every step's info (arrays of shape (B, n), or (B,) for the reward terms)."""
 
 
-def observe(loop: ClosedLoop, preview: int) -> NDArray[np.float64]:
-    """Observations of every simulation of a started loop, shape (B, 6n + 1 + 2n preview): q, qd, q_ref, qd_ref,
-    e, ed, the phase k/N, then q_ref and qd_ref of the next `preview` periods (held at N)."""
+def observe(loop: ClosedLoop, preview: int, control: bool = False) -> NDArray[np.float64]:
+    """Observations of every simulation of a started loop, shape (B, 6n + 1 + 2n preview [+ 2n]): q, qd, q_ref,
+    qd_ref, e, ed, the phase k/N, then q_ref and qd_ref of the next `preview` periods (held at N), then with
+    `control` the PID integral (rad s) and the next period's feedforward torque (N m)."""
     q, qd = loop.positions, loop.velocities
     q_ref, qd_ref = loop.reference()
     parts = [q, qd, q_ref, qd_ref, q_ref - q, qd_ref - qd, (loop.periods / loop.steps)[:, None]]
     for offset in range(1, preview + 1):
         parts += loop.reference(offset)
+    if control:
+        parts += loop.controller_state()
     return np.concatenate(parts, axis=1)
 
 
@@ -133,7 +136,7 @@ class TrackCore:
 
     def observe(self) -> NDArray[np.float64]:
         """Observations of every simulation (see `observe`)."""
-        return observe(self.loop, self.settings.preview)
+        return observe(self.loop, self.settings.preview, self.settings.observe_control)
 
     def metrics(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
         """The episode Metrics of simulations `ids` (NaN for a diverged one): name -> shape (len(ids),)."""

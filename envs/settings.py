@@ -54,6 +54,8 @@ class EnvOptions:
     duration: float = option(2.0, "T, s (a whole number of dt)", positive=True)
     dt: float = option(0.02, "control period, s", positive=True)
     preview: int = option(0, "future reference samples in the observation", minimum=0)
+    observe_control: bool = option(False, "append the PID integral and the next feedforward torque to the "
+                                   "observation (both enter dtau and the reward)")
     width: int = option(640, "image width, px", minimum=1)
     height: int = option(480, "image height, px", minimum=1)
     camera: str = option("front", "front, side or top")
@@ -89,6 +91,8 @@ class TrackSettings:
     dt: float
     loop: LoopConfig
     preview: int
+    observe_control: bool
+    """The observation ends with the PID integral and the next feedforward torque."""
     scoring: Scoring
     render_mode: str | None
     width: int
@@ -107,8 +111,8 @@ class TrackSettings:
 
     @property
     def obs_size(self) -> int:
-        """6n + 1 + 2n preview."""
-        return 6 * self.n + 1 + 2 * self.n * self.preview
+        """6n + 1 + 2n preview (+ 2n with observe_control)."""
+        return 6 * self.n + 1 + 2 * self.n * self.preview + 2 * self.n * self.observe_control
 
     @property
     def torque_limit(self) -> NDArray[np.float64]:
@@ -194,5 +198,6 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
     return TrackSettings(model=model, planner=planner_obj, planner_name=planner_name, action_mode=own.action_mode,
                          residual_scale=float(own.residual_scale), task_mode=own.task, fixed_task=fixed,
                          max_displacement=own.max_displacement,
-                         duration=own.duration, dt=own.dt, loop=loop, preview=own.preview, scoring=scoring,
+                         duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,
+                         observe_control=own.observe_control, scoring=scoring,
                          render_mode=render_mode, width=width, height=height, camera=camera)

@@ -33,6 +33,9 @@ def observation_space(settings: TrackSettings) -> spaces.Box:
     zero, one = np.zeros(1), np.ones(1)
     low = [q_low, -v, q_low, -v, -e_max, -2 * v, zero] + [q_low, -v] * settings.preview
     high = [q_high, v, q_high, v, e_max, 2 * v, one] + [q_high, v] * settings.preview
+    if settings.observe_control:  # no a-priori bound: the largest finite float (Gymnasium warns on inf)
+        unbounded = np.full(2 * settings.n, np.finfo(np.float64).max)
+        low, high = [*low, -unbounded], [*high, unbounded]
     return spaces.Box(np.concatenate(low), np.concatenate(high), dtype=np.float64)  # type: ignore[arg-type]
 
 
@@ -64,9 +67,10 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | torque      | 60 a N m is the whole corrective torque (gravity compensation stays)    |
 
     ## Observation Space
-    `Box(float64)` of size 19 + 6 preview. After step k the loop is at period k+1 and the reference sample is
-    that period's. Bounds: `range` is a joint's position range (pan and lift +-2 pi, elbow +-pi), `width` its
-    length; velocities are bounded by 200 rad/s, which 60 N m cannot reach before |e| > pi ends the episode.
+    `Box(float64)` of size 19 + 6 preview (+ 6 with observe_control). After step k the loop is at period k+1
+    and the reference sample is that period's. Bounds: `range` is a joint's position range (pan and lift +-2 pi,
+    elbow +-pi), `width` its length; velocities are bounded by 200 rad/s, which 60 N m cannot reach before
+    |e| > pi ends the episode.
 
     | index          | observation                                        | min           | max          | unit  |
     |----------------|----------------------------------------------------|---------------|--------------|-------|
@@ -79,6 +83,10 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | 18             | phase k / N                                        | 0             | 1            | -     |
     | 19+6j .. 21+6j | preview j = 0..preview-1: q_ref,k+1+j (held at N)  | range - pi    | range + pi   | rad   |
     | 22+6j .. 24+6j | preview j: qd_ref,k+1+j (held at N)                | -200          | 200          | rad/s |
+    | m .. m+2       | observe_control: the PID integral of e             | -max float    | max float    | rad s |
+    | m+3 .. m+5     | observe_control: tau_ff of period k+1 (then N)     | -max float    | max float    | N m   |
+
+    (m = 19 + 6 preview; max float = the largest finite float64: these two have no a-priori bound.)
 
     ## Rewards
     r_k = reward_tracking + reward_effort = -(x_k^T Q_exec x_k) - (dtau_k^T R_exec dtau_k), x_k = [e_k; ed_k] the
@@ -122,6 +130,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | anti_windup      | "none"     | none or clamp                                                           |
     | substeps         | 1          | integrator steps per control period                                     |
     | preview          | 0          | future reference samples in the observation                             |
+    | observe_control  | False      | append the PID integral and the next feedforward torque (6 values)      |
     | Q_exec           | None       | diag of Q_exec, 6 weights (None: Bryson's rule for each task)           |
     | R_exec           | None       | diag of R_exec, 3 weights (None: Bryson's rule)                         |
     | render_mode      | None       | None, "rgb_array" or "depth_array"                                      |

@@ -201,6 +201,8 @@ def _parser() -> argparse.ArgumentParser:
     t.add_argument("--residual-scale", dest="residual_scale", type=float,
                    help="N m per unit of action in residual mode (default 10: PID's median per-joint RMS feedback "
                    "torque on the mismatch family)")
+    t.add_argument("--observe-control", dest="observe_control", action="store_true",
+                   help="the policy also observes the PID integral and the next feedforward torque")
     t.add_argument("--planner", default="cubic", help="planner whose references the policy tracks (default cubic)")
     t.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
     t.add_argument("--steps", type=int, default=100_000, help="environment steps (default 100000)")
@@ -515,9 +517,10 @@ def _rl(args: argparse.Namespace) -> int:
     if args.rl_command == "train":
         from mjtraj.rl.train import TrainSettings, train
 
-        scale = {} if args.residual_scale is None else {"residual_scale": args.residual_scale}
-        scale["overrides"] = _overrides(args.hyperparameters, args.hyperparameter)
-        settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **scale, planner=args.planner,
+        extra: dict[str, Any] = {} if args.residual_scale is None else {"residual_scale": args.residual_scale}
+        extra["overrides"] = _overrides(args.hyperparameters, args.hyperparameter)
+        extra["observe_control"] = args.observe_control
+        settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **extra, planner=args.planner,
                                  task=args.task,
                                  steps=args.steps, seed=args.seed, num_envs=args.num_envs,
                                  checkpoints=args.checkpoints, evaluations=args.evaluations,

@@ -290,7 +290,7 @@ def test_docstring_arguments_table_matches_the_code():
     env = UR5TrackEnv()  # and those defaults are what an env built without arguments uses
     s = env.settings
     applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,
-               "task": s.task_mode,
+               "task": s.task_mode, "observe_control": s.observe_control,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
                "width": s.width, "height": s.height, "camera": s.camera, "render_mode": s.render_mode,
                **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}}
@@ -353,7 +353,8 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                           r"rule on each task$"),
     ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, action_mode, "
                    r"residual_scale, task, "
-                   r"max_displacement, duration, dt, preview, width, height, camera, feedforward, ff_accel, "
+                   r"max_displacement, duration, dt, preview, observe_control, width, height, camera, feedforward, "
+                   r"ff_accel, "
                    r"gravity_comp, anti_windup, substeps$"),
     ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
     ({"residual_scale": 0}, r"^residual_scale: expected a positive number, got 0"),
@@ -408,3 +409,35 @@ def test_native_vector_env_is_gymnasiums_sync_vector_env():
             np.testing.assert_array_equal(got, expected)
     sync.close()
     native.close()
+
+
+def test_observe_control_appends_the_integral_and_the_next_feedforward():
+    """Oracles: the integral observed after step k is sum_j e_j dt over the steps so far (the PID's rectangle rule,
+    from info["e"]); the feedforward observed after step k is the tau_ff that step k+1 applies (info); the first 19
+    values are the plain observation; the space holds every observation (Gymnasium's check_env)."""
+    from gymnasium.utils.env_checker import check_env
+
+    env = UR5TrackEnv(action_mode="residual", task="random", observe_control=True)
+    plain = UR5TrackEnv(action_mode="residual", task="random")
+    assert env.observation_space.shape == (25,)
+    obs, _ = env.reset(seed=3)
+    ref, _ = plain.reset(seed=3)
+    assert np.array_equal(obs[:19], ref) and np.array_equal(obs[19:22], np.zeros(3))
+    rng = np.random.default_rng(0)
+    integral, previous, k = np.zeros(3), obs, 0
+    done = False
+    while not done:
+        action = rng.uniform(-1, 1, 3).astype(np.float32)
+        obs, _, done, _, info = env.step(action)
+        ref, *_ = plain.step(action)
+        np.testing.assert_array_equal(info["tau_ff"], previous[22:25])
+        integral = integral + info["e"] * env.unwrapped.dt
+        np.testing.assert_allclose(obs[19:22], integral, rtol=1e-12, atol=1e-15)
+        assert np.array_equal(obs[:19], ref) and env.observation_space.contains(obs)
+        previous, k = obs, k + 1
+    assert k == 100
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+    plain.close()

@@ -160,6 +160,28 @@ def test_the_policy_path_scales_actions_as_the_env(scale):
     env.close()
 
 
+def test_the_policy_path_observes_as_the_env_with_observe_control():
+    """A policy acting on the appended feedforward and integral gives, through the evaluation path, the env's own
+    episode (cost bit for bit): both paths build the same observation."""
+    from mjtraj.rl.episodes import PolicyActor
+    from mjtraj.study.pipeline import Job, execute
+
+    def policy(obs):
+        return np.clip(obs[:, -3:] / 30.0 - 5.0 * obs[:, -6:-3], -1, 1).astype(np.float32)
+
+    env = UR5TrackEnv(action_mode="residual", observe_control=True)
+    obs, _ = env.reset(seed=0)
+    done = False
+    while not done:
+        obs, _, done, _, info = env.step(policy(obs[None])[0])
+    s = env.settings
+    job = Job(s.planner.plan(s.fixed_task, s.model), s.weights(s.fixed_task))
+    out = execute(s.model, s.loop, [job], actor=PolicyActor(policy, s))
+    assert out[0].metrics["cost"] == info["metrics"]["cost"]
+    assert TrainSettings(observe_control=True).env_kwargs()["observe_control"] is True
+    env.close()
+
+
 def test_a_policy_records_its_residual_scale_and_old_records_mean_the_saturation():
     record = {"settings": {"algo": "sac"},
               "env": {**TrainSettings(residual_scale=4.0).env_kwargs(), "task": "paper"}}

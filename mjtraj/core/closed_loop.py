@@ -204,6 +204,15 @@ class ClosedLoop:
         ks = np.minimum(s.k + offset, N)
         return s.q_ref[ks, s.rows], s.qd_ref[ks, s.rows]
 
+    def controller_state(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Each simulation's PID integral now (rad s) and the feedforward torque of its next period (N m, held at
+        the last period once the reference ends), shape (B, n) each (read-only use)."""
+        s = self._running()
+        last = s.tau_ff.shape[0] - 1
+        if s.sync is not None:
+            return s.integral, s.tau_ff[min(s.sync, last)]
+        return s.integral, s.tau_ff[np.minimum(s.k, last), s.rows]
+
     def unstable(self) -> NDArray[np.bool_]:
         """Shape (B,): MuJoCo flagged the simulation numerically unstable since its last start."""
         return self._plant.unstable()

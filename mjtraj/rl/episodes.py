@@ -34,7 +34,8 @@ class PolicyActor:
         self._limit = np.tile(self.settings.action_scale, (loop.nsim, 1))
 
     def act(self, loop: ClosedLoop) -> NDArray[np.float64]:
-        return scale_action(self.policy(observe(loop, self.settings.preview)), self._limit)
+        obs = observe(loop, self.settings.preview, self.settings.observe_control)
+        return scale_action(self.policy(obs), self._limit)
 
 
 def run_episodes(policy: Policy | None, settings: TrackSettings, references: Sequence[Reference],

@@ -51,6 +51,7 @@ class TrainSettings:
       algo: sac, ppo or td3.
       action_mode: residual (added to feedforward + PID) or torque (the whole corrective torque).
       residual_scale: N m per unit of action in residual mode (the env's default rule: RESIDUAL_SCALE).
+      observe_control: the policy also observes the PID integral and the next feedforward torque.
       planner: the planner whose references the policy tracks.
       task: paper (always the paper's move) or random (a new random move each episode).
       steps: environment steps to train for (PPO rounds up to whole rollouts).
@@ -68,6 +69,7 @@ class TrainSettings:
     algo: str = "sac"
     action_mode: str = "residual"
     residual_scale: float = RESIDUAL_SCALE
+    observe_control: bool = False
     planner: str = "cubic"
     task: str = "random"
     steps: int = 100_000
@@ -93,16 +95,19 @@ class TrainSettings:
             positive_int(name, getattr(self, name))
         if self.threads is not None:
             positive_int("threads", self.threads)
+        if not isinstance(self.observe_control, bool):
+            raise InvalidInputError(f"observe_control: expected true or false, got {self.observe_control!r}")
         check_overrides(self.algo, self.overrides)
 
     def env_kwargs(self) -> dict[str, Any]:
         """UR5Track-v0's arguments, every one that shapes the episodes (defaults written out)."""
         s = resolve(planner=self.planner, action_mode=self.action_mode, task=self.task,
-                    residual_scale=self.residual_scale)
+                    residual_scale=self.residual_scale, observe_control=self.observe_control)
         return {"planner": self.planner, "action_mode": self.action_mode, "residual_scale": s.residual_scale,
                 "task": self.task,
                 "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt,
-                **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}, "preview": s.preview}
+                **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}, "preview": s.preview,
+                "observe_control": s.observe_control}
 
     def hyperparameters(self) -> dict[str, Any]:
         """The keyword arguments given to the SB3 algorithm besides SB3's defaults (JSON-ready): the rules'
