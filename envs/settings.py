@@ -140,10 +140,6 @@ class TrackSettings:
         return random_task(rng, self.model, max_displacement=self.max_displacement, duration=self.duration,
                            dt=self.dt)
 
-    def with_duration(self, duration: float) -> TrackSettings:
-        """The same settings for episodes of `duration` s whose tasks are given from outside (evaluation)."""
-        return dataclasses.replace(self, duration=float(duration), task_mode="explicit", fixed_task=None)
-
 
 def _planner(planner: Any, paper: Scenario) -> tuple[str, Planner]:
     if isinstance(planner, str):
