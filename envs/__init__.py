@@ -37,6 +37,7 @@ _EXPORTS = {
     "STEP_INFO": "mjtraj.envs.core",
     "ACTION_MODES": "mjtraj.envs.settings",
     "RESIDUAL_SCALE": "mjtraj.envs.settings",
+    "PLANT_RANDOMIZATIONS": "mjtraj.envs.settings",
     "TASKS": "mjtraj.envs.settings",
     "EnvOptions": "mjtraj.envs.settings",
     "TrackSettings": "mjtraj.envs.settings",
@@ -49,6 +50,7 @@ if TYPE_CHECKING:
     from mjtraj.envs.core import STEP_INFO, TrackCore, observe, scale_action
     from mjtraj.envs.settings import (
         ACTION_MODES,
+        PLANT_RANDOMIZATIONS,
         RESIDUAL_SCALE,
         TASKS,
         EnvOptions,
@@ -59,6 +61,8 @@ if TYPE_CHECKING:
     from mjtraj.envs.ur5_track import UR5TrackEnv, action_space, observation_space
     from mjtraj.envs.vector import UR5TrackVectorEnv
 
-__all__ = ["ACTION_MODES", "ENV_ID", "RESIDUAL_SCALE", "STEP_INFO", "TASKS", "EnvOptions", "TrackCore",
-           "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
-           "observation_space", "observe", "register_envs", "resolve", "scale_action"]
+__all__ = [
+    "ACTION_MODES", "ENV_ID", "EnvOptions", "PLANT_RANDOMIZATIONS", "RESIDUAL_SCALE", "STEP_INFO", "TASKS",
+    "TrackCore", "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
+    "observation_space", "observe", "register_envs", "resolve", "scale_action",
+]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, Task, metrics_arrays, step_cost
 from mjtraj.exceptions import InvalidInputError
+from mjtraj.study import Perturbation, no_perturbation, perturbed_plant, plant_fields
 
 STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort")
 """Keys of every step's info (arrays of shape (B, n), or (B,) for the reward terms)."""
@@ -67,51 +68,83 @@ def scale_action(action: npt.ArrayLike, limit: NDArray[np.float64]) -> NDArray[n
     return np.minimum(np.maximum(a, -1.0), 1.0) * limit
 
 
+class Episode(NamedTuple):
+    """What one episode runs: its reference, the diagonal weights that score it (Q_exec (2n,), R_exec (n,)), its
+    plant (None: the nominal one) and its measurement noise on [q; qd] ((N, 2n), or None)."""
+
+    reference: Reference
+    weights: tuple[NDArray[np.float64], NDArray[np.float64]]
+    plant: Perturbation | None = None
+    noise: NDArray[np.float64] | None = None
+
+
 class TrackCore:
-    """B tracking episodes advanced together: task sampling, planning, control, observation, reward."""
+    """B tracking episodes advanced together: task sampling, planning, plant randomisation, control, observation,
+    reward."""
 
     def __init__(self, settings: TrackSettings, num: int) -> None:
         self.settings = settings
         self.num = num
         self.model = settings.model
-        self.loop = ClosedLoop(self.model, settings.loop, nsim=num)
         n = settings.n
+        self.plant = perturbed_plant(self.model) if settings.plant_randomization != "none" else None
+        """The simulated model whose fields each episode's perturbation sets; None: the nominal model."""
+        fields = plant_fields(self.plant, [no_perturbation(n)] * num) if self.plant is not None else None
+        self.loop = ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields)
         self.limit = np.tile(settings.action_scale, (num, 1))
         task = settings.fixed_task
         self.fixed = (settings.planner.plan(task, self.model), settings.weights(task)) if task is not None else None
         self.references: list[Reference | None] = [None] * num
+        self.plants: list[Perturbation | None] = [None] * num
+        """Each simulation's current plant (None: nominal)."""
         self._q_diag = np.zeros((num, 2 * n))
         self._r_diag = np.zeros((num, n))
 
-    def plan(self, rng: np.random.Generator) -> tuple[Reference, tuple[NDArray[np.float64], NDArray[np.float64]]]:
-        """The next episode's reference, planned for a task drawn from `rng` (fixed tasks: planned once), and the
-        diagonal weights (Q_exec (2n,), R_exec (n,)) that score it."""
-        if self.fixed is not None:
-            return self.fixed
-        task = self.settings.sample_task(rng)
-        return self.settings.planner.plan(task, self.model), self.settings.weights(task)
+    def plan(self, rng: np.random.Generator, task: Task | None = None) -> Episode:
+        """The next episode, drawn from `rng` in a fixed order: the task (unless given, or the env's task is fixed:
+        then planned once), then the plant, then the measurement noise."""
+        if task is not None:
+            reference, weights = self.settings.planner.plan(task, self.model), self.settings.weights(task)
+        elif self.fixed is not None:
+            reference, weights = self.fixed
+        else:
+            task = self.settings.sample_task(rng)
+            reference, weights = self.settings.planner.plan(task, self.model), self.settings.weights(task)
+        return Episode(reference, weights, self.settings.sample_plant(rng), self.settings.sample_noise(rng))
 
     def reset(self, rngs: Sequence[np.random.Generator], ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
         """Start new episodes on simulations `ids` (all if None), one rng each; their observations (len, d)."""
         return self.begin([self.plan(rng) for rng in rngs], ids)
 
-    def plan_task(self, task: Task) -> tuple[Reference, tuple[NDArray[np.float64], NDArray[np.float64]]]:
-        """`task`'s reference and the weights that score it (an episode asked for by reset options)."""
-        return self.settings.planner.plan(task, self.model), self.settings.weights(task)
-
-    def begin(self, planned: Sequence[tuple[Reference, tuple[NDArray[np.float64], NDArray[np.float64]]]],
-              ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
-        """Start episodes on `planned` (reference, weights) pairs on simulations `ids` (all if None)."""
+    def begin(self, episodes: Sequence[Episode], ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+        """Start `episodes` on simulations `ids` (all if None); their observations (len, d)."""
         rows = np.arange(self.num) if ids is None else ids
-        for row, (reference, (q_diag, r_diag)) in zip(rows, planned, strict=True):
-            self.references[row] = reference
-            self._q_diag[row], self._r_diag[row] = q_diag, r_diag
-        references = [reference for reference, _ in planned]
+        for row, episode in zip(rows, episodes, strict=True):
+            self.references[row], self.plants[row] = episode.reference, episode.plant
+            self._q_diag[row], self._r_diag[row] = episode.weights
+        if self.plant is not None:
+            plants = [e.plant if e.plant is not None else no_perturbation(self.settings.n) for e in episodes]
+            self.loop.set_plant_fields(plant_fields(self.plant, plants), rows)
+        noise = None
+        if any(e.noise is not None for e in episodes):
+            n2 = 2 * self.settings.n
+            noise = np.stack([e.noise if e.noise is not None else np.zeros((e.reference.steps, n2))
+                              for e in episodes], axis=1)
+        references = [e.reference for e in episodes]
         if ids is None:
-            self.loop.start(references)
+            self.loop.start(references, noise=noise)
         else:
-            self.loop.restart(ids, references)
+            self.loop.restart(ids, references, noise=noise)
         return self.observe()[rows]
+
+    def plant_info(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
+        """The plants of simulations `ids` as info columns (payload_kg, mass_scale_j, inertia_scale_j, damping_j,
+        friction_j), name -> (len(ids),); empty without plant randomisation."""
+        if self.plant is None:
+            return {}
+        rows = [(p if p is not None else no_perturbation(self.settings.n)).as_dict() for p in
+                (self.plants[i] for i in ids)]
+        return {name: np.array([r[name] for r in rows]) for name in rows[0]}
 
     def action(self, action: npt.ArrayLike) -> NDArray[np.float64] | None:
         """Validate a (B, n) action (real, finite; clipped to [-1, 1]) and scale it to torque, N m; None in pid mode,

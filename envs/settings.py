@@ -28,11 +28,12 @@ from mjtraj.core import (
 )
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.media import check_render_options
-from mjtraj.study import Scenario, load_scenario
+from mjtraj.study import Perturbation, Scenario, draw_perturbation, load_scenario, noise_scale
 
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
 RENDER_MODES = ("rgb_array", "depth_array")
+PLANT_RANDOMIZATIONS = ("none", "mismatch")
 RESIDUAL_SCALE = 10.0
 """N m, the default authority of a residual action: the median per-joint RMS feedback torque of PID on the mismatch
 family (cubic references, 1000 scenarios: 10.2 N m, see docs/design.md), rounded to one significant figure. The
@@ -56,6 +57,11 @@ class EnvOptions:
     preview: int = option(0, "future reference samples in the observation", minimum=0)
     observe_control: bool = option(False, "append the PID integral and the next feedforward torque to the "
                                    "observation (both enter dtau and the reward)")
+    plant_randomization: str = option("none", "none, or mismatch: each episode's plant drawn by the sweeps' mismatch "
+                                      "rules (payload, link masses and inertias, damping, friction)",
+                                      choices=PLANT_RANDOMIZATIONS)
+    measurement_noise: float = option(0.0, "std of the noise on measured q, rad (sqrt(2) x / dt on qd), drawn per "
+                                      "episode; 0 for exact measurements", minimum=0.0)
     width: int = option(640, "image width, px", minimum=1)
     height: int = option(480, "image height, px", minimum=1)
     camera: str = option("front", "front, side or top")
@@ -68,7 +74,7 @@ def argument_defaults() -> dict[str, Any]:
     """Every env argument and its default: the env's own, then the loop options (the paper scenario's values)."""
     paper = load_scenario()
     own = {f.name: f.default for f, _, _ in declared_options(EnvOptions)}
-    loop = {f.name: getattr(paper.loop, f.name) for f, _, _ in declared_options(LoopConfig, scenario_only=True)}
+    loop = {f.name: getattr(paper.loop, f.name) for f, _, _ in declared_options(LoopConfig)}
     return {"planner": "cubic", **own, "q0": None, "qg": None, "Q_exec": None, "R_exec": None, "render_mode": None,
             **loop}
 
@@ -93,6 +99,10 @@ class TrackSettings:
     preview: int
     observe_control: bool
     """The observation ends with the PID integral and the next feedforward torque."""
+    plant_randomization: str
+    """'none' or 'mismatch' (`mjtraj.study.families` rules, drawn per episode)."""
+    measurement_noise: float
+    """Std of the noise on measured q, rad (0: exact)."""
     scoring: Scoring
     render_mode: str | None
     width: int
@@ -132,6 +142,18 @@ class TrackSettings:
         Bryson's rule gives the paper scenario's weights."""
         return self.scoring.weights(task, self.torque_limit)
 
+    def sample_plant(self, rng: np.random.Generator) -> Perturbation | None:
+        """The next episode's plant: None for the nominal one, else a mismatch plant drawn from `rng` (after the
+        task) by the sweeps' mismatch rules."""
+        return draw_perturbation(rng, self.n) if self.plant_randomization == "mismatch" else None
+
+    def sample_noise(self, rng: np.random.Generator) -> NDArray[np.float64] | None:
+        """The next episode's measurement noise on [q; qd], shape (N, 2n), drawn from `rng` after the plant; None
+        without noise."""
+        if self.measurement_noise == 0.0:
+            return None
+        return rng.standard_normal((self.steps, 2 * self.n)) * noise_scale(self.n, self.measurement_noise, self.dt)
+
     def sample_task(self, rng: np.random.Generator) -> Task:
         """The next episode's task: the fixed one, or for 'random' a start uniform in the joint ranges and a goal
         uniform in the ranges within +-max_displacement of it (two draws of n uniforms from `rng`)."""
@@ -161,7 +183,7 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
     """
     paper = scenario if scenario is not None else load_scenario()
     env_names = [f.name for f, _, _ in declared_options(EnvOptions)]
-    loop_names = [f.name for f, _, _ in declared_options(LoopConfig, scenario_only=True)]
+    loop_names = [f.name for f, _, _ in declared_options(LoopConfig)]
     unknown = sorted(set(options) - set(env_names) - set(loop_names))
     if unknown:
         raise InvalidInputError(f"{unknown[0]}: unknown argument; valid: "
@@ -195,5 +217,6 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          residual_scale=float(own.residual_scale), task_mode=own.task, fixed_task=fixed,
                          max_displacement=own.max_displacement,
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,
-                         observe_control=own.observe_control, scoring=scoring,
+                         observe_control=own.observe_control, plant_randomization=own.plant_randomization,
+                         measurement_noise=own.measurement_noise, scoring=scoring,
                          render_mode=render_mode, width=width, height=height, camera=camera)

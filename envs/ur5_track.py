@@ -108,9 +108,19 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     follows duration and dt (no TimeLimit is registered). At the end `info["metrics"]` holds the episode's Metrics
     (`mjtraj.Metrics` fields; NaN if diverged) and `info["diverged"]` says whether it diverged.
 
+    ## Plant randomisation
+    With `plant_randomization="mismatch"` each episode runs on its own plant, drawn from the reset's generator
+    after the task by the rules of the sweeps' mismatch family (`mjtraj.study.families`): a payload of U(0, 5) kg
+    at the flange, each link's mass and inertia scaled by U(0.8, 1.2), joint damping U(0, 1) N m s/rad and
+    friction U(0, 3) N m. The planner and the feedforward keep the nominal model, as in the sweeps.
+    `measurement_noise=sigma` adds noise of std sigma (rad) to the measured q and sqrt(2) sigma / dt to qd, drawn
+    per episode after the plant; the controller sees it, the reward and metrics score the true state. Held-out
+    evaluation runs the sweep family's own seeded scenarios (`mjtraj rl eval --family mismatch`).
+
     ## Info
     Every step: tau_ff, tau_fb, dtau (N m, shape (3,)), saturated (bool (3,)), e (rad, (3,)), reward_tracking,
-    reward_effort.
+    reward_effort. With plant randomisation, reset's info["plant"] describes the episode's plant: payload_kg,
+    mass_scale_j, inertia_scale_j, damping_j (N m s/rad), friction_j (N m) for joints j = 0..2.
 
     ## Arguments
     | argument         | default    | meaning                                                                 |
@@ -129,6 +139,10 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | gravity_comp     | "native"   | native or zoh                                                           |
     | anti_windup      | "none"     | none or clamp                                                           |
     | substeps         | 1          | integrator steps per control period                                     |
+    | divergence_bound | 3.141592653589793 | abs(e) above this on a joint ends the episode as diverged, rad   |
+    | delay            | 0          | actuation delay in control periods (0 or 1)                             |
+    | plant_randomization | "none"  | none, or mismatch: each episode's plant drawn by the mismatch rules     |
+    | measurement_noise | 0.0       | std of the noise on measured q, rad (sqrt(2) x / dt on qd); per episode |
     | preview          | 0          | future reference samples in the observation                             |
     | observe_control  | False      | append the PID integral and the next feedforward torque (6 values)      |
     | Q_exec           | None       | diag of Q_exec, 6 weights (None: Bryson's rule for each task)           |
@@ -170,12 +184,11 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float64], dict[str, Any]]:
         super().reset(seed=seed)
-        if options:
-            obs = self._core.begin([self._core.plan_task(self._task_of(options))])
-        else:
-            obs = self._core.reset([self.np_random])
+        task = self._task_of(options) if options else None
+        obs = self._core.begin([self._core.plan(self.np_random, task)])
         self._running = True
-        return obs[0], {}
+        plant = self._core.plant_info(np.zeros(1, np.intp))
+        return obs[0], {"plant": {name: float(v[0]) for name, v in plant.items()}} if plant else {}
 
     def _task_of(self, options: dict[str, Any]) -> Task:
         """The task `reset(options=...)` asks for: q0, qg (rad) and duration (s), each defaulting to this env's."""

@@ -32,7 +32,9 @@ class UR5TrackVectorEnv(VectorEnv):
     Stable-Baselines3 expects) the ending step already returns the new episode's first observation, and the final
     one is in `info["final_obs"]` (an object array with the mask `info["_final_obs"]`). In both modes
     `info["metrics"]` (name -> (num_envs,) array, with the mask `info["_metrics"]`) carries the Metrics of the
-    episodes that ended in that step, and `info["diverged"]` whether they diverged.
+    episodes that ended in that step, and `info["diverged"]` whether they diverged. With plant randomisation,
+    `info["plant"]` (name -> (num_envs,) array, mask `info["_plant"]`) describes the plants of the episodes that
+    start in that call (reset, or a step that autoresets).
 
     Seeding: `reset(seed=s)` seeds sub-env i with s + i (a list gives one seed each), so sub-env i reproduces
     `UR5TrackEnv` reset with seed s + i bit for bit, later episodes included. `max_episode_steps` (set by
@@ -84,7 +86,9 @@ class UR5TrackVectorEnv(VectorEnv):
         obs = self._core.reset(self._rngs)
         self._autoreset[:] = False
         self._elapsed[:] = 0
-        return obs, {}
+        info: dict[str, Any] = {}
+        self._plant_info(np.arange(self.num_envs), info)
+        return obs, info
 
     def step(self, actions: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
                                                     NDArray[np.bool_], dict[str, Any]]:
@@ -113,7 +117,7 @@ class UR5TrackVectorEnv(VectorEnv):
             diverged = self._core.loop.diverged
             out["diverged"], out["_diverged"] = diverged & done, done.copy()
         if restart.size:
-            self._restart(restart, obs)
+            self._restart(restart, obs, out)
             reward[restart] = 0.0
             terminated[restart] = False
         if self.autoreset_mode is AutoresetMode.SAME_STEP:
@@ -123,15 +127,28 @@ class UR5TrackVectorEnv(VectorEnv):
                 for i in ended:
                     final[i] = obs[i].copy()
                 out["final_obs"], out["_final_obs"] = final, done.copy()
-                self._restart(ended, obs)
+                self._restart(ended, obs, out)
             return obs, reward, terminated, truncated, out
         self._autoreset = done
         return obs, reward, terminated, truncated, out
 
-    def _restart(self, ids: NDArray[np.intp], obs: NDArray[np.float64]) -> None:
-        """Start the next episodes of sub-envs `ids` (their own rngs), writing their first observations into obs."""
+    def _restart(self, ids: NDArray[np.intp], obs: NDArray[np.float64], info: dict[str, Any]) -> None:
+        """Start the next episodes of sub-envs `ids` (their own rngs), writing their first observations into obs
+        and their plants into info."""
         obs[ids] = self._core.reset([self._rngs[i] for i in ids], ids)
         self._elapsed[ids] = 0
+        self._plant_info(ids, info)
+
+    def _plant_info(self, ids: NDArray[np.intp], info: dict[str, Any]) -> None:
+        """With plant randomisation, info["plant"] (name -> (num_envs,), NaN elsewhere) and its mask
+        info["_plant"] for the episodes of sub-envs `ids` that start now."""
+        values = self._core.plant_info(ids)
+        if not values:
+            return
+        info["plant"] = {name: np.full(self.num_envs, np.nan) for name in values}
+        for name, value in values.items():
+            info["plant"][name][ids] = value
+        info["_plant"] = np.isin(np.arange(self.num_envs), ids)
 
     def render(self) -> tuple[NDArray[Any], ...] | None:
         """One frame per sub-env: rgb_array (executed arm and translucent reference), (height, width, 3) uint8;

@@ -203,6 +203,9 @@ def _parser() -> argparse.ArgumentParser:
                    "torque on the mismatch family)")
     t.add_argument("--observe-control", dest="observe_control", action="store_true",
                    help="the policy also observes the PID integral and the next feedforward torque")
+    t.add_argument("--plant-randomization", dest="plant_randomization", default="none",
+                   help="none | mismatch: train and validate on plants drawn by the mismatch family's rules "
+                   "(default none)")
     t.add_argument("--planner", default="cubic", help="planner whose references the policy tracks (default cubic)")
     t.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
     t.add_argument("--steps", type=int, default=100_000, help="environment steps (default 100000)")
@@ -520,6 +523,7 @@ def _rl(args: argparse.Namespace) -> int:
         extra: dict[str, Any] = {} if args.residual_scale is None else {"residual_scale": args.residual_scale}
         extra["overrides"] = _overrides(args.hyperparameters, args.hyperparameter)
         extra["observe_control"] = args.observe_control
+        extra["plant_randomization"] = args.plant_randomization
         settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **extra, planner=args.planner,
                                  task=args.task,
                                  steps=args.steps, seed=args.seed, num_envs=args.num_envs,
@@ -529,8 +533,9 @@ def _rl(args: argparse.Namespace) -> int:
         final = report.final
         print(f"trained {report.timesteps} steps in {report.wall:.0f} s; validation mean J_exec "
               f"{final['cost_mean']:.4g} (median {final['cost_median']:.4g}, {final['diverged']} diverged)")
-        print(f"wrote {report.policy}, {report.out / 'learning_curve.csv'}, {report.out / 'learning_curve.png'}, "
-              f"{report.out / 'run.json'} and {report.out / 'checkpoints'}/")
+        print(f"wrote {report.policy}, {report.out / 'best.zip'} (best on validation), "
+              f"{report.out / 'learning_curve.csv'}, {report.out / 'learning_curve.png'}, {report.out / 'run.json'} "
+              f"and {report.out / 'checkpoints'}/")
         return 0
     from mjtraj.rl.evaluate import evaluate
     from mjtraj.study.sweep import DEFAULT_PLANNERS

@@ -291,9 +291,10 @@ def test_docstring_arguments_table_matches_the_code():
     s = env.settings
     applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,
                "task": s.task_mode, "observe_control": s.observe_control,
+               "plant_randomization": s.plant_randomization, "measurement_noise": s.measurement_noise,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
                "width": s.width, "height": s.height, "camera": s.camera, "render_mode": s.render_mode,
-               **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}}
+               **{name: getattr(s.loop, name) for name in option_names(LoopConfig, scenario_only=False)}}
     assert applied == {k: v for k, v in argument_defaults().items() if k not in ("q0", "qg", "Q_exec", "R_exec")}
     env.close()
 
@@ -353,9 +354,9 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                           r"rule on each task$"),
     ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, action_mode, "
                    r"residual_scale, task, "
-                   r"max_displacement, duration, dt, preview, observe_control, width, height, camera, feedforward, "
-                   r"ff_accel, "
-                   r"gravity_comp, anti_windup, substeps$"),
+                   r"max_displacement, duration, dt, preview, observe_control, plant_randomization, "
+                   r"measurement_noise, width, height, camera, feedforward, ff_accel, gravity_comp, anti_windup, "
+                   r"substeps, divergence_bound, delay$"),
     ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
     ({"residual_scale": 0}, r"^residual_scale: expected a positive number, got 0"),
     ({"residual_scale": -5.0}, r"^residual_scale: expected a positive number, got -5.0"),

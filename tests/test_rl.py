@@ -17,6 +17,7 @@ from stable_baselines3.common.env_checker import check_env
 from stable_baselines3.common.vec_env import VecNormalize
 
 from mjtraj.cli import main
+from mjtraj.core import random_task
 from mjtraj.core.metrics import METRIC_NAMES
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners.optimal import bryson_weights
@@ -26,9 +27,9 @@ from mjtraj.rl.evaluate import check_held_out, evaluate
 from mjtraj.rl.extra import require_sb3
 from mjtraj.rl.policy import Normalization, Policy, load_policy
 from mjtraj.rl.sb3_env import SB3TrackVecEnv
-from mjtraj.rl.streams import TRAIN_STREAM, shared_streams, stream_seed, training_entropies
+from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, shared_streams, stream_seed, training_entropies
 from mjtraj.rl.train import TrainSettings, train, validation_set
-from mjtraj.study.families import FAMILIES, draw_scenario
+from mjtraj.study.families import FAMILIES, draw_perturbation, draw_scenario
 from mjtraj.study.store import numeric, read_rows
 from mjtraj.study.sweep import SweepSettings, plan_scenarios, run_unit
 
@@ -230,11 +231,21 @@ def test_train_writes_every_artifact(trained):
     # the curve's last row is the saved final policy on the validation tasks (replayed here)
     final = load_policy(trained / "policy.zip")
     settings = TrainSettings(**{**TINY, "seed": 3})
-    refs, weights = validation_set(settings, final.settings())
+    refs, weights, plants = validation_set(settings, final.settings())
+    assert plants is None  # trained on the nominal plant
     replay = [o.metrics["cost"] for o in run_episodes(final.act, final.settings(), refs, weights) if o.status == "ok"]
     assert numeric(curve[-1]["val_cost_mean"]) == np.mean(replay)
     pid = [o.metrics["cost"] for o in run_episodes(None, final.settings(), refs, weights)]
     assert numeric(curve[0]["pid_cost_mean"]) == np.mean(pid)
+    # best.zip is the curve's best validation point, selected on the validation tasks only
+    costs = [numeric(r["val_cost_mean"]) if int(r["val_diverged"]) == 0 else np.inf for r in curve]
+    best = int(np.argmin(costs))
+    assert run["best_validation"]["timesteps"] == int(curve[best]["timesteps"])
+    assert run["best_validation"]["cost_mean"] == costs[best]
+    best_policy = load_policy(trained / "best.zip")
+    assert best_policy.timesteps == int(curve[best]["timesteps"])
+    replay = [o.metrics["cost"] for o in run_episodes(best_policy.act, final.settings(), refs, weights)]
+    assert np.mean(replay) == costs[best]
 
 
 
@@ -374,6 +385,8 @@ def test_ppo_trains_and_reloads(tmp_path):
      "valid: learning_rate, buffer_size, learning_starts, batch_size, tau, gamma, train_freq, gradient_steps, "
      "replay_buffer_kwargs, optimize_memory_usage, n_steps, ent_coef, target_update_interval, target_entropy, "
      "use_sde, sde_sample_freq, use_sde_at_warmup, stats_window_size, policy_kwargs\n"),
+    (["rl", "train", "--plant-randomization", "payload"],
+     "mjtraj: error: plant_randomization: unknown value 'payload'; valid: none, mismatch\n"),
     (["rl", "eval", "--policy", "nowhere.zip"], "mjtraj: error: policy: file not found: nowhere.zip\n"),
     (["rl", "eval", "--policy", "p.pt"],
      "mjtraj: error: policy: expected a policy .zip saved by mjtraj rl train, got 'p.pt'\n"),
@@ -537,3 +550,35 @@ def test_a_policy_failing_in_eval_is_recorded_and_eval_goes_on(trained, tmp_path
     assert {r["reason"] for r in rows if r["policy"]} == {"RuntimeError: policy exploded"}
     assert "| cubic+PID+residual SAC (10 N m) | 0 | 3 |" in (tmp_path / "EVAL_nominal.md").read_text()
 
+
+
+def test_mismatch_validation_tasks_carry_plants_drawn_after_each_task(model):
+    """Oracle: each validation task's stream drawn by hand: the task by the env's rule, then the mismatch plant."""
+    settings = TrainSettings(**{**TINY, "seed": 5, "plant_randomization": "mismatch"})
+    env = resolve(**settings.env_kwargs())
+    assert settings.env_kwargs()["plant_randomization"] == "mismatch"
+    refs, weights, plants = validation_set(settings, env)
+    for i, (ref, plant) in enumerate(zip(refs, plants, strict=True)):
+        rng = np.random.default_rng([5, VALIDATION_STREAM, i])
+        task = random_task(rng, model, max_displacement=1.5, duration=2.0, dt=0.02)
+        assert np.array_equal(ref.q[0], task.q0) and np.array_equal(ref.q[-1], task.qg)
+        assert plant.as_dict() == draw_perturbation(rng, 3).as_dict()
+    perturbed = [o.metrics["cost"] for o in run_episodes(None, env, refs, weights, plants)]
+    nominal = [o.metrics["cost"] for o in run_episodes(None, env, refs, weights)]
+    assert np.mean(perturbed) > 10 * np.mean(nominal)  # the plants are really perturbed in validation
+
+
+@pytest.mark.slow
+def test_training_under_mismatch_is_recorded_and_validated_on_mismatch(tmp_path):
+    out = tmp_path / "mm"
+    assert main(["rl", "train", "--steps", "240", "--seed", "4", "--evaluations", "2", "--checkpoints", "2",
+                 "--validation", "4", "--plant-randomization", "mismatch", "--out", str(out), "--no-progress"]) == 0
+    run = json.loads((out / "run.json").read_text())
+    assert run["settings"]["plant_randomization"] == "mismatch" and run["env"]["plant_randomization"] == "mismatch"
+    policy = load_policy(out / "policy.zip")
+    assert policy.settings().plant_randomization == "mismatch"
+    settings = TrainSettings(**{**TINY, "seed": 4, "plant_randomization": "mismatch"})
+    refs, weights, plants = validation_set(settings, policy.settings())
+    pid = [o.metrics["cost"] for o in run_episodes(None, policy.settings(), refs, weights, plants)]
+    curve = read_rows(out / "learning_curve.csv")
+    assert numeric(curve[0]["pid_cost_mean"]) == np.mean(pid)

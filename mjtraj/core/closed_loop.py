@@ -222,6 +222,11 @@ class ClosedLoop:
             raise InvalidInputError("loop: call start(references) first")
         return self._state
 
+    def set_plant_fields(self, fields: dict[str, NDArray[np.float64]], ids: npt.ArrayLike | None = None) -> None:
+        """Give simulations `ids` (all if None) of the plant their own model fields (MjModel names, arrays of shape
+        (len(ids), ...); see BatchPlant.set_fields), before (re)starting them: a new episode's perturbed plant."""
+        self._plant.set_fields(fields, None if ids is None else np.asarray(ids, dtype=np.intp).reshape(-1))
+
     # -- control -------------------------------------------------------------------------------------------------
 
     def _check(self, references: Sequence[Reference]) -> None:

@@ -23,6 +23,7 @@ class DynamicsProbe:
         self.model = model
         self.n = model.nv
         self.size = max(1, min(int(size), CHUNK))
+        self.nthread = nthread
         self._batch = Batch(model, self.size, nthread=nthread)
         bind = self._batch.bind
         self._qpos, self._qvel, self._ctrl = bind("qpos"), bind("qvel"), bind("ctrl")
@@ -37,6 +38,14 @@ class DynamicsProbe:
                 cols += [j, i]
                 index += [a, a]
         self._dense = (np.array(rows), np.array(cols), np.array(index))
+
+    def __getstate__(self) -> tuple[mujoco.MjModel, int, int]:
+        """The arguments: the probe is scratch space (mujoco's Batch itself cannot be pickled)."""
+        return self.model, self.size, self.nthread
+
+    def __setstate__(self, state: tuple[mujoco.MjModel, int, int]) -> None:
+        model, size, nthread = state
+        DynamicsProbe.__init__(self, model, size=size, nthread=nthread)
 
     def _chunks(self, *arrays: NDArray[np.float64]):
         rows = arrays[0].shape[0]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -38,7 +39,8 @@ class BatchPlant:
         self.substeps = positive_int("substeps", substeps)
         self.nsim = positive_int("nsim", nsim)
         self.dt = float(model.opt.timestep)
-        plant = copy.copy(model)
+        self._args = (model, nominal, nthread)
+        plant = copy.copy(model)  # a copy of its own: set_fields writes into it when nsim == 1
         plant.opt.timestep = self.dt / self.substeps
         if gravity_comp == "zoh":
             plant.body_gravcomp[:] = 0.0
@@ -50,28 +52,69 @@ class BatchPlant:
             self._frc_lo = np.where(limited, plant.jnt_actfrcrange[:, 0], -np.inf)
             self._frc_hi = np.where(limited, plant.jnt_actfrcrange[:, 1], np.inf)
         self.model = plant
-        fields = {name: np.asarray(values, dtype=np.float64) for name, values in (fields or {}).items()
-                  if not (gravity_comp == "zoh" and name == "body_gravcomp")}
+        self._fields: dict[str, NDArray[np.float64]] = {}
+        """The per-simulation field values set so far, name -> (nsim, ...) (kept for pickling)."""
         if self.nsim == 1:
-            if fields:
-                plant = self.model = copy.deepcopy(plant)
-                for name, values in fields.items():
-                    getattr(plant, name)[:] = values[0]
             self.data: mujoco.MjData | None = mujoco.MjData(plant)
-            if fields:
-                mujoco.mj_setConst(plant, self.data)
             self.batch: Batch | None = None
             self._qpos, self._qvel = self.data.qpos[None, :], self.data.qvel[None, :]
             self._ctrl, self._applied = self.data.ctrl[None, :], self.data.qfrc_applied[None, :]
         else:
             self.data = None
             self.batch = Batch(plant, self.nsim, nthread=nthread)
-            for name, values in fields.items():
-                self.batch.expand(name)[:] = values
-            if fields:
-                self.batch.set_const()
             self._qpos, self._qvel = self.batch.bind("qpos"), self.batch.bind("qvel")
             self._ctrl, self._applied = self.batch.bind("ctrl"), self.batch.bind("qfrc_applied")
+        if fields:
+            self.set_fields(fields)
+
+    def set_fields(self, fields: dict[str, NDArray[np.float64]], ids: NDArray[np.intp] | None = None) -> None:
+        """Give simulations `ids` (all if None) their own values of model fields (MjModel names, arrays of shape
+        (len(ids), ...)), then recompute what derives from them (mj_setConst). Call it before `reset`: the
+        simulations' state is not kept. Under 'zoh' gravity compensation body_gravcomp is ignored."""
+        rows = np.arange(self.nsim) if ids is None else np.asarray(ids, dtype=np.intp).reshape(-1)
+        for name, given in fields.items():
+            if self.gravity_comp == "zoh" and name == "body_gravcomp":
+                continue
+            values = np.asarray(given, dtype=np.float64)
+            if name not in self._fields:
+                self._fields[name] = np.repeat(np.asarray(getattr(self.model, name), dtype=np.float64)[None],
+                                               self.nsim, axis=0)
+            self._fields[name][rows] = values
+            if self.batch is not None:
+                self.batch.expand(name)[rows] = values
+            else:
+                getattr(self.model, name)[:] = values[0]
+        if self.batch is not None:
+            self.batch.set_const(ids=rows)
+        else:
+            mujoco.mj_setConst(self.model, self.data)
+
+    STATE = ("time", "qpos", "qvel", "act", "qacc_warmstart", "ctrl", "qfrc_applied")
+    """The MjData fields that carry a simulation on from one step to the next (with the model's fields)."""
+
+    def __getstate__(self) -> dict[str, Any]:
+        """What rebuilds this plant exactly: its arguments, the per-simulation fields and every simulation's state
+        (mujoco's Batch itself cannot be pickled)."""
+        if self.batch is not None:
+            state = {name: self.batch.bind(name).copy() for name in self.STATE}
+        else:
+            state = {name: np.atleast_1d(np.array(getattr(self.data, name)))[None] for name in self.STATE}
+        model, nominal, nthread = self._args
+        return {"args": (model, self.nsim), "nominal": nominal, "gravity_comp": self.gravity_comp,
+                "substeps": self.substeps, "nthread": nthread, "fields": self._fields, "state": state}
+
+    def __setstate__(self, saved: dict[str, Any]) -> None:
+        model, nsim = saved["args"]
+        BatchPlant.__init__(self, model, nsim, nominal=saved["nominal"], gravity_comp=saved["gravity_comp"],
+                            substeps=saved["substeps"], nthread=saved["nthread"], fields=saved["fields"])
+        for name, values in saved["state"].items():
+            if self.batch is not None:
+                self.batch.bind(name)[:] = values
+            elif self.data is not None:
+                if name == "time":
+                    self.data.time = float(values[0, 0])
+                else:
+                    getattr(self.data, name)[:] = values[0]
 
     def reset(self, q: NDArray[np.float64], qd: NDArray[np.float64], ids: NDArray[np.intp] | None = None) -> None:
         """Set positions (rad) and velocities (rad/s), shape (len(ids), n), of simulations `ids` (all if None)."""

@@ -1,8 +1,8 @@
 """Whole episodes of a policy on given references, through the study's evaluation pipeline: the policy is an
 Actor that observes the loop as the env does and adds its torque inside the one closed loop.
 
-Validation during training and `mjtraj rl eval` both run here, on the nominal plant or, for mismatch scenarios,
-on per-simulation perturbed plants, exactly as sweeps run the planners.
+Validation during training runs here, and `mjtraj rl eval` runs the same actor through the sweep's units: on the
+nominal plant or, for mismatch scenarios, on per-simulation perturbed plants, exactly as sweeps run the planners.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from mjtraj.core import ClosedLoop, Reference
 from mjtraj.envs import TrackSettings, observe, scale_action
-from mjtraj.study import Job, Outcome, execute
+from mjtraj.study import Job, Outcome, Perturbation, execute, perturbed_plant
 
 Policy = Callable[[NDArray[np.float64]], NDArray[np.float32]]
 """Observations (B, d) -> actions (B, n) in [-1, 1]."""
@@ -39,9 +39,13 @@ class PolicyActor:
 
 
 def run_episodes(policy: Policy | None, settings: TrackSettings, references: Sequence[Reference],
-                 weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]]) -> list[Outcome]:
-    """One episode per reference on the nominal plant with `policy` acting (None: the controller alone), scored
-    with per-episode diagonal `weights` ((2n,), (n,)) as sweeps score them; an Outcome each."""
+                 weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
+                 plants: Sequence[Perturbation] | None = None) -> list[Outcome]:
+    """One episode per reference with `policy` acting (None: the controller alone), on the nominal plant or on
+    one perturbed plant each (`plants`), scored with per-episode diagonal `weights` ((2n,), (n,)) as sweeps score
+    them; an Outcome each."""
     actor = None if policy is None or settings.action_mode == "pid" else PolicyActor(policy, settings)
-    jobs = [Job(ref, w) for ref, w in zip(references, weights, strict=True)]
-    return execute(settings.model, settings.loop, jobs, actor=actor)
+    perturbations = [None] * len(references) if plants is None else list(plants)
+    jobs = [Job(ref, w, p) for ref, w, p in zip(references, weights, perturbations, strict=True)]
+    plant = perturbed_plant(settings.model) if plants is not None else None
+    return execute(settings.model, settings.loop, jobs, actor=actor, plant=plant)

@@ -8,7 +8,11 @@ Rules (stated once, recorded in run.json):
 - observations and rewards are normalised by SB3's VecNormalize (running statistics, clip 10); saved policies
   carry the observation statistics;
 - sub-env i trains on the TRAIN_STREAM seed (seed, i) and continues its stream across episodes; the learning
-  curve's validation tasks come from VALIDATION_STREAM (mjtraj.rl.streams), so neither is a sweep scenario.
+  curve's validation tasks come from VALIDATION_STREAM (mjtraj.rl.streams), so neither is a sweep scenario;
+- with plant randomisation every training episode runs on a plant drawn by the mismatch rules, and so does every
+  validation task (its plant drawn after its task from the same stream);
+- best.zip is the policy of the validation point with the lowest mean J_exec (the checkpoint selected on the
+  validation tasks, never on evaluation scenarios); policy.zip is the final one.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ import numpy as np
 
 from mjtraj.checks import choice, positive, positive_int
 from mjtraj.core import LoopConfig, check_name, option_names
-from mjtraj.envs import RESIDUAL_SCALE, TASKS, TrackSettings, resolve
+from mjtraj.envs import PLANT_RANDOMIZATIONS, RESIDUAL_SCALE, TASKS, TrackSettings, resolve
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl import ACTION_MODES, ALGORITHMS
@@ -52,6 +56,8 @@ class TrainSettings:
       action_mode: residual (added to feedforward + PID) or torque (the whole corrective torque).
       residual_scale: N m per unit of action in residual mode (the env's default rule: RESIDUAL_SCALE).
       observe_control: the policy also observes the PID integral and the next feedforward torque.
+      plant_randomization: none, or mismatch (each training and validation episode on a plant drawn by the
+        mismatch family's rules).
       planner: the planner whose references the policy tracks.
       task: paper (always the paper's move) or random (a new random move each episode).
       steps: environment steps to train for (PPO rounds up to whole rollouts).
@@ -70,6 +76,7 @@ class TrainSettings:
     action_mode: str = "residual"
     residual_scale: float = RESIDUAL_SCALE
     observe_control: bool = False
+    plant_randomization: str = "none"
     planner: str = "cubic"
     task: str = "random"
     steps: int = 100_000
@@ -84,6 +91,7 @@ class TrainSettings:
     def __post_init__(self) -> None:
         choice("algo", self.algo, ALGORITHMS)
         choice("action_mode", self.action_mode, ACTION_MODES)
+        choice("plant_randomization", self.plant_randomization, PLANT_RANDOMIZATIONS)
         object.__setattr__(self, "residual_scale", positive("residual_scale", self.residual_scale))
         check_name("planner", self.planner)
         choice("task", self.task, tuple(t for t in TASKS if t != "explicit"))
@@ -102,12 +110,13 @@ class TrainSettings:
     def env_kwargs(self) -> dict[str, Any]:
         """UR5Track-v0's arguments, every one that shapes the episodes (defaults written out)."""
         s = resolve(planner=self.planner, action_mode=self.action_mode, task=self.task,
-                    residual_scale=self.residual_scale, observe_control=self.observe_control)
+                    residual_scale=self.residual_scale, observe_control=self.observe_control,
+                    plant_randomization=self.plant_randomization)
         return {"planner": self.planner, "action_mode": self.action_mode, "residual_scale": s.residual_scale,
                 "task": self.task,
                 "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt,
                 **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}, "preview": s.preview,
-                "observe_control": s.observe_control}
+                "observe_control": s.observe_control, "plant_randomization": s.plant_randomization}
 
     def hyperparameters(self) -> dict[str, Any]:
         """The keyword arguments given to the SB3 algorithm besides SB3's defaults (JSON-ready): the rules'
@@ -163,15 +172,16 @@ class TrainReport:
     final: dict[str, float]
 
 
-def validation_set(settings: TrainSettings, env: TrackSettings) -> tuple[list[Any], list[Any]]:
-    """The learning curve's validation references and weights: the paper task, or `settings.validation` tasks
-    drawn by the env's random-task rule from VALIDATION_STREAM."""
-    if env.fixed_task is not None:
-        tasks = [env.fixed_task]
-    else:
-        tasks = [env.sample_task(np.random.default_rng([settings.seed, VALIDATION_STREAM, i]))
-                 for i in range(settings.validation)]
-    return [env.planner.plan(task, env.model) for task in tasks], [env.weights(task) for task in tasks]
+def validation_set(settings: TrainSettings, env: TrackSettings) -> tuple[list[Any], list[Any], list[Any] | None]:
+    """The learning curve's validation references, weights and plants (None: nominal): the paper task, or
+    `settings.validation` tasks drawn by the env's random-task rule from VALIDATION_STREAM; with plant
+    randomisation each task's plant is drawn after it from the same stream (the paper task: one plant)."""
+    count = 1 if env.fixed_task is not None else settings.validation
+    rngs = [np.random.default_rng([settings.seed, VALIDATION_STREAM, i]) for i in range(count)]
+    tasks = [env.sample_task(rng) for rng in rngs]
+    plants = [env.sample_plant(rng) for rng in rngs]
+    references = [env.planner.plan(task, env.model) for task in tasks]
+    return references, [env.weights(task) for task in tasks], plants if env.plant_randomization != "none" else None
 
 
 def _summary(outcomes: list[Outcome]) -> dict[str, float]:
@@ -235,8 +245,8 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
         venv.gamma = model.gamma  # VecNormalize discounts rewards with the algorithm's gamma
         record["hyperparameters"]["resolved"] = _resolved(model)
         _write_json(folder / "run.json", record)
-        references, weights = validation_set(settings, env)
-        pid = _summary(run_episodes(None, env, references, weights))
+        references, weights, plants = validation_set(settings, env)
+        pid = _summary(run_episodes(None, env, references, weights, plants))
         curve = CurveFile(folder / "learning_curve.csv")
         policy_record = {k: record[k] for k in ("format", "settings", "env", "hyperparameters", "normalization",
                                                 "streams", "versions", "torch_threads")}
@@ -257,6 +267,7 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
                 self.next_eval = every_eval
                 self.next_save = every_save
                 self.bar = None
+                self.best = float("inf")
                 if progress:
                     from tqdm import tqdm
 
@@ -265,7 +276,12 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
                 self.validate()
 
             def validate(self) -> dict[str, float]:
-                val = _summary(run_episodes(snapshot().act, env, references, weights))
+                policy = snapshot()
+                val = _summary(run_episodes(policy.act, env, references, weights, plants))
+                if val["cost_mean"] < self.best and val["diverged"] == 0:  # NaN never wins
+                    self.best = val["cost_mean"]
+                    policy.save(folder / "best.zip")
+                    record["best_validation"] = {"timesteps": policy.timesteps, **val}
                 curve.append({"timesteps": int(model.num_timesteps), "wall_s": time.perf_counter() - clock,
                               "episodes": self.episodes,
                               "train_return_mean": float(np.mean(self.returns)) if self.returns else float("nan"),

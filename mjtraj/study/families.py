@@ -92,20 +92,35 @@ def draw_scenario(family: str, seed: int, index: int, model: mujoco.MjModel, dt:
     if family == "aggressive":
         duration = round(rng.uniform(*AGGRESSIVE_DURATION) / dt) * dt
     task = random_task(rng, model, max_displacement=MAX_DISPLACEMENT, duration=duration, dt=dt)
-    perturbation = None
-    if family == "mismatch":
-        n = model.nv
-        perturbation = Perturbation(payload=float(rng.uniform(*PAYLOAD_MASS)),
-                                    mass_scale=rng.uniform(*LINK_SCALE, n), inertia_scale=rng.uniform(*LINK_SCALE, n),
-                                    damping=rng.uniform(*DAMPING, n), friction=rng.uniform(*FRICTION, n))
+    perturbation = draw_perturbation(rng, model.nv) if family == "mismatch" else None
     return FamilyScenario(family, index, task, perturbation, int(rng.integers(2**63 - 1)))
+
+
+def draw_perturbation(rng: np.random.Generator, n: int) -> Perturbation:
+    """A mismatch plant by the module's rules, drawn from `rng` in a fixed order: the payload, then n link mass
+    scales, n inertia scales, n dampings and n frictions."""
+    return Perturbation(payload=float(rng.uniform(*PAYLOAD_MASS)), mass_scale=rng.uniform(*LINK_SCALE, n),
+                        inertia_scale=rng.uniform(*LINK_SCALE, n), damping=rng.uniform(*DAMPING, n),
+                        friction=rng.uniform(*FRICTION, n))
+
+
+def no_perturbation(n: int) -> Perturbation:
+    """The nominal plant as a Perturbation: no payload, unit scales, no added damping or friction."""
+    return Perturbation(payload=0.0, mass_scale=np.ones(n), inertia_scale=np.ones(n), damping=np.zeros(n),
+                        friction=np.zeros(n))
+
+
+def noise_scale(n: int, sigma: float, dt: float) -> NDArray[np.float64]:
+    """Standard deviations of the measurement noise on [q; qd], shape (2n,): sigma (rad) on q, sqrt(2) sigma / dt
+    (rad/s, a finite-difference velocity's) on qd."""
+    return np.concatenate([np.full(n, sigma), np.full(n, np.sqrt(2.0) * sigma / dt)])
 
 
 def measurement_noise(scenarios: list[FamilyScenario], steps: int, n: int, sigma: float, dt: float
                       ) -> NDArray[np.float64]:
     """Noise on [q; qd] for each scenario, shape (N, S, 2n): std sigma (rad) on q, sqrt(2) sigma / dt on qd."""
     out = np.empty((steps, len(scenarios), 2 * n))
-    scale = np.concatenate([np.full(n, sigma), np.full(n, np.sqrt(2.0) * sigma / dt)])
+    scale = noise_scale(n, sigma, dt)
     for b, s in enumerate(scenarios):
         out[:, b] = np.random.default_rng(s.noise_seed).standard_normal((steps, 2 * n)) * scale
     return out
