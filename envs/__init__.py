@@ -38,6 +38,7 @@ _EXPORTS = {
     "ACTION_MODES": "mjtraj.envs.settings",
     "RESIDUAL_SCALE": "mjtraj.envs.settings",
     "PLANT_RANDOMIZATIONS": "mjtraj.envs.settings",
+    "REWARD_BASELINES": "mjtraj.envs.settings",
     "TASKS": "mjtraj.envs.settings",
     "EnvOptions": "mjtraj.envs.settings",
     "TrackSettings": "mjtraj.envs.settings",
@@ -52,6 +53,7 @@ if TYPE_CHECKING:
         ACTION_MODES,
         PLANT_RANDOMIZATIONS,
         RESIDUAL_SCALE,
+        REWARD_BASELINES,
         TASKS,
         EnvOptions,
         TrackSettings,
@@ -62,7 +64,7 @@ if TYPE_CHECKING:
     from mjtraj.envs.vector import UR5TrackVectorEnv
 
 __all__ = [
-    "ACTION_MODES", "ENV_ID", "EnvOptions", "PLANT_RANDOMIZATIONS", "RESIDUAL_SCALE", "STEP_INFO", "TASKS",
-    "TrackCore", "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
+    "ACTION_MODES", "ENV_ID", "EnvOptions", "PLANT_RANDOMIZATIONS", "RESIDUAL_SCALE", "REWARD_BASELINES", "STEP_INFO",
+    "TASKS", "TrackCore", "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
     "observation_space", "observe", "register_envs", "resolve", "scale_action",
 ]

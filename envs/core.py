@@ -19,7 +19,7 @@ from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, Task, metrics_array
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.study import Perturbation, no_perturbation, perturbed_plant, plant_fields
 
-STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort")
+STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort", "reward_baseline")
 """Keys of every step's info (arrays of shape (B, n), or (B,) for the reward terms)."""
 
 
@@ -91,6 +91,9 @@ class TrackCore:
         """The simulated model whose fields each episode's perturbation sets; None: the nominal model."""
         fields = plant_fields(self.plant, [no_perturbation(n)] * num) if self.plant is not None else None
         self.loop = ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields)
+        self.shadow = (ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields)
+                       if settings.reward_baseline == "pid" else None)
+        """With reward_baseline='pid': the same episodes under PID alone (no action), stepped alongside."""
         self.limit = np.tile(settings.action_scale, (num, 1))
         task = settings.fixed_task
         self.fixed = (settings.planner.plan(task, self.model), settings.weights(task)) if task is not None else None
@@ -122,19 +125,22 @@ class TrackCore:
         for row, episode in zip(rows, episodes, strict=True):
             self.references[row], self.plants[row] = episode.reference, episode.plant
             self._q_diag[row], self._r_diag[row] = episode.weights
+        loops = [self.loop] if self.shadow is None else [self.loop, self.shadow]
         if self.plant is not None:
             plants = [e.plant if e.plant is not None else no_perturbation(self.settings.n) for e in episodes]
-            self.loop.set_plant_fields(plant_fields(self.plant, plants), rows)
+            for loop in loops:
+                loop.set_plant_fields(plant_fields(self.plant, plants), rows)
         noise = None
         if any(e.noise is not None for e in episodes):
             n2 = 2 * self.settings.n
             noise = np.stack([e.noise if e.noise is not None else np.zeros((e.reference.steps, n2))
                               for e in episodes], axis=1)
         references = [e.reference for e in episodes]
-        if ids is None:
-            self.loop.start(references, noise=noise)
-        else:
-            self.loop.restart(ids, references, noise=noise)
+        for loop in loops:
+            if ids is None:
+                loop.start(references, noise=noise)
+            else:
+                loop.restart(ids, references, noise=noise)
         return self.observe()[rows]
 
     def plant_info(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
@@ -163,9 +169,15 @@ class TrackCore:
                               override=torque if mode == "torque" else None)
         c = step.control
         tracking, effort = step_cost(step.e, step.ed, c.dtau, self._q_diag, self._r_diag)
+        baseline = np.zeros(self.num)
+        if self.shadow is not None:
+            alone = self.shadow.step()
+            alone_tracking, alone_effort = step_cost(alone.e, alone.ed, alone.control.dtau, self._q_diag, self._r_diag)
+            baseline = -(alone_tracking + alone_effort)
         info = {"tau_ff": c.tau_ff.copy(), "tau_fb": c.tau_fb, "dtau": c.dtau, "saturated": c.saturated,
-                "e": step.e.copy(), "reward_tracking": -tracking, "reward_effort": -effort}
-        return self.observe(), -tracking - effort, self.loop.done, info
+                "e": step.e.copy(), "reward_tracking": -tracking, "reward_effort": -effort,
+                "reward_baseline": baseline}
+        return self.observe(), -tracking - effort - baseline, self.loop.done, info
 
     def observe(self) -> NDArray[np.float64]:
         """Observations of every simulation (see `observe`)."""

@@ -34,6 +34,7 @@ ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
 RENDER_MODES = ("rgb_array", "depth_array")
 PLANT_RANDOMIZATIONS = ("none", "mismatch")
+REWARD_BASELINES = ("none", "pid")
 RESIDUAL_SCALE = 10.0
 """N m, the default authority of a residual action: the median per-joint RMS feedback torque of PID on the mismatch
 family (cubic references, 1000 scenarios: 10.2 N m, see docs/design.md), rounded to one significant figure. The
@@ -62,6 +63,9 @@ class EnvOptions:
                                       choices=PLANT_RANDOMIZATIONS)
     measurement_noise: float = option(0.0, "std of the noise on measured q, rad (sqrt(2) x / dt on qd), drawn per "
                                       "episode; 0 for exact measurements", minimum=0.0)
+    reward_baseline: str = option("none", "none, or pid: the reward is the advantage over the controller alone, "
+                                  "minus (step cost - the same episode's step cost under PID alone, run in a shadow "
+                                  "loop); metrics keep J_exec", choices=REWARD_BASELINES)
     width: int = option(640, "image width, px", minimum=1)
     height: int = option(480, "image height, px", minimum=1)
     camera: str = option("front", "front, side or top")
@@ -103,6 +107,8 @@ class TrackSettings:
     """'none' or 'mismatch' (`mjtraj.study.families` rules, drawn per episode)."""
     measurement_noise: float
     """Std of the noise on measured q, rad (0: exact)."""
+    reward_baseline: str
+    """'none', or 'pid': rewards are advantages over PID alone on the same episode."""
     scoring: Scoring
     render_mode: str | None
     width: int
@@ -218,5 +224,6 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          max_displacement=own.max_displacement,
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,
                          observe_control=own.observe_control, plant_randomization=own.plant_randomization,
-                         measurement_noise=own.measurement_noise, scoring=scoring,
+                         measurement_noise=own.measurement_noise, reward_baseline=own.reward_baseline,
+                         scoring=scoring,
                          render_mode=render_mode, width=width, height=height, camera=camera)

@@ -203,6 +203,9 @@ def _parser() -> argparse.ArgumentParser:
                    "torque on the mismatch family)")
     t.add_argument("--observe-control", dest="observe_control", action="store_true",
                    help="the policy also observes the PID integral and the next feedforward torque")
+    t.add_argument("--reward-baseline", dest="reward_baseline", default="none",
+                   help="none | pid: train on the advantage over PID alone on the same episode (a shadow run); "
+                   "validation and evaluation still score J_exec (default none)")
     t.add_argument("--plant-randomization", dest="plant_randomization", default="none",
                    help="none | mismatch: train and validate on plants drawn by the mismatch family's rules "
                    "(default none)")
@@ -269,9 +272,10 @@ def _compare(args: argparse.Namespace) -> int:
 
     scenario = _scenario(args)
     scenario.task.check_limits(scenario.model)
-    from mjtraj.core.planners import available
+    from mjtraj.study.comparison import default_planners
 
-    stages = len(args.planners or available()) + 2 + (0 if args.no_figures else 1)  # plans, execute, check, figures
+    # plans, execute, check, figures
+    stages = len(args.planners or default_planners()) + 2 + (0 if args.no_figures else 1)
     with tqdm(total=stages, desc="mjtraj compare", file=sys.stderr, leave=False, disable=None) as bar:
         def progress(label: str) -> None:
             bar.set_postfix_str(label)
@@ -447,16 +451,15 @@ def _render(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from mjtraj.checks import positive_int
-    from mjtraj.core.planners import available
     from mjtraj.media.render import check_render_options
     from mjtraj.media.videos import SNAPSHOT_TIMES, check_formats, render_all
-    from mjtraj.study.comparison import compare
+    from mjtraj.study.comparison import compare, default_planners
 
     scenario = _scenario(args)
     check_render_options(scenario.model, args.width, args.height, args.camera)
     check_formats(args.formats)
     every = positive_int("every", args.every)
-    planners = tuple(args.planners or available())
+    planners = tuple(args.planners or default_planners())
     result = compare(scenario, planners)
     total = len(planners) * (scenario.task.steps // every + 1) + len(SNAPSHOT_TIMES) * len(planners)
     with tqdm(total=total, desc="mjtraj render", unit="frame", file=sys.stderr, disable=None) as bar:
@@ -524,6 +527,7 @@ def _rl(args: argparse.Namespace) -> int:
         extra["overrides"] = _overrides(args.hyperparameters, args.hyperparameter)
         extra["observe_control"] = args.observe_control
         extra["plant_randomization"] = args.plant_randomization
+        extra["reward_baseline"] = args.reward_baseline
         settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **extra, planner=args.planner,
                                  task=args.task,
                                  steps=args.steps, seed=args.seed, num_envs=args.num_envs,
@@ -543,6 +547,9 @@ def _rl(args: argparse.Namespace) -> int:
     evaluation = evaluate(args.policies, family=args.family, scenarios=args.scenarios, seed=args.seed,
                           planners=tuple(args.planners or DEFAULT_PLANNERS), out=args.out)
     print(evaluation.table)
+    print()
+    print("Over seeds:")
+    print(evaluation.seeds)
     print(f"\nwrote {evaluation.csv} and {evaluation.markdown}")
     return 0
 

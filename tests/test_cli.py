@@ -52,8 +52,8 @@ def test_compare_json_and_overrides(tmp_path, capsys):
     (["--duration", "0"], "mjtraj: error: duration: expected a positive number, got 0.0"),
     (["--dt", "0.03"], "mjtraj: error: duration: expected a whole number of control periods dt=0.03 s, got 2.0 s "
                        "(66.6667 periods)"),
-    (["--planners", "spline"], "mjtraj: error: planners: unknown planner 'spline'; valid: cubic, optimal, quintic, "
-                               "scurve, trapezoidal"),
+    (["--planners", "spline"], "mjtraj: error: planners: unknown planner 'spline'; valid: cubic, optimal, "
+                               "nonlinear_optimal, nonlinear_min_effort, quintic, scurve, trapezoidal"),
     (["--ff", "model"], "mjtraj: error: feedforward: unknown value 'model'; valid: inverse, planned, none"),
     (["--ff", "planned", "--planners", "cubic"], "mjtraj: error: feedforward: mode 'planned' needs a planner that "
      "publishes u_plan; the 'cubic' reference has none; valid for it: inverse, none"),

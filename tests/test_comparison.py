@@ -32,7 +32,8 @@ def test_stability_is_computed_once_per_scenario(scenario):
 
 @pytest.mark.parametrize(("planners", "message"), [
     ((), r"^planners: expected at least one planner, got none$"),
-    (("cubic", "spline"), r"^planners: unknown planner 'spline'; valid: cubic, optimal, quintic, scurve, trapezoidal$"),
+    (("cubic", "spline"), r"^planners: unknown planner 'spline'; valid: cubic, optimal, nonlinear_optimal, "
+                          r"nonlinear_min_effort, quintic, scurve, trapezoidal$"),
     (("cubic", "cubic"), r"^planners: expected distinct planners, got cubic more than once$"),
 ])
 def test_bad_planner_lists(scenario, planners, message):

@@ -15,7 +15,7 @@ from oracles import same_outcome
 
 from mjtraj.cli import main
 from mjtraj.core.model import JointInfo, load_model
-from mjtraj.core.planners import available, make
+from mjtraj.core.planners import default_names, make
 from mjtraj.core.reference import Reference
 from mjtraj.core.task import Task
 from mjtraj.exceptions import MjtrajError
@@ -64,7 +64,7 @@ def check_planned_and_executed(task: Task, name: str) -> None:
 
 @FAST
 @seed(20261122)
-@given(task=tasks(), name=st.sampled_from(available()))
+@given(task=tasks(), name=st.sampled_from(default_names()))
 def test_random_tasks_through_every_planner(task: Task, name: str) -> None:
     check_planned_and_executed(task, name)
 
@@ -72,7 +72,7 @@ def test_random_tasks_through_every_planner(task: Task, name: str) -> None:
 @pytest.mark.slow
 @SLOW
 @seed(20261122)
-@given(task=tasks(), name=st.sampled_from(available()))
+@given(task=tasks(), name=st.sampled_from(default_names()))
 def test_random_tasks_through_every_planner_at_length(task: Task, name: str) -> None:
     check_planned_and_executed(task, name)
 

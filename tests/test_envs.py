@@ -133,7 +133,9 @@ def test_reward_terms_and_info(scenario):
     assert info["reward_tracking"] == pytest.approx(-np.sum(x**2 * scenario.Q_exec), rel=1e-12)
     assert info["reward_tracking"] < 0.0
     assert reward == info["reward_tracking"] + info["reward_effort"]
-    assert set(info) == {"tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort"}
+    assert set(info) == {"tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort",
+                         "reward_baseline"}
+    assert info["reward_baseline"] == 0.0  # no baseline unless reward_baseline="pid"
     env.close()
 
 
@@ -292,6 +294,7 @@ def test_docstring_arguments_table_matches_the_code():
     applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,
                "task": s.task_mode, "observe_control": s.observe_control,
                "plant_randomization": s.plant_randomization, "measurement_noise": s.measurement_noise,
+               "reward_baseline": s.reward_baseline,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
                "width": s.width, "height": s.height, "camera": s.camera, "render_mode": s.render_mode,
                **{name: getattr(s.loop, name) for name in option_names(LoopConfig, scenario_only=False)}}
@@ -332,10 +335,11 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
-    ({"planner": "spline"}, r"^planner: unknown planner 'spline'; valid: cubic, optimal, quintic, scurve, "
-                            r"trapezoidal$"),
-    ({"planner": 3}, r"^planner: expected a registered name \(cubic, optimal, quintic, scurve, trapezoidal\) or an "
-                     r"object with plan\(task, model\), got 3$"),
+    ({"planner": "spline"}, r"^planner: unknown planner 'spline'; valid: cubic, optimal, "
+                            r"nonlinear_optimal, nonlinear_min_effort, quintic, scurve, trapezoidal$"),
+    ({"planner": 3}, r"^planner: expected a registered name \(cubic, optimal, nonlinear_optimal, "
+                     r"nonlinear_min_effort, quintic, scurve, trapezoidal\) or an object with plan\(task, model\), "
+                     r"got 3$"),
     ({"action_mode": "velocity"}, r"^action_mode: unknown value 'velocity'; valid: pid, residual, torque$"),
     ({"task": "circle"}, r"^task: unknown value 'circle'; valid: paper, random, explicit$"),
     ({"camera": "wrist"}, r"^camera: unknown camera 'wrist'; valid: front, side, top$"),
@@ -353,10 +357,9 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     ({"Q_exec": [1] * 6}, r"^Q_exec, R_exec: give both \(diagonals of 2n and n weights\), or neither for Bryson's "
                           r"rule on each task$"),
     ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, action_mode, "
-                   r"residual_scale, task, "
-                   r"max_displacement, duration, dt, preview, observe_control, plant_randomization, "
-                   r"measurement_noise, width, height, camera, feedforward, ff_accel, gravity_comp, anti_windup, "
-                   r"substeps, divergence_bound, delay$"),
+                   r"residual_scale, task, max_displacement, duration, dt, preview, observe_control, "
+                   r"plant_randomization, measurement_noise, reward_baseline, width, height, camera, feedforward, "
+                   r"ff_accel, gravity_comp, anti_windup, substeps, divergence_bound, delay$"),
     ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
     ({"residual_scale": 0}, r"^residual_scale: expected a positive number, got 0"),
     ({"residual_scale": -5.0}, r"^residual_scale: expected a positive number, got -5.0"),

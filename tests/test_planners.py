@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from oracles import WEIGHTS, kkt_solve, unit_task
 
-from mjtraj.core.planners import available, make
+from mjtraj.core.planners import default_names, make
 from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError
 
 
-@pytest.mark.parametrize("name", available())
+@pytest.mark.parametrize("name", default_names())
 def test_contract(name, model, task):
     ref = make(name).plan(task, model)
     assert ref.planner == name
@@ -64,7 +64,8 @@ def test_trapezoid_zero_move_is_constant(model):
 
 def test_unknown_planner_and_option():
     with pytest.raises(InvalidInputError, match=r"^planner: unknown planner 'spline'; valid: cubic, optimal, "
-                                                r"quintic, scurve, trapezoidal$"):
+                                                r"nonlinear_optimal, nonlinear_min_effort, quintic, scurve, "
+                                                r"trapezoidal$"):
         make("spline")
     with pytest.raises(InvalidInputError, match=r"^planner 'cubic': unknown option 'order'; valid: \(none\)$"):
         make("cubic", order=3)

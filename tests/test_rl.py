@@ -387,6 +387,8 @@ def test_ppo_trains_and_reloads(tmp_path):
      "use_sde, sde_sample_freq, use_sde_at_warmup, stats_window_size, policy_kwargs\n"),
     (["rl", "train", "--plant-randomization", "payload"],
      "mjtraj: error: plant_randomization: unknown value 'payload'; valid: none, mismatch\n"),
+    (["rl", "train", "--reward-baseline", "zero"],
+     "mjtraj: error: reward_baseline: unknown value 'zero'; valid: none, pid\n"),
     (["rl", "eval", "--policy", "nowhere.zip"], "mjtraj: error: policy: file not found: nowhere.zip\n"),
     (["rl", "eval", "--policy", "p.pt"],
      "mjtraj: error: policy: expected a policy .zip saved by mjtraj rl train, got 'p.pt'\n"),
@@ -569,16 +571,44 @@ def test_mismatch_validation_tasks_carry_plants_drawn_after_each_task(model):
 
 
 @pytest.mark.slow
-def test_training_under_mismatch_is_recorded_and_validated_on_mismatch(tmp_path):
+def test_training_under_mismatch_on_the_pid_advantage_is_recorded_and_validated_on_mismatch_by_j_exec(tmp_path):
     out = tmp_path / "mm"
     assert main(["rl", "train", "--steps", "240", "--seed", "4", "--evaluations", "2", "--checkpoints", "2",
-                 "--validation", "4", "--plant-randomization", "mismatch", "--out", str(out), "--no-progress"]) == 0
+                 "--validation", "4", "--plant-randomization", "mismatch", "--reward-baseline", "pid", "--out",
+                 str(out), "--no-progress"]) == 0
     run = json.loads((out / "run.json").read_text())
     assert run["settings"]["plant_randomization"] == "mismatch" and run["env"]["plant_randomization"] == "mismatch"
+    assert run["env"]["reward_baseline"] == "pid"
     policy = load_policy(out / "policy.zip")
     assert policy.settings().plant_randomization == "mismatch"
-    settings = TrainSettings(**{**TINY, "seed": 4, "plant_randomization": "mismatch"})
+    assert policy.label == "cubic+PID+residual SAC (10 N m, mismatch-trained, PID-advantage reward)"
+    settings = TrainSettings(**{**TINY, "seed": 4, "plant_randomization": "mismatch", "reward_baseline": "pid"})
     refs, weights, plants = validation_set(settings, policy.settings())
     pid = [o.metrics["cost"] for o in run_episodes(None, policy.settings(), refs, weights, plants)]
     curve = read_rows(out / "learning_curve.csv")
     assert numeric(curve[0]["pid_cost_mean"]) == np.mean(pid)
+
+
+@pytest.mark.slow
+def test_eval_summarises_a_configuration_over_its_seeds(trained, tmp_path):
+    """Oracle: each seed's ratio of mean J_exec and share of won scenarios recomputed from the rows with numpy."""
+    other = tmp_path / "seed4"
+    main(["rl", "train", "--steps", "240", "--seed", "4", "--evaluations", "2", "--checkpoints", "2",
+          "--validation", "4", "--out", str(other), "--no-progress"])
+    paths = [trained / "policy.zip", other / "policy.zip", trained / "best.zip", other / "best.zip"]
+    report = evaluate(paths, family="nominal", scenarios=6, seed=7, planners=("cubic",), out=tmp_path / "eval")
+    rows = read_rows(report.csv)
+    ref = np.array([numeric(r["cost"]) for r in rows if r["planner"] == "cubic"])
+    lines = report.seeds.splitlines()[2:]
+    assert [line.split(" | ")[0:2] for line in lines] == [["| cubic+PID+residual SAC (10 N m)", "2"],
+                                                          ["| cubic+PID+residual SAC (10 N m) best", "2"]]
+    for line, members in zip(lines, [[0, 1], [2, 3]], strict=True):
+        labels = sorted({r["planner"] for r in rows if r["policy"] in {str(paths[i]) for i in members}})
+        assert len(labels) == 2
+        costs = [np.array([numeric(r["cost"]) for r in rows if r["planner"] == label]) for label in labels]
+        ratios = [c.mean() / ref.mean() for c in costs]
+        wins = [100 * np.mean(c < ref) for c in costs]
+        cells = line.split(" | ")
+        assert cells[2] == f"{np.mean(ratios):.3g} [{min(ratios):.3g}, {max(ratios):.3g}]"
+        assert cells[4] == f"{np.mean(wins):.0f} % [{min(wins):.0f}, {max(wins):.0f}] |"
+    assert report.seeds in report.markdown.read_text()

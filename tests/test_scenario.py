@@ -35,7 +35,8 @@ def test_unknown_key(tmp_path):
 
 def test_unknown_section_and_planner(tmp_path):
     with pytest.raises(InvalidInputError, match=r"^config: unknown planner \[planners.spline\]; valid: cubic, "
-                                                r"optimal, quintic, scurve, trapezoidal$"):
+                                                r"optimal, nonlinear_optimal, nonlinear_min_effort, quintic, scurve, "
+                                                r"trapezoidal$"):
         load_scenario(write(tmp_path, paper_text() + "\n[planners.spline]\norder = 3\n"))
     with pytest.raises(InvalidInputError, match=r"^config: unknown key 'extra'; valid: name, model, task, "
                                                 r"controller, planners, cost, tuning$"):

@@ -10,7 +10,7 @@ from mjtraj.core.feedforward import feedforward
 from mjtraj.core.gains import mass_matrix
 from mjtraj.core.linearize import discretize_zoh, linearize
 from mjtraj.core.model import JointInfo
-from mjtraj.core.planners import available, make
+from mjtraj.core.planners import default_names, make
 from mjtraj.core.stability import closed_loop_map, sample_indices, spectral_radii
 from mjtraj.core.task import Task
 
@@ -30,14 +30,14 @@ def one_by_one(model, gains, references, *, moving):
 
 
 def test_batched_check_equals_the_one_by_one_oracle(model, scenario):
-    refs = [scenario.planner(name).plan(scenario.task, model) for name in available()]
+    refs = [scenario.planner(name).plan(scenario.task, model) for name in default_names()]
     radii = spectral_radii(model, scenario.loop.gains, refs)
     assert radii["at_rest"] == one_by_one(model, scenario.loop.gains, refs, moving=False)
     assert radii["moving"] == one_by_one(model, scenario.loop.gains, refs, moving=True)
 
 
 def test_default_gains_are_stable_along_every_reference(model, scenario):
-    refs = [scenario.planner(name).plan(scenario.task, model) for name in available()]
+    refs = [scenario.planner(name).plan(scenario.task, model) for name in default_names()]
     radii = spectral_radii(model, scenario.loop.gains, refs)
     assert radii["at_rest"] < 1.0
     assert radii["moving"] < 1.0

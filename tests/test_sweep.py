@@ -50,8 +50,9 @@ def test_a_failed_scenario_is_recorded_and_the_sweep_goes_on(tmp_path):
 
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"families": ("nominl",)}, "family: unknown value 'nominl'; valid: nominal, aggressive, mismatch"),
-    ({"planners": ("splines",)}, "planner: unknown value 'splines'; valid: cubic, optimal, quintic, scurve, "
-                                 "trapezoidal, optimal_start, min_effort"),
+    ({"planners": ("splines",)}, "planner: unknown value 'splines'; valid: cubic, optimal, "
+                                 "nonlinear_optimal, nonlinear_min_effort, quintic, scurve, trapezoidal, "
+                                 "optimal_start, min_effort"),
     ({"ff_accel": ("mean",)}, "ff_accel: unknown value 'mean'; valid: sample, step_average"),
     ({"delay": 2}, "delay: unknown value 2; valid: 0, 1"),
     ({"scenarios": 0}, "scenarios: expected a whole number >= 1, got 0"),

@@ -62,8 +62,8 @@ def test_oracle_mode_is_labelled(scenario):
 
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"budget": 0}, r"^budget: expected a whole number >= 1, got 0$"),
-    ({"planners": ("spline",)}, r"^planners: unknown planner 'spline'; valid: cubic, optimal, quintic, scurve, "
-                                r"trapezoidal$"),
+    ({"planners": ("spline",)}, r"^planners: unknown planner 'spline'; valid: cubic, optimal, "
+                                r"nonlinear_optimal, nonlinear_min_effort, quintic, scurve, trapezoidal$"),
     ({"family": "hard"}, r"^family: unknown value 'hard'; valid: nominal, aggressive, mismatch$"),
     ({"scenarios": 0}, r"^scenarios: expected a whole number >= 1, got 0$"),
 ])

@@ -53,6 +53,7 @@ _EXPORTS = {
     "spectral_radii": "mjtraj.core.stability",
     "Planner": "mjtraj.core.planners",
     "available": "mjtraj.core.planners",
+    "default_names": "mjtraj.core.planners",
     "make": "mjtraj.core.planners",
     "register": "mjtraj.core.planners",
     "check_name": "mjtraj.core.planners",
@@ -76,7 +77,7 @@ if TYPE_CHECKING:
     from mjtraj.core.metrics import METRIC_NAMES, METRIC_UNITS, Metrics, gravity_along, metrics_arrays, reduction
     from mjtraj.core.model import JointInfo, default_model_path, load_model
     from mjtraj.core.options import check_options, declared_options, from_mapping, option, option_names
-    from mjtraj.core.planners import Planner, available, check_name, make, plan_all, register
+    from mjtraj.core.planners import Planner, available, check_name, default_names, make, plan_all, register
     from mjtraj.core.plant import GRAVITY_COMP, BatchPlant
     from mjtraj.core.qp import CondensedQP, QPSolution, build_qp, solve_qp
     from mjtraj.core.reference import Reference
@@ -90,8 +91,8 @@ __all__ = [
     "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE", "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo",
     "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics", "PIDGains", "Planner", "QPSolution", "Reference",
     "Rollout", "Scoring", "Step", "Task", "available", "box_lqr", "bryson_weights", "build_qp", "check_name",
-    "check_options", "control_law", "declared_options", "default_model_path", "discretize_zoh", "executed_cost",
-    "feedforward_many", "from_mapping", "gain_rule", "gravity_along", "linearize_many", "load_model", "make",
-    "metrics_arrays", "option", "option_names", "plan_all", "random_task", "reduction", "register", "solve_qp",
-    "spectral_radii", "step_cost",
+    "check_options", "control_law", "declared_options", "default_model_path", "default_names", "discretize_zoh",
+    "executed_cost", "feedforward_many", "from_mapping", "gain_rule", "gravity_along", "linearize_many", "load_model",
+    "make", "metrics_arrays", "option", "option_names", "plan_all", "random_task", "reduction", "register",
+    "solve_qp", "spectral_radii", "step_cost",
 ]

@@ -10,6 +10,7 @@ metrics and weights. Rows are written in the sweep's format plus the columns `co
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,11 +45,12 @@ POLICY_COLUMNS = ("controller", "policy", "policy_sha256", "policy_timesteps")
 
 @dataclass
 class EvalReport:
-    """The rows file, the Markdown table file, and the table's text."""
+    """The rows file, the Markdown file, the per-policy table's text and the over-seeds summary's."""
 
     csv: Path
     markdown: Path
     table: str
+    seeds: str = ""
 
 
 def check_held_out(policy: Policy, family: str, seed: int, scenarios: int) -> None:
@@ -64,9 +66,13 @@ def check_held_out(policy: Policy, family: str, seed: int, scenarios: int) -> No
 
 
 def _labels(policies: Sequence[Policy]) -> list[str]:
+    """Each policy's table label: its configuration's, and where labels repeat, its run folder and (unless it is
+    the final policy.zip) the file's stem; the position in the list if even that repeats."""
     labels = [p.label for p in policies]
-    return [f"{label} [{p.path.parent.name if p.path else k}]" if labels.count(label) > 1 else label
-            for k, (label, p) in enumerate(zip(labels, policies, strict=True))]
+    where = [("" if p.path is None else p.path.parent.name if p.path.stem == "policy" else
+              f"{p.path.parent.name}/{p.path.stem}") for p in policies]
+    out = [f"{label} [{w}]" if labels.count(label) > 1 else label for label, w in zip(labels, where, strict=True)]
+    return [f"{label} #{k + 1}" if out.count(label) > 1 else label for k, label in enumerate(out)]
 
 
 def _settings(policies: Sequence[Policy], family: str, scenarios: int, seed: int, planners: Sequence[str],
@@ -136,11 +142,58 @@ def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenari
     out = Path(out)
     csv_path = out / f"eval_{family}.csv"
     write_text_atomic(csv_path, csv_text([*columns(settings), *POLICY_COLUMNS], rows))
-    table = comparison_table(csv_path, reference=loaded[0].env_kwargs["planner"])
+    reference = loaded[0].env_kwargs["planner"]
+    table = comparison_table(csv_path, reference=reference)
+    seeds = seed_table(csv_path, configurations(loaded, labels), reference=reference)
     md_path = out / f"EVAL_{family}.md"
     write_text_atomic(md_path, "\n".join([*_header(loaded, labels, family, scenarios, seed, policies,
-                                                   settings.planners), table, ""]))
-    return EvalReport(csv_path, md_path, table)
+                                                   settings.planners), table, "",
+                                          "Over seeds (each configuration's policies; mean [min, max] over them):",
+                                          "", seeds, ""]))
+    return EvalReport(csv_path, md_path, table, seeds)
+
+
+def configurations(policies: Sequence[Policy], labels: Sequence[str]) -> dict[str, list[str]]:
+    """The policies' table labels grouped by configuration: everything of the training run but its seed and
+    threads, and which of its saved policies it is (policy, best or a step checkpoint, by file name); the key is
+    the configuration's label (with the file's stem unless it is the final policy)."""
+    groups: dict[str, list[str]] = {}
+    names: dict[str, str] = {}
+    for policy, label in zip(policies, labels, strict=True):
+        settings = {k: v for k, v in policy.record["settings"].items() if k not in ("seed", "threads")}
+        kind = policy.path.stem if policy.path is not None else "policy"
+        kind = "step" if kind.startswith("step_") else kind
+        key = json.dumps([settings, policy.env_kwargs, kind], sort_keys=True, default=str)
+        if key not in names:
+            name = policy.label if kind == "policy" else f"{policy.label} {kind}"
+            names[key] = name if name not in names.values() else f"{name} #{len(names) + 1}"
+        groups.setdefault(names[key], []).append(label)
+    return groups
+
+
+def seed_table(csv_path: Path, groups: dict[str, list[str]], *, reference: str) -> str:
+    """Markdown: per configuration, its policies' J_exec / reference+PID (paired by scenario, ratio of means) and
+    share of scenarios won, as the mean over its policies (seeds) with their min and max, and the seeds' 95 %
+    bootstrap intervals' hull."""
+    data = SweepData([csv_path])
+    (condition,) = data.conditions
+    ref = data.values(condition, reference, "cost")
+    lines = [f"| configuration | seeds | J_exec / {reference}+PID, mean [min, max] | 95 % CIs from .. to | beats "
+             f"{reference}+PID in, mean [min, max] |", "|---|---|---|---|---|"]
+    for name, members in groups.items():
+        ratios, lows, highs, wins = [], [], [], []
+        for label in members:
+            cost = data.values(condition, label, "cost")
+            r = paired_ratio(cost, ref)
+            both = np.isfinite(cost) & np.isfinite(ref)
+            ratios.append(r.ratio)
+            lows.append(r.low)
+            highs.append(r.high)
+            wins.append(100 * np.mean(cost[both] < ref[both]) if both.any() else np.nan)
+        lines.append(f"| {name} | {len(members)} | {np.mean(ratios):.3g} [{min(ratios):.3g}, {max(ratios):.3g}] | "
+                     f"{min(lows):.3g} .. {max(highs):.3g} | {np.mean(wins):.0f} % [{min(wins):.0f}, "
+                     f"{max(wins):.0f}] |")
+    return "\n".join(lines)
 
 
 def comparison_table(csv_path: Path, *, reference: str) -> str:

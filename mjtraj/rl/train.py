@@ -30,7 +30,7 @@ import numpy as np
 
 from mjtraj.checks import choice, positive, positive_int
 from mjtraj.core import LoopConfig, check_name, option_names
-from mjtraj.envs import PLANT_RANDOMIZATIONS, RESIDUAL_SCALE, TASKS, TrackSettings, resolve
+from mjtraj.envs import PLANT_RANDOMIZATIONS, RESIDUAL_SCALE, REWARD_BASELINES, TASKS, TrackSettings, resolve
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl import ACTION_MODES, ALGORITHMS
@@ -58,6 +58,7 @@ class TrainSettings:
       observe_control: the policy also observes the PID integral and the next feedforward torque.
       plant_randomization: none, or mismatch (each training and validation episode on a plant drawn by the
         mismatch family's rules).
+      reward_baseline: none, or pid (train on the advantage over PID alone; validation and evaluation score J_exec).
       planner: the planner whose references the policy tracks.
       task: paper (always the paper's move) or random (a new random move each episode).
       steps: environment steps to train for (PPO rounds up to whole rollouts).
@@ -77,6 +78,7 @@ class TrainSettings:
     residual_scale: float = RESIDUAL_SCALE
     observe_control: bool = False
     plant_randomization: str = "none"
+    reward_baseline: str = "none"
     planner: str = "cubic"
     task: str = "random"
     steps: int = 100_000
@@ -92,6 +94,7 @@ class TrainSettings:
         choice("algo", self.algo, ALGORITHMS)
         choice("action_mode", self.action_mode, ACTION_MODES)
         choice("plant_randomization", self.plant_randomization, PLANT_RANDOMIZATIONS)
+        choice("reward_baseline", self.reward_baseline, REWARD_BASELINES)
         object.__setattr__(self, "residual_scale", positive("residual_scale", self.residual_scale))
         check_name("planner", self.planner)
         choice("task", self.task, tuple(t for t in TASKS if t != "explicit"))
@@ -111,12 +114,13 @@ class TrainSettings:
         """UR5Track-v0's arguments, every one that shapes the episodes (defaults written out)."""
         s = resolve(planner=self.planner, action_mode=self.action_mode, task=self.task,
                     residual_scale=self.residual_scale, observe_control=self.observe_control,
-                    plant_randomization=self.plant_randomization)
+                    plant_randomization=self.plant_randomization, reward_baseline=self.reward_baseline)
         return {"planner": self.planner, "action_mode": self.action_mode, "residual_scale": s.residual_scale,
                 "task": self.task,
                 "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt,
                 **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}, "preview": s.preview,
-                "observe_control": s.observe_control, "plant_randomization": s.plant_randomization}
+                "observe_control": s.observe_control, "plant_randomization": s.plant_randomization,
+                "reward_baseline": s.reward_baseline}
 
     def hyperparameters(self) -> dict[str, Any]:
         """The keyword arguments given to the SB3 algorithm besides SB3's defaults (JSON-ready): the rules'

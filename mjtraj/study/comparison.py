@@ -8,7 +8,7 @@ from typing import Any
 
 from mjtraj.core.gains import GAIN_RULE
 from mjtraj.core.metrics import Metrics
-from mjtraj.core.planners import available, check_name
+from mjtraj.core.planners import check_name, default_names
 from mjtraj.core.reference import Reference
 from mjtraj.core.rollout import Rollout
 from mjtraj.core.stability import spectral_radii
@@ -44,8 +44,10 @@ class Comparison:
 
 
 def default_planners() -> tuple[str, ...]:
-    """Every registered planner, the paper's four first in the paper's order."""
-    return tuple([p for p in PAPER_ORDER if p in available()] + [p for p in available() if p not in PAPER_ORDER])
+    """Every registered planner but those run on request (the nonlinear bounds), the paper's four first in the
+    paper's order."""
+    names = default_names()
+    return tuple([p for p in PAPER_ORDER if p in names] + [p for p in names if p not in PAPER_ORDER])
 
 
 def compare(scenario: Scenario, planners: Sequence[str] | None = None, *,

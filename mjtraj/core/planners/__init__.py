@@ -1,11 +1,14 @@
 """Trajectory planners: one module each, all registered by name (see `available` and `make`)."""
 
-from mjtraj.core.planners.base import Planner, available, check_name, make, plan_all, register
+from mjtraj.core.planners.base import Planner, available, check_name, default_names, make, plan_all, register
 from mjtraj.core.planners.cubic import Cubic
+from mjtraj.core.planners.nonlinear import NonlinearMinEffort, NonlinearOptimal
 from mjtraj.core.planners.optimal import Optimal
 from mjtraj.core.planners.quintic import Quintic
 from mjtraj.core.planners.scurve import SCurve
 from mjtraj.core.planners.trapezoidal import Trapezoidal
 
-__all__ = ["Cubic", "Optimal", "Planner", "Quintic", "SCurve", "Trapezoidal", "available", "check_name", "make",
-           "plan_all", "register"]
+__all__ = [
+    "Cubic", "NonlinearMinEffort", "NonlinearOptimal", "Optimal", "Planner", "Quintic", "SCurve", "Trapezoidal",
+    "available", "check_name", "default_names", "make", "plan_all", "register",
+]

@@ -50,17 +50,26 @@ def plan_all(planner: Planner, tasks: Sequence[Task], model: mujoco.MjModel) -> 
 
 
 _REGISTRY: dict[str, type] = {}
+_ON_REQUEST: set[str] = set()
 P = TypeVar("P", bound=type)
 
 
-def register(name: str) -> Callable[[P], P]:
-    """Class decorator: make a planner class available under `name`."""
+def register(name: str, *, on_request: bool = False) -> Callable[[P], P]:
+    """Class decorator: make a planner class available under `name`. A planner registered `on_request` (the slow
+    nonlinear bounds) runs only when named, never in the default set of `mjtraj compare` or `render`."""
 
     def add(cls: P) -> P:
         _REGISTRY[name] = cls
+        if on_request:
+            _ON_REQUEST.add(name)
         return cls
 
     return add
+
+
+def default_names() -> tuple[str, ...]:
+    """The registered planners that run when none are named, in registration order."""
+    return tuple(name for name in _REGISTRY if name not in _ON_REQUEST)
 
 
 def available() -> tuple[str, ...]:

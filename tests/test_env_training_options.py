@@ -1,5 +1,5 @@
-"""The env's plant randomisation and measurement noise (the sweeps' mismatch rules, drawn per episode), and the env
-pickled or copied after reset."""
+"""What the env offers training: plant randomisation and measurement noise (the sweeps' mismatch rules, drawn per
+episode), the reward relative to PID alone, and the env pickled or copied after reset."""
 
 from __future__ import annotations
 
@@ -153,7 +153,36 @@ def test_the_vector_env_pickles_after_reset():
     assert np.array_equal(venv.step(a)[0], clone.step(a)[0])
 
 
+@pytest.mark.parametrize("extra", [{}, {"plant_randomization": "mismatch", "measurement_noise": SIGMA}])
+def test_the_pid_baseline_reward_is_the_plain_reward_minus_pid_alones_on_the_same_episode(extra):
+    """Oracle: the plain env with the same actions, and the same episode in pid mode (the controller alone)."""
+    kwargs = {"task": "random", **extra}
+    advantage = UR5TrackEnv(action_mode="residual", reward_baseline="pid", **kwargs)
+    plain = UR5TrackEnv(action_mode="residual", **kwargs)
+    alone = UR5TrackEnv(action_mode="pid", **kwargs)
+    actions = np.random.default_rng(1).uniform(-1, 1, (100, 3))
+    runs = [run_actions(env, actions, seed=8) for env in (advantage, plain, alone)]
+    (r_adv, m_adv), (r_plain, m_plain), (r_pid, m_pid) = runs
+    np.testing.assert_array_equal(r_adv, r_plain - r_pid)
+    np.testing.assert_equal(m_adv, m_plain)  # the metrics still score J_exec
+    np.testing.assert_allclose(r_adv.sum(), m_pid["cost"] - m_plain["cost"], rtol=1e-12)
+    assert m_plain["cost"] != m_pid["cost"]
+
+
+def run_actions(env, actions, seed):
+    """Rewards of one episode from reset(seed) under `actions`, and its final metrics."""
+    env.reset(seed=seed)
+    rewards = []
+    for a in actions:
+        _, reward, terminated, _, info = env.step(a)
+        rewards.append(reward)
+        if terminated:
+            return np.array(rewards), info["metrics"]
+    raise AssertionError("the episode did not end")
+
+
 @pytest.mark.parametrize(("kwargs", "message"), [
+    ({"reward_baseline": "zero"}, "reward_baseline: unknown value 'zero'; valid: none, pid"),
     ({"plant_randomization": "payload"}, "plant_randomization: unknown value 'payload'; valid: none, mismatch"),
     ({"measurement_noise": -1e-3}, "measurement_noise"),
     ({"measurement_noise": float("nan")}, "measurement_noise: expected a finite number"),

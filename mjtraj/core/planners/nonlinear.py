@@ -1,0 +1,338 @@
+"""The paper's objective on the true nonlinear dynamics, with the joint ranges and the speed limit enforced.
+
+min 1/2 sum_{k=1..N} (x_k - x_g)^T Q (x_k - x_g) + 1/2 sum_{k=0..N-1} u_k^T R u_k  over the corrective torques u_k,
+subject to x_{k+1} = F(x_k, u_k) (one control period of the nominal MuJoCo model: RK4, gravity compensated, the
+plant itself), x_N = x_g = [qg; 0], |u_k| <= u_max, and at every sample k = 1..N q_k within the joint ranges and
+|qd_k| <= the speed limit. `nonlinear_min_effort` is the case Q = 0: the least corrective effort with which the
+nominal arm can make the move, the effort bound of the study.
+
+Method: sequential quadratic programming in single-shooting form (scipy's SLSQP). The variables are the N n
+torques; every iterate is rolled out exactly on the model, so every plan is realisable. The transition's Jacobians
+A_k, B_k come from central finite differences of mj_step, all N (6n) perturbed steps in one mujoco.batch call
+(MuJoCo's mjd_transitionFD does not support RK4); forward sensitivities dx_k/dU give the constraints' Jacobians and
+an adjoint sweep the objective's gradient. SLSQP keeps a quasi-Newton model of the Lagrangian's curvature, which
+the dynamics' second derivatives make necessary (a Gauss-Newton SQP on this problem converged only linearly). The
+path constraints (ranges, speed, torque) are screened: only rows within reach of their limit enter the QP, and the
+problem is solved again with more rows whenever a row left out is violated; the returned plan is checked against
+every constraint. The start is the linear optimal planner's plan for the same weights when its rollout keeps every
+path constraint, else the linear minimum-effort plan (Q = 0: the zero-order-held slow move). Objective and
+constraints are scaled to order one at the start.
+
+Why single shooting: it keeps the plan exactly on the model's dynamics at every iterate, and its few hundred
+variables are within SLSQP's reach. Its price is time: tens of seconds per plan at N = 100, as SLSQP's quasi-Newton
+model needs about as many iterations as there are variables. Both planners are therefore registered on request:
+they are bounds for the audit, not planners for the inner loop, and never run unless named.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+import scipy.optimize
+from mujoco.batch import Batch
+from numpy.typing import NDArray
+
+from mjtraj.checks import positive, positive_int
+from mjtraj.core.model import JointInfo
+from mjtraj.core.planners.base import Planner, register
+from mjtraj.core.planners.optimal import Optimal, check_weight_options, planner_weights
+from mjtraj.core.reference import Reference
+from mjtraj.core.scoring import JOINT_SPEED_LIMIT
+from mjtraj.core.task import Task
+from mjtraj.exceptions import InfeasibleError, InvalidInputError, SolverError
+
+SCREEN = 0.6
+"""A path-constraint row enters the QP once its value is beyond this fraction of its limit (speed, torque) or of
+the way from the range's middle to its end (positions)."""
+MAX_ROUNDS = 8
+"""Solves with a growing set of path-constraint rows before giving up."""
+
+
+@dataclass
+class _Shooting:
+    """One task's single-shooting problem on `model`: the rollout, its sensitivities, objective and constraints.
+
+    Variables u: the torques U (N, n) flattened, N m. States X (N+1, 2n) = [q; qd] of the rollout from x0.
+    """
+
+    model: mujoco.MjModel
+    x0: NDArray[np.float64]
+    xg: NDArray[np.float64]
+    Q: NDArray[np.float64]
+    R: NDArray[np.float64]
+    steps: int
+    eps: float
+    _cache: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.n = self.model.nv
+        self.data = mujoco.MjData(self.model)
+        self.batch = Batch(self.model, self.steps * 6 * self.n, nthread=1)
+        self._bind = (self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl"))
+
+    def rollout(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
+        """States x_0..x_N of the model under U (N, n) from x0; shape (N+1, 2n)."""
+        n, d = self.n, self.data
+        X = np.empty((U.shape[0] + 1, 2 * n))
+        X[0] = self.x0
+        mujoco.mj_resetData(self.model, d)
+        d.qpos[:], d.qvel[:] = self.x0[:n], self.x0[n:]
+        for k, u in enumerate(U):
+            d.ctrl[:] = u
+            mujoco.mj_step(self.model, d)
+            X[k + 1, :n], X[k + 1, n:] = d.qpos, d.qvel
+        return X
+
+    def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """A_k (N, 2n, 2n) and B_k (N, 2n, n) of one control period at each (x_k, u_k), central differences."""
+        n, N, eps = self.n, self.steps, self.eps
+        point = np.concatenate([X[:-1], U], axis=1)
+        delta = np.concatenate([eps * np.eye(3 * n), -eps * np.eye(3 * n)])
+        z = (point[:, None, :] + delta[None]).reshape(-1, 3 * n)
+        qpos, qvel, ctrl = self._bind
+        self.batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+        qpos[:], qvel[:], ctrl[:] = z[:, :n], z[:, n:2 * n], z[:, 2 * n:]
+        self.batch.step(None, 1)
+        after = np.concatenate([qpos, qvel], axis=1).reshape(N, 2, 3 * n, 2 * n)
+        jac = (after[:, 0] - after[:, 1]).transpose(0, 2, 1) / (2 * eps)
+        return jac[:, :, :2 * n], jac[:, :, 2 * n:]
+
+    def evaluate(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                                        NDArray[np.float64]]:
+        """(U, X, A, S) at u, where S (N+1, 2n, N n) holds dx_k/du; the last point is cached."""
+        key = u.tobytes()
+        if self._cache.get("key") != key:
+            n, N = self.n, self.steps
+            U = u.reshape(N, n)
+            X = self.rollout(U)
+            A, B = self.jacobians(X, U)
+            S = np.zeros((N + 1, 2 * n, N * n))
+            for k in range(N):
+                np.matmul(A[k], S[k], out=S[k + 1])
+                S[k + 1, :, k * n:(k + 1) * n] += B[k]
+            self._cache.update(key=key, value=(U, X, A, S))
+        return self._cache["value"]  # type: ignore[no-any-return]
+
+    def objective(self, u: NDArray[np.float64]) -> float:
+        U, X, _, _ = self.evaluate(u)
+        d = X[1:] - self.xg
+        return 0.5 * float(np.einsum("ki,ij,kj->", d, self.Q, d) + np.einsum("ki,ij,kj->", U, self.R, U))
+
+    def gradient(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
+        U, X, _, S = self.evaluate(u)
+        d = X[1:] - self.xg
+        return (U @ self.R).ravel() + np.einsum("ki,ij,kjm->m", d, self.Q, S[1:])
+
+
+@dataclass(frozen=True)
+class _Limits:
+    """Every path constraint as rows h(U, X) >= 0 in natural units."""
+
+    u_max: NDArray[np.float64]
+    q_low: NDArray[np.float64]
+    q_high: NDArray[np.float64]
+    v_max: NDArray[np.float64]
+
+    def values(self, U: NDArray[np.float64], X: NDArray[np.float64]) -> NDArray[np.float64]:
+        """h, shape (6 N n,): q_high - q, q - q_low, v_max - qd, v_max + qd (k = 1..N), u_max - u, u_max + u."""
+        n = U.shape[1]
+        q, qd = X[1:, :n], X[1:, n:]
+        return np.concatenate([(self.q_high - q).ravel(), (q - self.q_low).ravel(), (self.v_max - qd).ravel(),
+                               (self.v_max + qd).ravel(), (self.u_max - U).ravel(), (self.u_max + U).ravel()])
+
+    def scale(self, steps: int) -> NDArray[np.float64]:
+        """Each row's natural size, shape (6 N n,): half the range width, the speed limit, the torque bound."""
+        half = np.tile(0.5 * (self.q_high - self.q_low), steps)
+        return np.concatenate([half, half, np.tile(self.v_max, 2 * steps), np.tile(self.u_max, 2 * steps)])
+
+    def near(self, U: NDArray[np.float64], X: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Rows within reach of their limit (see SCREEN)."""
+        return self.values(U, X) < (1.0 - SCREEN) * self.scale(U.shape[0])
+
+    def jacobian(self, S: NDArray[np.float64], rows: NDArray[np.intp]) -> NDArray[np.float64]:
+        """dh/du of `rows`, shape (len(rows), N n), from the sensitivities S (N+1, 2n, N n)."""
+        n = S.shape[1] // 2
+        size = S.shape[2]
+        dq = S[1:, :n].reshape(-1, size)
+        dv = S[1:, n:].reshape(-1, size)
+        eye = np.eye(size)
+        return np.concatenate([-dq, dq, -dv, dv, -eye, eye])[rows]
+
+
+CONSTRAINT_NAMES = ("the joint range (upper end)", "the joint range (lower end)", "the joint speed limit",
+                    "the joint speed limit", "the torque bound", "the torque bound")
+
+
+@register("nonlinear_optimal", on_request=True)
+@dataclass(frozen=True)
+class NonlinearOptimal(Planner):
+    """The optimal planner's objective on the nominal nonlinear model (module docstring).
+
+    Attributes:
+      state_weight, input_weight, alpha, split: the weights, exactly as the optimal planner's (Bryson's rule by
+        default; see `mjtraj.core.planners.optimal.Optimal`).
+      torque_bound: |u_k| bound, shape (n,) or scalar, N m; None for the model's ctrlrange.
+      speed_limit: |qd_k| bound on every joint, rad/s (default pi, the UR5's rated joint speed).
+      max_iter: SLSQP iterations per solve.
+      tol: SLSQP's tolerance on the scaled objective; the plan must also meet x_N = x_g to 1e-8 and every path
+        constraint to 1e-8 (relative to its limit).
+      fd_eps: finite-difference step of the transition Jacobians.
+    """
+
+    state_weight: tuple[float, ...] | None = None
+    input_weight: tuple[float, ...] | None = None
+    alpha: float = 1.0
+    split: float = 0.5
+    torque_bound: float | tuple[float, ...] | None = None
+    speed_limit: float = float(JOINT_SPEED_LIMIT)
+    max_iter: int = 400
+    tol: float = 1e-10
+    fd_eps: float = 1e-6
+    name: ClassVar[str] = "nonlinear_optimal"
+
+    def __post_init__(self) -> None:
+        check_weight_options(self)
+        positive("speed_limit", self.speed_limit)
+        positive_int("max_iter", self.max_iter)
+        positive("tol", self.tol)
+        positive("fd_eps", self.fd_eps)
+        self.linear()  # validates torque_bound now
+
+    def linear(self) -> Optimal:
+        """The linear optimal planner with these weights and bound: the starting guess."""
+        return Optimal(state_weight=self.state_weight, input_weight=self.input_weight, alpha=self.alpha,
+                       split=self.split, torque_bound=self.torque_bound)
+
+    def plan(self, task: Task, model: mujoco.MjModel) -> Reference:
+        """Plan `task` on the nominal `model`.
+
+        Raises:
+          InfeasibleError: the linearised arm cannot make the move within the torque bound (no start), or no plan
+            meets every constraint (names which).
+          SolverError: SLSQP failed (its message).
+        """
+        clock = time.perf_counter()
+        task.check_limits(model)
+        linear = self.linear()
+        bound = linear.bounds(task, model)
+        joints = JointInfo.of(model)
+        n = task.n
+        Q, R = planner_weights(task, bound, self.state_weight, self.input_weight, self.alpha, self.split)
+        limits = _Limits(bound, joints.lower, joints.upper, np.full(n, float(self.speed_limit)))
+        x0 = np.concatenate([task.q0, np.zeros(n)])
+        xg = np.concatenate([task.qg, np.zeros(n)])
+        problem = _Shooting(model, x0, xg, Q, R, task.steps, self.fd_eps)
+        u = self._start(task, model, problem, limits)
+        U, X, _, S = problem.evaluate(u)
+        rows = np.flatnonzero(limits.near(U, X))
+        f_scale = 1.0 / max(problem.objective(u), 1e-12)
+        t_scale = 1.0 / np.maximum(np.linalg.norm(S[-1], axis=1), 1e-12)
+        iterations, rounds = 0, 0
+        for rounds in range(1, MAX_ROUNDS + 1):  # noqa: B007 (reported in info)
+            result = self._solve(problem, limits, rows, u, f_scale, t_scale)
+            iterations += int(result.nit)
+            u = result.x
+            U, X, _, S = problem.evaluate(u)
+            violated = np.flatnonzero(limits.values(U, X) < -1e-8 * limits.scale(U.shape[0]))
+            missing = np.setdiff1d(violated, rows)
+            rows = np.union1d(rows, np.union1d(missing, np.flatnonzero(limits.near(U, X))))
+            if missing.size == 0:
+                break
+        terminal = float(np.max(np.abs(X[-1] - xg)))
+        h = limits.values(U, X)
+        worst = int(np.argmin(h / limits.scale(U.shape[0])))
+        if terminal > 1e-8 or h[worst] < -1e-8 * limits.scale(U.shape[0])[worst]:
+            what = "the terminal state x_N = [qg; 0]" if terminal > 1e-8 else self._describe(worst, U.shape)
+            kind = InfeasibleError if result.status in (0, 4) else SolverError
+            raise kind(f"{self.name}: no plan meets {what} (SLSQP: {result.message}; terminal residual "
+                       f"{terminal:.2g} rad)")
+        if result.status != 0:
+            raise SolverError(f"{self.name}: SLSQP stopped: {result.message} (status {result.status})")
+        return self._reference(task, U, X, problem.objective(u), iterations, rounds, rows.size, terminal,
+                               time.perf_counter() - clock)
+
+    def _start(self, task: Task, model: mujoco.MjModel, problem: _Shooting, limits: _Limits) -> NDArray[np.float64]:
+        """The first iterate: the linear optimal plan with these weights if its rollout keeps every path constraint,
+        else the linear minimum-effort plan (Q = 0, the zero-order-held slow move), flattened (N n,)."""
+        candidates = [self.linear()]
+        if self.alpha != 0.0 or self.state_weight is not None:
+            candidates.append(Optimal(input_weight=self.input_weight, alpha=0.0, torque_bound=self.torque_bound))
+        for planner in candidates:
+            try:
+                plan = planner.plan(task, model)
+            except InfeasibleError as e:
+                raise InfeasibleError(f"{self.name}: no start to optimise from: {e}") from e
+            assert plan.u_plan is not None
+            u = np.clip(plan.u_plan, -limits.u_max, limits.u_max).ravel()
+            U, X, _, _ = problem.evaluate(u)
+            if np.all(limits.values(U, X) >= 0.0):
+                break
+        return u
+
+    def _solve(self, problem: _Shooting, limits: _Limits, rows: NDArray[np.intp], u: NDArray[np.float64],
+               f_scale: float, t_scale: NDArray[np.float64]) -> scipy.optimize.OptimizeResult:
+        """One SLSQP solve from u with the path-constraint `rows`."""
+        row_scale = 1.0 / limits.scale(problem.steps)[rows]
+
+        def terminal(v: NDArray[np.float64]) -> NDArray[np.float64]:
+            return t_scale * (problem.evaluate(v)[1][-1] - problem.xg)
+
+        def terminal_jac(v: NDArray[np.float64]) -> NDArray[np.float64]:
+            return t_scale[:, None] * problem.evaluate(v)[3][-1]
+
+        def path(v: NDArray[np.float64]) -> NDArray[np.float64]:
+            U, X, _, _ = problem.evaluate(v)
+            return row_scale * limits.values(U, X)[rows]
+
+        def path_jac(v: NDArray[np.float64]) -> NDArray[np.float64]:
+            return row_scale[:, None] * limits.jacobian(problem.evaluate(v)[3], rows)
+
+        constraints: list[dict[str, Any]] = [{"type": "eq", "fun": terminal, "jac": terminal_jac}]
+        if rows.size:
+            constraints.append({"type": "ineq", "fun": path, "jac": path_jac})
+        return scipy.optimize.minimize(lambda v: f_scale * problem.objective(v), u,
+                                       jac=lambda v: f_scale * problem.gradient(v), method="SLSQP",
+                                       constraints=constraints, options={"maxiter": self.max_iter, "ftol": self.tol})
+
+    @staticmethod
+    def _describe(row: int, shape: tuple[int, ...]) -> str:
+        """Which constraint path row `row` is: its kind, joint and sample."""
+        steps, n = shape
+        group, rest = divmod(row, steps * n)
+        k, joint = divmod(rest, n)
+        sample = k if group >= 4 else k + 1
+        return f"{CONSTRAINT_NAMES[group]} of joint {joint} at sample {sample}"
+
+    def _reference(self, task: Task, U: NDArray[np.float64], X: NDArray[np.float64], objective: float,
+                   iterations: int, rounds: int, rows: int, terminal: float, wall: float) -> Reference:
+        """The rollout X (N+1, 2n) under U (N, n) as a Reference: qdd is the ZOH acceleration per step."""
+        n = task.n
+        q, qd = X[:, :n].copy(), X[:, n:].copy()
+        qdd = np.zeros_like(qd)
+        qdd[:-1] = np.diff(qd, axis=0) / task.dt
+        q[-1] = task.qg  # within 1e-8 (checked): the samples end exactly on the goal, at rest
+        qd[-1] = 0.0
+        info = {"objective": objective, "iterations": iterations, "rounds": rounds, "path_rows": rows,
+                "terminal_residual": terminal, "plan_time": wall}
+        return Reference(planner=self.name, t=task.times, q=q, qd=qd, qdd=qdd, u_plan=U.copy(), info=info)
+
+
+@register("nonlinear_min_effort", on_request=True)
+@dataclass(frozen=True)
+class NonlinearMinEffort(NonlinearOptimal):
+    """`nonlinear_optimal` with Q = 0: the least corrective effort sum u^T R u with which the nominal nonlinear arm
+    makes the move within its ranges, speed limit and torque bound; the study's effort bound."""
+
+    alpha: float = 0.0
+    name: ClassVar[str] = "nonlinear_min_effort"
+
+    def __post_init__(self) -> None:
+        if self.alpha != 0.0 or self.state_weight is not None:
+            raise InvalidInputError(f"alpha, state_weight: {self.name} has no state weight (Q = 0); use "
+                                    "nonlinear_optimal for a weighted plan")
+        super().__post_init__()

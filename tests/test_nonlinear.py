@@ -1,0 +1,140 @@
+"""The nonlinear planners: realisable on the model, every constraint held, first-order optimal, the linear planner in
+the small-move limit, the effort bound below every other plan, and one-line errors."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjtraj.core.model import JointInfo
+from mjtraj.core.planners import default_names, make
+from mjtraj.core.planners.nonlinear import _Shooting
+from mjtraj.core.task import Task
+from mjtraj.exceptions import InfeasibleError, InvalidInputError
+
+Q0 = np.array([0.0, -np.pi / 2, 0.0])
+DIRECTION = np.array([1.0, 0.5, -1.0])
+
+
+def short_task(model, move, duration=0.5, q0=Q0):
+    """A move of `move` rad along DIRECTION in `duration` s (N = 25 at dt = 0.02: seconds per plan, not minutes)."""
+    return Task.create(q0, q0 + move * DIRECTION, duration, 0.02, model=model)
+
+
+@pytest.fixture(scope="module")
+def effort(model):
+    """The effort bound of a 0.3 rad move in 0.5 s (no path constraint near its limit)."""
+    task = short_task(model, 0.3)
+    return task, make("nonlinear_min_effort").plan(task, model)
+
+
+@pytest.fixture(scope="module")
+def plans(model):
+    """Both planners on a 1.5 rad move in 0.6 s, which the speed limit constrains."""
+    task = short_task(model, 1.5, duration=0.6)
+    return task, make("nonlinear_min_effort").plan(task, model), make("nonlinear_optimal").plan(task, model)
+
+
+def replay(model, task, U):
+    """States (N+1, 2n) of the model under U from rest at q0 (an independent rollout with mj_step)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = task.q0
+    X = [np.concatenate([data.qpos, data.qvel])]
+    for u in U:
+        data.ctrl[:] = u
+        mujoco.mj_step(model, data)
+        X.append(np.concatenate([data.qpos, data.qvel]))
+    return np.array(X)
+
+
+def test_a_plan_is_its_torques_rollout_and_holds_every_constraint(model, effort):
+    check_plan(model, *effort)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("which", [1, 2])
+def test_plans_along_the_speed_limit_hold_every_constraint(model, plans, which):
+    check_plan(model, plans[0], plans[which])
+
+
+def check_plan(model, task, ref):
+    """The plan is the rollout of its torques on the model and holds the goal, ranges, speed and torque limits."""
+    X = replay(model, task, ref.u_plan)
+    n = task.n
+    np.testing.assert_allclose(X[:, :n], ref.q, rtol=0, atol=1e-8)  # the last sample is set to the goal
+    np.testing.assert_allclose(X[:, n:], ref.qd, rtol=0, atol=1e-8)
+    np.testing.assert_array_equal(X[:-1, :n], ref.q[:-1])  # exactly the rollout before it
+    joints = JointInfo.of(model)
+    assert np.all(np.abs(ref.qd) <= np.pi * (1 + 1e-8))
+    assert np.all((ref.q >= joints.lower) & (ref.q <= joints.upper))
+    assert np.all(np.abs(ref.u_plan) <= joints.torque_limit)
+    assert ref.info["terminal_residual"] < 1e-8
+    assert not set(default_names()) & {"nonlinear_optimal", "nonlinear_min_effort"}  # on request only
+
+
+@pytest.mark.slow
+def test_the_speed_limit_binds_and_costs_effort(model, plans):
+    """The 1.5 rad move in 0.6 s wants more than pi rad/s; the plan rides the limit instead."""
+    task, effort, _ = plans
+    assert np.abs(effort.qd).max() == pytest.approx(np.pi, rel=1e-8)
+    free = make("nonlinear_min_effort", speed_limit=100.0).plan(task, model)
+    assert np.abs(free.qd).max() > 1.05 * np.pi
+    assert free.info["objective"] < effort.info["objective"]
+
+
+@pytest.mark.slow
+def test_the_effort_bound_is_below_the_weighted_plans_effort(plans):
+    """Oracle: Q = 0 minimises effort alone over the same feasible set, so no weighted plan spends less."""
+    _, effort, weighted = plans
+    assert np.sum(effort.u_plan**2) <= np.sum(weighted.u_plan**2) * (1 + 1e-9)
+
+
+def test_first_order_optimality_of_the_effort_bound(model, effort):
+    """With no path constraint near its limit, the KKT condition is grad f = S_N^T lambda: the gradient lies in the
+    row space of the terminal constraint's Jacobian (least-squares residual relative to the gradient)."""
+    task, ref = effort
+    assert ref.info["path_rows"] == 0
+    n = task.n
+    R = np.diag(1.0 / JointInfo.of(model).torque_limit ** 2)
+    problem = _Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]),
+                        np.zeros((2 * n, 2 * n)), R, task.steps, 1e-6)
+    u = ref.u_plan.ravel()
+    gradient = problem.gradient(u)
+    S_N = problem.evaluate(u)[3][-1]
+    multipliers, *_ = np.linalg.lstsq(S_N.T, gradient, rcond=None)
+    assert np.linalg.norm(gradient - S_N.T @ multipliers) < 1e-4 * np.linalg.norm(gradient)
+
+
+@pytest.mark.parametrize("name", [pytest.param("nonlinear_optimal", marks=pytest.mark.slow), "nonlinear_min_effort"])
+def test_a_tiny_move_is_the_linear_planners_plan(model, name):
+    """The linearisation is exact in the limit: at 1 mrad the plans agree to 0.2 %, at 0.3 rad they do not."""
+    linear = make("optimal", alpha=0.0 if name == "nonlinear_min_effort" else 1.0)
+    gaps = []
+    for move in (1e-3, 0.3):
+        task = short_task(model, move)
+        mine, theirs = make(name).plan(task, model).u_plan, linear.plan(task, model).u_plan
+        gaps.append(np.abs(mine - theirs).max() / np.abs(theirs).max())
+    assert gaps[0] < 2e-3
+    assert gaps[1] > 10 * gaps[0]
+
+
+def test_an_unreachable_goal_names_the_binding_constraint(model):
+    task = short_task(model, 1.0)
+    with pytest.raises(InfeasibleError, match=r"^nonlinear_min_effort: no start to optimise from: optimal: x_N = 0 "
+                                              r"cannot be reached within the torque bounds .* the binding bound is "
+                                              r"joint 'shoulder_pan_joint'"):
+        make("nonlinear_min_effort", torque_bound=0.5).plan(task, model)
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"alpha": 1.0}, r"^alpha, state_weight: nonlinear_min_effort has no state weight \(Q = 0\); use "
+                     r"nonlinear_optimal for a weighted plan$"),
+    ({"speed_limit": 0.0}, r"^speed_limit: expected a positive number, got 0.0$"),
+    ({"max_iter": 0}, r"^max_iter: expected a whole number >= 1, got 0$"),
+    ({"torque_bound": -1.0}, r"^torque_bound: expected finite numbers \(one per joint\), got -1.0$|"
+                             r"^torque_bound: expected positive values, got -1.0$"),
+])
+def test_bad_options_are_one_line_errors(options, message):
+    with pytest.raises(InvalidInputError, match=message):
+        make("nonlinear_min_effort", **options)
