@@ -15,7 +15,7 @@ from mjtraj.study.store import VERSION_COLUMNS, csv_text
 PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
 
 
-def synthetic(path, costs, *, scenarios=40, families=("nominal",), config="paper.toml (shipped)"):
+def synthetic(path, costs, *, scenarios=40, families=("nominal",), config="paper.toml (shipped)", planners=PLANNERS):
     """A sweep file whose J_exec of a planner in scenario i is costs[family][planner] * d_i, d_i a random scenario
     difficulty shared by the planners (paired, as real scenarios are); every other metric equals the cost."""
     rng = np.random.default_rng(0)
@@ -23,7 +23,7 @@ def synthetic(path, costs, *, scenarios=40, families=("nominal",), config="paper
     for family in families:
         for i in range(scenarios):
             difficulty = rng.uniform(0.5, 1.5)
-            for planner in PLANNERS:
+            for planner in planners:
                 value = costs[family][planner] * difficulty
                 row = {"family": family, "scenario": i, "unit": 0, "planner": planner, "ff_accel": "sample",
                        "gravity_comp": "native", "status": "ok", "reason": "",
@@ -120,6 +120,21 @@ def test_conclusions_and_where_it_pays_read_the_rows(tmp_path):
     pays = text.split("## Where control-aware planning pays", 1)[1].split("\n## ", 1)[0]
     assert ("| nominal, ff_accel=sample, gravity_comp=native | max abs(dq) in (1, 1.5] rad | 40 | "
             "2.000 [2.000, 2.000] | 100 % |") in pays
+
+
+def test_effort_left_on_the_table_is_each_planners_effort_over_the_nonlinear_bound(tmp_path):
+    """Every metric is the cost here, so each cell is the ratio of the planners' factors to the bound's."""
+    costs = {"nominal": {"optimal": 3.0, "cubic": 2.0, "quintic": 2.5, "trapezoidal": 2.2, "nonlinear_min_effort": 1.0}}
+    path = synthetic(tmp_path / "b.csv", costs, planners=(*PLANNERS, "nonlinear_min_effort"))
+    text = write_audit([path], tmp_path / "b.md", figures=False)
+    section = text.split("## Effort left on the table", 1)[1].split("\n## ", 1)[0]
+    assert "nominal, ff_accel=sample, gravity_comp=native (40 scenarios with a bound):" in section
+    assert "| cubic | quintic | trapezoidal | optimal |" in section
+    assert ("| 2.000 [2.000, 2.000] | 2.500 [2.500, 2.500] | 2.200 [2.200, 2.200] | 3.000 [3.000, 3.000] |"
+            in section)
+    without = write_audit([synthetic(tmp_path / "w.csv", {"nominal": costs["nominal"]})], tmp_path / "w.md",
+                          figures=False)
+    assert "(not measured: add `nonlinear_min_effort` to the sweep's planners" in without
 
 
 def test_truncated_and_unfinished_sweeps_are_refused(tmp_path):

@@ -190,7 +190,7 @@ class NonlinearOptimal(Planner):
     split: float = 0.5
     torque_bound: float | tuple[float, ...] | None = None
     speed_limit: float = float(JOINT_SPEED_LIMIT)
-    max_iter: int = 400
+    max_iter: int = 1000
     tol: float = 1e-10
     fd_eps: float = 1e-6
     name: ClassVar[str] = "nonlinear_optimal"
