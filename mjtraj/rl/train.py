@@ -339,8 +339,10 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
 
 
 def _title(settings: TrainSettings) -> str:
-    return (f"{settings.algo.upper()} {settings.action_mode} on {settings.planner} references, task={settings.task}, "
-            f"seed {settings.seed}")
+    scale = f" ({settings.residual_scale:g} N m)" if settings.action_mode == "residual" else ""
+    plant = ", mismatch plants" if settings.plant_randomization != "none" else ""
+    return (f"{settings.algo.upper()} {settings.action_mode}{scale} on {settings.planner} references, "
+            f"task={settings.task}{plant}, seed {settings.seed}")
 
 
 def plot_run(run: str | Path) -> Path:
