@@ -296,7 +296,9 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
             assert mine[i]["status"] == "ok" and numeric(mine[i]["cost"]) == outcomes[j].metrics["cost"]
             replayed += 1
     assert replayed == 5
-    assert (tmp_path / "EVAL_aggressive.md").read_text().count("| cubic+PID+residual SAC (10 N m) |") == 1
+    per_policy, over_seeds = (tmp_path / "EVAL_aggressive.md").read_text().split("Over seeds")
+    assert per_policy.count("| cubic+PID+residual SAC (10 N m) |") == 1
+    assert over_seeds.count("| cubic+PID+residual SAC (10 N m) | 1 |") == 1  # one configuration, one seed
 
 
 
