@@ -223,6 +223,8 @@ def _parser() -> argparse.ArgumentParser:
     t.add_argument("--hyperparameters", type=Path, metavar="FILE",
                    help="a JSON object of SB3 arguments replacing the defaults (--hyperparameter wins)")
     t.add_argument("--out", type=Path, default=Path("runs/rl"), help="output folder (default runs/rl)")
+    t.add_argument("--tensorboard", type=Path, metavar="DIR",
+                   help="also log to TensorBoard event files in DIR (SB3's logger; needs the tensorboard package)")
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
     p = rl_sub.add_parser("plot", help="redraw a run's learning_curve.png from its learning_curve.csv (also of a run "
                           "still going or interrupted)")
@@ -533,7 +535,7 @@ def _rl(args: argparse.Namespace) -> int:
                                  steps=args.steps, seed=args.seed, num_envs=args.num_envs,
                                  checkpoints=args.checkpoints, evaluations=args.evaluations,
                                  validation=args.validation, threads=args.threads)
-        report = train(settings, args.out, progress=not args.no_progress)
+        report = train(settings, args.out, progress=not args.no_progress, tensorboard=args.tensorboard)
         final = report.final
         print(f"trained {report.timesteps} steps in {report.wall:.0f} s; validation mean J_exec "
               f"{final['cost_mean']:.4g} (median {final['cost_median']:.4g}, {final['diverged']} diverged)")

@@ -614,3 +614,20 @@ def test_eval_summarises_a_configuration_over_its_seeds(trained, tmp_path):
         assert cells[2] == f"{np.mean(ratios):.3g} [{min(ratios):.3g}, {max(ratios):.3g}]"
         assert cells[4] == f"{np.mean(wins):.0f} % [{min(wins):.0f}, {max(wins):.0f}] |"
     assert report.seeds in report.markdown.read_text()
+
+
+@pytest.mark.slow
+def test_tensorboard_logs_the_validation_curve(tmp_path):
+    """The event files carry every validation point of learning_curve.csv (read back with TensorBoard's reader)."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    out, logs = tmp_path / "run", tmp_path / "tb"
+    assert main(["rl", "train", "--steps", "240", "--seed", "2", "--evaluations", "2", "--checkpoints", "2",
+                 "--validation", "4", "--out", str(out), "--tensorboard", str(logs), "--no-progress"]) == 0
+    (folder,) = [p for p in logs.iterdir() if p.is_dir()]
+    events = EventAccumulator(str(folder))
+    events.Reload()
+    logged = events.Scalars("validation/cost_mean")
+    curve = read_rows(out / "learning_curve.csv")
+    assert [e.step for e in logged] == [int(r["timesteps"]) for r in curve]
+    np.testing.assert_allclose([e.value for e in logged], [numeric(r["val_cost_mean"]) for r in curve], rtol=1e-6)

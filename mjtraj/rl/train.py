@@ -198,8 +198,11 @@ def _summary(outcomes: list[Outcome]) -> dict[str, float]:
             "rms_err_mean": float(err.mean()) if err.size else nan, "diverged": len(outcomes) - len(ok)}
 
 
-def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) -> TrainReport:
-    """Train per `settings` into the folder `out` (which must not hold a run yet).
+def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
+          tensorboard: str | Path | None = None) -> TrainReport:
+    """Train per `settings` into the folder `out` (which must not hold a run yet); with `tensorboard`, SB3's logger
+    also writes TensorBoard event files there (its own training statistics, plus every validation point as
+    validation/cost_mean, validation/cost_median, validation/rms_err_mean and validation/pid_cost_mean).
 
     Writes run.json (settings, env arguments, hyperparameters, seeds, versions, status), checkpoints/,
     policy.zip + policy.json (the final policy), learning_curve.csv and learning_curve.png.
@@ -245,6 +248,7 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
             n = env.n
             kwargs["action_noise"] = NormalActionNoise(np.zeros(n), np.full(n, TD3_NOISE_STD))
         model = getattr(sb3, settings.algo.upper())("MlpPolicy", venv, seed=settings.seed, device="cpu", verbose=0,
+                                                    tensorboard_log=None if tensorboard is None else str(tensorboard),
                                                     **kwargs)
         venv.gamma = model.gamma  # VecNormalize discounts rewards with the algorithm's gamma
         record["hyperparameters"]["resolved"] = _resolved(model)
@@ -286,6 +290,11 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True) ->
                     self.best = val["cost_mean"]
                     policy.save(folder / "best.zip")
                     record["best_validation"] = {"timesteps": policy.timesteps, **val}
+                if tensorboard is not None:
+                    for key in ("cost_mean", "cost_median", "rms_err_mean"):
+                        model.logger.record(f"validation/{key}", val[key])
+                    model.logger.record("validation/pid_cost_mean", pid["cost_mean"])
+                    model.logger.dump(int(model.num_timesteps))
                 curve.append({"timesteps": int(model.num_timesteps), "wall_s": time.perf_counter() - clock,
                               "episodes": self.episodes,
                               "train_return_mean": float(np.mean(self.returns)) if self.returns else float("nan"),
