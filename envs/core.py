@@ -128,8 +128,9 @@ class TrackCore:
         loops = [self.loop] if self.shadow is None else [self.loop, self.shadow]
         if self.plant is not None:
             plants = [e.plant if e.plant is not None else no_perturbation(self.settings.n) for e in episodes]
+            fields = plant_fields(self.plant, plants)
             for loop in loops:
-                loop.set_plant_fields(plant_fields(self.plant, plants), rows)
+                loop.set_plant_fields(fields, rows)
         noise = None
         if any(e.noise is not None for e in episodes):
             n2 = 2 * self.settings.n

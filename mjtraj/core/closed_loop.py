@@ -225,7 +225,7 @@ class ClosedLoop:
     def set_plant_fields(self, fields: dict[str, NDArray[np.float64]], ids: npt.ArrayLike | None = None) -> None:
         """Give simulations `ids` (all if None) of the plant their own model fields (MjModel names, arrays of shape
         (len(ids), ...); see BatchPlant.set_fields), before (re)starting them: a new episode's perturbed plant."""
-        self._plant.set_fields(fields, None if ids is None else np.asarray(ids, dtype=np.intp).reshape(-1))
+        self._plant.set_fields(fields, ids)
 
     # -- control -------------------------------------------------------------------------------------------------
 

@@ -7,6 +7,7 @@ from typing import Any
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 from mujoco.batch import Batch
 from numpy.typing import NDArray
 
@@ -67,7 +68,7 @@ class BatchPlant:
         if fields:
             self.set_fields(fields)
 
-    def set_fields(self, fields: dict[str, NDArray[np.float64]], ids: NDArray[np.intp] | None = None) -> None:
+    def set_fields(self, fields: dict[str, NDArray[np.float64]], ids: npt.ArrayLike | None = None) -> None:
         """Give simulations `ids` (all if None) their own values of model fields (MjModel names, arrays of shape
         (len(ids), ...)), then recompute what derives from them (mj_setConst). Call it before `reset`: the
         simulations' state is not kept. Under 'zoh' gravity compensation body_gravcomp is ignored."""

@@ -171,6 +171,12 @@ def configurations(policies: Sequence[Policy], labels: Sequence[str]) -> dict[st
     return groups
 
 
+def win_share(cost: np.ndarray, ref: np.ndarray) -> float:
+    """Percentage of the scenarios where both are finite in which `cost` is strictly below `ref`; NaN if none."""
+    both = np.isfinite(cost) & np.isfinite(ref)
+    return float(100 * np.mean(cost[both] < ref[both])) if both.any() else float("nan")
+
+
 def seed_table(csv_path: Path, groups: dict[str, list[str]], *, reference: str) -> str:
     """Markdown: per configuration, its policies' J_exec / reference+PID (paired by scenario, ratio of means) and
     share of scenarios won, as the mean over its policies (seeds) with their min and max, and the seeds' 95 %
@@ -185,11 +191,10 @@ def seed_table(csv_path: Path, groups: dict[str, list[str]], *, reference: str) 
         for label in members:
             cost = data.values(condition, label, "cost")
             r = paired_ratio(cost, ref)
-            both = np.isfinite(cost) & np.isfinite(ref)
             ratios.append(r.ratio)
             lows.append(r.low)
             highs.append(r.high)
-            wins.append(100 * np.mean(cost[both] < ref[both]) if both.any() else np.nan)
+            wins.append(win_share(cost, ref))
         lines.append(f"| {name} | {len(members)} | {np.mean(ratios):.3g} [{min(ratios):.3g}, {max(ratios):.3g}] | "
                      f"{min(lows):.3g} .. {max(highs):.3g} | {np.mean(wins):.0f} % [{min(wins):.0f}, "
                      f"{max(wins):.0f}] |")
@@ -223,9 +228,9 @@ def _table_row(data: SweepData, c: Condition, planner: str, name: str, ref: np.n
         ratio, wins = "1 (reference)", "-"
     else:
         r = paired_ratio(cost, ref)
-        both = np.isfinite(cost) & np.isfinite(ref)
         ratio = f"{r.ratio:.3g} [{r.low:.3g}, {r.high:.3g}]"
-        wins = f"{100 * np.mean(cost[both] < ref[both]):.0f} %" if both.any() else "-"
+        share = win_share(cost, ref)
+        wins = "-" if np.isnan(share) else f"{share:.0f} %"
     return (f"| {name} | {ok} | {failed} | {np.nanmean(cost):.4g} | {np.nanmedian(cost):.4g} | {cvar(cost, 0.9):.4g} | "
             f"{ratio} | {wins} | {np.nanmean(err):.3g} | {np.nanmean(dtau):.3g} |")
 
