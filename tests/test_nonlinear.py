@@ -132,8 +132,7 @@ def test_an_unreachable_goal_names_the_binding_constraint(model):
                      r"nonlinear_optimal for a weighted plan$"),
     ({"speed_limit": 0.0}, r"^speed_limit: expected a positive number, got 0.0$"),
     ({"max_iter": 0}, r"^max_iter: expected a whole number >= 1, got 0$"),
-    ({"torque_bound": -1.0}, r"^torque_bound: expected finite numbers \(one per joint\), got -1.0$|"
-                             r"^torque_bound: expected positive values, got -1.0$"),
+    ({"torque_bound": -1.0}, r"^torque_bound: expected positive values, got -1.0$"),
 ])
 def test_bad_options_are_one_line_errors(options, message):
     with pytest.raises(InvalidInputError, match=message):
