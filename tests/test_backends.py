@@ -4,6 +4,9 @@ local rows."""
 
 from __future__ import annotations
 
+import multiprocessing
+import os
+
 import pytest
 
 from mjtraj.exceptions import BackendError, InvalidInputError
@@ -23,6 +26,28 @@ def test_bad_backend_and_unreachable_ray(tmp_path):
                   progress=False)
     assert not (tmp_path / "b.csv").exists()
 
+
+
+def _blas_threads() -> str | None:
+    import os
+
+    return os.environ.get("OPENBLAS_NUM_THREADS")
+
+
+def test_pool_workers_get_one_blas_thread_unless_the_user_chose(monkeypatch):
+    from concurrent.futures import ProcessPoolExecutor
+
+    from mjtraj.study.backends import _one_blas_thread
+
+    context = multiprocessing.get_context("spawn")
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    with ProcessPoolExecutor(max_workers=1, mp_context=context) as pool:
+        with _one_blas_thread():
+            future = pool.submit(_blas_threads)
+            assert os.environ["MKL_NUM_THREADS"] == "3"  # the user's choice stands
+        assert future.result() == "1"
+    assert "OPENBLAS_NUM_THREADS" not in os.environ and os.environ["MKL_NUM_THREADS"] == "3"  # restored
 
 
 @pytest.mark.slow

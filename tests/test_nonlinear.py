@@ -9,7 +9,7 @@ import pytest
 
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners import default_names, make
-from mjtraj.core.planners.nonlinear import _Shooting
+from mjtraj.core.planners.nonlinear import _Metric, _Shooting
 from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError
 
@@ -132,8 +132,28 @@ def test_an_unreachable_goal_names_the_binding_constraint(model):
                      r"nonlinear_optimal for a weighted plan$"),
     ({"speed_limit": 0.0}, r"^speed_limit: expected a positive number, got 0.0$"),
     ({"max_iter": 0}, r"^max_iter: expected a whole number >= 1, got 0$"),
+    ({"curvature_scale": -1.0}, r"^curvature_scale: expected a positive number, got -1.0$"),
     ({"torque_bound": -1.0}, r"^torque_bound: expected positive values, got -1.0$"),
 ])
 def test_bad_options_are_one_line_errors(options, message):
     with pytest.raises(InvalidInputError, match=message):
         make("nonlinear_min_effort", **options)
+
+
+def test_the_change_of_variables_is_exact_and_starts_at_the_gauss_newton_hessian(model):
+    """v = L^T u: round trip, derivative rows carried to v (a linear function's values agree), and L L^T equal to
+    the scale times R + sum S^T Q S computed by plain loops."""
+    task = short_task(model, 0.3)
+    rng = np.random.default_rng(3)
+    n, N = task.n, task.steps
+    Q, R = np.diag(rng.uniform(0.5, 2.0, 2 * n)), np.diag(rng.uniform(0.5, 2.0, n))
+    problem = _Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]), Q, R,
+                        N, 1e-7)
+    u = rng.normal(0.0, 1.0, N * n)
+    metric = _Metric.at(problem, u, 7.0)
+    S = problem.evaluate(u)[3]
+    expected = np.kron(np.eye(N), R) + sum(S[k].T @ Q @ S[k] for k in range(1, N + 1))
+    np.testing.assert_allclose(metric.L @ metric.L.T, 7.0 * expected, rtol=1e-10)
+    np.testing.assert_allclose(metric.to_u(metric.to_v(u)), u, rtol=1e-10)
+    g, w = rng.normal(size=(2, N * n))
+    assert metric.pull(g[None])[0] @ metric.to_v(w) == pytest.approx(g @ w, rel=1e-10)
