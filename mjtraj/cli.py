@@ -175,6 +175,8 @@ def _parser() -> argparse.ArgumentParser:
                    "results/AUDIT.md)")
     a.add_argument("--partial", action="store_true", help="audit the complete units of an unfinished sweep (and say "
                    "what is missing) instead of refusing it")
+    a.add_argument("--no-tasks", action="store_true", help="skip the paper task, its reverse and the weight frontier "
+                   "(computed at audit time from each file's settings)")
 
     r = sub.add_parser("render", help="execution videos per planner, a 2x2 clip and the Fig. 1 snapshot strip")
     r.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
@@ -442,7 +444,7 @@ def _sweep(args: argparse.Namespace) -> int:
 def _audit(args: argparse.Namespace) -> int:
     from mjtraj.study.audit import write_audit
 
-    text = write_audit(args.sweeps, args.out, partial=args.partial)
+    text = write_audit(args.sweeps, args.out, partial=args.partial, tasks=not args.no_tasks)
     verdicts = text.split("## Verdicts", 1)[1].split("\n\nVerdict rule")[0]
     print(verdicts.strip())
     print(f"\nwrote {args.out}")
@@ -557,7 +559,15 @@ def _rl(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit code (2 on bad input, with a one-line message on stderr)."""
+    """Run the CLI; returns the exit code (2 on bad input, with a one-line message on stderr).
+
+    The command runs its BLAS on one thread unless the user set a count: mjtraj's matrices are small and its
+    parallelism is across scenarios, and the nonlinear planners' iterates depend on the BLAS's summation order, which
+    depends on its thread count (same numbers bit for bit in `compare`, a sweep's workers and its in-process path).
+    """
+    if "numpy" not in sys.modules:  # its BLAS reads this once, when it loads
+        for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(name, "1")
     args = _parser().parse_args(_join_negative_values(sys.argv[1:] if argv is None else argv))
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:

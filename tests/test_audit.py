@@ -166,3 +166,18 @@ def test_truncated_and_unfinished_sweeps_are_refused(tmp_path):
     binary = tmp_path / "binary.csv"
     binary.write_bytes(b"\xff\xfe\x00\x01binary")
     assert main(["audit", str(binary), "--out", str(tmp_path / "b.md")]) == 2
+
+
+def test_a_claim_holding_on_the_paper_task_only_depends_on_it(tmp_path):
+    """One motion is compared directly: 1 % better there holds (no interval needed), while a loss on 40 random
+    scenarios does not; inverting the task's numbers inverts its verdict."""
+    loss = {"nominal": {"optimal": 4.0, "cubic": 2.0, "quintic": 2.5, "trapezoidal": 3.0}}
+    for optimal, expected in ((0.99, "depends: holds only in paper task (every controller variant)"),
+                              (1.01, "does not hold")):
+        task = {"paper task": {"optimal": optimal, "cubic": 1.0, "quintic": 1.0, "trapezoidal": 1.0}}
+        paths = [synthetic(tmp_path / "n.csv", loss), synthetic(tmp_path / "t.csv", task, scenarios=1,
+                                                               families=("paper task",))]
+        text = write_audit(paths, tmp_path / "a.md", figures=False)
+        assert verdicts(text)["3"] == expected
+        assert "| paper task, ff_accel=sample, gravity_comp=native | cubic: " + (
+            "+1.0 % (one motion)" if optimal < 1 else "-1.0 % (one motion)") in text

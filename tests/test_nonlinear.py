@@ -157,3 +157,48 @@ def test_the_change_of_variables_is_exact_and_starts_at_the_gauss_newton_hessian
     np.testing.assert_allclose(metric.to_u(metric.to_v(u)), u, rtol=1e-10)
     g, w = rng.normal(size=(2, N * n))
     assert metric.pull(g[None])[0] @ metric.to_v(w) == pytest.approx(g @ w, rel=1e-10)
+
+
+def test_a_failed_solve_is_retried_with_shorter_first_steps(model, monkeypatch):
+    """The first optimisation fails (as SLSQP does when an iterate's rollout diverges): the plan comes from the retry
+    at RETRY_FACTOR times the curvature scale and says so; when both fail the error carries both reasons."""
+    from mjtraj.core.planners import nonlinear
+    from mjtraj.exceptions import SolverError
+
+    task = short_task(model, 0.3)
+    scales = []
+    solve = nonlinear.NonlinearOptimal._solve
+
+    def first_fails(self, problem, limits, rows, u, f_scale, t_scale, scale):
+        scales.append(scale)
+        if scale == self.curvature_scale:
+            raise SolverError("the rollout of an iterate diverged (MuJoCo reset the simulation)")
+        return solve(self, problem, limits, rows, u, f_scale, t_scale, scale)
+
+    monkeypatch.setattr(nonlinear.NonlinearOptimal, "_solve", first_fails)
+    plan = make("nonlinear_min_effort", curvature_scale=2.0).plan(task, model)
+    assert plan.info["retried"] == 1 and scales[0] == 2.0 and set(scales[1:]) == {2.0 * nonlinear.RETRY_FACTOR}
+    check_plan(model, task, plan)
+
+    def both_fail(self, problem, limits, rows, u, f_scale, t_scale, scale):
+        raise SolverError(f"failed at {scale:g}")
+
+    monkeypatch.setattr(nonlinear.NonlinearOptimal, "_solve", both_fail)
+    with pytest.raises(SolverError, match=r"^nonlinear_min_effort: failed at 60 \(also with curvature_scale 2: "
+                                          r"nonlinear_min_effort: failed at 2\)$"):
+        make("nonlinear_min_effort", curvature_scale=2.0).plan(task, model)
+
+
+def test_a_diverging_rollout_is_an_error_not_a_reset_state(model):
+    task = short_task(model, 0.3)
+    n = task.n
+    from mjtraj.exceptions import SolverError
+
+    def rollout(speed):
+        x0 = np.concatenate([task.q0, np.full(n, speed)])
+        problem = _Shooting(model, x0, x0, np.eye(2 * n), np.eye(n), task.steps, 1e-7)
+        return problem.rollout(np.zeros((task.steps, n)))
+
+    with pytest.raises(SolverError, match=r"^the rollout of an iterate diverged \(MuJoCo reset the simulation\)$"):
+        rollout(1e20)  # MuJoCo would reset it to the model's rest pose and go on
+    assert np.all(np.isfinite(rollout(1.0)))  # a sane rollout goes through

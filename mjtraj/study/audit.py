@@ -2,12 +2,15 @@
 
 Verdict rule, per condition (family x ff_accel x gravity_comp): a comparison "A below B" holds when the 95 %
 bootstrap interval of the paired ratio mean(B)/mean(A) lies above 1, fails when it lies below 1, and is
-inconclusive otherwise. A claim holds in a condition when all its comparisons hold. Across conditions: "holds"
-(all), "does not hold" (none), else "depends" with the conditions where it holds.
+inconclusive otherwise. On the paper task and its reverse (one fixed motion each, a measurement rather than a
+sample) it holds when B's value is above A's and fails when it is below. A claim holds in a condition when all its
+comparisons hold. Across conditions: "holds" (all), "does not hold" (none), else "depends" with the conditions where
+it holds.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 from collections.abc import Sequence
@@ -18,12 +21,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.core.metrics import METRIC_NAMES
-from mjtraj.exceptions import InvalidInputError
+from mjtraj.exceptions import InvalidInputError, MjtrajError
 from mjtraj.files import atomic_path
 from mjtraj.study.families import FAMILIES
+from mjtraj.study.fixed_tasks import TASKS, task_rows
 from mjtraj.study.paper import PAPER_TABLE
+from mjtraj.study.scenario import load_scenario
 from mjtraj.study.stats import PairedRatio, cvar, paired_ratio
 from mjtraj.study.store import VERSION_COLUMNS, numeric, read_rows
+from mjtraj.study.sweep import SHIPPED_CONFIG, SweepSettings
 
 CLASSICAL = ("cubic", "quintic", "trapezoidal")
 LARGE_MOTION = 1.0
@@ -51,8 +57,15 @@ class Condition:
 
 
 def weights_label(config: str) -> str:
-    """How a sweep's scenario file is named in the audit: Bryson's weights for the shipped paper scenario."""
-    return "Bryson weights (paper.toml)" if config == "paper.toml (shipped)" else f"{config}"
+    """How a sweep's scenario file is named in the audit: Bryson's weights for the shipped paper scenario, and an
+    ORACLE label for a file tuned on its own task (`mjtraj tune --on-task`)."""
+    if config == SHIPPED_CONFIG:
+        return "Bryson weights (paper.toml)"
+    try:
+        tuning = load_scenario(config).tuning or {}
+    except MjtrajError:
+        tuning = {}
+    return f"{config} (ORACLE: tuned on its own task)" if str(tuning.get("mode", "")).startswith("oracle") else config
 
 
 def expected_rows(row: dict[str, str]) -> int:
@@ -86,12 +99,16 @@ def complete_units(rows: list[dict[str, str]]) -> list[dict[str, str]]:
 
 
 class SweepData:
-    """A sweep's rows as per-planner arrays aligned by scenario, per condition."""
+    """A sweep's rows as per-planner arrays aligned by scenario, per condition; with `tasks`, also each file's rows
+    on the paper task and its reverse (`mjtraj.study.fixed_tasks`), computed now."""
 
-    def __init__(self, paths: Sequence[str | os.PathLike[str]], *, partial: bool = False) -> None:
+    def __init__(self, paths: Sequence[str | os.PathLike[str]], *, partial: bool = False, tasks: bool = False
+                 ) -> None:
         rows = []
         self.missing: dict[str, str] = {}
         """File -> what `partial` left out of it."""
+        self.task_notes: dict[str, str] = {}
+        """File -> why its fixed-task rows could not be computed."""
         for path in paths:
             if not Path(path).is_file():
                 raise InvalidInputError(f"sweep: file not found: {path}")
@@ -113,6 +130,11 @@ class SweepData:
                 self.missing[str(path)] = f"{expected_rows(mine[0]) - len(mine)} of {expected_rows(mine[0])} rows " \
                                           f"not computed yet"
             rows += complete
+            if tasks and complete:
+                extra, why = task_rows(complete[0])
+                rows += extra
+                if why:
+                    self.task_notes[str(path)] = why
         if not rows:
             raise InvalidInputError(f"sweep: no rows in {', '.join(map(str, paths))}")
         missing = [c for c in ("family", "scenario", "planner", "status", *NUMERIC) if c not in rows[0]]
@@ -127,7 +149,7 @@ class SweepData:
         for r in rows:
             label = weights_label(r.get("config", "")) if len(configs) > 1 else ""
             by_condition.setdefault(Condition(r["family"], r["ff_accel"], r["gravity_comp"], label), []).append(r)
-        order = {family: k for k, family in enumerate(FAMILIES)}
+        order = {family: k for k, family in enumerate(FAMILIES + TASKS)}
         self.conditions = sorted(by_condition, key=lambda c: (self.weights.index(c.weights),
                                                                order.get(c.family, len(order)), c.ff_accel,
                                                                c.gravity_comp))
@@ -166,18 +188,20 @@ def below(data: SweepData, c: Condition, a: str, b: str, metric: str, mask: NDAr
     if mask is not None:
         x, y = x[mask], y[mask]
     r = paired_ratio(x, y)
+    if c.family in TASKS:  # one fixed motion: a measurement, compared directly
+        return ("yes" if r.ratio > 1.0 else "no" if r.ratio < 1.0 else "inconclusive") if r.count else "too few", r
     verdict = ("too few" if r.count < MIN_SCENARIOS else "yes" if r.low > 1.0 else "no" if r.high < 1.0
                else "inconclusive")
     return verdict, r
 
 
 def _fmt_ratio(r: PairedRatio) -> str:
-    return f"{r.ratio:.3f} [{r.low:.3f}, {r.high:.3f}]"
+    return f"{r.ratio:.3f}" + (" (one motion)" if r.count == 1 else f" [{r.low:.3f}, {r.high:.3f}]")
 
 
 def _fmt_red(r: PairedRatio) -> str:
     red, lo, hi = r.reduction
-    return f"{red:+.1f} % [{lo:+.1f}, {hi:+.1f}]"
+    return f"{red:+.1f} %" + (" (one motion)" if r.count == 1 else f" [{lo:+.1f}, {hi:+.1f}]")
 
 
 def _claim_holds(parts: list[str]) -> str:
@@ -208,12 +232,14 @@ def _overall(per_condition: dict[Condition, str]) -> str:
 
 
 def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], *, figures: bool = True,
-                partial: bool = False) -> str:
+                partial: bool = False, tasks: bool = True) -> str:
     """Write the audit of the sweep files `paths` to `out` (Markdown) and its figures beside it; return the text.
 
     An incomplete sweep file is refused unless `partial`, which audits its complete units and says what is missing.
+    With `tasks`, each file's planners, controller variants and scenario file are also run on the paper task and its
+    reverse (conditions of their own), and the weight frontier on the paper task is computed and drawn.
     """
-    data = SweepData(paths, partial=partial)
+    data = SweepData(paths, partial=partial, tasks=tasks)
     out = Path(out)
     lines: list[str] = []
     verdicts: dict[str, dict[Condition, str]] = {str(i): {} for i in range(1, 7)}
@@ -297,6 +323,8 @@ def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[
         lines += [f"## Claim {k}: {claims[k]}", "", title, "", head,
                   "|" + "---|" * (head.count("|") - 1)] + (detail[k] or ["| (not measured) |"]) + [""]
     lines += _conclusions(data)
+    if tasks:
+        lines += _frontier_section(data, out, paths, figures=figures)
     lines += _where_it_pays(data)
     lines += _min_effort(data)
     lines += ["## Per-condition summary", "", "Mean and median per planner; CVaR(90 %) of the RMS tracking error "
@@ -328,7 +356,13 @@ def _header(data: SweepData, paths: Sequence[str | os.PathLike[str]]) -> list[st
          "the verdicts reads only its own sweep's rows; the sweep settings above are the first file's.", ""]
         if len(data.weights) > 1 else []) + (
         ["Partial audit: " + "; ".join(f"{path}: {what}" for path, what in data.missing.items()) + ".", ""]
-        if data.missing else [])
+        if data.missing else []) + (
+        ["The paper task and its reverse are conditions of their own: each file's planners, controller variants and "
+         "scenario file run now on those two fixed motions (nominal plant, Bryson's score on the task), through "
+         "the sweep's own code, with this mjtraj's versions. One motion is a measurement, so their comparisons are "
+         "direct, without intervals."
+         + "".join(f" Not computed for {path}: {why}." for path, why in data.task_notes.items()), ""]
+        if any(c.family in TASKS for c in data.conditions) or data.task_notes else [])
 
 
 def _summary_table(data: SweepData) -> list[str]:
@@ -371,6 +405,46 @@ def _conclusions(data: SweepData) -> list[str]:
                      f"ratio {_fmt_ratio(cost)}, won in {100 * (1 - cost.win_rate):.0f} % of them; RMS tracking "
                      f"error ratio {_fmt_ratio(err)}.")
     return lines + [""] if len(lines) > 4 else []
+
+
+def _frontier_section(data: SweepData, out: Path, paths: Sequence[str | os.PathLike[str]], *, figures: bool
+                      ) -> list[str]:
+    """The optimal planner's weight frontier on the paper task of the first file's scenario, in its first controller
+    variant: the table, the figure, and where each audited set of weights puts the optimal planner on that task."""
+    from mjtraj.study.frontier import frontier
+    from mjtraj.study.report import format_frontier
+
+    head = ["## The weight frontier on the paper task", ""]
+    try:
+        settings = SweepSettings.from_record(data.rows[0])
+    except MjtrajError as e:
+        return head + [f"(not computed: {e})", ""]
+    ff, gc = settings.ff_accel[0], settings.gravity_comp[0]
+    scenario = dataclasses.replace(settings.base, loop=settings.loop_config(ff, gc, mismatch=False))
+    result = frontier(scenario)
+    points = {}
+    for label in data.weights:
+        c = Condition(TASKS[0], ff, gc, label)
+        if c in data.conditions and data.has(c, "optimal"):
+            points[f"optimal, {label or 'these weights'}"] = (float(data.values(c, "optimal", "rms_dtau")[0]),
+                                                              float(data.values(c, "optimal", "rms_err")[0]))
+    config = data.rows[0].get("config", "")
+    lines = head + [
+             "The optimal planner for Q = alpha Q_bryson (R = R_bryson fixed), alpha from 0 to 100, on the paper task "
+             f"of {weights_label(config) or 'the first file'}, controller ff_accel={ff}, gravity_comp={gc}, scored "
+             "by the scenario's fixed J_exec; every other planner as one point. The same table is printed by "
+             "`mjtraj frontier`" + ("" if config == SHIPPED_CONFIG else f" --config {config}") + ". Each audited set "
+             "of weights puts the optimal planner here on this task (RMS dtau N m, RMS error rad): "
+             + "; ".join(f"{k}: {v[0]:.4g}, {v[1]:.4g}" for k, v in points.items()) + ".", "",
+             "```", format_frontier(result), "```", ""]
+    if figures:
+        from mjtraj.study.plots import frontier_figure
+
+        folder = out.parent / (out.stem + "_figures")
+        folder.mkdir(parents=True, exist_ok=True)
+        frontier_figure(result, folder / "frontier_paper_task.png", points=points)
+        lines += [f"![the weight frontier on the paper task]({folder.name}/frontier_paper_task.png)", ""]
+    return lines
 
 
 DISPLACEMENT_BINS = (0.0, 0.5, 1.0, 1.5)
@@ -484,7 +558,7 @@ def _figures(data: SweepData, out: Path) -> list[str]:
     written = set()
     lines = ["## Figures", ""]
     for c in data.conditions:
-        if not data.has(c, "optimal"):
+        if not data.has(c, "optimal") or c.family in TASKS:  # one motion: no distribution to draw
             continue
         present = [p for p in data.planners if p != "optimal" and data.has(c, p)]
         fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))

@@ -152,9 +152,11 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
     return written
 
 
-def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120) -> Path:
+def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
+                    points: dict[str, tuple[float, float]] | None = None) -> Path:
     """Corrective effort (RMS dtau) against tracking error (RMS error), log-log: the optimal planner's curve over
-    alpha for each split, labelled by alpha, and every other planner as a point. Written atomically."""
+    alpha for each split, labelled by alpha, every other planner as a point, and `points` (label -> (RMS dtau N m,
+    RMS error rad)) as stars. Written atomically."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -180,6 +182,8 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120) -> Path:
                             xytext=(6, -10) if i == best else (-14, 8) if r.alpha == 0 else (5, 3))
     for k, r in enumerate(row for row in result.rows if row.planner != "optimal"):
         ax.plot(r.metrics["rms_dtau"], r.metrics["rms_err"], "s", ms=8, color=f"C{k + 5}", label=r.planner)
+    for k, (label, (effort, error)) in enumerate((points or {}).items()):
+        ax.plot(effort, error, "*", ms=12, color="k", alpha=1.0 - 0.3 * k, label=label)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("corrective effort: RMS Δτ [N m]" + (" (median)" if s["task"] != "scenario" else ""))

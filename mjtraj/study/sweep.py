@@ -42,6 +42,8 @@ from mjtraj.study.store import VERSION_COLUMNS
 from mjtraj.versions import versions as all_versions
 
 DEFAULT_PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
+SHIPPED_CONFIG = "paper.toml (shipped)"
+"""The config column of a sweep on the shipped paper scenario."""
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "optimal_start": ("optimal", {"linearization": "start"}),
     "min_effort": ("optimal", {"alpha": 0.0}),
@@ -133,11 +135,30 @@ class SweepSettings:
                 **{f"sweep_{axis}": "+".join(getattr(self, axis)) for axis in SWEPT},
                 "sweep_batch": self.batch, "sensor_noise": self.sensor_noise, "delay": self.delay,
                 "model_error_measured": int(self.model_error),
-                "config": self.config or "paper.toml (shipped)",
+                "config": self.config or SHIPPED_CONFIG,
                 "config_sha256": hashlib.sha256(base.encode()).hexdigest()[:16],
                 **{name: getattr(self.base.loop, name) for name in option_names(LoopConfig) if name not in SWEPT},
                 "dt": self.base.task.dt,
                 **{f"{name}_{j}": float(v) for name in ("kp", "ki", "kd") for j, v in enumerate(getattr(g, name))}}
+
+    @classmethod
+    def from_record(cls, row: dict[str, str]) -> SweepSettings:
+        """The settings a results row records (`record`), rebuilt; the base scenario is loaded again from the
+        recorded config (compare `record()["config_sha256"]` with the row's to know it is unchanged).
+
+        Raises:
+          InvalidInputError: a setting column is missing or malformed, or the config cannot be loaded.
+        """
+        try:
+            config = row["config"]
+            return cls(families=tuple(row["sweep_families"].split("+")), scenarios=int(row["sweep_scenarios"]),
+                       seed=int(row["sweep_seed"]), planners=tuple(row["sweep_planners"].split("+")),
+                       **{axis: tuple(row[f"sweep_{axis}"].split("+")) for axis in SWEPT},
+                       batch=int(row["sweep_batch"]), sensor_noise=float(row["sensor_noise"]),
+                       delay=int(row["delay"]), model_error=bool(int(row["model_error_measured"])),
+                       config=None if config == SHIPPED_CONFIG else config)
+        except (KeyError, ValueError) as e:
+            raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready settings (for a worker on another machine)."""
@@ -243,7 +264,7 @@ def run_unit(settings: SweepSettings, unit: tuple[str, int], *, actors: Sequence
     weights = scoring_weights(settings, scenarios)
     seconds["sample"] += time.perf_counter() - clock
     try:
-        rows = _unit_rows(settings, unit, scenarios, weights, seconds, actors)
+        rows = scenario_rows(settings, unit, scenarios, weights, seconds, actors)
     except Exception as e:  # noqa: BLE001 - recorded, and the sweep goes on
         fixed = fixed_columns(settings)
         failed = Outcome("error", one_line(e))
@@ -254,9 +275,12 @@ def run_unit(settings: SweepSettings, unit: tuple[str, int], *, actors: Sequence
     return UnitResult(unit, rows, seconds)
 
 
-def _unit_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: list[FamilyScenario],
-               weights: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
-               seconds: dict[str, float], actors: Sequence[ActorSpec] = ()) -> list[dict[str, Any]]:
+def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: list[FamilyScenario],
+                  weights: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+                  seconds: dict[str, float] | None = None, actors: Sequence[ActorSpec] = ()) -> list[dict[str, Any]]:
+    """The rows of `scenarios` (unit `unit` = (family, index) of the rows), scored with `weights`; `seconds` per
+    stage are added to (see run_unit). Raises what planning or execution raise (run_unit records it)."""
+    seconds = {"sample": 0.0, "plan": 0.0, "execute": 0.0, "metrics": 0.0} if seconds is None else seconds
     family, u = unit
     model = settings.base.model
     clock = time.perf_counter()

@@ -19,7 +19,10 @@ objective's scale (on the paper task `nonlinear_optimal` took 499 iterations; 20
 again with more rows whenever a row left out is violated; the returned plan is checked against every constraint.
 The start is the linear optimal planner's plan for the same weights when its rollout keeps every path constraint,
 else the linear minimum-effort plan (Q = 0: the zero-order-held slow move). Objective and constraints are scaled to
-order one at the start. The problem is not convex: the plan is a local minimum, reached from that start.
+order one at the start. The problem is not convex: the plan is a local minimum, reached from that start. A solve
+that fails (SLSQP's own failure, a constraint left violated, an iterate whose rollout diverged) is tried once more
+with RETRY_FACTOR times the curvature scale. SLSQP's path is sensitive to the last bits of its inputs, so the plan is
+the same bit for bit only under the same BLAS thread count (the `mjtraj` command and sweep workers use one).
 
 Why single shooting: it keeps the plan exactly on the model's dynamics at every iterate, and its few hundred
 variables are within SLSQP's reach. A plan at N = 100 takes about a second (`mjtraj bench plan` prints it). Both
@@ -49,6 +52,10 @@ from mjtraj.core.scoring import JOINT_SPEED_LIMIT
 from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, SolverError
 
+UNSTABLE = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+"""MuJoCo's warnings of a simulation it had to reset."""
+RETRY_FACTOR = 30.0
+"""A plan that fails is tried once more with this multiple of `curvature_scale` (shorter first steps)."""
 SCREEN = 0.6
 """A path-constraint row enters the QP once its value is beyond this fraction of its limit (speed, torque) or of
 the way from the range's middle to its end (positions)."""
@@ -94,6 +101,8 @@ class _Shooting:
             d.ctrl[:] = u
             mujoco.mj_step(self.model, d)
             X[k + 1, :n], X[k + 1, n:] = d.qpos, d.qvel
+        if any(d.warning[w].number for w in UNSTABLE):
+            raise SolverError("the rollout of an iterate diverged (MuJoCo reset the simulation)")
         return X
 
     def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
@@ -266,14 +275,43 @@ class NonlinearOptimal(Planner):
         x0 = np.concatenate([task.q0, np.zeros(n)])
         xg = np.concatenate([task.qg, np.zeros(n)])
         problem = _Shooting(model, x0, xg, Q, R, task.steps, self.fd_eps)
-        u = self._start(task, model, problem, limits)
-        U, X, _, S = problem.evaluate(u)
+        start = self._start(task, model, problem, limits)
+        try:
+            u, rounds, iterations, rows = self._optimise(problem, limits, start, self.curvature_scale)
+            retried = 0
+        except (InfeasibleError, SolverError) as first:
+            try:
+                u, rounds, iterations, rows = self._optimise(problem, limits, start,
+                                                             RETRY_FACTOR * self.curvature_scale)
+            except (InfeasibleError, SolverError) as second:
+                raise type(second)(f"{second} (also with curvature_scale {self.curvature_scale:g}: {first})") \
+                    from None
+            retried = 1
+        U, X, _, _ = problem.evaluate(u)
+        return self._reference(task, U, X, problem.objective(u), iterations, rounds, rows, retried,
+                               time.perf_counter() - clock)
+
+    def _optimise(self, problem: _Shooting, limits: _Limits, u: NDArray[np.float64], scale: float
+                  ) -> tuple[NDArray[np.float64], int, int, int]:
+        """SLSQP solves from u (N n,) with a growing set of path-constraint rows, `scale` times the Gauss-Newton
+        Hessian as the first curvature model: (the plan's u, rounds, SLSQP iterations, path rows).
+
+        Raises:
+          InfeasibleError, SolverError: no plan meets every constraint (names which), or SLSQP failed.
+        """
+        try:
+            U, X, _, S = problem.evaluate(u)
+        except SolverError as e:
+            raise SolverError(f"{self.name}: {e}") from None
         rows = np.flatnonzero(limits.near(U, X))
         f_scale = 1.0 / max(problem.objective(u), 1e-12)
         t_scale = 1.0 / np.maximum(np.linalg.norm(S[-1], axis=1), 1e-12)
         iterations, rounds = 0, 0
         for rounds in range(1, MAX_ROUNDS + 1):  # noqa: B007 (reported in info)
-            result = self._solve(problem, limits, rows, u, f_scale, t_scale)
+            try:
+                result = self._solve(problem, limits, rows, u, f_scale, t_scale, scale)
+            except SolverError as e:
+                raise SolverError(f"{self.name}: {e}") from None
             iterations += int(result.nit)
             u = result.x
             U, X, _, S = problem.evaluate(u)
@@ -282,7 +320,7 @@ class NonlinearOptimal(Planner):
             rows = np.union1d(rows, np.union1d(missing, np.flatnonzero(limits.near(U, X))))
             if missing.size == 0:
                 break
-        terminal = float(np.max(np.abs(X[-1] - xg)))
+        terminal = float(np.max(np.abs(X[-1] - problem.xg)))
         h = limits.values(U, X)
         worst = int(np.argmin(h / limits.scale(U.shape[0])))
         if terminal > 1e-8 or h[worst] < -1e-8 * limits.scale(U.shape[0])[worst]:
@@ -292,8 +330,7 @@ class NonlinearOptimal(Planner):
                        f"{terminal:.2g} rad)")
         if result.status != 0:
             raise SolverError(f"{self.name}: SLSQP stopped: {result.message} (status {result.status})")
-        return self._reference(task, U, X, problem.objective(u), iterations, rounds, rows.size, terminal,
-                               time.perf_counter() - clock)
+        return u, rounds, iterations, int(rows.size)
 
     def _start(self, task: Task, model: mujoco.MjModel, problem: _Shooting, limits: _Limits) -> NDArray[np.float64]:
         """The first iterate: the linear optimal plan with these weights if its rollout keeps every path constraint,
@@ -314,10 +351,11 @@ class NonlinearOptimal(Planner):
         return u
 
     def _solve(self, problem: _Shooting, limits: _Limits, rows: NDArray[np.intp], u: NDArray[np.float64],
-               f_scale: float, t_scale: NDArray[np.float64]) -> scipy.optimize.OptimizeResult:
-        """One SLSQP solve from u with the path-constraint `rows`, in the variables v of `_Metric` at u."""
+               f_scale: float, t_scale: NDArray[np.float64], scale: float) -> scipy.optimize.OptimizeResult:
+        """One SLSQP solve from u with the path-constraint `rows`, in the variables v of `_Metric` at u (`scale`
+        times the Gauss-Newton Hessian)."""
         row_scale = 1.0 / limits.scale(problem.steps)[rows]
-        metric = _Metric.at(problem, u, self.curvature_scale * f_scale)
+        metric = _Metric.at(problem, u, scale * f_scale)
         to_u, pull = metric.to_u, metric.pull
 
         def terminal(v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -353,16 +391,17 @@ class NonlinearOptimal(Planner):
         return f"{CONSTRAINT_NAMES[group]} of joint {joint} at sample {sample}"
 
     def _reference(self, task: Task, U: NDArray[np.float64], X: NDArray[np.float64], objective: float,
-                   iterations: int, rounds: int, rows: int, terminal: float, wall: float) -> Reference:
+                   iterations: int, rounds: int, rows: int, retried: int, wall: float) -> Reference:
         """The rollout X (N+1, 2n) under U (N, n) as a Reference: qdd is the ZOH acceleration per step."""
         n = task.n
+        terminal = float(np.max(np.abs(X[-1] - np.concatenate([task.qg, np.zeros(n)]))))
         q, qd = X[:, :n].copy(), X[:, n:].copy()
         qdd = np.zeros_like(qd)
         qdd[:-1] = np.diff(qd, axis=0) / task.dt
         q[-1] = task.qg  # within 1e-8 (checked): the samples end exactly on the goal, at rest
         qd[-1] = 0.0
         info = {"objective": objective, "iterations": iterations, "rounds": rounds, "path_rows": rows,
-                "terminal_residual": terminal, "plan_time": wall}
+                "retried": retried, "terminal_residual": terminal, "plan_time": wall}
         return Reference(planner=self.name, t=task.times, q=q, qd=qd, qdd=qdd, u_plan=U.copy(), info=info)
 
 
