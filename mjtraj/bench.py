@@ -46,6 +46,38 @@ def bench_plan(scenario: Scenario, steps: tuple[int, ...] = PLAN_STEPS, *, repea
     return rows
 
 
+NEW_PLANNERS = ("scurve", "nonlinear_min_effort", "nonlinear_optimal")
+
+
+def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int = 21) -> dict[str, Any]:
+    """Time per plan of the fair study's planners on the scenario's task: scurve (median of `repeats`) against one
+    closed-loop execution of its plan (the cost it should stay below), each nonlinear planner once; and
+    nonlinear_min_effort over the first `scenarios` nominal scenarios (median and largest; seconds per plan)."""
+    from mjtraj.study.families import draw_scenario
+
+    model, task = scenario.model, scenario.task
+    scurve = scenario.planner("scurve")
+    reference = scurve.plan(task, model)
+    loop = ClosedLoop(model, scenario.loop, nsim=1, nthread=1)
+
+    def execute() -> None:
+        loop.start([reference])
+        for _ in range(reference.steps):
+            loop.step()
+
+    execute()
+    out: dict[str, Any] = {"scurve_s": _median_time(lambda: scurve.plan(task, model), repeats),
+                           "loop_s": _median_time(execute, repeats), "steps": task.steps}
+    for name in NEW_PLANNERS[1:]:
+        plan = scenario.planner(name).plan(task, model)
+        out[name] = {"seconds": plan.info["plan_time"], "iterations": plan.info["iterations"]}
+    bound = scenario.planner("nonlinear_min_effort")
+    times = [bound.plan(draw_scenario("nominal", 0, i, model, task.dt).task, model).info["plan_time"]
+             for i in range(scenarios)]
+    out["family"] = {"scenarios": scenarios, "median_s": float(np.median(times)), "max_s": float(np.max(times))}
+    return out
+
+
 def bench_loop(scenario: Scenario, sizes: tuple[int, ...] = LOOP_SIZES, *, nthread: int = 0,
                rounds: int = 3) -> list[dict[str, float]]:
     """Closed-loop env-steps/s (ClosedLoop.step over a cubic reference) against raw mujoco.batch stepping of the

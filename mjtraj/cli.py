@@ -138,7 +138,8 @@ def _parser() -> argparse.ArgumentParser:
                    "tuned.toml)")
 
     b = sub.add_parser("bench", help="speed ratios measured in one run")
-    b.add_argument("what", choices=("plan", "loop", "env", "startup", "sweep", "all"), nargs="?", default="all",
+    b.add_argument("what", choices=("plan", "planners", "loop", "env", "startup", "sweep", "all"), nargs="?",
+                   default="all",
                    help="what to time ('all' skips the minute-long sweep)")
     b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     b.add_argument("--sizes", type=_counts, help="loop batch sizes, comma-separated whole numbers >= 1")
@@ -374,6 +375,20 @@ def _bench(args: argparse.Namespace) -> int:
         print(f"{'N':>6} {'median ms':>10} {'ratio to N=100':>15}")
         for row in bench_plan(scenario):
             print(f"{row['N']:>6} {row['median_ms']:>10.2f} {row['ratio_to_first']:>15.2f}")
+    if args.what in ("planners", "all"):
+        from mjtraj.bench import bench_new_planners
+
+        new = bench_new_planners(scenario)
+        print(f"the fair study's planners on the scenario's task (N = {new['steps']}), one core; targets: scurve below "
+              "the closed loop that executes it, nonlinear at most 1 s per plan")
+        print(f"{'planner':<22} {'s per plan':>10} {'iterations':>10}")
+        print(f"{'scurve':<22} {new['scurve_s']:>10.5f} {'':>10}   (one closed-loop execution: "
+              f"{new['loop_s']:.5f} s; ratio {new['scurve_s'] / new['loop_s']:.2f})")
+        for name in ("nonlinear_min_effort", "nonlinear_optimal"):
+            print(f"{name:<22} {new[name]['seconds']:>10.2f} {new[name]['iterations']:>10}")
+        family = new["family"]
+        print(f"nonlinear_min_effort over {family['scenarios']} nominal scenarios: median {family['median_s']:.2f} s, "
+              f"largest {family['max_s']:.2f} s per plan")
     if args.what in ("loop", "all"):
         print("closed loop (FF + PID + plant) vs raw mujoco.batch stepping, same run; target ratio >= 0.7 at 4096")
         print(f"{'scenarios':>9} {'raw steps/s':>12} {'loop steps/s':>13} {'ratio':>6}")

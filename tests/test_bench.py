@@ -36,3 +36,18 @@ def test_startup_ratio_is_compare_over_imports():
     row = bench_startup(repeats=1)
     assert row["imports_s"] > 0 and row["compare_s"] > 0
     assert row["ratio"] == pytest.approx(row["compare_s"] / row["imports_s"], rel=1e-12)
+
+
+@pytest.mark.slow
+def test_new_planners_table_prints_what_it_measured(capsys):
+    assert main(["bench", "planners"]) == 0
+    out = capsys.readouterr().out
+    scurve = re.search(r"^scurve\s+([0-9.]+)\s+\(one closed-loop execution: ([0-9.]+) s; ratio ([0-9.]+)\)$", out,
+                       re.MULTILINE)
+    assert scurve is not None
+    assert float(scurve[3]) == pytest.approx(float(scurve[1]) / float(scurve[2]), abs=0.006)
+    for name in ("nonlinear_min_effort", "nonlinear_optimal"):
+        seconds, iterations = re.search(rf"^{name}\s+([0-9.]+)\s+([0-9]+)$", out, re.MULTILINE).groups()
+        assert float(seconds) > 0 and int(iterations) >= 1
+    family = re.search(r"over 12 nominal scenarios: median ([0-9.]+) s, largest ([0-9.]+) s per plan", out)
+    assert float(family[1]) <= float(family[2])

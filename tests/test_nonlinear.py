@@ -189,7 +189,8 @@ def test_a_failed_solve_is_retried_with_shorter_first_steps(model, monkeypatch):
         make("nonlinear_min_effort", curvature_scale=2.0).plan(task, model)
 
 
-def test_a_diverging_rollout_is_an_error_not_a_reset_state(model):
+def test_a_diverging_rollout_is_an_error_not_a_reset_state(model, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT in the working directory
     task = short_task(model, 0.3)
     n = task.n
     from mjtraj.exceptions import SolverError
