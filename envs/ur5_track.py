@@ -141,6 +141,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | max_displacement | 1.5        | largest abs(qg - q0) per joint of task="random", rad                    |
     | duration         | 2.0        | T, s (a whole number of dt)                                             |
     | dt               | 0.02       | control period, s                                                       |
+    | controller       | "pid"      | pid (feedforward + PID) or computed_torque                              |
     | feedforward      | "inverse"  | inverse, planned or none                                                |
     | ff_accel         | "sample"   | sample or step_average                                                  |
     | gravity_comp     | "native"   | native or zoh                                                           |

@@ -358,8 +358,8 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                           r"rule on each task$"),
     ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, action_mode, "
                    r"residual_scale, task, max_displacement, duration, dt, preview, observe_control, "
-                   r"plant_randomization, measurement_noise, reward_baseline, width, height, camera, feedforward, "
-                   r"ff_accel, gravity_comp, anti_windup, substeps, divergence_bound, delay$"),
+                   r"plant_randomization, measurement_noise, reward_baseline, width, height, camera, controller, "
+                   r"feedforward, ff_accel, gravity_comp, anti_windup, substeps, divergence_bound, delay$"),
     ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
     ({"residual_scale": 0}, r"^residual_scale: expected a positive number, got 0"),
     ({"residual_scale": -5.0}, r"^residual_scale: expected a positive number, got -5.0"),

@@ -27,8 +27,9 @@ def test_declarations_drive_names_and_choices():
     assert option_names(Toy, scenario_only=False) == ("mode", "count", "scale", "hidden")
     assert choices(Toy, "mode") == ("a", "b")
     assert [f.name for f, _, kind in declared_options(LoopConfig) if kind is str] == [
-        "feedforward", "ff_accel", "gravity_comp", "anti_windup"]
-    assert option_names(LoopConfig) == ("feedforward", "ff_accel", "gravity_comp", "anti_windup", "substeps")
+        "controller", "feedforward", "ff_accel", "gravity_comp", "anti_windup"]
+    assert option_names(LoopConfig) == ("controller", "feedforward", "ff_accel", "gravity_comp", "anti_windup",
+                                        "substeps")
 
 
 def test_an_int_is_accepted_as_a_float_and_normalised():

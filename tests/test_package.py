@@ -22,13 +22,14 @@ def test_all_names_import():
 
 
 def test_documented_loop_defaults_match_the_docs():
-    """docs/design.md's defaults: feedforward inverse, sample acceleration, native gravity comp, no anti-windup."""
+    """docs/design.md's defaults: the pid law, feedforward inverse, sample acceleration, native gravity comp, no
+    anti-windup."""
     import dataclasses
 
     from mjtraj.core.closed_loop import LoopConfig
 
     defaults = {f.name: f.default for f in dataclasses.fields(LoopConfig) if f.default is not dataclasses.MISSING}
-    assert defaults == {"feedforward": "inverse", "ff_accel": "sample", "gravity_comp": "native",
+    assert defaults == {"controller": "pid", "feedforward": "inverse", "ff_accel": "sample", "gravity_comp": "native",
                         "anti_windup": "none", "substeps": 1, "divergence_bound": pytest.approx(3.141592653589793),
                         "delay": 0}
 

@@ -28,7 +28,8 @@ def test_paper_settings(scenario):
 
 def test_unknown_key(tmp_path):
     with pytest.raises(InvalidInputError, match=r"^config: unknown key 'kq' in \[controller\]; valid: kp, ki, kd, "
-                                                r"feedforward, ff_accel, gravity_comp, anti_windup, substeps$"):
+                                                r"controller, feedforward, ff_accel, gravity_comp, anti_windup, "
+                                                r"substeps$"):
         load_scenario(write(tmp_path, paper_text().replace("kp = ", "kq = ")))
 
 

@@ -33,6 +33,10 @@ _EXPORTS = {
     "ControlOutput": "mjtraj.core.controller",
     "control_law": "mjtraj.core.controller",
     "ANTI_WINDUP": "mjtraj.core.controller",
+    "CONTROLLERS": "mjtraj.core.controller",
+    "Controller": "mjtraj.core.controller",
+    "PID": "mjtraj.core.controller",
+    "ComputedTorque": "mjtraj.core.controller",
     "ClosedLoop": "mjtraj.core.closed_loop",
     "LoopConfig": "mjtraj.core.closed_loop",
     "Step": "mjtraj.core.closed_loop",
@@ -68,7 +72,16 @@ __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
     from mjtraj.core.closed_loop import ClosedLoop, LoopConfig, Step
-    from mjtraj.core.controller import ANTI_WINDUP, ControlOutput, PIDGains, control_law
+    from mjtraj.core.controller import (
+        ANTI_WINDUP,
+        CONTROLLERS,
+        PID,
+        ComputedTorque,
+        Controller,
+        ControlOutput,
+        PIDGains,
+        control_law,
+    )
     from mjtraj.core.dynamics import DynamicsProbe
     from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many
     from mjtraj.core.gains import GAIN_RULE, gain_rule
@@ -87,12 +100,12 @@ if TYPE_CHECKING:
     from mjtraj.core.task import Task, random_task
 
 __all__ = [
-    "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "ClosedLoop", "CondensedQP", "ControlOutput", "DynamicsProbe",
-    "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE", "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo",
-    "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics", "PIDGains", "Planner", "QPSolution", "Reference",
-    "Rollout", "Scoring", "Step", "Task", "available", "box_lqr", "bryson_weights", "build_qp", "check_name",
-    "check_options", "control_law", "declared_options", "default_model_path", "default_names", "discretize_zoh",
-    "executed_cost", "feedforward_many", "from_mapping", "gain_rule", "gravity_along", "linearize_many", "load_model",
-    "make", "metrics_arrays", "option", "option_names", "plan_all", "random_task", "reduction", "register",
-    "solve_qp", "spectral_radii", "step_cost",
+    "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "CONTROLLERS", "ClosedLoop", "ComputedTorque", "CondensedQP",
+    "ControlOutput", "Controller", "DynamicsProbe", "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE",
+    "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics",
+    "PID", "PIDGains", "Planner", "QPSolution", "Reference", "Rollout", "Scoring", "Step", "Task", "available",
+    "box_lqr", "bryson_weights", "build_qp", "check_name", "check_options", "control_law", "declared_options",
+    "default_model_path", "default_names", "discretize_zoh", "executed_cost", "feedforward_many", "from_mapping",
+    "gain_rule", "gravity_along", "linearize_many", "load_model", "make", "metrics_arrays", "option",
+    "option_names", "plan_all", "random_task", "reduction", "register", "solve_qp", "spectral_radii", "step_cost",
 ]

@@ -12,9 +12,9 @@ import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
-from mjtraj.core.controller import ANTI_WINDUP, ControlOutput, PIDGains, control_law
+from mjtraj.core.controller import ANTI_WINDUP, CONTROLLERS, PID, ComputedTorque, Controller, ControlOutput, PIDGains
 from mjtraj.core.dynamics import DynamicsProbe
-from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many
+from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many, reference_accelerations
 from mjtraj.core.model import JointInfo
 from mjtraj.core.options import check_options, option
 from mjtraj.core.plant import GRAVITY_COMP, BatchPlant
@@ -30,6 +30,10 @@ class LoopConfig:
     given a command-line flag from its declaration here)."""
 
     gains: PIDGains
+    controller: str = option("pid", "control law: pid = feedforward + PID with the gains (the paper's); "
+                             "computed_torque = inverse dynamics of the nominal model at the measured state with PD "
+                             "on the error (gains by the stated rule; ff_accel picks its reference acceleration; "
+                             "feedforward and the PID gains are unused)", choices=CONTROLLERS)
     feedforward: str = option("inverse", "feedforward torque: inverse = ID(q_ref, qd_ref, qdd_ref) - G(q_ref) on the "
                               "nominal model, planned = the planner's own u_plan, none = 0",
                               choices=FEEDFORWARD_MODES, flag="--ff")
@@ -56,7 +60,8 @@ RECORDED = ("q", "qd", "e", "ed", "tau_ff", "tau_fb", "dtau", "saturated")
 class _LoopState:
     """Per-simulation progress of a running loop (private to ClosedLoop, mutable). Arrays are time-major.
 
-    q_ref, qd_ref: shape (N+1, B, n); tau_ff: (N, B, n); integral: (B, n), rad s; noise: measurement
+    q_ref, qd_ref: shape (N+1, B, n); tau_ff: (N, B, n); qdd_ref: (N, B, n) for a law that reads it (by the
+    ff_accel rule), else None; integral: (B, n), rad s; noise: measurement
     noise (N, B, 2n) added to [q; qd] before control, or None; held: the torque the delayed actuator applies
     next, (B, n), or None without delay; diverged_step: (B,), -1 while running; records: name -> (N, B, n)
     for each of RECORDED (NaN where not reached); q_final, qd_final: (B, n) state after period N-1 (NaN until
@@ -68,6 +73,7 @@ class _LoopState:
     q_ref: NDArray[np.float64]
     qd_ref: NDArray[np.float64]
     tau_ff: NDArray[np.float64]
+    qdd_ref: NDArray[np.float64] | None
     k: NDArray[np.intp]
     integral: NDArray[np.float64]
     diverged_step: NDArray[np.int64]
@@ -142,7 +148,9 @@ class ClosedLoop:
                                  gravity_comp=config.gravity_comp, substeps=config.substeps, nthread=nthread,
                                  fields=plant_fields)
         self._state: _LoopState | None = None
-        self._gains = config.gains.tiled(nsim)
+        self._law: Controller = (PID(config.gains.tiled(nsim), config.anti_windup) if config.controller == "pid"
+                                 else ComputedTorque.for_period(self.dt, model.nv))
+        self._dynamics = DynamicsProbe(model, size=nsim) if self._law.needs_dynamics else None
         self._limit = np.tile(self.limit, (nsim, 1))
         self._none_diverged = np.zeros(nsim, dtype=bool)
         self._none_diverged.setflags(write=False)
@@ -244,8 +252,10 @@ class ClosedLoop:
                                         f"got {ref.dt} s from {ref.planner!r}")
 
     def _prepare(self, references: Sequence[Reference], count: int, noise: npt.ArrayLike | None
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
-        """q_ref, qd_ref (N+1, count, n), the feedforward (N, count, n) and the checked noise of `references`."""
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None,
+                            NDArray[np.float64] | None]:
+        """q_ref, qd_ref (N+1, count, n), the feedforward (N, count, n), the checked noise and the reference
+        accelerations (N, count, n; None unless the control law reads them) of `references`."""
         self._check(references)
         if len(references) != count:
             raise InvalidInputError(f"references: expected {count} (one per simulation), got {len(references)}")
@@ -265,7 +275,8 @@ class ClosedLoop:
             if checked.shape != (N, count, 2 * n) or not np.all(np.isfinite(checked)):
                 raise InvalidInputError(f"noise: expected finite values of shape ({N}, {count}, {2 * n}), "
                                         f"got shape {checked.shape}")
-        return q_ref, qd_ref, ff, checked
+        qdd = reference_accelerations(references, self.config.ff_accel) if self._law.needs_dynamics else None
+        return q_ref, qd_ref, ff, checked, qdd
 
     def start(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None) -> None:
         """(Re)start every simulation at its reference's first sample, with I_{-1} = 0.
@@ -275,11 +286,11 @@ class ClosedLoop:
           noise: measurement noise added to [q; qd] before control, shape (N, B, 2n) in rad and rad/s; None for
             exact measurements.
         """
-        q_ref, qd_ref, ff, checked = self._prepare(references, self.nsim, noise)
+        q_ref, qd_ref, ff, checked, qdd = self._prepare(references, self.nsim, noise)
         N, B, n = ff.shape
         records: dict[str, NDArray[Any]] = {name: np.full((N, B, n), np.nan) for name in RECORDED}
         records["saturated"] = np.zeros((N, B, n), dtype=bool)
-        self._state = _LoopState(q_ref, qd_ref, ff, np.zeros(B, dtype=np.intp), np.zeros((B, n)),
+        self._state = _LoopState(q_ref, qd_ref, ff, qdd, np.zeros(B, dtype=np.intp), np.zeros((B, n)),
                                  np.full(B, -1, dtype=np.int64), records, np.full((B, n), np.nan),
                                  np.full((B, n), np.nan), noise=checked,
                                  held=np.zeros((B, n)) if self.config.delay else None)
@@ -294,13 +305,15 @@ class ClosedLoop:
         """
         s = self._running()
         rows = np.asarray(ids, dtype=np.intp).reshape(-1)
-        q_ref, qd_ref, ff, checked = self._prepare(references, rows.size, noise)
+        q_ref, qd_ref, ff, checked, qdd = self._prepare(references, rows.size, noise)
         if q_ref.shape[0] != s.q_ref.shape[0]:
             raise InvalidInputError(f"references: a restart needs references of the running N={s.steps}, got "
                                     f"N={q_ref.shape[0] - 1}; start all simulations instead")
         N, n = s.steps, self.model.nv
         s.desync()
         s.q_ref[:, rows], s.qd_ref[:, rows], s.tau_ff[:, rows] = q_ref, qd_ref, ff
+        if s.qdd_ref is not None:
+            s.qdd_ref[:, rows] = qdd
         s.k[rows], s.integral[rows], s.diverged_step[rows] = 0, 0.0, -1
         for name, record in s.records.items():
             record[:, rows] = False if name == "saturated" else np.nan
@@ -332,12 +345,12 @@ class ClosedLoop:
             e = np.subtract(s.q_ref[k], q, out=rec["e"][k])
             ed = np.subtract(s.qd_ref[k], qd, out=rec["ed"][k])
             if s.noise is None:
-                out = control_law(e, ed, s.integral, s.tau_ff[k], self._gains, self._limit, self.dt,
-                                  anti_windup=self.config.anti_windup, residual=residual, override=override)
+                out = self._control(e, ed, q, qd, s.integral, s.tau_ff[k],
+                                    None if s.qdd_ref is None else s.qdd_ref[k], residual, override)
             else:
-                out = control_law(e - s.noise[k, :, :n], ed - s.noise[k, :, n:], s.integral, s.tau_ff[k],
-                                  self._gains, self._limit, self.dt, anti_windup=self.config.anti_windup,
-                                  residual=residual, override=override)
+                out = self._control(e - s.noise[k, :, :n], ed - s.noise[k, :, n:], q + s.noise[k, :, :n],
+                                    qd + s.noise[k, :, n:], s.integral, s.tau_ff[k],
+                                    None if s.qdd_ref is None else s.qdd_ref[k], residual, override)
             s.integral = out.integral
             if s.held is not None:
                 out = out._replace(dtau=self._delayed(out.dtau, slice(None)))
@@ -360,8 +373,9 @@ class ClosedLoop:
         e = s.q_ref[ks, s.rows] - q
         ed = s.qd_ref[ks, s.rows] - qd
         seen_e, seen_ed = (e, ed) if s.noise is None else (e - s.noise[ks, s.rows, :n], ed - s.noise[ks, s.rows, n:])
-        out = control_law(seen_e, seen_ed, s.integral, s.tau_ff[ks, s.rows], self._gains, self._limit, self.dt,
-                          anti_windup=self.config.anti_windup, residual=residual, override=override)
+        seen_q, seen_qd = (q, qd) if s.noise is None else (q + s.noise[ks, s.rows, :n], qd + s.noise[ks, s.rows, n:])
+        out = self._control(seen_e, seen_ed, seen_q, seen_qd, s.integral, s.tau_ff[ks, s.rows],
+                            None if s.qdd_ref is None else s.qdd_ref[ks, s.rows], residual, override)
         dtau = np.where(active[:, None], out.dtau, 0.0)
         if s.held is not None:
             dtau = np.where(active[:, None], self._delayed(dtau, active), 0.0)
@@ -380,6 +394,17 @@ class ClosedLoop:
         self._diverge(bad, ks, q, qd)
         s.resync()
         return Step(q, qd, e, ed, control, s.diverged_step >= 0)
+
+    def _control(self, e: NDArray[np.float64], ed: NDArray[np.float64], q: NDArray[np.float64],
+                 qd: NDArray[np.float64], integral: NDArray[np.float64], tau_ff: NDArray[np.float64],
+                 qdd_ref: NDArray[np.float64] | None, residual: NDArray[np.float64] | None,
+                 override: NDArray[np.float64] | None) -> ControlOutput:
+        """The configured control law on what the controller sees (errors, measured state q, qd), shapes (B, n)."""
+        dynamics = None
+        if self._dynamics is not None and override is None:
+            dynamics = self._dynamics.mass_and_bias(q, qd)
+        return self._law(e, ed, integral, tau_ff, qdd_ref, dynamics, self._limit, self.dt, residual=residual,
+                         override=override)
 
     def _delayed(self, command: NDArray[np.float64], rows: slice | NDArray[np.bool_]) -> NDArray[np.float64]:
         """The delayed actuator: apply the held torque of `rows`, hold `command` for the next period."""

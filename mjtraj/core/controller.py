@@ -1,9 +1,10 @@
-"""The feedforward + PID control law with saturation: written once, batched over a leading axis."""
+"""The control laws with saturation, each written once and batched over a leading axis: the paper's feedforward + PID
+(`control_law`, `PID`) and computed torque (`ComputedTorque`), behind the `Controller` protocol the loop calls."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -71,9 +72,7 @@ def control_law(e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArr
       residual: extra torque added before saturation (the env's residual mode), N m.
     """
     if override is not None:
-        zero = np.zeros_like(override)
-        dtau = np.minimum(np.maximum(override, -limit), limit)
-        return ControlOutput(zero, zero, dtau, dtau != override, integral + e * dt)
+        return overridden(override, limit, integral + e * dt)
     new_integral = integral + e * dt
     tau_fb = gains.kp * e + gains.ki * new_integral + gains.kd * ed
     command = tau_ff + tau_fb if residual is None else tau_ff + tau_fb + residual
@@ -85,3 +84,99 @@ def control_law(e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArr
         command = tau_ff + tau_fb if residual is None else tau_ff + tau_fb + residual
         dtau = np.minimum(np.maximum(command, -limit), limit)
     return ControlOutput(tau_ff, tau_fb, dtau, saturated, new_integral)
+
+
+def overridden(override: NDArray[np.float64], limit: NDArray[np.float64], integral: NDArray[np.float64]
+               ) -> ControlOutput:
+    """The output when `override` (B, n), N m, replaces the whole command: saturated, nothing else reported."""
+    zero = np.zeros_like(override)
+    dtau = np.minimum(np.maximum(override, -limit), limit)
+    return ControlOutput(zero, zero, dtau, dtau != override, integral)
+
+
+CONTROLLERS = ("pid", "computed_torque")
+"""The control laws a loop can run (`LoopConfig.controller`)."""
+
+
+class Controller(Protocol):
+    """A control law the one closed loop calls once per control period for a batch of B simulations.
+
+    Arrays are (B, n): the measured tracking error e = q_ref - q (rad) and its rate ed (rad/s), the integral
+    I_{k-1} (rad s), the planned feedforward tau_ff (N m), the reference acceleration qdd_ref (rad/s^2), and, when
+    `needs_dynamics`, the nominal model's D(q) (B, n, n) and h(q, qd) = C(q, qd) qd - passive forces (B, n) at the
+    measured state (else None). `limit` is the saturation (B, n), N m. `residual` is added before saturation,
+    `override` replaces the command (the env's modes).
+    """
+
+    @property
+    def name(self) -> str:
+        """How scenario files, the CLI and result rows name the law."""
+
+    @property
+    def needs_dynamics(self) -> bool:
+        """Whether the law reads D(q) and h(q, qd) at the measured state."""
+
+    def __call__(self, e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArray[np.float64],
+                 tau_ff: NDArray[np.float64], qdd_ref: NDArray[np.float64] | None,
+                 dynamics: tuple[NDArray[np.float64], NDArray[np.float64]] | None, limit: NDArray[np.float64],
+                 dt: float, *, residual: NDArray[np.float64] | None = None,
+                 override: NDArray[np.float64] | None = None) -> ControlOutput: ...
+
+
+@dataclass(frozen=True)
+class PID:
+    """The paper's law: planned feedforward + PID (`control_law`), gains of shape (B, n) (PIDGains.tiled)."""
+
+    gains: PIDGains
+    anti_windup: str = "none"
+    name: ClassVar[str] = "pid"
+    needs_dynamics: ClassVar[bool] = False
+
+    def __call__(self, e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArray[np.float64],
+                 tau_ff: NDArray[np.float64], qdd_ref: NDArray[np.float64] | None,
+                 dynamics: tuple[NDArray[np.float64], NDArray[np.float64]] | None, limit: NDArray[np.float64],
+                 dt: float, *, residual: NDArray[np.float64] | None = None,
+                 override: NDArray[np.float64] | None = None) -> ControlOutput:
+        return control_law(e, ed, integral, tau_ff, self.gains, limit, dt, anti_windup=self.anti_windup,
+                           residual=residual, override=override)
+
+
+CT_RULE = ("the error dynamics e'' + kd e' + kp e = 0 of every joint get the PID rule's natural frequency "
+           "w = 2 pi/(20 dt) with damping ratio 1: kp = w^2, kd = 2 w")
+
+
+@dataclass(frozen=True)
+class ComputedTorque:
+    """Computed torque on the nominal model: dtau = clip(D(q) (qdd_ref + kp e + kd ed) + h(q, qd), +-limit), with q,
+    qd the measured state (gravity is compensated natively, as for PID). Reported split: tau_ff = D qdd_ref + h,
+    tau_fb = D (kp e + kd ed). No integral (it stays I_{-1} = 0).
+
+    Attributes:
+      kp: 1/s^2, kd: 1/s, shape (n,) or (B, n): the error dynamics' gains (see CT_RULE and `for_period`).
+    """
+
+    kp: NDArray[np.float64]
+    kd: NDArray[np.float64]
+    name: ClassVar[str] = "computed_torque"
+    needs_dynamics: ClassVar[bool] = True
+
+    @classmethod
+    def for_period(cls, dt: float, n: int) -> ComputedTorque:
+        """The gains of CT_RULE for control period dt (s) on n joints."""
+        w = 2.0 * np.pi / (20.0 * dt)
+        return cls(frozen(np.full(n, w * w)), frozen(np.full(n, 2.0 * w)))
+
+    def __call__(self, e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArray[np.float64],
+                 tau_ff: NDArray[np.float64], qdd_ref: NDArray[np.float64] | None,
+                 dynamics: tuple[NDArray[np.float64], NDArray[np.float64]] | None, limit: NDArray[np.float64],
+                 dt: float, *, residual: NDArray[np.float64] | None = None,
+                 override: NDArray[np.float64] | None = None) -> ControlOutput:
+        if override is not None:
+            return overridden(override, limit, integral)
+        assert qdd_ref is not None and dynamics is not None
+        D, h = dynamics
+        ff = np.einsum("bij,bj->bi", D, qdd_ref) + h
+        fb = np.einsum("bij,bj->bi", D, self.kp * e + self.kd * ed)
+        command = ff + fb if residual is None else ff + fb + residual
+        dtau = np.minimum(np.maximum(command, -limit), limit)
+        return ControlOutput(ff, fb, dtau, dtau != command, integral)

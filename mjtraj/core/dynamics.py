@@ -69,16 +69,27 @@ class DynamicsProbe:
 
         This is mj_inverse's qfrc_inverse minus qfrc_gravcomp, for a model without constraints.
         """
-        out = np.empty_like(q)
+        D, bias, passive, gravcomp = self._terms(q, qd)
+        return np.einsum("bij,bj->bi", D, qdd) + bias - passive - gravcomp  # type: ignore[no-any-return]
+
+    def mass_and_bias(self, q: NDArray[np.float64], qd: NDArray[np.float64]
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """D(q), shape (rows, n, n), kg m^2, and h(q, qd) = C(q, qd) qd - passive forces, shape (rows, n), N m: the
+        gravity-compensated model's ID(q, qd, qdd) - G(q) = D qdd + h."""
+        D, bias, passive, gravcomp = self._terms(q, qd)
+        return D, bias - passive - gravcomp
+
+    def _terms(self, q: NDArray[np.float64], qd: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """D(q) (rows, n, n), and qfrc_bias, qfrc_passive, qfrc_gravcomp (rows, n) at (q, qd)."""
+        D = np.zeros((q.shape[0], self.n, self.n))
+        bias, passive, gravcomp = np.empty_like(q), np.empty_like(q), np.empty_like(q)
         i, j, a = self._dense
-        for rows, ids, (qc, qdc, qddc) in self._chunks(q, qd, qdd):
+        for rows, ids, (qc, qdc) in self._chunks(q, qd):
             self._qpos[ids], self._qvel[ids] = qc, qdc
             self._batch.forward(ids=ids, stage=mujoco.mjtStage.mjSTAGE_VEL)
-            D = np.zeros((ids.size, self.n, self.n))
-            D[:, i, j] = self._M[ids][:, a]
-            out[rows] = (np.einsum("bij,bj->bi", D, qddc) + self._bias[ids] - self._passive[ids]
-                         - self._gravcomp[ids])
-        return out
+            D[rows, i, j] = self._M[ids][:, a]
+            bias[rows], passive[rows], gravcomp[rows] = self._bias[ids], self._passive[ids], self._gravcomp[ids]
+        return D, bias, passive, gravcomp
 
     def gravity(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         """G(q), the torque that holds the poses q still, N m; shapes (rows, n)."""

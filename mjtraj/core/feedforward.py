@@ -50,10 +50,7 @@ def feedforward_many(model: mujoco.MjModel, references: Sequence[Reference], *, 
         return np.stack([ref.u_plan for ref in references if ref.u_plan is not None], axis=1)
     q = np.stack([ref.q[:N] for ref in references], axis=1)
     qd = np.stack([ref.qd[:N] for ref in references], axis=1)
-    if accel == "sample":
-        qdd = np.stack([ref.qdd[:N] for ref in references], axis=1)
-    else:
-        qdd = np.stack([np.diff(ref.qd, axis=0) / np.diff(ref.t)[:, None] for ref in references], axis=1)
+    qdd = reference_accelerations(references, accel)
     probe = DynamicsProbe(model, size=N * B) if probe is None else probe
     return probe.inverse(q.reshape(-1, n), qd.reshape(-1, n), qdd.reshape(-1, n)).reshape(N, B, n)
 
@@ -62,3 +59,12 @@ def feedforward(model: mujoco.MjModel, reference: Reference, *, mode: str = "inv
                 accel: str = "sample") -> NDArray[np.float64]:
     """`feedforward_many` for one reference; shape (N, n), N m."""
     return feedforward_many(model, [reference], mode=mode, accel=accel)[:, 0]
+
+
+def reference_accelerations(references: Sequence[Reference], accel: str) -> NDArray[np.float64]:
+    """qdd_ref,k of each reference for k = 0..N-1 by the ff_accel rule, shape (N, B, n), rad/s^2: 'sample' =
+    qdd_ref(t_k), 'step_average' = (qd_ref,k+1 - qd_ref,k)/dt."""
+    N = references[0].steps
+    if accel == "sample":
+        return np.stack([ref.qdd[:N] for ref in references], axis=1)
+    return np.stack([np.diff(ref.qd, axis=0) / np.diff(ref.t)[:, None] for ref in references], axis=1)

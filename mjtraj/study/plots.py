@@ -23,7 +23,9 @@ FIGURES = {
 def _variant(result: Comparison) -> str:
     """The controller variant and the score, for every title."""
     loop = result.scenario.loop
-    return (f"FF ({loop.feedforward}, {loop.ff_accel}) + PID, gravity {loop.gravity_comp}; score: J_exec with "
+    law = f"FF ({loop.feedforward}, {loop.ff_accel}) + PID" if loop.controller == "pid" else \
+        f"computed torque ({loop.ff_accel})"
+    return (f"{law}, gravity {loop.gravity_comp}; score: J_exec with "
             f"{'Bryson weights per task' if result.scenario.scoring.rule == 'bryson' else 'the scenario weights'}")
 
 
@@ -191,7 +193,7 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     where = "the scenario's task" if s["task"] == "scenario" else f"{s['scenarios']} {s['task']} scenarios"
-    ax.set_title(f"Weight frontier on {where}; score: {s['score']}; controller: the scenario's FF + PID",
+    ax.set_title(f"Weight frontier on {where}; score: {s['score']}; controller: the scenario's",
                  fontsize=9)
     fig.tight_layout()
     with atomic_path(path) as tmp:

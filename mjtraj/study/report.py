@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mjtraj.core.controller import CT_RULE
 from mjtraj.core.gains import GAIN_RULE
 from mjtraj.core.metrics import METRIC_UNITS
 from mjtraj.study.comparison import Comparison
@@ -70,15 +71,17 @@ def format_report(result: Comparison) -> str:
         f"Scenario '{s.name}' ({s.source or 'in memory'})",
         f"  q0 = {fmt(s.task.q0)} rad, qg = {fmt(s.task.qg)} rad, T = {s.task.duration:g} s, dt = {s.task.dt:g} s, "
         f"N = {s.task.steps}",
-        f"  feedforward = {s.loop.feedforward}, ff_accel = {s.loop.ff_accel}, gravity_comp = {s.loop.gravity_comp}, "
-        f"anti_windup = {s.loop.anti_windup}, substeps = {s.loop.substeps}",
-        f"  kp = {fmt(g.kp)}, ki = {fmt(g.ki)}, kd = {fmt(g.kd)}",
-        f"  gain rule: {GAIN_RULE}",
+        f"  controller = {s.loop.controller}, feedforward = {s.loop.feedforward}, ff_accel = {s.loop.ff_accel}, "
+        f"gravity_comp = {s.loop.gravity_comp}, anti_windup = {s.loop.anti_windup}, substeps = {s.loop.substeps}",
+        *([f"  kp = {fmt(g.kp)}, ki = {fmt(g.ki)}, kd = {fmt(g.kd)}", f"  gain rule: {GAIN_RULE}"]
+          if s.loop.controller == "pid" else [f"  computed-torque gain rule: {CT_RULE}"]),
         f"  closed-loop spectral radius (frozen-time, linearised): at rest on every reference pose "
-        f"{result.stability['at_rest']:.4f}, along the moving references {result.stability['moving']:.4f}",
+        f"{result.stability['at_rest']:.4f}, along the moving references {result.stability['moving']:.4f}"
+        if s.loop.controller == "pid" else "  closed-loop spectral radius: checked for pid only",
         f"  Q_exec = diag{fmt(s.Q_exec)}, R_exec = diag{fmt(s.R_exec)}",
         "",
-        "Table I (ours: MuJoCo UR5 3-DoF, identical FF+PID, |dtau| <= 60 N m; dtau Red. = reduction of Int. dtau)",
+        f"Table I (ours: MuJoCo UR5 3-DoF, identical {'FF+PID' if s.loop.controller == 'pid' else s.loop.controller}, "
+        "|dtau| <= 60 N m; dtau Red. = reduction of Int. dtau)",
         _grid(table_rows(result)),
     ]
     if diverged:
