@@ -87,7 +87,8 @@ def _loop_flags(parser: argparse.ArgumentParser) -> None:
 
     for f, declaration, kind in declared_options(LoopConfig, scenario_only=True):
         flags = [f"--{f.name.replace('_', '-')}"] + ([declaration.flag] if declaration.flag else [])
-        choices = f" ({' | '.join(map(str, declaration.choices))})" if declaration.choices else ""
+        valid = declaration.choices if isinstance(declaration.choices, tuple) else None  # not plug-ins: no import
+        choices = f" ({' | '.join(map(str, valid))})" if valid else ""
         parser.add_argument(*flags, dest=f.name, type=kind, help=f"{declaration.help}{choices}; default: the "
                             "scenario's")
 

@@ -35,5 +35,9 @@ class RenderError(MjtrajError):
     """Off-screen rendering is unavailable or misconfigured."""
 
 
+class PluginError(MjtrajError):
+    """An installed plug-in (a planner or controller entry point) cannot be loaded or clashes with another."""
+
+
 __all__ = ["BackendError", "InfeasibleError", "InvalidInputError", "MissingExtraError", "MjtrajError", "ModelError",
-           "RenderError", "SolverError"]
+           "PluginError", "RenderError", "SolverError"]

@@ -11,11 +11,11 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = {"mjtraj": ROOT / "mjtraj", "mjtraj.envs": ROOT / "envs"}
 """Package name -> folder (envs/ is installed as mjtraj.envs)."""
-BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj._lazy", "mjtraj._checkout",
-        "mjtraj._registration")
+BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj.plugins", "mjtraj._lazy",
+        "mjtraj._checkout", "mjtraj._registration")
 APP = ("mjtraj", "mjtraj.cli", "mjtraj.bench", "mjtraj.__main__")
 LAYERS = ["base", "core", "study", "media", "envs", "rl", "app"]
-PUBLIC_BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions")
+PUBLIC_BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj.plugins")
 
 
 def layer(module: str) -> str:

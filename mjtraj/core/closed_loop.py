@@ -12,7 +12,7 @@ import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
-from mjtraj.core.controller import ANTI_WINDUP, CONTROLLERS, PID, ComputedTorque, Controller, ControlOutput, PIDGains
+from mjtraj.core.controller import ANTI_WINDUP, Controller, ControlOutput, PIDGains, controller_names, make_controller
 from mjtraj.core.dynamics import DynamicsProbe
 from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many, reference_accelerations
 from mjtraj.core.model import JointInfo
@@ -33,7 +33,7 @@ class LoopConfig:
     controller: str = option("pid", "control law: pid = feedforward + PID with the gains (the paper's); "
                              "computed_torque = inverse dynamics of the nominal model at the measured state with PD "
                              "on the error (gains by the stated rule; ff_accel picks its reference acceleration; "
-                             "feedforward and the PID gains are unused)", choices=CONTROLLERS)
+                             "feedforward and the PID gains are unused)", choices=controller_names)
     feedforward: str = option("inverse", "feedforward torque: inverse = ID(q_ref, qd_ref, qdd_ref) - G(q_ref) on the "
                               "nominal model, planned = the planner's own u_plan, none = 0",
                               choices=FEEDFORWARD_MODES, flag="--ff")
@@ -148,8 +148,7 @@ class ClosedLoop:
                                  gravity_comp=config.gravity_comp, substeps=config.substeps, nthread=nthread,
                                  fields=plant_fields)
         self._state: _LoopState | None = None
-        self._law: Controller = (PID(config.gains.tiled(nsim), config.anti_windup) if config.controller == "pid"
-                                 else ComputedTorque.for_period(self.dt, model.nv))
+        self._law: Controller = make_controller(config, self.dt, model.nv, nsim)
         self._dynamics = DynamicsProbe(model, size=nsim) if self._law.needs_dynamics else None
         self._limit = np.tile(self.limit, (nsim, 1))
         self._none_diverged = np.zeros(nsim, dtype=bool)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import typing
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,7 +26,8 @@ class Option:
     """What a field declares about itself (see `option`)."""
 
     help: str
-    choices: tuple[Any, ...] | None = None
+    choices: tuple[Any, ...] | Callable[[], tuple[Any, ...]] | None = None
+    """The valid values, or a function giving them when asked (values that plug-ins extend)."""
     minimum: float | None = None
     """Smallest valid value (inclusive)."""
     positive: bool = False
@@ -36,8 +38,9 @@ class Option:
     """Part of scenario files, the command line and env arguments; False: a programmatic setting only."""
 
 
-def option(default: Any, help: str, *, choices: tuple[Any, ...] | None = None, minimum: float | None = None,
-           positive: bool = False, flag: str | None = None, scenario: bool = True) -> Any:
+def option(default: Any, help: str, *, choices: tuple[Any, ...] | Callable[[], tuple[Any, ...]] | None = None,
+           minimum: float | None = None, positive: bool = False, flag: str | None = None, scenario: bool = True
+           ) -> Any:
     """A dataclass field with a default and its declaration (see the module docstring)."""
     return dataclasses.field(default=default, metadata={"option": Option(help, choices, minimum, positive, flag,
                                                                          scenario)})
@@ -74,9 +77,9 @@ def _typed(name: str, value: Any, kind: type, where: str) -> Any:
 def check_value(name: str, declaration: Option, kind: type, value: Any, where: str = "") -> Any:
     """Validate one option value (type, choices, bounds); return it normalised."""
     value = _typed(name, value, kind, where)
-    if declaration.choices is not None and value not in declaration.choices:
-        raise InvalidInputError(f"{name}: unknown value {value!r}{where}; valid: "
-                                f"{', '.join(str(c) for c in declaration.choices)}")
+    valid = resolved_choices(declaration)
+    if valid is not None and value not in valid:
+        raise InvalidInputError(f"{name}: unknown value {value!r}{where}; valid: {', '.join(str(c) for c in valid)}")
     if kind in (int, float):
         if not math.isfinite(value):
             raise InvalidInputError(f"{name}: expected a finite number{where}, got {value!r}")
@@ -85,6 +88,11 @@ def check_value(name: str, declaration: Option, kind: type, value: Any, where: s
         if declaration.minimum is not None and value < declaration.minimum:
             raise InvalidInputError(f"{name}: expected a value >= {declaration.minimum:g}{where}, got {value!r}")
     return value
+
+
+def resolved_choices(declaration: Option) -> tuple[Any, ...] | None:
+    """The declaration's valid values now (calling its function, if it gives one)."""
+    return declaration.choices() if callable(declaration.choices) else declaration.choices
 
 
 def check_options(instance: Any) -> None:
@@ -111,6 +119,7 @@ def from_mapping(cls: type, values: dict[str, Any], *, where: str = "", scenario
 def choices(cls: type, name: str) -> tuple[Any, ...]:
     """The valid values of the declared option `name` of `cls`."""
     for f, declaration, _ in declared_options(cls):
-        if f.name == name and declaration.choices is not None:
-            return declaration.choices
+        valid = resolved_choices(declaration)
+        if f.name == name and valid is not None:
+            return valid
     raise InvalidInputError(f"{name}: not a declared option with choices of {cls.__name__}")

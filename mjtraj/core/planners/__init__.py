@@ -1,6 +1,16 @@
-"""Trajectory planners: one module each, all registered by name (see `available` and `make`)."""
+"""Trajectory planners: one module each, all registered by name (see `available` and `make`); installed plug-ins add
+theirs through the `mjtraj.planners` entry points (`mjtraj.plugins`)."""
 
-from mjtraj.core.planners.base import Planner, available, check_name, default_names, make, plan_all, register
+from mjtraj.core.planners.base import (
+    Planner,
+    available,
+    check_name,
+    default_names,
+    make,
+    plan_all,
+    register,
+    sampled_reference,
+)
 from mjtraj.core.planners.cubic import Cubic
 from mjtraj.core.planners.nonlinear import NonlinearMinEffort, NonlinearOptimal
 from mjtraj.core.planners.optimal import Optimal
@@ -10,5 +20,5 @@ from mjtraj.core.planners.trapezoidal import Trapezoidal
 
 __all__ = [
     "Cubic", "NonlinearMinEffort", "NonlinearOptimal", "Optimal", "Planner", "Quintic", "SCurve", "Trapezoidal",
-    "available", "check_name", "default_names", "make", "plan_all", "register",
+    "available", "check_name", "default_names", "make", "plan_all", "register", "sampled_reference",
 ]

@@ -67,19 +67,40 @@ def register(name: str, *, on_request: bool = False) -> Callable[[P], P]:
     return add
 
 
+def _with_plugins() -> dict[str, type]:
+    """The registry after adding the planners of installed plug-ins (entry points `mjtraj.planners`, see
+    `mjtraj.plugins`), which run only when named.
+
+    Raises:
+      PluginError: a plug-in cannot be loaded, is not a planner class, or takes a built-in planner's name.
+    """
+    from mjtraj.exceptions import PluginError
+    from mjtraj.plugins import PLANNERS, plugins
+
+    for name, cls in plugins(PLANNERS).items():
+        if _REGISTRY.get(name) is cls:
+            continue
+        if name in _REGISTRY:
+            raise PluginError(f"plug-in planner {name!r}: the name of a built-in planner")
+        if not (isinstance(cls, type) and callable(getattr(cls, "plan", None))):
+            raise PluginError(f"plug-in planner {name!r}: expected a class with plan(task, model), got {cls!r}")
+        register(name, on_request=True)(cls)
+    return _REGISTRY
+
+
 def default_names() -> tuple[str, ...]:
-    """The registered planners that run when none are named, in registration order."""
+    """The built-in planners that run when none are named, in registration order."""
     return tuple(name for name in _REGISTRY if name not in _ON_REQUEST)
 
 
 def available() -> tuple[str, ...]:
-    """Names of the registered planners, in registration order."""
-    return tuple(_REGISTRY)
+    """Names of the registered planners (plug-ins included), in registration order."""
+    return tuple(_with_plugins())
 
 
 def check_name(argument: str, name: str) -> str:
     """`name` if a planner is registered under it; InvalidInputError naming `argument` and the valid names."""
-    if name not in _REGISTRY:
+    if name not in _with_plugins():
         raise InvalidInputError(f"{argument}: unknown planner {name!r}; valid: {', '.join(_REGISTRY)}")
     return name
 
@@ -92,7 +113,7 @@ def make(name: str, **options: Any) -> Planner:
     """
     check_name("planner", name)
     cls = _REGISTRY[name]
-    fields = [f.name for f in dataclasses.fields(cls) if f.init]
+    fields = [f.name for f in dataclasses.fields(cls) if f.init] if dataclasses.is_dataclass(cls) else []
     unknown = sorted(set(options) - set(fields))
     if unknown:
         raise InvalidInputError(f"planner {name!r}: unknown option {unknown[0]!r}; valid: "
