@@ -39,7 +39,6 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 import scipy.linalg
-import scipy.optimize
 from mujoco.batch import Batch
 from numpy.typing import NDArray
 
@@ -354,6 +353,7 @@ class NonlinearOptimal(Planner):
                f_scale: float, t_scale: NDArray[np.float64], scale: float) -> scipy.optimize.OptimizeResult:
         """One SLSQP solve from u with the path-constraint `rows`, in the variables v of `_Metric` at u (`scale`
         times the Gauss-Newton Hessian)."""
+        import scipy.optimize  # here, not at import: a quarter second of `mjtraj compare`'s start-up otherwise
         row_scale = 1.0 / limits.scale(problem.steps)[rows]
         metric = _Metric.at(problem, u, scale * f_scale)
         to_u, pull = metric.to_u, metric.pull
