@@ -171,6 +171,10 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--ray-address", help="Ray cluster HOST:PORT, ray://HOST:PORT or auto (default: a local Ray)")
     w.add_argument("--no-progress", action="store_true", help="no progress bar")
 
+    x = sub.add_parser("export", help="a complete sweep file as a SQLite database or JSON Lines, values typed")
+    x.add_argument("sweep", type=Path, help="sweep CSV file")
+    x.add_argument("--out", type=Path, required=True, help="output: FILE.sqlite (or .db) or FILE.jsonl")
+
     a = sub.add_parser("audit", help="check the paper's claims against sweep files; writes AUDIT.md and figures")
     a.add_argument("sweeps", nargs="+", type=Path, help="sweep CSV files")
     a.add_argument("--out", type=Path, default=Path("results/AUDIT.md"), help="output Markdown (default "
@@ -457,6 +461,14 @@ def _sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export(args: argparse.Namespace) -> int:
+    from mjtraj.study.export import export
+
+    rows = export(args.sweep, args.out)
+    print(f"wrote {rows} rows of {args.sweep} to {args.out}")
+    return 0
+
+
 def _audit(args: argparse.Namespace) -> int:
     from mjtraj.study.audit import write_audit
 
@@ -588,7 +600,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         commands = {"compare": _compare, "frontier": _frontier, "tune": _tune, "bench": _bench, "gains": _gains,
-                    "render": _render, "doctor": _doctor, "sweep": _sweep, "audit": _audit, "rl": _rl}
+                    "render": _render, "doctor": _doctor, "sweep": _sweep, "audit": _audit, "export": _export, "rl": _rl}
         return commands[args.command](args)
     except MjtrajError as e:
         print(f"mjtraj: error: {e}", file=sys.stderr)

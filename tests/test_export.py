@@ -1,0 +1,72 @@
+"""`mjtraj export`: the SQLite database and the JSON Lines hold exactly the sweep file's cells, typed; torn or
+unfinished sweeps and unknown formats are one-line refusals that leave nothing behind."""
+
+from __future__ import annotations
+
+import json
+import math
+import sqlite3
+
+import pytest
+
+from mjtraj.cli import main
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.study.export import TABLE, export
+from mjtraj.study.runner import run_sweep
+from mjtraj.study.store import numeric, read_rows
+from mjtraj.study.sweep import SweepSettings
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    path = tmp_path_factory.mktemp("export") / "s.csv"
+    run_sweep(SweepSettings(families=("nominal", "mismatch"), scenarios=3, batch=2, planners=("cubic", "optimal")),
+              path, progress=False)
+    return path
+
+
+def same(cell, value):
+    """A CSV cell and its exported value agree: text as is, numbers by value, '' and 'nan' as null."""
+    if isinstance(value, str):
+        return cell == value
+    if value is None:
+        return cell in ("", "nan")
+    return cell not in ("", "nan") and numeric(cell) == value and not math.isnan(value)
+
+
+def test_sqlite_and_jsonl_hold_every_cell_typed(sweep, tmp_path):
+    rows = read_rows(sweep)
+    assert main(["export", str(sweep), "--out", str(tmp_path / "s.sqlite")]) == 0
+    assert export(sweep, tmp_path / "s.jsonl") == len(rows)
+    connection = sqlite3.connect(tmp_path / "s.sqlite")
+    connection.row_factory = sqlite3.Row
+    stored = [dict(r) for r in connection.execute(f"SELECT * FROM {TABLE}")]
+    kinds = {r[1]: r[2] for r in connection.execute(f"PRAGMA table_info({TABLE})")}
+    lines = [json.loads(line) for line in (tmp_path / "s.jsonl").read_text().splitlines()]
+    assert len(stored) == len(lines) == len(rows)
+    for row, db, js in zip(rows, stored, lines, strict=True):
+        assert list(js) == list(row)
+        for column, cell in row.items():
+            assert same(cell, db[column]) and same(cell, js[column]), column
+    assert kinds["planner"] == kinds["mujoco"] == kinds["reason"] == "TEXT"
+    assert kinds["scenario"] == "INTEGER" and kinds["cost"] == kinds["payload_kg"] == "REAL"
+    count = connection.execute(f"SELECT COUNT(*) FROM {TABLE} WHERE planner = 'cubic' AND family = 'mismatch'")
+    assert count.fetchone()[0] == 3
+
+
+def test_torn_unfinished_or_unknown_are_refused_and_leave_nothing(sweep, tmp_path):
+    text = sweep.read_text()
+    torn = tmp_path / "torn.csv"
+    torn.write_text(text[:-20])
+    with pytest.raises(InvalidInputError, match=r"ends inside a row \(a torn write\)"):
+        export(torn, tmp_path / "t.sqlite")
+    lines = text.splitlines(keepends=True)
+    unfinished = tmp_path / "unfinished.csv"
+    unfinished.write_text("".join(lines[:-2]))
+    with pytest.raises(InvalidInputError, match=r"^sweep: .*unfinished.csv is unfinished; finish it with the same "
+                                                r"mjtraj sweep command and --resume before exporting it$"):
+        export(unfinished, tmp_path / "u.jsonl")
+    with pytest.raises(InvalidInputError, match=r"^out: expected a file ending in .sqlite, .db, .jsonl, got "
+                                                r"'.*s.parquet'$"):
+        export(sweep, tmp_path / "s.parquet")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["torn.csv", "unfinished.csv"]
