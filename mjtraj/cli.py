@@ -99,6 +99,8 @@ def _parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("compare", help="the paper's Table I: every planner through one closed loop")
     c.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
+    c.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (its scenario follows the stated "
+                   "rules: mjtraj.core.arm.ARM_RULES, mjtraj.study.scenario.ARM_TASK_RULE)")
     c.add_argument("--q0", type=_floats, help="start, rad, comma-separated")
     c.add_argument("--qg", type=_floats, help="goal, rad, comma-separated")
     c.add_argument("--duration", type=float, help="T, s (a whole number of dt)")
@@ -267,9 +269,16 @@ def _scenario(args: argparse.Namespace):  # noqa: ANN202
     from mjtraj.core import LoopConfig, option_names
     from mjtraj.study.scenario import load_scenario
 
-    scenario = load_scenario(args.config)
     task = {k: getattr(args, k) for k in ("q0", "qg", "duration", "dt") if getattr(args, k, None) is not None}
     loop = {k: getattr(args, k) for k in option_names(LoopConfig) if getattr(args, k, None) is not None}
+    if getattr(args, "model", None) is not None:
+        from mjtraj.study.scenario import scenario_for_model
+
+        if args.config is not None:
+            raise InvalidInputError("model, config: give one (a scenario file names its arm with model = \"PATH\")")
+        scenario = scenario_for_model(args.model, **task)
+        return scenario.replace(loop=loop) if loop else scenario
+    scenario = load_scenario(args.config)
     return scenario.replace(task=task, loop=loop) if task or loop else scenario
 
 

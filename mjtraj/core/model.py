@@ -32,7 +32,11 @@ def load_model(path: str | os.PathLike[str] | None = None, *, dt: float | None =
     Raises:
       ModelError: the file is missing or MuJoCo cannot compile it.
     """
-    file = default_model_path() if path is None else Path(path)
+    if path is not None:  # a user's arm (or the shipped file named explicitly), prepared by mujoco.MjSpec
+        from mjtraj.core.arm import prepare_arm
+
+        return prepare_arm(path, dt=dt)
+    file = default_model_path()
     if not file.is_file():
         raise ModelError(f"model file not found: {file}")
     try:

@@ -67,8 +67,11 @@ def format_report(result: Comparison) -> str:
     g = s.loop.gains
     fmt = lambda a: "[" + ", ".join(f"{x:.6g}" for x in a) + "]"  # noqa: E731
     diverged = [n for i, n in enumerate(result.planners) if result.rollout.diverged_step[i] >= 0]
+    limit = f"{s.torque_limit[0]:g}" if np.all(s.torque_limit == s.torque_limit[0]) else fmt(s.torque_limit)
+    arm = "MuJoCo UR5 3-DoF" if s.model_path is None else f"MuJoCo arm {Path(s.model_path).name}, {s.task.n} joints"
     lines = [
-        f"Scenario '{s.name}' ({s.source or 'in memory'})",
+        f"Scenario '{s.name}' ({s.source or 'in memory'})" + ("" if s.model_path is None else
+                                                               f", model {s.model_path}"),
         f"  q0 = {fmt(s.task.q0)} rad, qg = {fmt(s.task.qg)} rad, T = {s.task.duration:g} s, dt = {s.task.dt:g} s, "
         f"N = {s.task.steps}",
         f"  controller = {s.loop.controller}, feedforward = {s.loop.feedforward}, ff_accel = {s.loop.ff_accel}, "
@@ -80,8 +83,8 @@ def format_report(result: Comparison) -> str:
         if s.loop.controller == "pid" else "  closed-loop spectral radius: checked for pid only",
         f"  Q_exec = diag{fmt(s.Q_exec)}, R_exec = diag{fmt(s.R_exec)}",
         "",
-        f"Table I (ours: MuJoCo UR5 3-DoF, identical {'FF+PID' if s.loop.controller == 'pid' else s.loop.controller}, "
-        "|dtau| <= 60 N m; dtau Red. = reduction of Int. dtau)",
+        f"Table I (ours: {arm}, identical {'FF+PID' if s.loop.controller == 'pid' else s.loop.controller}, "
+        f"|dtau| <= {limit} N m; dtau Red. = reduction of Int. dtau)",
         _grid(table_rows(result)),
     ]
     if diverged:

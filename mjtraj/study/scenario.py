@@ -248,3 +248,34 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
         raise InvalidInputError(f"config: [tuning] must be a table, got {tuning!r}")
     return Scenario(name=name, task=task, loop=loop, planner_options=planners, scoring=scoring,
                     model_path=model_path, source=source, tuning=tuning)
+
+
+MOVE = 0.5
+"""rad: in the default task of a user's arm, every joint moves this far from the home pose (see ARM_TASK_RULE)."""
+ARM_TASK_RULE = (
+    "start at the model's keyframe 'home' (else its qpos0), clipped into the joint ranges; every joint moves 0.5 rad, "
+    "upward unless that leaves its range by less than 0.05 rad of margin, then downward; T = 2 s at dt = 0.02 s. "
+    "Gains by the PID gain rule along that move, the optimal planner's weights and the score by Bryson's rule on the "
+    "task, the other planners at their defaults")
+
+
+def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any = None, duration: float = 2.0,
+                       dt: float = 0.02) -> Scenario:
+    """The study's scenario for the MJCF arm at `path` (prepared by `mjtraj.core.arm.ARM_RULES`): the move `q0` ->
+    `qg` (rad, shape (n,)), or ARM_TASK_RULE's for what is not given.
+
+    Raises:
+      ModelError: the model cannot be prepared (names the element). InvalidInputError: a bad task.
+    """
+    from mjtraj.core.arm import home_pose, prepare_arm
+    from mjtraj.core.gains import gain_rule
+
+    model = prepare_arm(path, dt=dt)
+    start = home_pose(model) if q0 is None else np.asarray(q0, dtype=np.float64)
+    if qg is None:
+        upper = np.where(model.jnt_limited.astype(bool), model.jnt_range[:, 1], np.inf)
+        qg = start + np.where(start + MOVE <= upper - 0.05, MOVE, -MOVE)
+    task = Task.create(start, qg, duration, dt, model=model)
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(path).stem) or "arm"
+    loop = LoopConfig(gain_rule(model, task.q0, task.qg, dt))
+    return Scenario(name=name, task=task, loop=loop, scoring=Scoring(), model_path=str(path))

@@ -1,0 +1,112 @@
+"""A user's MJCF arm prepared as mjtraj's plant, with `mujoco.MjSpec` (their file is never edited).
+
+ARM_RULES states what is changed and what is kept. The shipped UR5 model already has this form; preparing it
+changes nothing that the loop sees.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.checks import positive
+from mjtraj.exceptions import ModelError
+
+ARM_RULES = (
+    "every joint must be a hinge, with no tendons or equality constraints; each hinge keeps its passive properties "
+    "(damping, armature, friction loss) and range. The model's actuators are replaced by one torque motor per hinge "
+    "(gear 1) whose control range is the corrective saturation: the range of an existing torque motor on that "
+    "joint, else the force range of the actuator that drove it, else the joint's actuator force range, else the "
+    "torque_limit given; every body gets native gravity compensation (gravcomp 1, applied at the joints); "
+    "contacts are disabled (the study's plant is the free arm); the integrator is RK4 at the control period dt")
+
+
+def _hinges(spec: mujoco.MjSpec, file: Path) -> list[mujoco.MjsJoint]:
+    """The model's joints, checked to be hinges of an open chain without tendons or equality constraints."""
+    for joint in spec.joints:
+        if joint.type != mujoco.mjtJoint.mjJNT_HINGE:
+            kind = str(joint.type).split("_")[-1].lower()
+            raise ModelError(f"model {file}: joint {joint.name or '(unnamed)'!r} is a {kind} joint; mjtraj "
+                             f"plans arms of hinge joints only")
+    if spec.tendons:
+        raise ModelError(f"model {file}: tendon {spec.tendons[0].name or '(unnamed)'!r}: tendons are not supported")
+    if spec.equalities:
+        raise ModelError(f"model {file}: equality constraint {spec.equalities[0].name or '(unnamed)'!r}: "
+                         f"equality constraints are not supported")
+    if not spec.joints:
+        raise ModelError(f"model {file}: no hinge joints, so nothing to plan")
+    return list(spec.joints)
+
+
+def _saturation(spec: mujoco.MjSpec, joint: mujoco.MjsJoint, torque_limit: float | None, file: Path) -> float:
+    """The corrective saturation of `joint`, N m, by ARM_RULES."""
+    mine = [a for a in spec.actuators if a.trntype == mujoco.mjtTrn.mjTRN_JOINT and a.target == joint.name]
+    for actuator in mine:
+        is_motor = (actuator.gaintype == mujoco.mjtGain.mjGAIN_FIXED and actuator.gainprm[0] == 1.0
+                    and actuator.biastype == mujoco.mjtBias.mjBIAS_NONE and actuator.gear[0] == 1.0)
+        if is_motor and actuator.ctrllimited != mujoco.mjtLimited.mjLIMITED_FALSE and np.any(actuator.ctrlrange):
+            return float(np.min(np.abs(actuator.ctrlrange)))
+    for actuator in mine:
+        if actuator.forcelimited != mujoco.mjtLimited.mjLIMITED_FALSE and np.any(actuator.forcerange):
+            return float(np.min(np.abs(actuator.forcerange)))
+    if np.any(joint.actfrcrange):
+        return float(np.min(np.abs(joint.actfrcrange)))
+    if torque_limit is not None:
+        return positive("torque_limit", torque_limit)
+    raise ModelError(f"model {file}: joint {joint.name!r} has no actuator force range to take the corrective "
+                     f"saturation from; give torque_limit (--torque-limit, N m)")
+
+
+def prepare_arm(path: str | os.PathLike[str], *, dt: float | None = None, torque_limit: float | None = None
+                ) -> mujoco.MjModel:
+    """The plant model of the MJCF arm at `path`, prepared by ARM_RULES.
+
+    Args:
+      dt: control period, s (the model's own timestep if None).
+      torque_limit: corrective saturation for joints whose model gives none, N m.
+
+    Raises:
+      ModelError: the file is missing, does not compile, or is not an arm of actuatable hinges (names the element).
+    """
+    file = Path(path)
+    if not file.is_file():
+        raise ModelError(f"model file not found: {file}")
+    try:
+        spec = mujoco.MjSpec.from_file(str(file))
+    except ValueError as e:
+        raise ModelError(f"cannot load model {file}: {e}") from e
+    joints = _hinges(spec, file)
+    for joint in joints:
+        if not joint.name:
+            raise ModelError(f"model {file}: every hinge needs a name (a motor is attached by name)")
+    limits = [_saturation(spec, joint, torque_limit, file) for joint in joints]
+    for actuator in list(spec.actuators):
+        spec.delete(actuator)
+    for joint, limit in zip(joints, limits, strict=True):
+        motor = spec.add_actuator(name=f"{joint.name}_motor", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        motor.set_to_motor()
+        motor.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        motor.ctrlrange = np.array([-limit, limit])
+        joint.actgravcomp = True
+    for body in spec.bodies[1:]:
+        body.gravcomp = 1.0
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    if dt is not None:
+        spec.option.timestep = positive("dt", dt)
+    try:
+        return spec.compile()
+    except ValueError as e:
+        raise ModelError(f"cannot prepare model {file}: {e}") from e
+
+
+def home_pose(model: mujoco.MjModel) -> NDArray[np.float64]:
+    """The model's keyframe 'home' if it has one, else its qpos0, clipped into the joint ranges; shape (n,), rad."""
+    key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")
+    q = np.array(model.key_qpos[key] if key >= 0 else model.qpos0, dtype=np.float64)
+    limited = model.jnt_limited.astype(bool)
+    return np.where(limited, np.clip(q, model.jnt_range[:, 0], model.jnt_range[:, 1]), q)

@@ -1,0 +1,117 @@
+"""A user's MJCF arm: the prepared plant of the shipped planar two-link arm matches its closed-form dynamics (mass
+matrix, Coriolis, gravity, so the feedforward); gravity is compensated and the servos became torque motors; the
+user's file is untouched; the UR5 prepared from its file runs as the shipped one; unsupported models are one-line
+errors naming the element; `mjtraj compare --model` runs the study on it."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjtraj.cli import main
+from mjtraj.core.arm import prepare_arm
+from mjtraj.core.closed_loop import ClosedLoop
+from mjtraj.core.dynamics import DynamicsProbe
+from mjtraj.core.feedforward import feedforward
+from mjtraj.core.model import default_model_path, load_model
+from mjtraj.core.planners import make
+from mjtraj.exceptions import ModelError
+from mjtraj.study.scenario import scenario_for_model
+
+PLANAR = default_model_path().parent / "planar_2link.xml"
+M1, L1, LC1, M2, LC2, G = 2.0, 0.5, 0.25, 1.0, 0.2, 9.81
+I1, I2 = M1 * 0.5**2 / 12, M2 * 0.4**2 / 12
+
+
+def closed_form(q, qd):
+    """D(q) (2, 2), C(q, qd) qd (2,) and G(q) (2,) of the planar arm (its file's header)."""
+    c2, s2 = np.cos(q[1]), np.sin(q[1])
+    d12 = I2 + M2 * (LC2**2 + L1 * LC2 * c2)
+    D = np.array([[I1 + I2 + M1 * LC1**2 + M2 * (L1**2 + LC2**2 + 2 * L1 * LC2 * c2), d12], [d12, I2 + M2 * LC2**2]])
+    h = M2 * L1 * LC2 * s2
+    coriolis = np.array([-h * (2 * qd[0] * qd[1] + qd[1] ** 2), h * qd[0] ** 2])
+    gravity = np.array([(M1 * LC1 + M2 * L1) * G * np.cos(q[0]) + M2 * LC2 * G * np.cos(q[0] + q[1]),
+                        M2 * LC2 * G * np.cos(q[0] + q[1])])
+    return D, coriolis, gravity
+
+
+def test_the_prepared_plant_has_the_closed_form_dynamics():
+    model = prepare_arm(PLANAR, dt=0.02)
+    probe = DynamicsProbe(model)
+    rng = np.random.default_rng(7)
+    q, qd, qdd = rng.uniform(-2, 2, (20, 2)), rng.uniform(-3, 3, (20, 2)), rng.uniform(-5, 5, (20, 2))
+    D, h = probe.mass_and_bias(q, qd)
+    for b in range(20):
+        D_ref, coriolis, gravity = closed_form(q[b], qd[b])
+        np.testing.assert_allclose(D[b], D_ref, rtol=1e-12)
+        np.testing.assert_allclose(h[b], coriolis, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(probe.gravity(q[b:b + 1])[0], gravity, rtol=1e-12)
+        np.testing.assert_allclose(probe.inverse(q[b:b + 1], qd[b:b + 1], qdd[b:b + 1])[0],
+                                   D_ref @ qdd[b] + coriolis, rtol=1e-10, atol=1e-12)
+    scenario = scenario_for_model(PLANAR)
+    reference = make("quintic").plan(scenario.task, scenario.model)
+    ff = feedforward(scenario.model, reference)
+    for k in range(0, reference.steps, 9):
+        D_ref, coriolis, _ = closed_form(reference.q[k], reference.qd[k])
+        np.testing.assert_allclose(ff[k], D_ref @ reference.qdd[k] + coriolis, rtol=1e-9, atol=1e-12)
+
+
+def test_servos_become_motors_gravity_is_compensated_and_the_file_is_untouched():
+    before = PLANAR.read_bytes()
+    model = prepare_arm(PLANAR, dt=0.01)
+    assert PLANAR.read_bytes() == before
+    assert model.opt.timestep == 0.01 and model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    np.testing.assert_array_equal(model.actuator_ctrlrange, [[-20.0, 20.0], [-20.0, 20.0]])  # the servos' force range
+    assert np.all(model.actuator_biastype == mujoco.mjtBias.mjBIAS_NONE) and np.all(model.actuator_gainprm[:, 0] == 1)
+    data = mujoco.MjData(model)
+    data.qpos[:] = [0.4, -0.9]
+    for _ in range(100):
+        mujoco.mj_step(model, data)  # zero torque: a compensated arm holds any pose
+    np.testing.assert_allclose(data.qpos, [0.4, -0.9], atol=1e-12)
+
+
+def test_the_ur5_prepared_from_its_file_executes_as_the_shipped_model(scenario):
+    shipped, prepared = scenario.model, load_model(default_model_path(), dt=scenario.task.dt)
+    reference = make("cubic").plan(scenario.task, shipped)
+    a = ClosedLoop(shipped, scenario.loop).run([reference])
+    b = ClosedLoop(prepared, scenario.loop).run([reference])
+    np.testing.assert_array_equal(a.dtau, b.dtau)
+    np.testing.assert_array_equal(a.e, b.e)
+
+
+ARM = '''<mujoco><worldbody><body name="a">{joint}<inertial pos="0.1 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>
+<body name="b" pos="0.2 0 0"><joint name="j2" type="hinge" axis="0 1 0"/>
+<inertial pos="0.1 0 0" mass="1" diaginertia="0.01 0.01 0.01"/></body></body></worldbody>{extra}
+<actuator>{actuators}</actuator></mujoco>'''
+HINGE = '<joint name="j1" type="hinge" axis="0 1 0"/>'
+MOTORS = '<motor joint="j1" ctrlrange="-5 5"/><motor joint="j2" ctrlrange="-5 5"/>'
+
+
+@pytest.mark.parametrize(("joint", "extra", "actuators", "message"), [
+    ('<joint name="j1" type="ball"/>', "", '<motor joint="j2" ctrlrange="-5 5"/>',
+     r"joint 'j1' is a ball joint; mjtraj plans arms of hinge joints only$"),
+    ('<joint name="j1" type="slide" axis="1 0 0"/>', "", MOTORS, r"joint 'j1' is a slide joint; "),
+    ('<freejoint name="j1"/>', "", '<motor joint="j2" ctrlrange="-5 5"/>', r"joint 'j1' is a free joint; "),
+    (HINGE, '<tendon><fixed name="t"><joint joint="j1" coef="1"/></fixed></tendon>', MOTORS,
+     r"tendon 't': tendons are not supported$"),
+    (HINGE, '<equality><joint name="e" joint1="j1" joint2="j2"/></equality>', MOTORS,
+     r"equality constraint 'e': equality constraints are not supported$"),
+    (HINGE, "", '<motor joint="j1" ctrlrange="-5 5"/>',
+     r"joint 'j2' has no actuator force range to take the corrective saturation from; give torque_limit"),
+])
+def test_unsupported_models_are_one_line_errors_naming_the_element(tmp_path, joint, extra, actuators, message):
+    path = tmp_path / "arm.xml"
+    path.write_text(ARM.format(joint=joint, extra=extra, actuators=actuators))
+    with pytest.raises(ModelError, match=rf"^model {path}: {message}"):
+        prepare_arm(path)
+
+
+def test_compare_runs_the_study_on_a_user_arm(tmp_path, capsys):
+    assert main(["compare", "--model", str(PLANAR), "--no-figures", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "Table I (ours: MuJoCo arm planar_2link.xml, 2 joints, identical FF+PID, |dtau| <= 20 N m;" in out
+    assert "q0 = [0, 0] rad, qg = [0.5, 0.5] rad" in out  # the stated task rule from qpos0
+    assert main(["compare", "--model", str(PLANAR), "--config", "paper"]) == 2
+    assert capsys.readouterr().err.strip() == ('mjtraj: error: model, config: give one (a scenario file names its arm '
+                                               'with model = "PATH")')
