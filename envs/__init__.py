@@ -13,14 +13,16 @@ import gymnasium as gym
 from mjtraj._lazy import lazy_exports
 
 ENV_ID = "UR5Track-v0"
+ARM_ENV_ID = "ArmTrack-v0"
+"""The same env for any MJCF arm: gym.make("ArmTrack-v0", xml_file=PATH); without xml_file, the UR5."""
 
 
 def register_envs() -> None:
-    """Register UR5Track-v0 with Gymnasium (idempotent)."""
-    if ENV_ID in gym.registry:
-        return
-    gym.register(id=ENV_ID, entry_point="mjtraj.envs.ur5_track:UR5TrackEnv",
-                 vector_entry_point="mjtraj.envs.vector:UR5TrackVectorEnv")
+    """Register UR5Track-v0 and ArmTrack-v0 with Gymnasium (idempotent)."""
+    for env_id in (ENV_ID, ARM_ENV_ID):
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point="mjtraj.envs.ur5_track:UR5TrackEnv",
+                         vector_entry_point="mjtraj.envs.vector:UR5TrackVectorEnv")
     # no max_episode_steps: an episode ends by itself after N = duration/dt steps, whatever the duration
 
 

@@ -4,6 +4,7 @@ and resolved against the paper scenario's controller."""
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -39,7 +40,7 @@ RESIDUAL_SCALE = 10.0
 """N m, the default authority of a residual action: the median per-joint RMS feedback torque of PID on the mismatch
 family (cubic references, 1000 scenarios: 10.2 N m, see docs/design.md), rounded to one significant figure. The
 residual is meant to supply what feedback supplies under model error, not the 60 N m saturation."""
-ENV_OWN = ("planner", "q0", "qg", "Q_exec", "R_exec", "render_mode")
+ENV_OWN = ("planner", "q0", "qg", "Q_exec", "R_exec", "render_mode", "xml_file")
 """Arguments that are not declared options (objects, vectors or None)."""
 
 
@@ -80,7 +81,7 @@ def argument_defaults() -> dict[str, Any]:
     own = {f.name: f.default for f, _, _ in declared_options(EnvOptions)}
     loop = {f.name: getattr(paper.loop, f.name) for f, _, _ in declared_options(LoopConfig)}
     return {"planner": "cubic", **own, "q0": None, "qg": None, "Q_exec": None, "R_exec": None, "render_mode": None,
-            **loop}
+            "xml_file": None, **loop}
 
 
 @dataclass(frozen=True)
@@ -180,13 +181,21 @@ def _planner(planner: Any, paper: Scenario) -> tuple[str, Planner]:
 
 def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None, qg: npt.ArrayLike | None = None,
             Q_exec: npt.ArrayLike | None = None, R_exec: npt.ArrayLike | None = None, render_mode: str | None = None,
-            scenario: Scenario | None = None, **options: Any) -> TrackSettings:
+            xml_file: str | os.PathLike[str] | None = None, scenario: Scenario | None = None,
+            **options: Any) -> TrackSettings:
     """Validate the env's arguments (see UR5TrackEnv; the declared ones are EnvOptions' and LoopConfig's) and fill
     in the paper scenario's controller.
 
     Raises:
       InvalidInputError: an unknown argument (the valid ones are listed) or a bad value.
     """
+    if xml_file is not None:
+        from mjtraj.study.scenario import scenario_for_model
+
+        if scenario is not None:
+            raise InvalidInputError("xml_file, scenario: give one")
+        dt = options.get("dt", 0.02)
+        scenario = scenario_for_model(xml_file, dt=dt if isinstance(dt, (int, float)) else 0.02)
     paper = scenario if scenario is not None else load_scenario()
     env_names = [f.name for f, _, _ in declared_options(EnvOptions)]
     loop_names = [f.name for f, _, _ in declared_options(LoopConfig)]

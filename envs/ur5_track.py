@@ -133,6 +133,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | argument         | default    | meaning                                                                 |
     |------------------|------------|-------------------------------------------------------------------------|
     | planner          | "cubic"    | registered planner name or an object with plan(task, model)             |
+    | xml_file         | None       | an MJCF arm instead of the UR5 (ArmTrack-v0; docs/design.md, "Your own arm") |
     | action_mode      | "pid"      | pid, residual or torque                                                 |
     | residual_scale   | 10.0       | s, N m per unit of action in residual mode (> 0)                        |
     | task             | "paper"    | paper, random or explicit                                               |

@@ -115,3 +115,20 @@ def test_compare_runs_the_study_on_a_user_arm(tmp_path, capsys):
     assert main(["compare", "--model", str(PLANAR), "--config", "paper"]) == 2
     assert capsys.readouterr().err.strip() == ('mjtraj: error: model, config: give one (a scenario file names its arm '
                                                'with model = "PATH")')
+
+
+def test_arm_track_env_runs_a_user_arm_like_the_loop():
+    import gymnasium as gym
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make("ArmTrack-v0", xml_file=str(PLANAR))
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (6 * 2 + 1,) and env.action_space.shape == (2,)
+    done = False
+    while not done:
+        _, _, terminated, truncated, info = env.step(np.zeros(2))
+        done = terminated or truncated
+    scenario = scenario_for_model(PLANAR)
+    rollout = ClosedLoop(scenario.model, scenario.loop).run([make("cubic").plan(scenario.task, scenario.model)])
+    assert info["metrics"]["rms_err"] == pytest.approx(float(np.sqrt(np.mean(rollout.e ** 2))), rel=1e-9)
+    check_env(env.unwrapped, skip_render_check=True)

@@ -298,7 +298,8 @@ def test_docstring_arguments_table_matches_the_code():
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
                "width": s.width, "height": s.height, "camera": s.camera, "render_mode": s.render_mode,
                **{name: getattr(s.loop, name) for name in option_names(LoopConfig, scenario_only=False)}}
-    assert applied == {k: v for k, v in argument_defaults().items() if k not in ("q0", "qg", "Q_exec", "R_exec")}
+    assert applied == {k: v for k, v in argument_defaults().items()
+                       if k not in ("q0", "qg", "Q_exec", "R_exec", "xml_file")}
     env.close()
 
 
@@ -356,7 +357,8 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     ({"Q_exec": [1, 1], "R_exec": [1, 1, 1]}, r"^Q_exec: expected 6 values, got shape \(2,\)$"),
     ({"Q_exec": [1] * 6}, r"^Q_exec, R_exec: give both \(diagonals of 2n and n weights\), or neither for Bryson's "
                           r"rule on each task$"),
-    ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, action_mode, "
+    ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, xml_file, "
+                   r"action_mode, "
                    r"residual_scale, task, max_displacement, duration, dt, preview, observe_control, "
                    r"plant_randomization, measurement_noise, reward_baseline, width, height, camera, controller, "
                    r"feedforward, ff_accel, gravity_comp, anti_windup, substeps, divergence_bound, delay$"),
