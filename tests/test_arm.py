@@ -132,3 +132,46 @@ def test_arm_track_env_runs_a_user_arm_like_the_loop():
     rollout = ClosedLoop(scenario.model, scenario.loop).run([make("cubic").plan(scenario.task, scenario.model)])
     assert info["metrics"]["rms_err"] == pytest.approx(float(np.sqrt(np.mean(rollout.e ** 2))), rel=1e-9)
     check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_the_six_joint_ur5_with_its_wrist_at_zero_is_the_lumped_three_joint_model():
+    """ur5_6dof.xml keeps the wrist as three links; at q4 = q5 = q6 = 0 (wrist at rest) the first three joints see
+    exactly the forearm that ur5_3dof.xml lumps: the same mass matrix block, bias forces and flange."""
+    six = prepare_arm(default_model_path().parent / "ur5_6dof.xml", dt=0.02)
+    three = load_model(None, dt=0.02)
+    probe6, probe3 = DynamicsProbe(six), DynamicsProbe(three)
+    rng = np.random.default_rng(11)
+    q, qd = rng.uniform(-2, 2, (30, 3)), rng.uniform(-1, 1, (30, 3))
+    zero = np.zeros((30, 3))
+    D6, h6 = probe6.mass_and_bias(np.hstack([q, zero]), np.hstack([qd, zero]))
+    D3, h3 = probe3.mass_and_bias(q, qd)
+    np.testing.assert_allclose(D6[:, :3, :3], D3, atol=1e-11)
+    np.testing.assert_allclose(h6[:, :3], h3, atol=1e-10)
+    np.testing.assert_allclose(probe6.gravity(np.hstack([q, zero]))[:, :3], probe3.gravity(q), atol=1e-10)
+    np.testing.assert_array_equal(six.actuator_ctrlrange[:, 1], [60, 60, 60, 28, 28, 28])
+    sites = []
+    for model in (six, three):
+        data = mujoco.MjData(model)
+        data.qpos[:3] = [0.3, -1.1, 0.7]
+        mujoco.mj_forward(model, data)
+        sites.append(data.site("attachment_site").xpos.copy())
+    np.testing.assert_allclose(sites[0], sites[1], atol=1e-12)
+
+
+def test_pinocchio_agrees_on_the_six_joint_ur5():
+    import pinocchio as pin  # a test dependency (extra 'test'): a missing one fails, never skips
+
+    path = default_model_path().parent / "ur5_6dof.xml"
+    pmodel = pin.buildModelFromMJCF(str(path))
+    pdata = pmodel.createData()
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        q, v, a = rng.uniform(-2, 2, 6), rng.normal(size=6), rng.normal(size=6)
+        data.qpos[:], data.qvel[:], data.qacc[:] = q, v, a
+        mujoco.mj_inverse(model, data)
+        np.testing.assert_allclose(pin.rnea(pmodel, pdata, q, v, a), data.qfrc_inverse, atol=1e-10)
+        M = np.zeros((6, 6))
+        mujoco.mj_fullM(model, data, M)
+        np.testing.assert_allclose(pin.crba(pmodel, pdata, q), M, atol=1e-10)
