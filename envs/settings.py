@@ -190,7 +190,7 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
       InvalidInputError: an unknown argument (the valid ones are listed) or a bad value.
     """
     if xml_file is not None:
-        from mjtraj.study.scenario import scenario_for_model
+        from mjtraj.study import scenario_for_model
 
         if scenario is not None:
             raise InvalidInputError("xml_file, scenario: give one")

@@ -114,6 +114,7 @@ def _parser() -> argparse.ArgumentParser:
     f = sub.add_parser("frontier", help="the optimal planner over its weight frontier (Q = alpha Q_bryson), beside the "
                        "other planners, by the scenario's fixed score")
     f.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
+    f.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
     f.add_argument("--alphas", type=_floats, help="alpha values (default: 0 and 33 values from 1e-6 to 1e2)")
     f.add_argument("--splits", type=_floats, help="shares of the state weight on positions, in [0, 1] (default 0.5, "
                    "Bryson's balance)")
@@ -128,6 +129,7 @@ def _parser() -> argparse.ArgumentParser:
     u = sub.add_parser("tune", help="tune every planner's free parameters with an equal, held-out budget; writes a "
                        "scenario file with the tuned options and the tuning record")
     u.add_argument("--config", type=Path, help="base scenario TOML (default: the shipped paper scenario)")
+    u.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
     u.add_argument("--planners", type=_names, default=["optimal", "trapezoidal", "scurve"],
                    help="planners to tune (default optimal, trapezoidal, scurve; cubic and quintic have no parameters)")
     u.add_argument("--family", default="nominal", help="family whose rules draw the training scenarios (default "
@@ -188,6 +190,7 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("render", help="execution videos per planner, a 2x2 clip and the Fig. 1 snapshot strip")
     r.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
+    r.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
     r.add_argument("--planners", type=_names, help="comma-separated planner names (default: all)")
     r.add_argument("--format", dest="formats", type=_names, default=["mp4"], help="mp4 and/or gif (default: mp4)")
     r.add_argument("--width", type=int, default=640, help="image width, px (default 640)")
@@ -272,14 +275,21 @@ def _scenario(args: argparse.Namespace):  # noqa: ANN202
     task = {k: getattr(args, k) for k in ("q0", "qg", "duration", "dt") if getattr(args, k, None) is not None}
     loop = {k: getattr(args, k) for k in option_names(LoopConfig) if getattr(args, k, None) is not None}
     if getattr(args, "model", None) is not None:
-        from mjtraj.study.scenario import scenario_for_model
-
-        if args.config is not None:
-            raise InvalidInputError("model, config: give one (a scenario file names its arm with model = \"PATH\")")
-        scenario = scenario_for_model(args.model, **task)
+        scenario = _base_scenario(args, **task)
         return scenario.replace(loop=loop) if loop else scenario
     scenario = load_scenario(args.config)
     return scenario.replace(task=task, loop=loop) if task or loop else scenario
+
+
+def _base_scenario(args: argparse.Namespace, **task: Any):  # noqa: ANN202
+    """The scenario of --config, or of --model PATH by the arm rules (with `task` overrides), never both."""
+    from mjtraj.study.scenario import load_scenario, scenario_for_model
+
+    if getattr(args, "model", None) is None:
+        return load_scenario(args.config)
+    if args.config is not None:
+        raise InvalidInputError("model, config: give one (a scenario file names its arm with model = \"PATH\")")
+    return scenario_for_model(args.model, **task)
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -324,13 +334,12 @@ def _frontier(args: argparse.Namespace) -> int:
     from mjtraj.files import write_text_atomic
     from mjtraj.study.frontier import DEFAULT_ALPHAS, DEFAULT_SPLITS, frontier
     from mjtraj.study.report import format_frontier
-    from mjtraj.study.scenario import load_scenario
 
     for flag, value in (("--scenarios", args.scenarios), ("--seed", args.seed)):
         if value is not None and args.family is None:
             raise InvalidInputError(f"{flag}: only used with --family (without it the frontier is on the scenario's "
                                     f"task)")
-    scenario = load_scenario(args.config)
+    scenario = _base_scenario(args)
     result = frontier(scenario, alphas=args.alphas if args.alphas is not None else DEFAULT_ALPHAS,
                       splits=args.splits if args.splits is not None else DEFAULT_SPLITS, family=args.family,
                       scenarios=100 if args.scenarios is None else args.scenarios,
@@ -353,11 +362,10 @@ def _frontier(args: argparse.Namespace) -> int:
 
 def _tune(args: argparse.Namespace) -> int:
     from mjtraj.files import write_text_atomic
-    from mjtraj.study.scenario import load_scenario
     from mjtraj.study.toml_text import dumps
     from mjtraj.study.tuning import tune
 
-    base = load_scenario(args.config)
+    base = _base_scenario(args)
     tuned, results = tune(base, planners=args.planners, family=args.family, scenarios=args.scenarios,
                           seed=args.seed, budget=args.budget, on_task=args.on_task)
     import textwrap
@@ -609,7 +617,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         commands = {"compare": _compare, "frontier": _frontier, "tune": _tune, "bench": _bench, "gains": _gains,
-                    "render": _render, "doctor": _doctor, "sweep": _sweep, "audit": _audit, "export": _export, "rl": _rl}
+                    "render": _render, "doctor": _doctor, "sweep": _sweep, "audit": _audit, "export": _export,
+                    "rl": _rl}
         return commands[args.command](args)
     except MjtrajError as e:
         print(f"mjtraj: error: {e}", file=sys.stderr)

@@ -175,3 +175,8 @@ def test_pinocchio_agrees_on_the_six_joint_ur5():
         M = np.zeros((6, 6))
         mujoco.mj_fullM(model, data, M)
         np.testing.assert_allclose(pin.crba(pmodel, pdata, q), M, atol=1e-10)
+
+
+def test_frontier_takes_a_user_arm(tmp_path, capsys):
+    assert main(["frontier", "--model", str(PLANAR), "--alphas", "0,1", "--no-figures", "--out", str(tmp_path)]) == 0
+    assert "on the scenario's task (planar_2link)" in capsys.readouterr().out

@@ -11,6 +11,7 @@ from mjtraj._lazy import lazy_exports
 _EXPORTS = {
     "Scenario": "mjtraj.study.scenario",
     "load_scenario": "mjtraj.study.scenario",
+    "scenario_for_model": "mjtraj.study.scenario",
     "scenario_from_dict": "mjtraj.study.scenario",
     "default_scenario_path": "mjtraj.study.scenario",
     "FAMILIES": "mjtraj.study.families",
@@ -94,7 +95,13 @@ if TYPE_CHECKING:
     from mjtraj.study.report import format_report, results_csv
     from mjtraj.study.rows import EXTRA_METRICS, Row
     from mjtraj.study.runner import SweepReport, run_sweep
-    from mjtraj.study.scenario import Scenario, default_scenario_path, load_scenario, scenario_from_dict
+    from mjtraj.study.scenario import (
+        Scenario,
+        default_scenario_path,
+        load_scenario,
+        scenario_for_model,
+        scenario_from_dict,
+    )
     from mjtraj.study.stats import PairedRatio, cvar, paired_ratio
     from mjtraj.study.store import VERSION_COLUMNS, ResultsFile, append_rows, csv_text, numeric, read_rows
     from mjtraj.study.sweep import (
@@ -121,7 +128,7 @@ __all__ = [
     "VERSION_COLUMNS", "append_rows", "columns", "compare", "comparison_record", "csv_text", "cvar",
     "default_scenario_path", "draw_perturbation", "draw_scenario", "execute", "execute_batch", "fixed_columns",
     "format_report", "jobs_for", "load_scenario", "measurement_noise", "no_perturbation", "noise_scale", "numeric",
-    "one_line", "paired_ratio", "perturbed_plant", "plan_failure", "plan_scenarios", "planner_names", "plant_fields",
-    "read_rows", "results_csv", "run_sweep", "run_unit", "scenario_from_dict", "scoring_weights", "unit_scenarios",
-    "write_audit",
+    "one_line", "paired_ratio", "perturbed_plant", "plan_failure", "plan_scenarios", "planner_names",
+    "plant_fields", "read_rows", "results_csv", "run_sweep", "run_unit", "scenario_for_model", "scenario_from_dict",
+    "scoring_weights", "unit_scenarios", "write_audit",
 ]

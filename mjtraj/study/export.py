@@ -1,10 +1,10 @@
 """`mjtraj export`: a sweep's results file as a SQLite database or JSON Lines, with typed values.
 
-The CSV results file stays the store a sweep appends to (durable row by row, resumable); export turns a complete
-one into the formats analysis tools read directly. A column is text when it is one of TEXT_COLUMNS (names, reasons,
+The CSV results file stays the store a sweep appends to (durable row by row, resumable); export turns a complete one
+into the formats analysis tools read directly. A column is text when it is one of TEXT_COLUMNS (names, reasons,
 versions: '3.10' is not 3.1) or a present cell of it is not a number; else a number ('' and 'nan' are missing
-values: SQL NULL, JSON null), whole when every present cell is written as a whole number. Only complete sweeps are exported (a torn or unfinished
-file is refused, as the audit refuses it); the output is written atomically.
+values: SQL NULL, JSON null), whole when every present cell is written as a whole number. Only complete sweeps are
+exported (a torn or unfinished file is refused, as the audit refuses it); the output is written atomically.
 """
 
 from __future__ import annotations
