@@ -180,3 +180,17 @@ def test_pinocchio_agrees_on_the_six_joint_ur5():
 def test_frontier_takes_a_user_arm(tmp_path, capsys):
     assert main(["frontier", "--model", str(PLANAR), "--alphas", "0,1", "--no-figures", "--out", str(tmp_path)]) == 0
     assert "on the scenario's task (planar_2link)" in capsys.readouterr().out
+
+
+def test_a_stiffly_damped_arm_gets_the_substeps_that_keep_rk4_stable(tmp_path):
+    """Joint damping of 30 N m s/rad on the planar arm's light second link (about 0.053 kg m^2): RK4 at 0.02 s
+    diverges; the rule's substeps keep the executed arm bounded and tracking."""
+    path = tmp_path / "damped.xml"
+    path.write_text(PLANAR.read_text().replace('name="joint2" type="hinge"', 'name="joint2" type="hinge" damping="30"'))
+    scenario = scenario_for_model(path)
+    assert scenario.loop.substeps >= 10
+    reference = make("cubic").plan(scenario.task, scenario.model)
+    ok = ClosedLoop(scenario.model, scenario.loop).run([reference])
+    assert ok.diverged_step[0] == -1 and np.max(np.abs(ok.e)) < 1e-2
+    single = scenario.replace(loop={"substeps": 1})
+    assert ClosedLoop(single.model, single.loop).run([reference]).diverged_step[0] >= 0
