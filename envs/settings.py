@@ -204,6 +204,9 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
         raise InvalidInputError(f"{unknown[0]}: unknown argument; valid: "
                                 f"{', '.join([*ENV_OWN, *env_names, *loop_names])}")
     own = EnvOptions(**{k: v for k, v in options.items() if k in env_names})
+    if xml_file is not None and own.plant_randomization != "none":
+        raise InvalidInputError(f"plant_randomization: {own.plant_randomization!r} is defined for the shipped UR5 "
+                                f"(its links and flange); with xml_file use 'none'")
     loop = dataclasses.replace(paper.loop, **{k: v for k, v in options.items() if k in loop_names})
     planner_name, planner_obj = _planner(planner, paper)
     if render_mode is not None and render_mode not in RENDER_MODES:

@@ -194,3 +194,19 @@ def test_a_stiffly_damped_arm_gets_the_substeps_that_keep_rk4_stable(tmp_path):
     assert ok.diverged_step[0] == -1 and np.max(np.abs(ok.e)) < 1e-2
     single = scenario.replace(loop={"substeps": 1})
     assert ClosedLoop(single.model, single.loop).run([reference]).diverged_step[0] >= 0
+
+
+def test_what_the_env_cannot_do_for_a_user_arm_is_refused(tmp_path):
+    import gymnasium as gym
+
+    from mjtraj.exceptions import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=r"^plant_randomization: 'mismatch' is defined for the shipped UR5 "
+                                                r"\(its links and flange\); with xml_file use 'none'$"):
+        gym.make("ArmTrack-v0", xml_file=str(PLANAR), plant_randomization="mismatch")
+    free = tmp_path / "free.xml"
+    free.write_text(PLANAR.read_text().replace(' range="-2.5 2.5"', ""))
+    env = gym.make("ArmTrack-v0", xml_file=str(free), task="random")
+    with pytest.raises(InvalidInputError, match=r"^task: random tasks are drawn in the joint ranges; joint 'joint2' "
+                                                r"has none$"):
+        env.reset(seed=0)

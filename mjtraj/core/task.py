@@ -94,6 +94,10 @@ def random_task(rng: np.random.Generator, model: mujoco.MjModel, *, max_displace
     """A start uniform in the joint ranges and a goal uniform in the ranges within +-max_displacement (rad) of
     it, per joint: two draws of n uniforms from `rng`."""
     joints = JointInfo.of(model)
+    unlimited = [name for name, lo, hi in zip(joints.names, joints.lower, joints.upper, strict=True)
+                 if not (np.isfinite(lo) and np.isfinite(hi))]
+    if unlimited:
+        raise InvalidInputError(f"task: random tasks are drawn in the joint ranges; joint {unlimited[0]!r} has none")
     q0 = rng.uniform(joints.lower, joints.upper)
     low = np.maximum(joints.lower, q0 - max_displacement)
     high = np.minimum(joints.upper, q0 + max_displacement)
