@@ -1,5 +1,5 @@
-"""The closed loop (docs/design.md, "Controller"), once: plant + feedforward + PID, batched; compare, sweeps, rl eval
-and the envs all run it."""
+"""The closed loop (docs/design.md, "Controller"), once: plant + the configured control law (feedforward + PID by
+default, or computed torque, or a plug-in's), batched; compare, sweeps, rl eval and the envs all run it."""
 
 from __future__ import annotations
 
@@ -126,7 +126,7 @@ class Step(NamedTuple):
 
 
 class ClosedLoop:
-    """B scenarios of the plant under feedforward + PID, advanced one control period at a time.
+    """B scenarios of the plant under the configured control law, advanced one control period at a time.
 
     `model` is the nominal model (planner, feedforward, zoh gravity); `plant` the simulated one (default: the
     nominal one), with per-simulation `plant_fields` (see BatchPlant). Use `run` for whole references, or
