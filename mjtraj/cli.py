@@ -168,6 +168,7 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--delay", type=int, default=0, help="mismatch: actuation delay, control periods, 0 or 1")
     w.add_argument("--batch", type=int, default=250, help="scenarios per unit of work (default 250)")
     w.add_argument("--config", help="base scenario TOML: controller and planner options (default: paper.toml)")
+    w.add_argument("--model", help="your MJCF arm instead of the UR5 (nominal and aggressive families)")
     w.add_argument("--out", type=Path, default=Path("sweep.csv"), help="results CSV (default sweep.csv)")
     w.add_argument("--resume", action="store_true", help="continue an interrupted sweep in --out")
     w.add_argument("--backend", default="local", help="local (process pool) or ray (default local)")
@@ -463,7 +464,7 @@ def _sweep_settings(args: argparse.Namespace):  # noqa: ANN202
     return SweepSettings(families=tuple(args.families), scenarios=args.scenarios, seed=args.seed,
                          planners=tuple(args.planners or DEFAULT_PLANNERS), ff_accel=tuple(args.ff_accel),
                          gravity_comp=tuple(args.gravity_comp), batch=args.batch, sensor_noise=args.sensor_noise,
-                         delay=args.delay, model_error=args.model_error, config=args.config)
+                         delay=args.delay, model_error=args.model_error, config=args.config, model=args.model)
 
 
 def _sweep(args: argparse.Namespace) -> int:

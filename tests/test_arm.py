@@ -210,3 +210,22 @@ def test_what_the_env_cannot_do_for_a_user_arm_is_refused(tmp_path):
     with pytest.raises(InvalidInputError, match=r"^task: random tasks are drawn in the joint ranges; joint 'joint2' "
                                                 r"has none$"):
         env.reset(seed=0)
+
+
+def test_a_sweep_and_its_audit_on_a_user_arm(tmp_path, capsys):
+    from mjtraj.exceptions import InvalidInputError
+    from mjtraj.study.store import read_rows
+    from mjtraj.study.sweep import SweepSettings
+
+    out = tmp_path / "arm.csv"
+    assert main(["sweep", "--model", str(PLANAR), "--family", "nominal,aggressive", "--scenarios", "3",
+                 "--planners", "optimal,cubic,quintic,trapezoidal", "--out", str(out), "--no-progress"]) == 0
+    rows = read_rows(out)
+    assert len(rows) == 2 * 3 * 4 and {r["model"] for r in rows} == {str(PLANAR)}
+    assert {len(r["kp_0"]) > 0 and "kp_2" not in r for r in rows} == {True}  # two joints' gains
+    assert main(["audit", str(out), "--out", str(tmp_path / "A.md")]) == 0
+    text = (tmp_path / "A.md").read_text()
+    assert "| paper task, ff_accel=sample, gravity_comp=native |" in text  # the arm's own task, run by the audit
+    with pytest.raises(InvalidInputError, match=r"^family: mismatch perturbs the shipped UR5's links and flange; "
+                                                r"with a model use nominal and aggressive$"):
+        SweepSettings(families=("mismatch",), model=str(PLANAR))

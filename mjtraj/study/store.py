@@ -18,8 +18,6 @@ from typing import IO, Any
 
 from mjtraj.exceptions import InvalidInputError
 
-SETTING_PREFIXES = ("sweep_", "sensor_noise", "delay", "model_error_measured", "config", "feedforward", "anti_windup",
-                    "substeps", "dt", "kp_", "ki_", "kd_")
 VERSION_COLUMNS = ("mjtraj", "mujoco", "numpy")
 
 

@@ -37,7 +37,7 @@ from mjtraj.exceptions import InvalidInputError, MjtrajError
 from mjtraj.study.families import FAMILIES, FamilyScenario, draw_scenario, measurement_noise, perturbed_plant
 from mjtraj.study.pipeline import Actor, Job, Outcome, execute, one_line, plan_failure
 from mjtraj.study.rows import Row
-from mjtraj.study.scenario import Scenario, load_scenario
+from mjtraj.study.scenario import Scenario, load_scenario, scenario_for_model
 from mjtraj.study.store import VERSION_COLUMNS
 from mjtraj.versions import versions as all_versions
 
@@ -76,6 +76,7 @@ class SweepSettings:
       delay: actuation delay of mismatch scenarios, control periods (0 or 1).
       model_error: also measure the linear model's prediction error of optimal-type planners.
       config: the base scenario file (None: the shipped paper.toml).
+      model: an MJCF arm instead (its scenario by the arm rules, `scenario_for_model`); not with `config`.
     """
 
     families: tuple[str, ...] = ("nominal",)
@@ -89,6 +90,7 @@ class SweepSettings:
     delay: int = 0
     model_error: bool = False
     config: str | None = None
+    model: str | None = None
     base: Scenario = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -106,7 +108,15 @@ class SweepSettings:
             raise InvalidInputError(f"seed: expected a whole number >= 0, got {self.seed!r}")
         if not (np.isfinite(self.sensor_noise) and self.sensor_noise >= 0):
             raise InvalidInputError(f"sensor_noise: expected a number >= 0 (rad), got {self.sensor_noise!r}")
-        object.__setattr__(self, "base", load_scenario(self.config))
+        if self.model is not None:
+            if self.config is not None:
+                raise InvalidInputError("model, config: give one (a scenario file names its arm with model = "
+                                        "\"PATH\")")
+            if "mismatch" in self.families:
+                raise InvalidInputError("family: mismatch perturbs the shipped UR5's links and flange; with a model "
+                                        "use nominal and aggressive")
+        object.__setattr__(self, "base", load_scenario(self.config) if self.model is None else
+                           scenario_for_model(self.model))
         self.loop_config(self.ff_accel[0], self.gravity_comp[0], mismatch=True)  # validates delay
 
     def units(self) -> list[tuple[str, int]]:
@@ -135,7 +145,7 @@ class SweepSettings:
                 **{f"sweep_{axis}": "+".join(getattr(self, axis)) for axis in SWEPT},
                 "sweep_batch": self.batch, "sensor_noise": self.sensor_noise, "delay": self.delay,
                 "model_error_measured": int(self.model_error),
-                "config": self.config or SHIPPED_CONFIG,
+                "config": self.config or SHIPPED_CONFIG, "model": self.model or "",
                 "config_sha256": hashlib.sha256(base.encode()).hexdigest()[:16],
                 **{name: getattr(self.base.loop, name) for name in option_names(LoopConfig) if name not in SWEPT},
                 "dt": self.base.task.dt,
@@ -156,7 +166,7 @@ class SweepSettings:
                        **{axis: tuple(row[f"sweep_{axis}"].split("+")) for axis in SWEPT},
                        batch=int(row["sweep_batch"]), sensor_noise=float(row["sensor_noise"]),
                        delay=int(row["delay"]), model_error=bool(int(row["model_error_measured"])),
-                       config=None if config == SHIPPED_CONFIG else config)
+                       config=None if config == SHIPPED_CONFIG else config, model=row.get("model") or None)
         except (KeyError, ValueError) as e:
             raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
 
