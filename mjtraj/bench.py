@@ -46,6 +46,72 @@ def bench_plan(scenario: Scenario, steps: tuple[int, ...] = PLAN_STEPS, *, repea
     return rows
 
 
+QP_SOLVERS = ("quadprog", "proxsuite", "daqp")
+"""Dense QP solvers timed beside mjtraj on the identical QP (the `bench` extra)."""
+
+
+def _external_solvers(qp: Any) -> dict[str, Callable[[], np.ndarray]]:
+    """name -> a call solving the condensed QP `qp` (H, f, A_eq, b_eq, lb, ub) with that solver, for the installed
+    ones among QP_SOLVERS."""
+    import importlib.util
+
+    H, f, A, b, lb, ub = (np.array(a, dtype=np.float64) for a in (qp.H, qp.f, qp.A_eq, qp.b_eq, qp.lb, qp.ub))
+    n = H.shape[0]
+    calls: dict[str, Callable[[], np.ndarray]] = {}
+    if importlib.util.find_spec("quadprog"):
+        import quadprog
+
+        C = np.hstack([A.T, np.eye(n), -np.eye(n)])
+        bounds = np.concatenate([b, lb, -ub])
+        calls["quadprog"] = lambda: quadprog.solve_qp(H, -f, C, bounds, A.shape[0])[0]
+    if importlib.util.find_spec("proxsuite"):
+        import proxsuite
+
+        def prox() -> np.ndarray:
+            solver = proxsuite.proxqp.dense.QP(n, A.shape[0], n)
+            solver.settings.eps_abs = 1e-10
+            solver.init(H, f, A, b, np.eye(n), lb, ub)
+            solver.solve()
+            return np.asarray(solver.results.x)
+
+        calls["proxsuite"] = prox
+    if importlib.util.find_spec("daqp"):
+        import daqp
+
+        upper = np.concatenate([ub, b])
+        lower = np.concatenate([lb, b])
+        sense = np.concatenate([np.zeros(n, dtype=np.int32), np.full(b.size, 5, dtype=np.int32)])
+        calls["daqp"] = lambda: np.asarray(daqp.solve(H, f, A, upper, lower, sense)[0])
+    return calls
+
+
+def bench_qp(scenario: Scenario, *, repeats: int = 21) -> list[dict[str, Any]]:
+    """The optimal planner's QP on the scenario's task, solved by mjtraj's Riccati active set (`box_lqr` on A_d,
+    B_d: its whole solve) and by each installed solver of QP_SOLVERS on the condensed QP (`build_qp`'s H, f, A_eq,
+    b_eq and bounds, built once outside the timing): median seconds and the largest difference of the torques from
+    mjtraj's, N m."""
+    from mjtraj.core.lqr import box_lqr
+
+    model, task = scenario.model, scenario.task
+    planner = scenario.planner("optimal")
+    qp, facts = planner.build(task, model)  # type: ignore[attr-defined]
+    Q, R = planner.weights(task, facts["bound"])  # type: ignore[attr-defined]
+    x0 = np.concatenate([task.q0 - task.qg, np.zeros(task.n)])
+
+    def riccati() -> np.ndarray:
+        solution = box_lqr(facts["A_d"][None], facts["B_d"][None], Q[None], R[None], x0[None], task.steps,
+                           facts["bound"][None])
+        return solution.U[0].ravel()
+
+    mine = riccati()
+    rows = [{"solver": "mjtraj (Riccati active set)", "seconds": _median_time(riccati, repeats), "max_diff": 0.0}]
+    for name, call in _external_solvers(qp).items():
+        u = call()
+        rows.append({"solver": name, "seconds": _median_time(call, repeats),
+                     "max_diff": float(np.max(np.abs(u - mine)))})
+    return rows
+
+
 NEW_PLANNERS = ("scurve", "nonlinear_min_effort", "nonlinear_optimal")
 
 

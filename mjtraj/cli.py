@@ -398,6 +398,16 @@ def _bench(args: argparse.Namespace) -> int:
         print(f"{'N':>6} {'median ms':>10} {'ratio to N=100':>15}")
         for row in bench_plan(scenario):
             print(f"{row['N']:>6} {row['median_ms']:>10.2f} {row['ratio_to_first']:>15.2f}")
+        from mjtraj.bench import QP_SOLVERS, bench_qp
+
+        qp_rows = bench_qp(scenario)
+        print(f"the same QP (N = {scenario.task.steps}), median wall time of the solve alone: mjtraj's Riccati active "
+              f"set vs {', '.join(QP_SOLVERS)} on the condensed QP (the `bench` extra; those not installed are left "
+              f"out); target: mjtraj at least 4 times faster than quadprog")
+        print(f"{'solver':<28} {'median ms':>10} {'x mjtraj':>9} {'max |u - u_mjtraj| N m':>23}")
+        for row in qp_rows:
+            print(f"{row['solver']:<28} {1e3 * row['seconds']:>10.3f} {row['seconds'] / qp_rows[0]['seconds']:>9.2f} "
+                  f"{row['max_diff']:>23.1e}")
     if args.what in ("planners", "all"):
         from mjtraj.bench import bench_new_planners
 

@@ -51,3 +51,12 @@ def test_new_planners_table_prints_what_it_measured(capsys):
         assert float(seconds) > 0 and int(iterations) >= 1
     family = re.search(r"over 12 nominal scenarios: median ([0-9.]+) s, largest ([0-9.]+) s per plan", out)
     assert float(family[1]) <= float(family[2])
+
+
+def test_three_independent_qp_solvers_agree_with_mjtraj_on_the_optimal_planners_qp(scenario):
+    from mjtraj.bench import QP_SOLVERS, bench_qp
+
+    rows = bench_qp(scenario, repeats=1)
+    assert [row["solver"] for row in rows[1:]] == list(QP_SOLVERS)  # the test extra installs them: none skipped
+    for row in rows:
+        assert row["seconds"] > 0 and row["max_diff"] < 1e-6, row
