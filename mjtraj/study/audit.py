@@ -433,9 +433,10 @@ def _frontier_section(data: SweepData, out: Path, paths: Sequence[str | os.PathL
              "The optimal planner for Q = alpha Q_bryson (R = R_bryson fixed), alpha from 0 to 100, on the paper task "
              f"of {weights_label(config) or 'the first file'}, controller ff_accel={ff}, gravity_comp={gc}, scored "
              "by the scenario's fixed J_exec; every other planner as one point. The same table is printed by "
-             "`mjtraj frontier`" + ("" if config == SHIPPED_CONFIG else f" --config {config}") + ". Each audited set "
-             "of weights puts the optimal planner here on this task (RMS dtau N m, RMS error rad): "
-             + "; ".join(f"{k}: {v[0]:.4g}, {v[1]:.4g}" for k, v in points.items()) + ".", "",
+             "`mjtraj frontier`" + ("" if config == SHIPPED_CONFIG else f" --config {config}") + "." + (
+                 " Each audited set of weights puts the optimal planner here on this task (RMS dtau N m, RMS error "
+                 "rad): " + "; ".join(f"{k}: {v[0]:.4g}, {v[1]:.4g}" for k, v in points.items()) + "."
+                 if points else ""), "",
              "```", format_frontier(result), "```", ""]
     if figures:
         from mjtraj.study.plots import frontier_figure

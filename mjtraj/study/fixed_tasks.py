@@ -37,7 +37,8 @@ def task_rows(record: dict[str, str]) -> tuple[list[dict[str, str]], str]:
     except MjtrajError as e:
         return [], f"cannot rebuild the sweep's settings ({e})"
     if settings.record()["config_sha256"] != record.get("config_sha256"):
-        return [], f"its scenario file {record.get('config')!r} has changed since the sweep"
+        return [], (f"its scenario ({record.get('config')}) now differs from the one the sweep ran (an edited file, "
+                    f"or a sweep written by another mjtraj version)")
     rows = []
     for name, scenario in fixed_scenarios(settings):
         rows += scenario_rows(settings, (name, 0), [scenario], scoring_weights(settings, [scenario]))
