@@ -283,7 +283,8 @@ def bench_render(sizes: tuple[tuple[int, int], ...] = ((320, 240), (640, 480)), 
 
 def bench_sweep(scenarios: int = 10_000, *, workers: int | None = None) -> dict[str, object]:
     """A nominal sweep of `scenarios` x the four paper planners into a temporary file: wall time, rows and the
-    CPU seconds per stage (sample, plan, execute, metrics) summed over the workers."""
+    CPU seconds per stage (sample, plan, execute, metrics) summed over the workers; then the floor, raw
+    mujoco.batch stepping of as many control periods on as many threads as workers."""
     import os
     import tempfile
 
@@ -291,12 +292,23 @@ def bench_sweep(scenarios: int = 10_000, *, workers: int | None = None) -> dict[
     from mjtraj.study.sweep import SweepSettings
 
     settings = SweepSettings(families=("nominal",), scenarios=scenarios)
+    count = workers if workers is not None else os.cpu_count() or 1
     with tempfile.TemporaryDirectory() as folder:
         start = time.perf_counter()
         report = run_sweep(settings, os.path.join(folder, "sweep.csv"), workers=workers, progress=False)
         wall = time.perf_counter() - start
-    return {"wall": wall, "rows": report.rows, "stages": report.seconds,
-            "workers": workers if workers is not None else os.cpu_count() or 1}
+    periods = report.rows * settings.base.task.steps
+    batch = Batch(settings.base.model, FLOOR_BATCH, nthread=count)
+    start = time.perf_counter()
+    for _ in range(-(-periods // FLOOR_BATCH)):
+        batch.step(nstep=settings.base.loop.substeps)
+    floor = time.perf_counter() - start
+    return {"wall": wall, "rows": report.rows, "stages": report.seconds, "workers": count, "periods": periods,
+            "floor": floor}
+
+
+FLOOR_BATCH = 4096
+"""Simulations per raw mujoco.batch step when timing the sweep's floor."""
 
 
 def bench_startup(*, repeats: int = 3) -> dict[str, float]:
