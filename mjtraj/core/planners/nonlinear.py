@@ -25,7 +25,7 @@ with RETRY_FACTOR times the curvature scale. SLSQP's path is sensitive to the la
 the same bit for bit only under the same BLAS thread count (the `mjtraj` command and sweep workers use one).
 
 Why single shooting: it keeps the plan exactly on the model's dynamics at every iterate, and its few hundred
-variables are within SLSQP's reach. A plan at N = 100 takes about a second (`mjtraj bench plan` prints it). Both
+variables are within SLSQP's reach. A plan at N = 100 takes about a second (`mjtraj bench planners` prints it). Both
 planners are registered on request: they are bounds for the audit, not planners for the inner loop, and never run
 unless named.
 """
