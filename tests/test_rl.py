@@ -278,7 +278,7 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
                    for k, v in want.items() if k not in ("reason",)), got["planner"]
     mine = [r for r in rows if r["policy"]]
     assert [r["scenario"] for r in mine] == [str(i) for i in range(5)]
-    assert all(r["controller"] == "cubic+PID+residual SAC (10 N m)" and r["policy_timesteps"] == "240" for r in mine)
+    assert all(r["method"] == "cubic+PID+residual SAC (10 N m)" and r["policy_timesteps"] == "240" for r in mine)
     # the policy rows replay: its episodes on the same references, batched as eval batches them (scenarios of one
     # length together: torch's float32 kernels round differently for different batch sizes), give the same numbers
     policy = load_policy(trained / "policy.zip")
@@ -549,7 +549,7 @@ def test_a_policy_failing_in_eval_is_recorded_and_eval_goes_on(trained, tmp_path
     monkeypatch.setattr(PolicyActor, "act", failing)
     evaluate([trained / "policy.zip"], scenarios=3, planners=("cubic",), out=tmp_path)
     rows = read_rows(tmp_path / "eval_nominal.csv")
-    assert [(r["controller"], r["status"]) for r in rows] == [("cubic+PID", "ok")] * 3 + [
+    assert [(r["method"], r["status"]) for r in rows] == [("cubic+PID", "ok")] * 3 + [
         ("cubic+PID+residual SAC (10 N m)", "error")] * 3
     assert {r["reason"] for r in rows if r["policy"]} == {"RuntimeError: policy exploded"}
     assert "| cubic+PID+residual SAC (10 N m) | 0 | 3 |" in (tmp_path / "EVAL_nominal.md").read_text()

@@ -40,7 +40,7 @@ from mjtraj.study import (
     run_unit,
 )
 
-POLICY_COLUMNS = ("controller", "policy", "policy_sha256", "policy_timesteps")
+POLICY_COLUMNS = ("method", "policy", "policy_sha256", "policy_timesteps")
 
 
 @dataclass
@@ -104,7 +104,7 @@ def _same(a: Any, b: Any) -> bool:
 def actor_specs(policies: Sequence[Policy], labels: Sequence[str]) -> list[ActorSpec]:
     """Each policy as an actor of the sweep's units: its label, the planner it tracks, its row columns."""
     return [ActorSpec(label, p.env_kwargs["planner"], PolicyActor(p.act, p.settings()),
-                      {"controller": label, "policy": str(p.path), "policy_sha256": p.sha256[:16],
+                      {"method": label, "policy": str(p.path), "policy_sha256": p.sha256[:16],
                        "policy_timesteps": p.timesteps})
             for p, label in zip(policies, labels, strict=True)]
 
@@ -137,7 +137,7 @@ def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenari
     for unit in settings.units():
         for row in run_unit(settings, unit, actors=actors).rows:
             rows.append(row if row["planner"] in names else
-                        {**row, "controller": f"{row['planner']}+PID", "policy": "", "policy_sha256": "",
+                        {**row, "method": f"{row['planner']}+PID", "policy": "", "policy_sha256": "",
                          "policy_timesteps": ""})
     out = Path(out)
     csv_path = out / f"eval_{family}.csv"
@@ -206,7 +206,7 @@ def comparison_table(csv_path: Path, *, reference: str) -> str:
     with 95 % bootstrap intervals (mjtraj.study.stats)."""
     data = SweepData([csv_path])
     (condition,) = data.conditions
-    by_planner = {r["planner"]: r["controller"] for r in data.rows}
+    by_planner = {r["planner"]: r["method"] for r in data.rows}
     lines = [f"| controller | ok | failed | J_exec mean | J_exec median | CVaR90 J_exec | J_exec / {reference}+PID "
              f"[95 % CI] | beats {reference}+PID in | RMS err mean (rad) | RMS dtau mean (N m) |",
              "|---|---|---|---|---|---|---|---|---|---|"]
