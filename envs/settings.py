@@ -28,7 +28,7 @@ from mjtraj.core import (
     random_task,
 )
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.media import check_render_options
+from mjtraj.media import RENDER_QUALITIES, check_render_options
 from mjtraj.study import Perturbation, Scenario, draw_perturbation, load_scenario, noise_scale
 
 ACTION_MODES = ("pid", "residual", "torque")
@@ -40,7 +40,7 @@ RESIDUAL_SCALE = 10.0
 """N m, the default authority of a residual action: the median per-joint RMS feedback torque of PID on the mismatch
 family (cubic references, 1000 scenarios: 10.2 N m, see docs/design.md), rounded to one significant figure. The
 residual is meant to supply what feedback supplies under model error, not the 60 N m saturation."""
-ENV_OWN = ("planner", "q0", "qg", "Q_exec", "R_exec", "render_mode", "xml_file")
+ENV_OWN = ("planner", "q0", "qg", "Q_exec", "R_exec", "render_mode", "xml_file", "torque_limit")
 """Arguments that are not declared options (objects, vectors or None)."""
 
 
@@ -70,6 +70,8 @@ class EnvOptions:
     width: int = option(640, "image width, px", minimum=1)
     height: int = option(480, "image height, px", minimum=1)
     camera: str = option("front", "front, side or top")
+    render_quality: str = option("fast", "fast (no shadows or reflection, fewer facets) or high (the model's own "
+                                 "scene, for publication frames)", choices=RENDER_QUALITIES)
 
     def __post_init__(self) -> None:
         check_options(self)
@@ -81,7 +83,7 @@ def argument_defaults() -> dict[str, Any]:
     own = {f.name: f.default for f, _, _ in declared_options(EnvOptions)}
     loop = {f.name: getattr(paper.loop, f.name) for f, _, _ in declared_options(LoopConfig)}
     return {"planner": "cubic", **own, "q0": None, "qg": None, "Q_exec": None, "R_exec": None, "render_mode": None,
-            "xml_file": None, **loop}
+            "xml_file": None, "torque_limit": None, **loop}
 
 
 @dataclass(frozen=True)
@@ -115,6 +117,7 @@ class TrackSettings:
     width: int
     height: int
     camera: str
+    render_quality: str
 
     @property
     def n(self) -> int:
@@ -181,8 +184,8 @@ def _planner(planner: Any, paper: Scenario) -> tuple[str, Planner]:
 
 def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None, qg: npt.ArrayLike | None = None,
             Q_exec: npt.ArrayLike | None = None, R_exec: npt.ArrayLike | None = None, render_mode: str | None = None,
-            xml_file: str | os.PathLike[str] | None = None, scenario: Scenario | None = None,
-            **options: Any) -> TrackSettings:
+            xml_file: str | os.PathLike[str] | None = None, torque_limit: float | None = None,
+            scenario: Scenario | None = None, **options: Any) -> TrackSettings:
     """Validate the env's arguments (see UR5TrackEnv; the declared ones are EnvOptions' and LoopConfig's) and fill
     in the paper scenario's controller.
 
@@ -195,7 +198,11 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
         if scenario is not None:
             raise InvalidInputError("xml_file, scenario: give one")
         dt = options.get("dt", 0.02)
-        scenario = scenario_for_model(xml_file, dt=dt if isinstance(dt, (int, float)) else 0.02)
+        scenario = scenario_for_model(xml_file, dt=dt if isinstance(dt, (int, float)) else 0.02,
+                                      torque_limit=torque_limit)
+    elif torque_limit is not None:
+        raise InvalidInputError(f"torque_limit: only with xml_file (your own arm), got {torque_limit!r} for the "
+                                f"UR5, whose saturation is its motors' 60 N m")
     paper = scenario if scenario is not None else load_scenario()
     env_names = [f.name for f, _, _ in declared_options(EnvOptions)]
     loop_names = [f.name for f, _, _ in declared_options(LoopConfig)]
@@ -212,7 +219,7 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
     if render_mode is not None and render_mode not in RENDER_MODES:
         raise InvalidInputError(f"render_mode: unsupported mode {render_mode!r}; valid: None, "
                                 f"{', '.join(RENDER_MODES)}")
-    model = load_model(paper.model_path, dt=own.dt)
+    model = load_model(paper.model_path, dt=own.dt, torque_limit=paper.model_torque_limit)
     n = model.nv
     if own.task == "explicit":
         if q0 is None or qg is None:
@@ -238,4 +245,5 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          observe_control=own.observe_control, plant_randomization=own.plant_randomization,
                          measurement_noise=own.measurement_noise, reward_baseline=own.reward_baseline,
                          scoring=scoring,
-                         render_mode=render_mode, width=width, height=height, camera=camera)
+                         render_mode=render_mode, width=width, height=height, camera=camera,
+                         render_quality=own.render_quality)

@@ -134,6 +134,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     |------------------|------------|-------------------------------------------------------------------------|
     | planner          | "cubic"    | registered planner name or an object with plan(task, model)             |
     | xml_file         | None       | an MJCF arm instead of the UR5 (ArmTrack-v0; docs/design.md, "Your own arm") |
+    | torque_limit     | None       | with xml_file: every joint's corrective saturation, N m (None: the model's) |
     | action_mode      | "pid"      | pid, residual or torque                                                 |
     | residual_scale   | 10.0       | s, N m per unit of action in residual mode (> 0)                        |
     | task             | "paper"    | paper, random or explicit                                               |
@@ -161,6 +162,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | width            | 640        | image width, px                                                         |
     | height           | 480        | image height, px                                                        |
     | camera           | "front"    | front, side or top                                                      |
+    | render_quality   | "fast"     | fast (no shadows or reflection, fewer facets) or high (publication)     |
 
     The PID gains are the paper scenario's, identical for every planner and task (their rule: `mjtraj gains`).
 
@@ -240,7 +242,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             raise InvalidInputError("render: call reset() first")
         if self._renderer is None:
             s = self.settings
-            self._renderer = ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera)
+            self._renderer = ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera,
+                                         quality=s.render_quality)
         if self.render_mode == "depth_array":
             return self._renderer.depth(self._core.loop.positions[0])
         return self._renderer.frame(self._core.loop.positions[0], self._core.reference_pose(0))

@@ -157,7 +157,8 @@ class UR5TrackVectorEnv(VectorEnv):
             return None
         s = self.settings
         if not self._renderers:
-            self._renderers = [ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera)]
+            self._renderers = [ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera,
+                                           quality=s.render_quality)]
         positions = self._core.loop.positions
         if self.render_mode == "depth_array":
             return tuple(self._renderers[0].depth(positions[i]) for i in range(self.num_envs))

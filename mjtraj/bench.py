@@ -259,25 +259,40 @@ def bench_vector_env(sizes: tuple[int, ...] = (64, 1024), *, rounds: int = 3) ->
     return rows
 
 
-def bench_render(sizes: tuple[tuple[int, int], ...] = ((320, 240), (640, 480)), *,
-                 frames: int = 30) -> list[dict[str, object]]:
-    """env.render() frames per second at each (width, height), on the GL backend in force."""
+def bench_render(sizes: tuple[tuple[int, int], ...] = ((320, 240), (640, 480)), *, frames: int = 20,
+                 rounds: int = 3) -> list[dict[str, object]]:
+    """env.render() frames per second at each (width, height) on the GL backend in force: UR5Track-v0 at each
+    render quality and Gymnasium's Reacher-v5, measured in alternating rounds of the same run (best round of
+    each); `ratio` is fast UR5Track-v0 over Reacher-v5 (nan when Gymnasium's MuJoCo envs are missing)."""
     import gymnasium as gym
 
     from mjtraj.media.gl import active_backend
+    from mjtraj.media.render import RENDER_QUALITIES
 
     rows: list[dict[str, object]] = []
     for width, height in sizes:
-        env = gym.make("UR5Track-v0", render_mode="rgb_array", width=width, height=height)
-        env.reset(seed=0)
-        env.render()  # opens the context
-        start = time.perf_counter()
-        for _ in range(frames):
-            env.step(env.action_space.sample())
-            env.render()
-        rows.append({"size": f"{width}x{height}", "backend": active_backend(),
-                     "fps": frames / (time.perf_counter() - start)})
-        env.close()
+        envs = {quality: gym.make("UR5Track-v0", render_mode="rgb_array", width=width, height=height,
+                                  render_quality=quality) for quality in RENDER_QUALITIES}
+        try:
+            envs["Reacher-v5"] = gym.make("Reacher-v5", render_mode="rgb_array", width=width, height=height)
+        except Exception:  # noqa: BLE001 - gymnasium[mujoco] is optional; the row says so
+            pass
+        best = dict.fromkeys(envs, 0.0)
+        for env in envs.values():
+            env.reset(seed=0)
+            env.render()  # opens the context
+        for _ in range(rounds):
+            for name, env in envs.items():
+                start = time.perf_counter()
+                for _ in range(frames):
+                    env.step(env.action_space.sample())
+                    env.render()
+                best[name] = max(best[name], frames / (time.perf_counter() - start))
+        for env in envs.values():
+            env.close()
+        reacher = best.get("Reacher-v5", float("nan"))
+        rows.append({"size": f"{width}x{height}", "backend": active_backend(), "fast_fps": best["fast"],
+                     "high_fps": best["high"], "reacher_fps": reacher, "ratio": best["fast"] / reacher})
     return rows
 
 

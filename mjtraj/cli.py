@@ -101,6 +101,8 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     c.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (its scenario follows the stated "
                    "rules: mjtraj.core.arm.ARM_RULES, mjtraj.study.scenario.ARM_TASK_RULE)")
+    c.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
+                   "(default: from the model's actuator force ranges)")
     c.add_argument("--q0", type=_floats, help="start, rad, comma-separated")
     c.add_argument("--qg", type=_floats, help="goal, rad, comma-separated")
     c.add_argument("--duration", type=float, help="T, s (a whole number of dt)")
@@ -115,6 +117,8 @@ def _parser() -> argparse.ArgumentParser:
                        "other planners, by the scenario's fixed score")
     f.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     f.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
+    f.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
+                   "(default: from the model's actuator force ranges)")
     f.add_argument("--alphas", type=_floats, help="alpha values (default: 0 and 33 values from 1e-6 to 1e2)")
     f.add_argument("--splits", type=_floats, help="shares of the state weight on positions, in [0, 1] (default 0.5, "
                    "Bryson's balance)")
@@ -130,6 +134,8 @@ def _parser() -> argparse.ArgumentParser:
                        "scenario file with the tuned options and the tuning record")
     u.add_argument("--config", type=Path, help="base scenario TOML (default: the shipped paper scenario)")
     u.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
+    u.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
+                   "(default: from the model's actuator force ranges)")
     u.add_argument("--planners", type=_names, default=["optimal", "trapezoidal", "scurve"],
                    help="planners to tune (default optimal, trapezoidal, scurve; cubic and quintic have no parameters)")
     u.add_argument("--family", default="nominal", help="family whose rules draw the training scenarios (default "
@@ -169,6 +175,8 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--batch", type=int, default=250, help="scenarios per unit of work (default 250)")
     w.add_argument("--config", help="base scenario TOML: controller and planner options (default: paper.toml)")
     w.add_argument("--model", help="your MJCF arm instead of the UR5 (nominal and aggressive families)")
+    w.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
+                   "(default: from the model's actuator force ranges)")
     w.add_argument("--out", type=Path, default=Path("sweep.csv"), help="results CSV (default sweep.csv)")
     w.add_argument("--resume", action="store_true", help="continue an interrupted sweep in --out")
     w.add_argument("--backend", default="local", help="local (process pool) or ray (default local)")
@@ -189,14 +197,18 @@ def _parser() -> argparse.ArgumentParser:
     a.add_argument("--no-tasks", action="store_true", help="skip the paper task, its reverse and the weight frontier "
                    "(computed at audit time from each file's settings)")
 
-    r = sub.add_parser("render", help="execution videos per planner, a 2x2 clip and the Fig. 1 snapshot strip")
+    r = sub.add_parser("render", help="execution videos per planner, a side-by-side clip and the Fig. 1 snapshot strip")
     r.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     r.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
+    r.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
+                   "(default: from the model's actuator force ranges)")
     r.add_argument("--planners", type=_names, help="comma-separated planner names (default: all)")
     r.add_argument("--format", dest="formats", type=_names, default=["mp4"], help="mp4 and/or gif (default: mp4)")
     r.add_argument("--width", type=int, default=640, help="image width, px (default 640)")
     r.add_argument("--height", type=int, default=480, help="image height, px (default 480)")
     r.add_argument("--camera", default="front", help="front | side | top (default front)")
+    r.add_argument("--quality", default="fast", help="fast: no shadows or floor reflection, fewer facets (default); "
+                   "high: the model's own scene, for publication frames")
     r.add_argument("--every", type=int, default=1, help="keep one control period in EVERY (default 1)")
     r.add_argument("--out", type=Path, default=Path("results/videos"), help="output folder (default: "
                    "results/videos/)")
@@ -271,14 +283,13 @@ def _json_safe(value: Any) -> Any:
 
 def _scenario(args: argparse.Namespace):  # noqa: ANN202
     from mjtraj.core import LoopConfig, option_names
-    from mjtraj.study.scenario import load_scenario
 
     task = {k: getattr(args, k) for k in ("q0", "qg", "duration", "dt") if getattr(args, k, None) is not None}
     loop = {k: getattr(args, k) for k in option_names(LoopConfig) if getattr(args, k, None) is not None}
     if getattr(args, "model", None) is not None:
         scenario = _base_scenario(args, **task)
         return scenario.replace(loop=loop) if loop else scenario
-    scenario = load_scenario(args.config)
+    scenario = _base_scenario(args)
     return scenario.replace(task=task, loop=loop) if task or loop else scenario
 
 
@@ -287,10 +298,13 @@ def _base_scenario(args: argparse.Namespace, **task: Any):  # noqa: ANN202
     from mjtraj.study.scenario import load_scenario, scenario_for_model
 
     if getattr(args, "model", None) is None:
+        if getattr(args, "torque_limit", None) is not None:
+            raise InvalidInputError("torque-limit: only with --model (a scenario file sets torque_limit beside "
+                                    "model)")
         return load_scenario(args.config)
     if args.config is not None:
         raise InvalidInputError("model, config: give one (a scenario file names its arm with model = \"PATH\")")
-    return scenario_for_model(args.model, **task)
+    return scenario_for_model(args.model, torque_limit=args.torque_limit, **task)
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -463,10 +477,12 @@ def _bench(args: argparse.Namespace) -> int:
         for row in bench_vector_env():
             print(f"{row['envs']:>6} {row['raw_steps_per_s']:>12.0f} {row['env_steps_per_s']:>12.0f} "
                   f"{row['ratio']:>6.2f}")
-        print("rendering (env.render, executed arm + ghost)")
-        print(f"{'size':>9} {'backend':>8} {'frames/s':>9}")
-        for frame_row in bench_render():
-            print(f"{frame_row['size']:>9} {frame_row['backend']:>8} {frame_row['fps']:>9.1f}")
+        print("rendering: env.render() frames/s of UR5Track-v0 (executed arm + ghost) at render_quality fast "
+              "(default) and high, and of Gymnasium's Reacher-v5, same run; target fast / Reacher-v5 >= 0.5")
+        print(f"{'size':>9} {'backend':>8} {'fast':>7} {'high':>7} {'Reacher-v5':>11} {'ratio':>6}")
+        for f in bench_render():
+            print(f"{f['size']:>9} {f['backend']:>8} {f['fast_fps']:>7.1f} {f['high_fps']:>7.1f} "
+                  f"{f['reacher_fps']:>11.1f} {f['ratio']:>6.2f}")
     return 0
 
 
@@ -476,7 +492,8 @@ def _sweep_settings(args: argparse.Namespace):  # noqa: ANN202
     return SweepSettings(families=tuple(args.families), scenarios=args.scenarios, seed=args.seed,
                          planners=tuple(args.planners or DEFAULT_PLANNERS), ff_accel=tuple(args.ff_accel),
                          gravity_comp=tuple(args.gravity_comp), batch=args.batch, sensor_noise=args.sensor_noise,
-                         delay=args.delay, model_error=args.model_error, config=args.config, model=args.model)
+                         delay=args.delay, model_error=args.model_error, config=args.config, model=args.model,
+                         torque_limit=args.torque_limit)
 
 
 def _sweep(args: argparse.Namespace) -> int:
@@ -512,21 +529,22 @@ def _audit(args: argparse.Namespace) -> int:
 def _render(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from mjtraj.checks import positive_int
-    from mjtraj.media.render import check_render_options
+    from mjtraj.checks import choice, positive_int
+    from mjtraj.media.render import RENDER_QUALITIES, check_render_options
     from mjtraj.media.videos import SNAPSHOT_TIMES, check_formats, render_all
     from mjtraj.study.comparison import compare, default_planners
 
     scenario = _scenario(args)
     check_render_options(scenario.model, args.width, args.height, args.camera)
     check_formats(args.formats)
+    choice("quality", args.quality, RENDER_QUALITIES)
     every = positive_int("every", args.every)
     planners = tuple(args.planners or default_planners())
     result = compare(scenario, planners)
     total = len(planners) * (scenario.task.steps // every + 1) + len(SNAPSHOT_TIMES) * len(planners)
     with tqdm(total=total, desc="mjtraj render", unit="frame", file=sys.stderr, disable=None) as bar:
         paths = render_all(result, args.out, formats=args.formats, width=args.width, height=args.height,
-                           camera=args.camera, every=every, progress=bar.update)
+                           camera=args.camera, quality=args.quality, every=every, progress=bar.update)
     for path in paths:
         print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     return 0

@@ -229,3 +229,75 @@ def test_a_sweep_and_its_audit_on_a_user_arm(tmp_path, capsys):
     with pytest.raises(InvalidInputError, match=r"^family: mismatch perturbs the shipped UR5's links and flange; "
                                                 r"with a model use nominal and aggressive$"):
         SweepSettings(families=("mismatch",), model=str(PLANAR))
+
+
+def test_torque_limit_sets_every_joints_saturation_and_travels_with_the_scenario(tmp_path):
+    from mjtraj.study.scenario import load_scenario, scenario_from_dict
+    from mjtraj.study.sweep import SweepSettings
+    from mjtraj.study.toml_text import dumps
+
+    own = prepare_arm(PLANAR)
+    np.testing.assert_array_equal(own.actuator_ctrlrange, [[-20, 20], [-20, 20]])  # the file's servo force ranges
+    np.testing.assert_array_equal(prepare_arm(PLANAR, torque_limit=7.5).actuator_ctrlrange, [[-7.5, 7.5]] * 2)
+    bare = tmp_path / "bare.xml"  # j2 has no force range anywhere: the flag supplies it
+    bare.write_text(ARM.format(joint=HINGE, extra="", actuators='<motor joint="j1" ctrlrange="-5 5"/>'))
+    np.testing.assert_array_equal(prepare_arm(bare, torque_limit=3.0).actuator_ctrlrange, [[-3, 3], [-3, 3]])
+    scenario = scenario_for_model(PLANAR, torque_limit=7.5)
+    np.testing.assert_array_equal(scenario.torque_limit, [7.5, 7.5])
+    assert scenario.as_dict()["torque_limit"] == 7.5
+    again = scenario_from_dict(scenario.as_dict())
+    np.testing.assert_array_equal(again.model.actuator_ctrlrange, [[-7.5, 7.5]] * 2)
+    path = tmp_path / "arm.toml"
+    path.write_text(dumps(scenario.as_dict()))
+    np.testing.assert_array_equal(load_scenario(path).torque_limit, [7.5, 7.5])
+    settings = SweepSettings(scenarios=2, planners=("cubic",), model=str(PLANAR), torque_limit=7.5)
+    assert settings.record()["torque_limit"] == 7.5
+    rebuilt = SweepSettings.from_record({k: str(v) for k, v in settings.record().items()})
+    assert rebuilt.torque_limit == 7.5 and rebuilt.record() == settings.record()
+
+
+def test_torque_limit_bounds_the_corrective_torque_in_compare_and_the_env(tmp_path, capsys):
+    import json
+
+    import gymnasium as gym
+
+    assert main(["compare", "--model", str(PLANAR), "--torque-limit", "2.5", "--no-figures", "--json", "--out",
+                 str(tmp_path)]) == 0
+    rows = json.loads(capsys.readouterr().out)["planners"]
+    peaks = [row["metrics"]["peak_dtau"] for row in rows.values()]
+    assert peaks and max(peaks) <= 2.5 + 1e-12 and max(peaks) > 2.0  # the move saturates at the given limit
+    env = gym.make("ArmTrack-v0", xml_file=str(PLANAR), torque_limit=4.0)
+    np.testing.assert_array_equal(env.unwrapped.settings.model.actuator_ctrlrange, [[-4, 4], [-4, 4]])
+    env.close()
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["compare", "--torque-limit", "5"], "torque-limit: only with --model (a scenario file sets torque_limit beside "
+                                         "model)"),
+    (["compare", "--model", str(PLANAR), "--torque-limit", "-1"], "torque_limit: expected a positive number, got "
+                                                                  "-1.0"),
+    (["compare", "--model", str(PLANAR), "--torque-limit", "nan"], "torque_limit: expected a positive number, got "
+                                                                   "nan"),
+])
+def test_bad_torque_limits_are_one_line(argv, message, capsys):
+    assert main(argv) == 2
+    assert capsys.readouterr().err == f"mjtraj: error: {message}\n"
+
+
+def test_bad_torque_limits_in_files_and_the_env(tmp_path):
+    import gymnasium as gym
+
+    from mjtraj.exceptions import InvalidInputError
+    from mjtraj.study.scenario import load_scenario, scenario_from_dict
+
+    paper = load_scenario().as_dict()
+    with pytest.raises(InvalidInputError, match=r'^config: torque_limit: only with model = "PATH"'):
+        scenario_from_dict({**paper, "torque_limit": 5.0})
+    arm = scenario_for_model(PLANAR).as_dict()
+    for bad in (0, -2.0, True, "5", float("inf")):
+        with pytest.raises(InvalidInputError, match=r"^config: torque_limit: expected a positive number \(N m\)"):
+            scenario_from_dict({**arm, "torque_limit": bad})
+    with pytest.raises(InvalidInputError, match=r"^torque_limit: only with xml_file \(your own arm\), got 5"):
+        gym.make("UR5Track-v0", torque_limit=5)
+    with pytest.raises(InvalidInputError, match=r"^torque_limit: only for your own arm"):
+        load_model(torque_limit=5.0)

@@ -60,3 +60,12 @@ def test_three_independent_qp_solvers_agree_with_mjtraj_on_the_optimal_planners_
     assert [row["solver"] for row in rows[1:]] == list(QP_SOLVERS)  # the test extra installs them: none skipped
     for row in rows:
         assert row["seconds"] > 0 and row["max_diff"] < 1e-6, row
+
+
+def test_render_ratio_is_fast_ur5_over_reacher_in_one_run():
+    from mjtraj.bench import bench_render
+
+    (row,) = bench_render(((64, 48),), frames=2, rounds=1)
+    assert row["size"] == "64x48"
+    assert all(row[k] > 0 for k in ("fast_fps", "high_fps", "reacher_fps"))  # Reacher-v5 present: not skipped
+    assert row["ratio"] == pytest.approx(row["fast_fps"] / row["reacher_fps"], rel=1e-12)

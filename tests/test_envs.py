@@ -296,10 +296,11 @@ def test_docstring_arguments_table_matches_the_code():
                "plant_randomization": s.plant_randomization, "measurement_noise": s.measurement_noise,
                "reward_baseline": s.reward_baseline,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
-               "width": s.width, "height": s.height, "camera": s.camera, "render_mode": s.render_mode,
+               "width": s.width, "height": s.height, "camera": s.camera, "render_quality": s.render_quality,
+               "render_mode": s.render_mode,
                **{name: getattr(s.loop, name) for name in option_names(LoopConfig, scenario_only=False)}}
     assert applied == {k: v for k, v in argument_defaults().items()
-                       if k not in ("q0", "qg", "Q_exec", "R_exec", "xml_file")}
+                       if k not in ("q0", "qg", "Q_exec", "R_exec", "xml_file", "torque_limit")}
     env.close()
 
 
@@ -344,6 +345,7 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     ({"action_mode": "velocity"}, r"^action_mode: unknown value 'velocity'; valid: pid, residual, torque$"),
     ({"task": "circle"}, r"^task: unknown value 'circle'; valid: paper, random, explicit$"),
     ({"camera": "wrist"}, r"^camera: unknown camera 'wrist'; valid: front, side, top$"),
+    ({"render_quality": "ultra"}, r"^render_quality: unknown value 'ultra'; valid: fast, high$"),
     ({"task": "explicit", "q0": [0, 0, 4], "qg": [0, 0, 0]},
      r"^q0: joint 'elbow_joint' = 4.0 rad is outside its range \[-3.141592653589793, 3.141592653589793\]$"),
     ({"task": "explicit", "q0": [0, 0, 0]}, r"^task: 'explicit' needs both q0 and qg \(rad\)$"),
@@ -358,9 +360,11 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     ({"Q_exec": [1] * 6}, r"^Q_exec, R_exec: give both \(diagonals of 2n and n weights\), or neither for Bryson's "
                           r"rule on each task$"),
     ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, xml_file, "
+                   r"torque_limit, "
                    r"action_mode, "
                    r"residual_scale, task, max_displacement, duration, dt, preview, observe_control, "
-                   r"plant_randomization, measurement_noise, reward_baseline, width, height, camera, controller, "
+                   r"plant_randomization, measurement_noise, reward_baseline, width, height, camera, render_quality, "
+                   r"controller, "
                    r"feedforward, ff_accel, gravity_comp, anti_windup, substeps, divergence_bound, delay$"),
     ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
     ({"residual_scale": 0}, r"^residual_scale: expected a positive number, got 0"),

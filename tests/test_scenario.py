@@ -39,8 +39,8 @@ def test_unknown_section_and_planner(tmp_path):
                                                 r"optimal, nonlinear_optimal, nonlinear_min_effort, quintic, scurve, "
                                                 r"trapezoidal$"):
         load_scenario(write(tmp_path, paper_text() + "\n[planners.spline]\norder = 3\n"))
-    with pytest.raises(InvalidInputError, match=r"^config: unknown key 'extra'; valid: name, model, task, "
-                                                r"controller, planners, cost, tuning$"):
+    with pytest.raises(InvalidInputError, match=r"^config: unknown key 'extra'; valid: name, model, torque_limit, "
+                                                r"task, controller, planners, cost, tuning$"):
         load_scenario(write(tmp_path, "extra = 1\n" + paper_text()))
 
 

@@ -19,10 +19,11 @@ from mjtraj.exceptions import ModelError
 ARM_RULES = (
     "every joint must be a hinge, with no tendons or equality constraints; each hinge keeps its passive properties "
     "(damping, armature, friction loss) and range. The model's actuators are replaced by one torque motor per hinge "
-    "(gear 1) whose control range is the corrective saturation: the range of an existing torque motor on that "
-    "joint, else the force range of the actuator that drove it, else the joint's actuator force range, else the "
-    "torque_limit given; every body gets native gravity compensation (gravcomp 1, applied at the joints); "
-    "contacts are disabled (the study's plant is the free arm); the integrator is RK4 at the control period dt")
+    "(gear 1) whose control range is the corrective saturation: the torque_limit given (--torque-limit), for "
+    "every joint; else the range of an existing torque motor on that joint, else the force range of the actuator "
+    "that drove it, else the joint's actuator force range; every body gets native gravity compensation (gravcomp "
+    "1, applied at the joints); contacts are disabled (the study's plant is the free arm); the integrator is RK4 "
+    "at the control period dt")
 
 
 def _hinges(spec: mujoco.MjSpec, file: Path) -> list[mujoco.MjsJoint]:
@@ -44,6 +45,8 @@ def _hinges(spec: mujoco.MjSpec, file: Path) -> list[mujoco.MjsJoint]:
 
 def _saturation(spec: mujoco.MjSpec, joint: mujoco.MjsJoint, torque_limit: float | None, file: Path) -> float:
     """The corrective saturation of `joint`, N m, by ARM_RULES."""
+    if torque_limit is not None:
+        return positive("torque_limit", torque_limit)
     mine = [a for a in spec.actuators if a.trntype == mujoco.mjtTrn.mjTRN_JOINT and a.target == joint.name]
     for actuator in mine:
         is_motor = (actuator.gaintype == mujoco.mjtGain.mjGAIN_FIXED and actuator.gainprm[0] == 1.0
@@ -55,8 +58,6 @@ def _saturation(spec: mujoco.MjSpec, joint: mujoco.MjsJoint, torque_limit: float
             return float(np.min(np.abs(actuator.forcerange)))
     if np.any(joint.actfrcrange):
         return float(np.min(np.abs(joint.actfrcrange)))
-    if torque_limit is not None:
-        return positive("torque_limit", torque_limit)
     raise ModelError(f"model {file}: joint {joint.name!r} has no actuator force range to take the corrective "
                      f"saturation from; give torque_limit (--torque-limit, N m)")
 
@@ -67,7 +68,7 @@ def prepare_arm(path: str | os.PathLike[str], *, dt: float | None = None, torque
 
     Args:
       dt: control period, s (the model's own timestep if None).
-      torque_limit: corrective saturation for joints whose model gives none, N m.
+      torque_limit: corrective saturation of every joint, N m (None: from the model, by ARM_RULES).
 
     Raises:
       ModelError: the file is missing, does not compile, or is not an arm of actuatable hinges (names the element).

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.checks import positive
-from mjtraj.exceptions import ModelError
+from mjtraj.exceptions import InvalidInputError, ModelError
 
 MODEL_FILE = "ur5_3dof.xml"
 
@@ -22,12 +22,14 @@ def default_model_path() -> Path:
     return Path(str(resources.files("mjtraj.assets").joinpath(MODEL_FILE)))
 
 
-def load_model(path: str | os.PathLike[str] | None = None, *, dt: float | None = None) -> mujoco.MjModel:
+def load_model(path: str | os.PathLike[str] | None = None, *, dt: float | None = None,
+               torque_limit: float | None = None) -> mujoco.MjModel:
     """Load the plant model.
 
     Args:
       path: an MJCF file; None for the shipped UR5 3-DoF model.
       dt: control period in s; sets `opt.timestep` when given (the model's own 0.02 s otherwise).
+      torque_limit: a user's arm only: the corrective saturation of every joint, N m (mjtraj.core.arm.ARM_RULES).
 
     Raises:
       ModelError: the file is missing or MuJoCo cannot compile it.
@@ -35,7 +37,10 @@ def load_model(path: str | os.PathLike[str] | None = None, *, dt: float | None =
     if path is not None:  # a user's arm (or the shipped file named explicitly), prepared by mujoco.MjSpec
         from mjtraj.core.arm import prepare_arm
 
-        return prepare_arm(path, dt=dt)
+        return prepare_arm(path, dt=dt, torque_limit=torque_limit)
+    if torque_limit is not None:
+        raise InvalidInputError(f"torque_limit: only for your own arm (a model file), got {torque_limit!r} for the "
+                                f"shipped UR5, whose saturation is its motors' 60 N m")
     file = default_model_path()
     if not file.is_file():
         raise ModelError(f"model file not found: {file}")

@@ -14,6 +14,7 @@ _EXPORTS = {
     "default_backend": "mjtraj.media.gl",
     "ArmRenderer": "mjtraj.media.render",
     "check_render_options": "mjtraj.media.render",
+    "RENDER_QUALITIES": "mjtraj.media.render",
     "render_all": "mjtraj.media.videos",
     "check_formats": "mjtraj.media.videos",
     "VIDEO_FORMATS": "mjtraj.media.videos",
@@ -23,10 +24,10 @@ __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
     from mjtraj.media.gl import active_backend, default_backend, use_backend, user_backend
-    from mjtraj.media.render import ArmRenderer, check_render_options
+    from mjtraj.media.render import RENDER_QUALITIES, ArmRenderer, check_render_options
     from mjtraj.media.videos import SNAPSHOT_TIMES, VIDEO_FORMATS, check_formats, render_all
 
 __all__ = [
-    "ArmRenderer", "SNAPSHOT_TIMES", "VIDEO_FORMATS", "active_backend", "check_formats", "check_render_options",
-    "default_backend", "render_all", "use_backend", "user_backend",
+    "ArmRenderer", "RENDER_QUALITIES", "SNAPSHOT_TIMES", "VIDEO_FORMATS", "active_backend", "check_formats",
+    "check_render_options", "default_backend", "render_all", "use_backend", "user_backend",
 ]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from types import TracebackType
 
 import mujoco
@@ -9,7 +10,7 @@ import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
-from mjtraj.checks import positive_int, vector
+from mjtraj.checks import choice, positive_int, vector
 from mjtraj.exceptions import InvalidInputError, RenderError
 from mjtraj.media.gl import INSTALL_HINT, use_backend
 
@@ -17,6 +18,14 @@ GHOST_RGBA = (0.95, 0.55, 0.15, 0.3)
 """Colour of the reference (ghost) arm: translucent orange."""
 GHOST_SCALE = 1.04
 """The ghost's geoms are this much thicker, so that it wraps the executed arm as a shell (no z-fighting)."""
+RENDER_QUALITIES = ("fast", "high")
+"""fast (default): no shadows, no floor reflection, and round geoms drawn with FAST_SLICES x FAST_STACKS facets.
+Software OpenGL (OSMesa) spends most of a frame on these: at 320x240, shadows and reflection cost 5 to 10 times the
+rest of the frame, and the facet count halves it again. high: the model's own visual settings, shadows and
+reflection included, for publication frames."""
+FAST_SLICES, FAST_STACKS = 16, 8
+"""Facets of round geoms in fast frames (MuJoCo's defaults: 28 and 16)."""
+_FAST_OFF = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION)
 
 
 def cameras(model: mujoco.MjModel) -> tuple[str, ...]:
@@ -46,21 +55,31 @@ class ArmRenderer:
       width, height: image size in pixels, at most the model's offscreen buffer
         (MJCF `<visual><global offwidth=... offheight=...>`).
       camera: one of the model's named cameras.
+      quality: one of RENDER_QUALITIES.
     """
 
-    def __init__(self, model: mujoco.MjModel, *, width: int = 640, height: int = 480, camera: str = "front") -> None:
+    def __init__(self, model: mujoco.MjModel, *, width: int = 640, height: int = 480, camera: str = "front",
+                 quality: str = "fast") -> None:
         self.width, self.height, self.camera = check_render_options(model, width, height, camera)
+        self.quality = choice("quality", quality, RENDER_QUALITIES)
         self.model = model
         self._data = mujoco.MjData(model)
         self._ghost = mujoco.MjData(model)
         self._option = mujoco.MjvOption()
         self._perturb = mujoco.MjvPerturb()
         backend = use_backend()
+        if self.quality == "fast":
+            model = copy.copy(model)  # the caller's model keeps its visual settings
+            model.vis.quality.numslices = min(int(model.vis.quality.numslices), FAST_SLICES)
+            model.vis.quality.numstacks = min(int(model.vis.quality.numstacks), FAST_STACKS)
         try:
             self._renderer = mujoco.Renderer(model, self.height, self.width)
         except Exception as e:  # the GL backends raise many kinds
             raise RenderError(f"cannot open an off-screen OpenGL context with the {backend!r} backend: "
                               f"{type(e).__name__}: {e}. {INSTALL_HINT}") from e
+        if self.quality == "fast":
+            for flag in _FAST_OFF:
+                self._renderer.scene.flags[flag] = False
 
     def frame(self, q: npt.ArrayLike, q_ref: npt.ArrayLike | None = None) -> NDArray[np.uint8]:
         """The image, shape (height, width, 3) uint8, of the arm at q (rad) and the ghost at q_ref (if given)."""

@@ -1,4 +1,5 @@
-"""`mjtraj render`: execution videos per planner, a 2x2 side-by-side clip, and the paper's Fig. 1 snapshot strip."""
+"""`mjtraj render`: execution videos per planner, a side-by-side clip of up to four, and the paper's Fig. 1
+snapshot strip."""
 
 from __future__ import annotations
 
@@ -16,6 +17,11 @@ from mjtraj.study.comparison import Comparison
 VIDEO_FORMATS = ("mp4", "gif")
 SNAPSHOT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)
 """Fractions of T at which the snapshot strip shows each planner."""
+GIF_COLORS = 128
+"""Colours of a GIF's one palette, shared by all its frames (median cut over a sample of them, no dithering): a
+shared palette lets unchanged pixels repeat, so each frame stores only the region that moved."""
+LABEL_LINES_PER_HEIGHT = 30
+"""A label's text size is the image height over this (16 px at 480, 8 px at 240), at least 6 px."""
 
 
 def check_formats(formats: Sequence[str]) -> None:
@@ -30,16 +36,24 @@ def executed_pose(result: Comparison, b: int, k: int) -> NDArray[np.float64]:
     return result.rollout.q[b, k] if k < result.rollout.q.shape[1] else result.rollout.q_final[b]
 
 
-def label(image: NDArray[np.uint8], lines: Sequence[str], *, size: int = 16) -> NDArray[np.uint8]:
-    """`image` with `lines` of text drawn top-left on a dark band; a new array."""
+def label_size(height: int) -> int:
+    """Text size in px for an image `height` px tall (LABEL_LINES_PER_HEIGHT)."""
+    return max(6, round(height / LABEL_LINES_PER_HEIGHT))
+
+
+def label(image: NDArray[np.uint8], lines: Sequence[str], *, size: int | None = None) -> NDArray[np.uint8]:
+    """`image` with `lines` of text drawn top-left on a dark band; a new array. `size`: text size in px (default:
+    scaled to the image, label_size); the band and its margins scale with it."""
     from PIL import Image, ImageDraw, ImageFont
 
+    size = label_size(image.shape[0]) if size is None else size
+    pad = max(2, size // 4)
     picture = Image.fromarray(image)
     draw = ImageDraw.Draw(picture)
     font = ImageFont.load_default(size=size)
-    draw.rectangle((0, 0, picture.width, 6 + (size + 4) * len(lines)), fill=(20, 20, 24))
+    draw.rectangle((0, 0, picture.width, 2 * pad + (size + pad) * len(lines)), fill=(20, 20, 24))
     for i, line in enumerate(lines):
-        draw.text((6, 3 + (size + 4) * i), line, fill=(240, 240, 240), font=font)
+        draw.text((2 * pad, pad + (size + pad) * i), line, fill=(240, 240, 240), font=font)
     return np.asarray(picture)
 
 
@@ -67,18 +81,31 @@ def _write(path: Path, images: Sequence[NDArray[np.uint8]], fps: float) -> None:
         if path.suffix == ".mp4":
             iio.imwrite(tmp, np.stack(images), fps=fps, codec="libx264", macro_block_size=8)
         elif path.suffix == ".gif":
-            iio.imwrite(tmp, np.stack(images), duration=1000.0 / fps, loop=0)
+            _write_gif(tmp, images, fps)
         else:
             iio.imwrite(tmp, images[0])
 
 
+def _write_gif(path: Path, images: Sequence[NDArray[np.uint8]], fps: float) -> None:
+    """An endlessly looping GIF of `images` at `fps` with one shared palette (GIF_COLORS)."""
+    from PIL import Image
+
+    sample = np.vstack(images[:: max(1, len(images) // 8)])
+    palette = Image.fromarray(sample).quantize(colors=GIF_COLORS, method=Image.Quantize.MEDIANCUT)
+    frames = [Image.fromarray(image).quantize(palette=palette, dither=Image.Dither.NONE) for image in images]
+    frames[0].save(path, format="GIF", save_all=True, append_images=frames[1:], duration=round(1000.0 / fps),
+                   loop=0, optimize=True)
+
+
 def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4",), width: int = 640,
-               height: int = 480, camera: str = "front", every: int = 1,
+               height: int = 480, camera: str = "front", quality: str = "fast", every: int = 1,
                progress: Callable[[int], None] | None = None) -> list[Path]:
-    """Write `<scenario>_<planner>.<fmt>` per planner, `<scenario>_grid.<fmt>` (2x2 of up to four planners) and
-    `<scenario>_snapshots.png`; return the paths. `every` keeps one control period in `every` (fps = 1/(every dt)).
+    """Write `<scenario>_<planner>.<fmt>` per planner, `<scenario>_grid.<fmt>` (the first four planners side by
+    side, when there are at least two) and `<scenario>_snapshots.png`; return the paths. `every` keeps one control
+    period in `every` (fps = 1/(every dt)).
 
     Args:
+      quality: a RENDER_QUALITIES value (mjtraj.media.render).
       progress: called with the number of frames just rendered.
     """
     check_formats(formats)
@@ -87,7 +114,7 @@ def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4"
     fps = 1.0 / (every * result.scenario.task.dt)
     written: list[Path] = []
     clips = {}
-    with ArmRenderer(plant, width=width, height=height, camera=camera) as renderer:
+    with ArmRenderer(plant, width=width, height=height, camera=camera, quality=quality) as renderer:
         for planner in result.planners:
             clips[planner] = frames(result, planner, renderer, every=every)
             if progress:
@@ -96,11 +123,12 @@ def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4"
                 path = out / f"{name}_{planner}.{fmt}"
                 _write(path, clips[planner], fps)
                 written.append(path)
-        grid = _grid([clips[p] for p in result.planners[:4]])
-        for fmt in formats:
-            path = out / f"{name}_grid.{fmt}"
-            _write(path, grid, fps)
-            written.append(path)
+        if len(result.planners) >= 2:
+            grid = _grid([clips[p] for p in result.planners[:4]])
+            for fmt in formats:
+                path = out / f"{name}_grid.{fmt}"
+                _write(path, grid, fps)
+                written.append(path)
         strip = snapshot_strip(result, renderer)
         if progress:
             progress(len(SNAPSHOT_TIMES) * len(result.planners))
@@ -111,12 +139,16 @@ def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4"
 
 
 def _grid(clips: Sequence[Sequence[NDArray[np.uint8]]]) -> list[NDArray[np.uint8]]:
-    """Tile up to four equally long clips 2x2 (missing tiles black)."""
+    """Tile two equally long clips side by side, three or four 2x2 (a missing tile black)."""
     h, w, _ = clips[0][0].shape
     black = np.zeros((h, w, 3), dtype=np.uint8)
     out = []
     for k in range(len(clips[0])):
-        tiles = [clip[k] for clip in clips] + [black] * (4 - len(clips))
+        tiles = [clip[k] for clip in clips]
+        if len(tiles) == 2:
+            out.append(np.hstack(tiles))
+            continue
+        tiles += [black] * (4 - len(tiles))
         out.append(np.vstack([np.hstack(tiles[:2]), np.hstack(tiles[2:])]))
     return out
 

@@ -4,6 +4,7 @@ A scenario file (TOML) has the layout of `Scenario.as_dict`:
 
     name = "paper"
     model = "path/to/arm.xml"          # optional; the shipped UR5 3-DoF model when absent
+    torque_limit = 40.0                # optional, with model: every joint's corrective saturation, N m
     [task]        q0, qg (lists, rad), duration, dt (s)
     [controller]  kp, ki, kd (lists) and the loop options declared in mjtraj.core.closed_loop.LoopConfig
     [planners.<name>]  keyword options of each registered planner
@@ -47,7 +48,7 @@ TASK_KEYS = ("q0", "qg", "duration", "dt")
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 """A scenario name: it names output files, so it is never a path."""
 GAIN_KEYS = ("kp", "ki", "kd")
-SECTIONS = ("name", "model", "task", "controller", "planners", "cost", "tuning")
+SECTIONS = ("name", "model", "torque_limit", "task", "controller", "planners", "cost", "tuning")
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,7 @@ class Scenario:
       planner_options: planner name -> keyword options.
       scoring: how executions are scored (J_exec's weights), independent of any planner's own weights.
       model_path: the MJCF plant model; None for the shipped UR5 3-DoF model.
+      model_torque_limit: with model_path, every joint's corrective saturation, N m (None: from the model).
       source: the file it was read from ('' in memory).
       tuning: the record of the tuning that chose the planner options (`mjtraj tune`), or None.
     """
@@ -71,6 +73,7 @@ class Scenario:
     planner_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     scoring: Scoring = field(default_factory=Scoring)
     model_path: str | None = None
+    model_torque_limit: float | None = None
     source: str = ""
     tuning: dict[str, Any] | None = None
     memo: dict[Any, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
@@ -79,7 +82,7 @@ class Scenario:
     @cached_property
     def model(self) -> mujoco.MjModel:
         """The nominal plant model at the task's control period, loaded once per scenario."""
-        return load_model(self.model_path, dt=self.task.dt)
+        return load_model(self.model_path, dt=self.task.dt, torque_limit=self.model_torque_limit)
 
     @property
     def torque_limit(self) -> NDArray[np.float64]:
@@ -117,6 +120,8 @@ class Scenario:
         out: dict[str, Any] = {"name": self.name}
         if self.model_path is not None:
             out["model"] = self.model_path
+        if self.model_torque_limit is not None:
+            out["torque_limit"] = self.model_torque_limit
         out["task"] = {"q0": self.task.q0.tolist(), "qg": self.task.qg.tolist(), "duration": self.task.duration,
                        "dt": self.task.dt}
         out["controller"] = {"kp": g.kp.tolist(), "ki": g.ki.tolist(), "kd": g.kd.tolist(),
@@ -212,6 +217,15 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
     model_path = data.get("model")
     if model_path is not None and not isinstance(model_path, str):
         raise InvalidInputError(f"config: model: expected a file path (a string), got {model_path!r}")
+    torque_limit = data.get("torque_limit")
+    if torque_limit is not None:
+        if model_path is None:
+            raise InvalidInputError("config: torque_limit: only with model = \"PATH\" (the shipped UR5's "
+                                    "saturation is its motors' 60 N m)")
+        if isinstance(torque_limit, bool) or not isinstance(torque_limit, (int, float)) or not (
+                np.isfinite(torque_limit) and torque_limit > 0):
+            raise InvalidInputError(f"config: torque_limit: expected a positive number (N m), got {torque_limit!r}")
+        torque_limit = float(torque_limit)
     t = _section(data, "task")
     _only(t, "task", TASK_KEYS)
     task = Task.create(_numbers(t, "task", "q0"), _numbers(t, "task", "qg"), _number(t, "task", "duration"),
@@ -247,7 +261,7 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
     if tuning is not None and not isinstance(tuning, dict):
         raise InvalidInputError(f"config: [tuning] must be a table, got {tuning!r}")
     return Scenario(name=name, task=task, loop=loop, planner_options=planners, scoring=scoring,
-                    model_path=model_path, source=source, tuning=tuning)
+                    model_path=model_path, model_torque_limit=torque_limit, source=source, tuning=tuning)
 
 
 MOVE = 0.5
@@ -263,9 +277,10 @@ ARM_TASK_RULE = (
 
 
 def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any = None, duration: float = 2.0,
-                       dt: float = 0.02) -> Scenario:
+                       dt: float = 0.02, torque_limit: float | None = None) -> Scenario:
     """The study's scenario for the MJCF arm at `path` (prepared by `mjtraj.core.arm.ARM_RULES`): the move `q0` ->
-    `qg` (rad, shape (n,)), or ARM_TASK_RULE's for what is not given.
+    `qg` (rad, shape (n,)), or ARM_TASK_RULE's for what is not given; `torque_limit` (N m) is every joint's
+    corrective saturation (None: from the model).
 
     Raises:
       ModelError: the model cannot be prepared (names the element). InvalidInputError: a bad task.
@@ -273,7 +288,7 @@ def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any 
     from mjtraj.core.arm import home_pose, prepare_arm
     from mjtraj.core.gains import free_inertia, gain_rule
 
-    model = prepare_arm(path, dt=dt)
+    model = prepare_arm(path, dt=dt, torque_limit=torque_limit)
     start = home_pose(model) if q0 is None else np.asarray(q0, dtype=np.float64)
     if qg is None:
         upper = np.where(model.jnt_limited.astype(bool), model.jnt_range[:, 1], np.inf)
@@ -283,4 +298,5 @@ def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any 
     lightest, _ = free_inertia(model, task.q0, task.qg)
     rate = float(np.max(model.dof_damping / lightest)) * dt
     loop = LoopConfig(gain_rule(model, task.q0, task.qg, dt), substeps=max(1, int(np.ceil(rate - 1e-12))))
-    return Scenario(name=name, task=task, loop=loop, scoring=Scoring(), model_path=str(path))
+    return Scenario(name=name, task=task, loop=loop, scoring=Scoring(), model_path=str(path),
+                    model_torque_limit=None if torque_limit is None else float(torque_limit))

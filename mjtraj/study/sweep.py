@@ -77,6 +77,7 @@ class SweepSettings:
       model_error: also measure the linear model's prediction error of optimal-type planners.
       config: the base scenario file (None: the shipped paper.toml).
       model: an MJCF arm instead (its scenario by the arm rules, `scenario_for_model`); not with `config`.
+      torque_limit: with `model`, every joint's corrective saturation, N m (None: from the model).
     """
 
     families: tuple[str, ...] = ("nominal",)
@@ -91,6 +92,7 @@ class SweepSettings:
     model_error: bool = False
     config: str | None = None
     model: str | None = None
+    torque_limit: float | None = None
     base: Scenario = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -108,6 +110,8 @@ class SweepSettings:
             raise InvalidInputError(f"seed: expected a whole number >= 0, got {self.seed!r}")
         if not (np.isfinite(self.sensor_noise) and self.sensor_noise >= 0):
             raise InvalidInputError(f"sensor_noise: expected a number >= 0 (rad), got {self.sensor_noise!r}")
+        if self.torque_limit is not None and self.model is None:
+            raise InvalidInputError("torque_limit: only with model (a scenario file sets torque_limit beside model)")
         if self.model is not None:
             if self.config is not None:
                 raise InvalidInputError("model, config: give one (a scenario file names its arm with model = "
@@ -116,7 +120,7 @@ class SweepSettings:
                 raise InvalidInputError("family: mismatch perturbs the shipped UR5's links and flange; with a model "
                                         "use nominal and aggressive")
         object.__setattr__(self, "base", load_scenario(self.config) if self.model is None else
-                           scenario_for_model(self.model))
+                           scenario_for_model(self.model, torque_limit=self.torque_limit))
         self.loop_config(self.ff_accel[0], self.gravity_comp[0], mismatch=True)  # validates delay
 
     def units(self) -> list[tuple[str, int]]:
@@ -146,6 +150,7 @@ class SweepSettings:
                 "sweep_batch": self.batch, "sensor_noise": self.sensor_noise, "delay": self.delay,
                 "model_error_measured": int(self.model_error),
                 "config": self.config or SHIPPED_CONFIG, "model": self.model or "",
+                "torque_limit": "" if self.torque_limit is None else self.torque_limit,
                 "config_sha256": hashlib.sha256(base.encode()).hexdigest()[:16],
                 **{name: getattr(self.base.loop, name) for name in option_names(LoopConfig) if name not in SWEPT},
                 "dt": self.base.task.dt,
@@ -166,7 +171,8 @@ class SweepSettings:
                        **{axis: tuple(row[f"sweep_{axis}"].split("+")) for axis in SWEPT},
                        batch=int(row["sweep_batch"]), sensor_noise=float(row["sensor_noise"]),
                        delay=int(row["delay"]), model_error=bool(int(row["model_error_measured"])),
-                       config=None if config == SHIPPED_CONFIG else config, model=row.get("model") or None)
+                       config=None if config == SHIPPED_CONFIG else config, model=row.get("model") or None,
+                       torque_limit=float(row["torque_limit"]) if row.get("torque_limit") else None)
         except (KeyError, ValueError) as e:
             raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
 
