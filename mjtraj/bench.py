@@ -310,7 +310,7 @@ def bench_sweep(scenarios: int = 10_000, *, workers: int | None = None) -> dict[
     count = workers if workers is not None else os.cpu_count() or 1
     with tempfile.TemporaryDirectory() as folder:
         start = time.perf_counter()
-        report = run_sweep(settings, os.path.join(folder, "sweep.csv"), workers=workers, progress=False)
+        report = run_sweep(settings, os.path.join(folder, "sweep.sqlite"), workers=workers, progress=False)
         wall = time.perf_counter() - start
     periods = report.rows * settings.base.task.steps
     batch = Batch(settings.base.model, FLOOR_BATCH, nthread=count)

@@ -177,16 +177,18 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--model", help="your MJCF arm instead of the UR5 (nominal and aggressive families)")
     w.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
                    "(default: from the model's actuator force ranges)")
-    w.add_argument("--out", type=Path, default=Path("sweep.csv"), help="results CSV (default sweep.csv)")
+    w.add_argument("--out", type=Path, default=Path("sweep.sqlite"), help="results: a SQLite store (.sqlite, "
+                   ".sqlite3 or .db; one transaction per unit) or a CSV file (any other suffix); default "
+                   "sweep.sqlite")
     w.add_argument("--resume", action="store_true", help="continue an interrupted sweep in --out")
     w.add_argument("--backend", default="local", help="local (process pool) or ray (default local)")
     w.add_argument("--workers", type=int, help="local worker processes, or CPUs of a local Ray (default: all)")
     w.add_argument("--ray-address", help="Ray cluster HOST:PORT, ray://HOST:PORT or auto (default: a local Ray)")
     w.add_argument("--no-progress", action="store_true", help="no progress bar")
 
-    x = sub.add_parser("export", help="a complete sweep file as a SQLite database or JSON Lines, values typed")
-    x.add_argument("sweep", type=Path, help="sweep CSV file")
-    x.add_argument("--out", type=Path, required=True, help="output: FILE.sqlite (or .db) or FILE.jsonl")
+    x = sub.add_parser("export", help="a complete sweep (store or CSV) as a typed SQLite table, JSON Lines or CSV")
+    x.add_argument("sweep", type=Path, help="the sweep: its SQLite store or CSV file")
+    x.add_argument("--out", type=Path, required=True, help="output: FILE.sqlite (or .db), FILE.jsonl or FILE.csv")
 
     a = sub.add_parser("audit", help="check the paper's claims against sweep files; writes AUDIT.md and figures")
     a.add_argument("sweeps", nargs="+", type=Path, help="sweep CSV files")

@@ -66,7 +66,7 @@ def test_torn_unfinished_or_unknown_are_refused_and_leave_nothing(sweep, tmp_pat
     with pytest.raises(InvalidInputError, match=r"^sweep: .*unfinished.csv is unfinished; finish it with the same "
                                                 r"mjtraj sweep command and --resume before exporting it$"):
         export(unfinished, tmp_path / "u.jsonl")
-    with pytest.raises(InvalidInputError, match=r"^out: expected a file ending in .sqlite, .db, .jsonl, got "
+    with pytest.raises(InvalidInputError, match=r"^out: expected a file ending in .sqlite, .db, .jsonl, .csv, got "
                                                 r"'.*s.parquet'$"):
         export(sweep, tmp_path / "s.parquet")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["torn.csv", "unfinished.csv"]

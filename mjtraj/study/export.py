@@ -1,7 +1,9 @@
-"""`mjtraj export`: a sweep's results file as a SQLite database or JSON Lines, with typed values.
+"""`mjtraj export`: a sweep's results (a SQLite store or a CSV file) as a typed SQLite table, JSON Lines, or CSV.
 
-The CSV results file stays the store a sweep appends to (durable row by row, resumable); export turns a complete one
-into the formats analysis tools read directly. A column is text when it is one of TEXT_COLUMNS (names, reasons,
+The sweep's own store (`mjtraj.study.sweep_store`, or the CSV results file) is what a sweep appends to, unit by
+unit, and resumes; export turns a complete one into the formats analysis tools read directly (pandas:
+`pd.read_csv`, `pd.read_sql("SELECT * FROM rows", connection)`, `pd.read_json(..., lines=True)`). CSV output is
+the CSV results file's text, byte for byte. A column is text when it is one of TEXT_COLUMNS (names, reasons,
 versions: '3.10' is not 3.1) or a present cell of it is not a number; else a number ('' and 'nan' are missing
 values: SQL NULL, JSON null), whole when every present cell is written as a whole number. Only complete sweeps are
 exported (a torn or unfinished file is refused, as the audit refuses it); the output is written atomically.
@@ -19,9 +21,9 @@ from typing import Any
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path
 from mjtraj.study.audit import complete_units, expected_rows
-from mjtraj.study.store import VERSION_COLUMNS, read_rows
+from mjtraj.study.store import VERSION_COLUMNS, csv_text, read_rows
 
-FORMATS = {".sqlite": "sqlite", ".db": "sqlite", ".jsonl": "jsonl"}
+FORMATS = {".sqlite": "sqlite", ".db": "sqlite", ".jsonl": "jsonl", ".csv": "csv"}
 TEXT_COLUMNS = ("family", "planner", "ff_accel", "gravity_comp", "status", "reason", "solver", "config",
                 "config_sha256", *VERSION_COLUMNS)
 TABLE = "rows"
@@ -67,7 +69,8 @@ def typed_rows(rows: list[dict[str, str]]) -> tuple[list[str], dict[str, str], l
 
 
 def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
-    """Write the complete sweep file `sweep` to `out` (format by suffix: .sqlite or .db, .jsonl); return the rows.
+    """Write the complete sweep `sweep` (store or CSV file) to `out` (format by suffix: .sqlite or .db, .jsonl,
+    .csv); return the rows.
 
     Raises:
       InvalidInputError: unknown output suffix, no such sweep file, or a torn or unfinished sweep.
@@ -84,9 +87,13 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
     if len(complete_units(rows)) < len(rows) or len(rows) < expected_rows(rows[0]):
         raise InvalidInputError(f"sweep: {sweep} is unfinished; finish it with the same mjtraj sweep command and "
                                 f"--resume before exporting it")
+    if Path(sweep).resolve() == target.resolve():
+        raise InvalidInputError(f"out: {out} is the sweep itself; choose another path")
     columns, kinds, typed = typed_rows(rows)
     with atomic_path(target) as tmp:
-        if kind == "jsonl":
+        if kind == "csv":
+            tmp.write_text(csv_text(columns, rows), encoding="utf-8")
+        elif kind == "jsonl":
             with open(tmp, "w", encoding="utf-8") as f:
                 for row in typed:
                     f.write(json.dumps(row, allow_nan=False) + "\n")

@@ -12,6 +12,7 @@ from mjtraj.exceptions import InvalidInputError
 from mjtraj.study.backends import backend_map, check_backend
 from mjtraj.study.store import ResultsFile
 from mjtraj.study.sweep import SweepSettings, columns, fixed_columns
+from mjtraj.study.sweep_store import SweepStore, is_store_path
 
 
 @dataclass
@@ -31,14 +32,16 @@ class SweepReport:
 
 def run_sweep(settings: SweepSettings, out: str | os.PathLike[str], *, resume: bool = False, backend: str = "local",
               workers: int | None = None, ray_address: str | None = None, progress: bool = True) -> SweepReport:
-    """Run (or continue, with `resume`) the sweep `settings` into the CSV file `out`.
+    """Run (or continue, with `resume`) the sweep `settings` into `out`: a SQLite store when its suffix is one of
+    `mjtraj.study.sweep_store.STORE_SUFFIXES` (.sqlite, .sqlite3, .db), else a CSV results file.
 
     Args:
       backend: 'local' (a process pool of `workers`, default all cores; 1 runs in this process) or 'ray'.
       ray_address: a Ray cluster (HOST:PORT, ray://HOST:PORT or 'auto'); None starts a local instance.
 
     Raises:
-      InvalidInputError: unknown backend, or a file that cannot be resumed (see ResultsFile.open).
+      InvalidInputError: unknown backend, or a file that cannot be resumed (see ResultsFile.open and
+        SweepStore.open).
       BackendError: Ray missing or unreachable; raised before the file is touched.
     """
     check_backend(backend, ray_address)  # before the file is touched
@@ -50,7 +53,8 @@ def run_sweep(settings: SweepSettings, out: str | os.PathLike[str], *, resume: b
     record = fixed_columns(settings)
     path = Path(out)
     fresh = not path.exists()
-    results = ResultsFile.open(path, columns(settings), record, unit_rows, resume=resume)
+    opener = SweepStore.open if is_store_path(path) else ResultsFile.open
+    results: SweepStore | ResultsFile = opener(path, columns(settings), record, unit_rows, resume=resume)
     report = SweepReport(path=path, skipped_units=len(results.done))
     todo = [unit for unit in units if unit not in results.done]
     bar = None
@@ -72,8 +76,10 @@ def run_sweep(settings: SweepSettings, out: str | os.PathLike[str], *, resume: b
                 bar.update(len(result.rows))
                 bar.set_postfix_str(", ".join(f"{k} {v}" for k, v in sorted(report.statuses.items())))
     except BaseException:
-        if fresh and report.rows == 0 and path.exists():
-            path.unlink()  # nothing but a header was written: leave nothing behind
+        if fresh and report.rows == 0:
+            results.close()
+            for leftover in (path, path.with_name(path.name + "-journal")):
+                leftover.unlink(missing_ok=True)  # nothing but a header or a schema was written: leave nothing
         raise
     finally:
         results.close()

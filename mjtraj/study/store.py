@@ -17,14 +17,9 @@ from pathlib import Path
 from typing import IO, Any
 
 from mjtraj.exceptions import InvalidInputError
-
-VERSION_COLUMNS = ("mjtraj", "mujoco", "numpy")
-
-
-def _cell(value: Any) -> str:
-    if isinstance(value, float):
-        return "nan" if math.isnan(value) else repr(value)
-    return str(value)
+from mjtraj.study.cells import VERSION_COLUMNS, cell_text, setting_cells
+from mjtraj.study.locks import lock_file
+from mjtraj.study.sweep_store import is_sqlite_file, read_store_rows
 
 
 def format_rows(columns: list[str], rows: list[dict[str, Any]]) -> str:
@@ -32,7 +27,7 @@ def format_rows(columns: list[str], rows: list[dict[str, Any]]) -> str:
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     for row in rows:
-        writer.writerow([_cell(row[c]) for c in columns])
+        writer.writerow([cell_text(row[c]) for c in columns])
     return buffer.getvalue()
 
 
@@ -50,12 +45,15 @@ def append_rows(path: Path, columns: list[str], rows: list[dict[str, Any]]) -> N
 
 
 def read_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
-    """The rows of a results file as dicts of strings (use `numeric` for the numbers).
+    """The rows of a results file, CSV or SQLite store (`mjtraj.study.sweep_store`), as dicts of strings (use
+    `numeric` for the numbers).
 
     Raises:
       InvalidInputError: the file is not text, or a row has more or fewer cells than the header (a torn write:
-        the message names the line).
+        the message names the line); or a SQLite file is not a readable sweep store.
     """
+    if is_sqlite_file(path):
+        return read_store_rows(path)
     with open(path, "rb") as raw:
         size = raw.seek(0, os.SEEK_END)
         if size:
@@ -122,7 +120,7 @@ class ResultsFile:
             raise InvalidInputError(f"out: {file} exists; pass --resume to continue that sweep, or choose another "
                                     f"path")
         file.parent.mkdir(parents=True, exist_ok=True)
-        lock = _lock(file)
+        lock = lock_file(file)
         try:
             if file.stat().st_size == 0:  # absent or empty: the header
                 append_rows(file, columns, [dict(zip(columns, columns, strict=True))])
@@ -148,27 +146,6 @@ class ResultsFile:
             self._lock = None
 
 
-def _lock(file: Path) -> IO[bytes] | None:
-    """An open handle on `file` (created if absent) holding its exclusive lock; None where flock is unavailable.
-
-    Raises:
-      InvalidInputError: another process holds the lock.
-    """
-    try:
-        import fcntl
-    except ImportError:  # not POSIX: no lock, as before
-        file.touch()
-        return None
-    handle = open(file, "ab")
-    try:
-        fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        handle.close()
-        raise InvalidInputError(f"out: {file} is being written by another sweep right now (it holds the file's "
-                                f"lock); wait for that sweep to end, or choose another path") from None
-    return handle
-
-
 def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: dict[tuple[str, int], int]
            ) -> tuple[set[tuple[str, int]], int]:
     """Validate a file to resume; return its complete units and the byte length that holds them."""
@@ -185,7 +162,7 @@ def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: 
                                 f"(missing {missing[:5]}, unexpected {extra[:5]}); it was written by another "
                                 f"mjtraj version; start a new file")
     index = {c: i for i, c in enumerate(columns)}
-    expected = {name: str(value) if name in VERSION_COLUMNS else _cell(value) for name, value in settings.items()}
+    expected = setting_cells(settings)
     body = lines[1:-1]  # the last piece follows the last newline: empty, or a torn line that is cut
     damaged = "; the file was damaged or edited (an interruption only tears the last line or unit): start a new file"
     offset = keep = len(lines[0]) + 1

@@ -1,0 +1,256 @@
+"""A sweep's results as a SQLite store: one transaction per unit of work, so a unit is stored whole or not at all.
+
+Three tables:
+- `meta` (key, value): the file's columns and the settings and versions every row carries, as JSON;
+- `units` (family, unit, rows): the units stored, written in the same transaction as their rows;
+- `rows`: one row per scenario, controller variant and planner, keyed (PRIMARY KEY) by family, scenario, ff_accel,
+  gravity_comp and planner. Cells are the text the CSV store writes (floats as repr(), so they read back to the
+  same bits); `mjtraj export` gives typed tables.
+
+A duplicated, missing or torn unit cannot exist by construction: a unit's rows and its `units` entry commit
+together (SQLite's journal undoes an interrupted transaction at the next open), and the key refuses a row twice.
+A second sweep on the same store is refused while the first holds its lock. Resume checks the settings and
+versions and skips the stored units.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+from pathlib import Path
+from typing import IO, Any
+
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.study.cells import VERSION_COLUMNS, cell_text, setting_cells
+from mjtraj.study.locks import lock_file
+
+STORE_SUFFIXES = (".sqlite", ".sqlite3", ".db")
+"""An `--out` ending in one of these is a SQLite store; anything else is the CSV results file."""
+MAGIC = b"SQLite format 3\x00"
+"""The first 16 bytes of every SQLite database file."""
+KEY = ("family", "scenario", "ff_accel", "gravity_comp", "planner")
+"""The columns that identify a row: no two rows of a store share them."""
+
+
+def is_store_path(path: str | os.PathLike[str]) -> bool:
+    """Whether `path` names a SQLite store (by its suffix, STORE_SUFFIXES)."""
+    return Path(path).suffix.lower() in STORE_SUFFIXES
+
+
+def is_sqlite_file(path: str | os.PathLike[str]) -> bool:
+    """Whether the file at `path` is a SQLite database (by its first bytes)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(len(MAGIC)) == MAGIC
+    except OSError:
+        return False
+
+
+def _quote(name: str) -> str:
+    return '"' + name.replace('"', '""') + '"'
+
+
+def _connect(file: Path, *, readonly: bool = False) -> sqlite3.Connection:
+    if readonly:
+        connection = sqlite3.connect(f"{file.resolve().as_uri()}?mode=ro", uri=True, isolation_level=None)
+    else:
+        connection = sqlite3.connect(file, isolation_level=None)  # transactions are explicit
+        connection.execute("PRAGMA synchronous=FULL")
+    return connection
+
+
+def _tables(connection: sqlite3.Connection) -> set[str]:
+    return {name for (name,) in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+
+
+def _meta(connection: sqlite3.Connection, file: Path) -> tuple[list[str], dict[str, str]]:
+    """(columns, settings as cells) recorded in a store; InvalidInputError if it is not a sweep store."""
+    if not {"meta", "units", "rows"} <= _tables(connection):
+        raise InvalidInputError(f"sweep: {file} is a SQLite database but not an mjtraj sweep store (it lacks the "
+                                f"meta, units and rows tables)")
+    meta = dict(connection.execute("SELECT key, value FROM meta"))
+    try:
+        return list(json.loads(meta["columns"])), dict(json.loads(meta["settings"]))
+    except (KeyError, ValueError, TypeError) as e:
+        raise InvalidInputError(f"sweep: {file}: its meta table is damaged ({e}); start a new store") from e
+
+
+def read_store_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
+    """The rows of a SQLite sweep store as dicts of strings, in the order they were stored.
+
+    Raises:
+      InvalidInputError: the file is not a readable sweep store.
+    """
+    file = Path(path)
+    try:
+        connection = _connect(file, readonly=True)
+        try:
+            columns, _ = _meta(connection, file)
+            cursor = connection.execute(f"SELECT {', '.join(map(_quote, columns))} FROM rows ORDER BY rowid")
+            return [dict(zip(columns, ("" if v is None else str(v) for v in values), strict=True))
+                    for values in cursor]
+        finally:
+            connection.close()
+    except sqlite3.DatabaseError as e:
+        raise InvalidInputError(f"sweep: cannot read the store {file}: {e}") from e
+
+
+class SweepStore:
+    """Writer of one sweep's SQLite store; create with `open`, release with `close` (the ResultsFile interface).
+
+    While open it holds an exclusive lock on the file (POSIX `flock`), so a second sweep on the same store is
+    refused; the lock dies with the process.
+    """
+
+    def __init__(self, path: Path, connection: sqlite3.Connection, columns: list[str], done: set[tuple[str, int]],
+                 lock: IO[bytes] | None) -> None:
+        self.path = path
+        self.columns = columns
+        self.done = done
+        """(family, unit) already stored."""
+        self._connection: sqlite3.Connection | None = connection
+        self._lock = lock
+
+    @classmethod
+    def open(cls, path: str | os.PathLike[str], columns: list[str], settings: dict[str, Any],
+             unit_rows: dict[tuple[str, int], int], *, resume: bool) -> SweepStore:
+        """Create the store `path` (it must not exist unless `resume`), or continue it.
+
+        Args:
+          columns: the rows' columns.
+          settings: the setting and version columns every row of this sweep carries, name -> value.
+          unit_rows: rows of each unit of this sweep.
+
+        Raises:
+          InvalidInputError: the file exists without resume; another sweep holds it; it is not a sweep store; it
+            was written by other versions, with other settings or columns; or it holds a unit this sweep does
+            not have, or a unit whose row count is wrong.
+        """
+        file = Path(path)
+        if file.exists() and not resume:
+            raise InvalidInputError(f"out: {file} exists; pass --resume to continue that sweep, or choose another "
+                                    f"path")
+        if file.exists() and file.stat().st_size and not is_sqlite_file(file):
+            raise InvalidInputError(f"out: cannot resume {file}: it is not a SQLite sweep store")
+        file.parent.mkdir(parents=True, exist_ok=True)
+        lock = lock_file(file)
+        connection = None
+        try:
+            connection = _connect(file)
+            cells = setting_cells(settings)
+            if not _tables(connection):  # new (or a creation that was interrupted and rolled back)
+                _create(connection, columns, cells)
+                return cls(file, connection, columns, set(), lock)
+            done = _check(connection, file, columns, cells, unit_rows)
+            return cls(file, connection, columns, done, lock)
+        except sqlite3.DatabaseError as e:
+            if connection is not None:
+                connection.close()
+            if lock is not None:
+                lock.close()
+            raise InvalidInputError(f"out: cannot use {file} as a sweep store: {e}") from e
+        except BaseException:
+            if connection is not None:
+                connection.close()
+            if lock is not None:
+                lock.close()
+            raise
+
+    def append(self, rows: list[dict[str, Any]]) -> None:
+        """Store one unit's rows and its `units` entry in one transaction (durable when this returns).
+
+        Raises:
+          InvalidInputError: the unit or one of its rows is already stored (nothing of the unit is kept).
+        """
+        if self._connection is None:
+            raise InvalidInputError(f"out: {self.path} is closed")
+        if not rows:
+            return
+        family, unit = str(rows[0]["family"]), int(rows[0]["unit"])
+        marks = ", ".join("?" for _ in self.columns)
+        connection = self._connection
+        connection.execute("BEGIN IMMEDIATE")
+        try:
+            connection.executemany(f"INSERT INTO rows VALUES ({marks})",
+                                   ([cell_text(row[c]) for c in self.columns] for row in rows))
+            connection.execute("INSERT INTO units VALUES (?, ?, ?)", (family, unit, len(rows)))
+            connection.execute("COMMIT")
+        except sqlite3.IntegrityError as e:
+            connection.execute("ROLLBACK")
+            raise InvalidInputError(f"out: {self.path}: unit {family} {unit} is already stored ({e})") from e
+        except BaseException:
+            if connection.in_transaction:
+                connection.execute("ROLLBACK")
+            raise
+        self.done.add((family, unit))
+
+    def close(self) -> None:
+        """Close the database and release the lock (idempotent)."""
+        if self._connection is not None:
+            self._connection.close()
+            self._connection = None
+        if self._lock is not None:
+            self._lock.close()
+            self._lock = None
+
+
+def _create(connection: sqlite3.Connection, columns: list[str], cells: dict[str, str]) -> None:
+    missing = [k for k in KEY if k not in columns]
+    if missing:
+        raise InvalidInputError(f"out: a sweep store needs the key columns {', '.join(KEY)}; missing "
+                                f"{', '.join(missing)}")
+    connection.execute("BEGIN IMMEDIATE")
+    try:
+        connection.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)")
+        connection.execute("CREATE TABLE units (family TEXT NOT NULL, unit INTEGER NOT NULL, rows INTEGER NOT NULL, "
+                           "PRIMARY KEY (family, unit))")
+        connection.execute(f"CREATE TABLE rows ({', '.join(map(_quote, columns))}, "
+                           f"PRIMARY KEY ({', '.join(map(_quote, KEY))}))")
+        connection.executemany("INSERT INTO meta VALUES (?, ?)", [("columns", json.dumps(columns)),
+                                                                  ("settings", json.dumps(cells))])
+        connection.execute("COMMIT")
+    except BaseException:
+        if connection.in_transaction:
+            connection.execute("ROLLBACK")
+        raise
+
+
+def _check(connection: sqlite3.Connection, file: Path, columns: list[str], cells: dict[str, str],
+           unit_rows: dict[tuple[str, int], int]) -> set[tuple[str, int]]:
+    """Validate a store to resume; return its units."""
+    stored_columns, stored = _meta(connection, file)
+    if stored_columns != columns:
+        missing = [c for c in columns if c not in stored_columns]
+        extra = [c for c in stored_columns if c not in columns]
+        raise InvalidInputError(f"out: cannot resume {file}: its columns differ from this version's (missing "
+                                f"{missing[:5]}, unexpected {extra[:5]}); it was written by another mjtraj version; "
+                                f"start a new store")
+    for name, value in cells.items():
+        if stored.get(name) != value:
+            if name in VERSION_COLUMNS:
+                raise InvalidInputError(f"out: cannot resume {file}: it was written by {name} {stored.get(name)}, "
+                                        f"this is {name} {value}; start a new store")
+            raise InvalidInputError(f"out: cannot resume {file}: setting {name!r} differs (store: "
+                                    f"{stored.get(name)!r}, now: {value!r}); resume with the same settings or start "
+                                    f"a new store")
+    done: set[tuple[str, int]] = set()
+    counted = dict(((f, int(u)), n) for f, u, n in connection.execute(
+        "SELECT family, CAST(unit AS INTEGER), COUNT(*) FROM rows GROUP BY family, CAST(unit AS INTEGER)"))
+    for family, unit, rows in connection.execute("SELECT family, unit, rows FROM units"):
+        key = (family, int(unit))
+        if key not in unit_rows:
+            raise InvalidInputError(f"out: cannot resume {file}: it holds unit {family} {unit}, which this sweep "
+                                    f"does not have; start a new store")
+        if rows != unit_rows[key] or counted.get(key) != rows:
+            raise InvalidInputError(f"out: cannot resume {file}: unit {family} {unit} has {counted.get(key, 0)} rows, "
+                                    f"expected {unit_rows[key]}; the store was edited; start a new store")
+        done.add(key)
+    if set(counted) - done:
+        family, unit = sorted(set(counted) - done)[0]
+        raise InvalidInputError(f"out: cannot resume {file}: rows of unit {family} {unit} are stored without the unit; "
+                                f"the store was edited; start a new store")
+    return done
+
+
+__all__ = ["KEY", "STORE_SUFFIXES", "SweepStore", "is_sqlite_file", "is_store_path", "read_store_rows"]

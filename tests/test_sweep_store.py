@@ -1,0 +1,167 @@
+"""The SQLite sweep store: the rows of the CSV file, bit for bit; resume after a kill at any moment gives the
+uninterrupted rows; a unit is stored whole or not at all; duplicates are impossible; a second writer, other
+settings and foreign files are refused, leaving the store untouched."""
+
+
+from __future__ import annotations
+
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import pytest
+
+from mjtraj.cli import main
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.study.runner import run_sweep
+from mjtraj.study.store import read_rows
+from mjtraj.study.sweep import SweepSettings, columns, fixed_columns
+from mjtraj.study.sweep_store import SweepStore
+
+SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
+
+
+@pytest.fixture(scope="module")
+def stored(tmp_path_factory):
+    """The small sweep as a CSV file and as a store: (csv path, store path)."""
+    folder = tmp_path_factory.mktemp("stores")
+    csv, store = folder / "small.csv", folder / "small.sqlite"
+    run_sweep(SweepSettings(**SMALL), csv, workers=1, progress=False)
+    run_sweep(SweepSettings(**SMALL), store, workers=1, progress=False)
+    return csv, store
+
+
+def _units(path):
+    with sqlite3.connect(path) as connection:
+        return sorted(connection.execute("SELECT family, unit, rows FROM units"))
+
+
+def test_the_store_holds_the_csv_files_rows_bit_for_bit(stored):
+    csv, store = stored
+    assert read_rows(store) == read_rows(csv)  # floats as repr(): the same text, so the same bits
+    assert _units(store) == [("nominal", 0, 6), ("nominal", 1, 6)]
+
+
+def test_a_row_twice_is_impossible_and_a_failed_unit_leaves_nothing(stored, tmp_path):
+    _, store = stored
+    path = tmp_path / "s.sqlite"
+    path.write_bytes(store.read_bytes())
+    settings = SweepSettings(**SMALL)
+    unit_rows = {unit: settings.unit_rows(unit) for unit in settings.units()}
+    rows = read_rows(path)
+    with sqlite3.connect(path) as connection:  # forget unit 1 but keep one of its rows, as an edit would
+        connection.execute("DELETE FROM units WHERE unit = 1")
+    with pytest.raises(InvalidInputError, match=r"^out: cannot resume .*: rows of unit nominal 1 are stored without "
+                                                 r"the unit; the store was edited"):
+        SweepStore.open(path, columns(settings), fixed_columns(settings), unit_rows, resume=True)
+    path.write_bytes(store.read_bytes())
+    with sqlite3.connect(path) as connection:
+        connection.execute("DELETE FROM units WHERE unit = 1")
+        connection.execute("DELETE FROM rows WHERE unit = '1'")
+    writer = SweepStore.open(path, columns(settings), fixed_columns(settings), unit_rows, resume=True)
+    try:
+        assert writer.done == {("nominal", 0)}
+        unit0 = [r for r in rows if r["unit"] == "0"]
+        half = [*[r for r in rows if r["unit"] == "1"][:3], unit0[0]]  # a unit whose last row repeats a stored key
+        with pytest.raises(InvalidInputError, match=r"unit nominal 1 is already stored \(UNIQUE constraint failed"):
+            writer.append([{**r, "unit": "1"} for r in half])
+        assert len(read_rows(path)) == 6 and writer.done == {("nominal", 0)}  # nothing of the failed unit is kept
+    finally:
+        writer.close()
+
+
+@pytest.mark.parametrize("damage", ["units", "settings", "versions", "foreign unit", "not a store", "text"])
+def test_resume_refuses_what_a_sweep_cannot_have_written(stored, tmp_path, damage):
+    _, store = stored
+    path = tmp_path / "s.sqlite"
+    path.write_bytes(store.read_bytes())
+    settings = SweepSettings(**SMALL)
+    match = {"units": r"unit nominal 0 has 5 rows, expected 6; the store was edited",
+             "settings": r"setting 'sweep_seed' differs \(store: '0', now: '1'\)",
+             "versions": r"it was written by mujoco 3.0.0, this is mujoco ",
+             "foreign unit": r"it holds unit nominal 9, which this sweep does not have",
+             "not a store": r"is a SQLite database but not an mjtraj sweep store",
+             "text": r"it is not a SQLite sweep store"}[damage]
+    with sqlite3.connect(path) as connection:
+        if damage == "units":
+            connection.execute("DELETE FROM rows WHERE rowid = (SELECT MIN(rowid) FROM rows)")
+        elif damage == "settings":
+            settings = SweepSettings(**{**SMALL, "seed": 1})
+        elif damage == "versions":
+            connection.execute("UPDATE meta SET value = replace(value, ?, '3.0.0') WHERE key = 'settings'",
+                               (fixed_columns(settings)["mujoco"],))
+        elif damage == "foreign unit":
+            connection.execute("INSERT INTO units VALUES ('nominal', 9, 6)")
+        elif damage == "not a store":
+            connection.execute("DROP TABLE meta")
+    if damage == "text":
+        path.write_text("family,scenario\n")
+    before = path.read_bytes()
+    with pytest.raises(InvalidInputError, match=rf"^out: cannot resume {path}: .*{match}|^sweep: {path} {match}"):
+        run_sweep(settings, path, resume=True, workers=1, progress=False)
+    assert path.read_bytes() == before
+
+
+def test_a_second_writer_is_refused_while_the_first_holds_the_store(stored, tmp_path):
+    _, store = stored
+    path = tmp_path / "busy.sqlite"
+    settings = SweepSettings(**SMALL)
+    unit_rows = {unit: settings.unit_rows(unit) for unit in settings.units()}
+    first = SweepStore.open(path, columns(settings), fixed_columns(settings), unit_rows, resume=False)
+    try:
+        with pytest.raises(InvalidInputError, match=r"^out: .* is being written by another sweep right now"):
+            run_sweep(settings, path, resume=True, workers=1, progress=False)
+    finally:
+        first.close()
+    report = run_sweep(settings, path, resume=True, workers=1, progress=False)  # the lock went with close()
+    assert report.rows == 12 and read_rows(path) == read_rows(store)
+    with pytest.raises(InvalidInputError, match=r"exists; pass --resume"):
+        run_sweep(settings, path, workers=1, progress=False)
+
+
+def _stored_units(path) -> int:
+    try:
+        with sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True) as connection:
+            return int(connection.execute("SELECT COUNT(*) FROM units").fetchone()[0])
+    except sqlite3.Error:  # not created yet
+        return 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("after", [0, 1, 12, 30])
+def test_resume_after_a_kill_at_any_moment_gives_the_uninterrupted_rows(tmp_path, after):
+    """SIGKILL once `after` of 40 units are stored (0: during start-up), so mostly in the middle of a unit's
+    computation or transaction; every stored unit is whole, and the resumed store equals a run never
+    interrupted, row for row."""
+    args = ["--scenarios", "120", "--batch", "3", "--planners", "optimal,cubic", "--workers", "1", "--no-progress"]
+    whole, cut = tmp_path / "whole.sqlite", tmp_path / "cut.sqlite"
+    subprocess.run([sys.executable, "-m", "mjtraj", "sweep", *args, "--out", str(whole)], check=True,
+                   capture_output=True)
+    proc = subprocess.Popen([sys.executable, "-m", "mjtraj", "sweep", *args, "--out", str(cut)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 60
+    while time.time() < deadline and proc.poll() is None and (after == 0 or _stored_units(cut) < after):
+        time.sleep(0.3 if after == 0 else 0.005)
+        if after == 0:
+            break
+    assert proc.poll() is None, "the sweep ended before the kill"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    stored = _units(cut) if _stored_units(cut) else []
+    assert len(stored) < 40 and all(rows == 6 for _, _, rows in stored)  # whole units only
+    if stored:
+        assert len(read_rows(cut)) == 6 * len(stored)
+    subprocess.run([sys.executable, "-m", "mjtraj", "sweep", *args, "--out", str(cut), "--resume"], check=True,
+                   capture_output=True, text=True)
+    assert read_rows(cut) == read_rows(whole)  # one worker stores units in order: the same rows in the same order
+
+
+def test_export_and_audit_read_stores(stored, tmp_path, capsys):
+    csv, store = stored
+    assert main(["export", str(store), "--out", str(tmp_path / "back.csv")]) == 0
+    assert read_rows(tmp_path / "back.csv") == read_rows(csv)
+    assert (tmp_path / "back.csv").read_bytes() == csv.read_bytes()
+    assert main(["audit", str(store), "--no-tasks", "--out", str(tmp_path / "AUDIT.md")]) == 0
+    assert "nominal" in (tmp_path / "AUDIT.md").read_text()
