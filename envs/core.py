@@ -53,7 +53,7 @@ def check_action(action: npt.ArrayLike, shape: tuple[int, ...]) -> NDArray[np.fl
         raise InvalidInputError(f"action: expected real numbers in [-1, 1], got {kind}")
     a = raw.astype(np.float64, copy=False)
     if a.shape != shape:
-        if a.size != math.prod(shape):
+        if a.ndim != 1 or a.size != math.prod(shape):  # only a flat array of as many values is reshaped
             expected = shape[1:] if shape[0] == 1 else shape
             raise InvalidInputError(f"action: expected shape {expected}, got {np.shape(action)}")
         a = a.reshape(shape)

@@ -45,6 +45,13 @@ def choice(name: str, value: str, valid: Iterable[str]) -> str:
     return value
 
 
+def seed_value(name: str, value: int) -> int:
+    """Return `value` as an int >= 0 (a seed), or raise naming `name`."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise InvalidInputError(f"{name}: expected a whole number >= 0, got {value!r}")
+    return int(value)
+
+
 def positive_int(name: str, value: int) -> int:
     """Return `value` as an int >= 1, or raise naming `name`."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:

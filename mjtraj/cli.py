@@ -32,7 +32,7 @@ def _floats(text: str) -> list[float]:
 
 def _counts(text: str) -> list[int]:
     try:
-        values = [int(x) for x in _names(text)]
+        values = [int(x) for x in text.split(",")]
     except ValueError as e:
         raise argparse.ArgumentTypeError(f"expected whole numbers separated by commas, got {text!r}") from e
     if not values or min(values) < 1:
@@ -78,7 +78,10 @@ def _join_negative_values(argv: Sequence[str]) -> list[str]:
 
 
 def _names(text: str) -> list[str]:
-    return [x for x in text.replace(",", " ").split() if x]
+    names = [x.strip() for x in text.split(",")]
+    if not text.strip() or any(not x for x in names):
+        raise argparse.ArgumentTypeError(f"expected comma-separated names without empty ones, got {text!r}")
+    return names
 
 
 def _loop_flags(parser: argparse.ArgumentParser) -> None:

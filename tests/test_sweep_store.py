@@ -78,7 +78,7 @@ def test_resume_refuses_what_a_sweep_cannot_have_written(stored, tmp_path, damag
     path = tmp_path / "s.sqlite"
     path.write_bytes(store.read_bytes())
     settings = SweepSettings(**SMALL)
-    match = {"units": r"unit nominal 0 has 5 rows, expected 6; the store was edited",
+    match = {"units": r"unit nominal 0 has 5 rows, its entry says 6; the store was edited",
              "settings": r"setting 'sweep_seed' differs \(store: '0', now: '1'\)",
              "versions": r"it was written by mujoco 3.0.0, this is mujoco ",
              "foreign unit": r"it holds unit nominal 9, which this sweep does not have",
@@ -92,8 +92,9 @@ def test_resume_refuses_what_a_sweep_cannot_have_written(stored, tmp_path, damag
         elif damage == "versions":
             connection.execute("UPDATE meta SET value = replace(value, ?, '3.0.0') WHERE key = 'settings'",
                                (fixed_columns(settings)["mujoco"],))
-        elif damage == "foreign unit":
-            connection.execute("INSERT INTO units VALUES ('nominal', 9, 6)")
+        elif damage == "foreign unit":  # consistent, but a unit this sweep does not have
+            connection.execute("UPDATE rows SET unit = '9' WHERE unit = '1'")
+            connection.execute("UPDATE units SET unit = 9 WHERE unit = 1")
         elif damage == "not a store":
             connection.execute("DROP TABLE meta")
     if damage == "text":

@@ -79,7 +79,7 @@ def prepare_arm(path: str | os.PathLike[str], *, dt: float | None = None, torque
     try:
         spec = mujoco.MjSpec.from_file(str(file))
     except ValueError as e:
-        raise ModelError(f"cannot load model {file}: {e}") from e
+        raise ModelError(f"cannot load model {file}: {' '.join(str(e).split())}") from e
     joints = _hinges(spec, file)
     for joint in joints:
         if not joint.name:
@@ -102,7 +102,7 @@ def prepare_arm(path: str | os.PathLike[str], *, dt: float | None = None, torque
     try:
         return spec.compile()
     except ValueError as e:
-        raise ModelError(f"cannot prepare model {file}: {e}") from e
+        raise ModelError(f"cannot prepare model {file}: {' '.join(str(e).split())}") from e
 
 
 def home_pose(model: mujoco.MjModel) -> NDArray[np.float64]:

@@ -47,7 +47,7 @@ def load_model(path: str | os.PathLike[str] | None = None, *, dt: float | None =
     try:
         model = mujoco.MjModel.from_xml_path(str(file))
     except ValueError as e:
-        raise ModelError(f"cannot load model {file}: {e}") from e
+        raise ModelError(f"cannot load model {file}: {' '.join(str(e).split())}") from e
     if model.nu != model.nv or model.nv != model.njnt:
         raise ModelError(f"model {file}: expected one hinge joint and one motor per degree of freedom, "
                          f"got njnt={model.njnt}, nv={model.nv}, nu={model.nu}")

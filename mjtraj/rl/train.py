@@ -17,6 +17,7 @@ Rules (stated once, recorded in run.json):
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import json
@@ -241,15 +242,21 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
         "started": datetime.now(timezone.utc).isoformat(timespec="seconds")}
     _write_json(folder / "run.json", record)
     clock = time.perf_counter()
+    started = False
     try:
         venv = VecNormalize(VecMonitor(SB3TrackVecEnv(num_envs, **env_kwargs)), clip_obs=CLIP_OBS)
         kwargs = copy.deepcopy(hyper)  # SB3 edits policy_kwargs in place; the record keeps what was given
         if settings.algo == "td3":
             n = env.n
             kwargs["action_noise"] = NormalActionNoise(np.zeros(n), np.full(n, TD3_NOISE_STD))
-        model = getattr(sb3, settings.algo.upper())("MlpPolicy", venv, seed=settings.seed, device="cpu", verbose=0,
-                                                    tensorboard_log=None if tensorboard is None else str(tensorboard),
-                                                    **kwargs)
+        try:
+            model = getattr(sb3, settings.algo.upper())(
+                "MlpPolicy", venv, seed=settings.seed, device="cpu", verbose=0,
+                tensorboard_log=None if tensorboard is None else str(tensorboard), **kwargs)
+        except (AssertionError, ValueError, TypeError) as e:  # SB3's own checks of its arguments
+            raise InvalidInputError(f"hyperparameter: {settings.algo} refused {dict(settings.overrides)}: "
+                                    f"{' '.join(str(e).split())}") from e
+        started = True
         venv.gamma = model.gamma  # VecNormalize discounts rewards with the algorithm's gamma
         record["hyperparameters"]["resolved"] = _resolved(model)
         _write_json(folder / "run.json", record)
@@ -336,6 +343,11 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
         policy_path = snapshot().save(folder / "policy.zip")
         plot_curve(folder / "learning_curve.csv", folder / "learning_curve.png", title=_title(settings))
     except BaseException as e:
+        if not started and isinstance(e, InvalidInputError):  # refused before training: leave nothing behind
+            (folder / "run.json").unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                (folder / "checkpoints").rmdir()
+            raise
         record.update(status="failed", error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - clock)
         _write_json(folder / "run.json", record)
         raise

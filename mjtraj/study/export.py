@@ -26,6 +26,8 @@ from mjtraj.study.store import VERSION_COLUMNS, csv_text, read_rows
 FORMATS = {".sqlite": "sqlite", ".db": "sqlite", ".jsonl": "jsonl", ".csv": "csv"}
 TEXT_COLUMNS = ("family", "planner", "ff_accel", "gravity_comp", "status", "reason", "solver", "config",
                 "config_sha256", *VERSION_COLUMNS)
+SWEEP_KEYS = ("family", "scenario", "unit", "planner", "status", "sweep_scenarios", "sweep_batch")
+"""Columns every sweep results file has."""
 TABLE = "rows"
 """The SQLite table that holds the rows (indexed by family, scenario and planner)."""
 
@@ -84,6 +86,9 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
     rows = read_rows(sweep)
     if not rows:
         raise InvalidInputError(f"sweep: no rows in {sweep}")
+    missing = [c for c in SWEEP_KEYS if c not in rows[0]]
+    if missing:
+        raise InvalidInputError(f"sweep: {sweep} is not a sweep results file (missing columns {', '.join(missing)})")
     if len(complete_units(rows)) < len(rows) or len(rows) < expected_rows(rows[0]):
         raise InvalidInputError(f"sweep: {sweep} is unfinished; finish it with the same mjtraj sweep command and "
                                 f"--resume before exporting it")

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from mjtraj.checks import seed_value
 from mjtraj.core.planners import Planner, make, plan_all
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
@@ -105,7 +106,8 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
             raise InvalidInputError(f"family: unknown value {family!r}; valid: {', '.join(FAMILIES)}")
         if isinstance(scenarios, bool) or not isinstance(scenarios, int) or scenarios < 2:
             raise InvalidInputError(f"scenarios: expected a whole number >= 2 for a family, got {scenarios!r}")
-        draws = [draw_scenario(family, seed, i, model, scenario.task.dt) for i in range(scenarios)]
+        draws = [draw_scenario(family, seed_value("seed", seed), i, model, scenario.task.dt)
+                 for i in range(scenarios)]
         scoring = Scoring()
     tasks = [d.task for d in draws]
     weights = [scoring.weights(t, scenario.torque_limit) for t in tasks]

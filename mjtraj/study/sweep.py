@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.checks import choice, positive_int
+from mjtraj.checks import choice, positive_int, seed_value
 from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
 from mjtraj.core.controller import PIDGains
 from mjtraj.core.options import choices, option_names
@@ -106,8 +106,7 @@ class SweepSettings:
                 raise InvalidInputError(f"{name}: expected distinct values, got {', '.join(values)}")
         positive_int("scenarios", self.scenarios)
         positive_int("batch", self.batch)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise InvalidInputError(f"seed: expected a whole number >= 0, got {self.seed!r}")
+        seed_value("seed", self.seed)
         if not (np.isfinite(self.sensor_noise) and self.sensor_noise >= 0):
             raise InvalidInputError(f"sensor_noise: expected a number >= 0 (rad), got {self.sensor_noise!r}")
         if self.torque_limit is not None and self.model is None:

@@ -76,6 +76,23 @@ def _meta(connection: sqlite3.Connection, file: Path) -> tuple[list[str], dict[s
         raise InvalidInputError(f"sweep: {file}: its meta table is damaged ({e}); start a new store") from e
 
 
+def _stored_units(connection: sqlite3.Connection, file: Path) -> dict[tuple[str, int], int]:
+    """(family, unit) -> rows of every stored unit, checked against the rows themselves (InvalidInputError if a
+    unit's rows are not all there, or rows lack their unit: the store was edited)."""
+    counted = {(f, int(u)): n for f, u, n in connection.execute(
+        "SELECT family, CAST(unit AS INTEGER), COUNT(*) FROM rows GROUP BY family, CAST(unit AS INTEGER)")}
+    units = {(f, int(u)): int(n) for f, u, n in connection.execute("SELECT family, unit, rows FROM units")}
+    for (family, unit), rows in units.items():
+        if counted.get((family, unit)) != rows:
+            raise InvalidInputError(f"sweep: {file}: unit {family} {unit} has {counted.get((family, unit), 0)} "
+                                    f"rows, its entry says {rows}; the store was edited; start a new store")
+    if set(counted) - set(units):
+        family, unit = sorted(set(counted) - set(units))[0]
+        raise InvalidInputError(f"sweep: {file}: rows of unit {family} {unit} are stored without the unit; the "
+                                f"store was edited; start a new store")
+    return units
+
+
 def read_store_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
     """The rows of a SQLite sweep store as dicts of strings, in the order they were stored.
 
@@ -87,6 +104,7 @@ def read_store_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
         connection = _connect(file, readonly=True)
         try:
             columns, _ = _meta(connection, file)
+            _stored_units(connection, file)
             cursor = connection.execute(f"SELECT {', '.join(map(_quote, columns))} FROM rows ORDER BY rowid")
             return [dict(zip(columns, ("" if v is None else str(v) for v in values), strict=True))
                     for values in cursor]
@@ -234,23 +252,18 @@ def _check(connection: sqlite3.Connection, file: Path, columns: list[str], cells
             raise InvalidInputError(f"out: cannot resume {file}: setting {name!r} differs (store: "
                                     f"{stored.get(name)!r}, now: {value!r}); resume with the same settings or start "
                                     f"a new store")
-    done: set[tuple[str, int]] = set()
-    counted = dict(((f, int(u)), n) for f, u, n in connection.execute(
-        "SELECT family, CAST(unit AS INTEGER), COUNT(*) FROM rows GROUP BY family, CAST(unit AS INTEGER)"))
-    for family, unit, rows in connection.execute("SELECT family, unit, rows FROM units"):
-        key = (family, int(unit))
-        if key not in unit_rows:
+    try:
+        units = _stored_units(connection, file)
+    except InvalidInputError as e:
+        raise InvalidInputError(f"out: cannot resume {file}: {str(e).split(': ', 2)[-1]}") from e
+    for (family, unit), rows in units.items():
+        if (family, unit) not in unit_rows:
             raise InvalidInputError(f"out: cannot resume {file}: it holds unit {family} {unit}, which this sweep "
                                     f"does not have; start a new store")
-        if rows != unit_rows[key] or counted.get(key) != rows:
-            raise InvalidInputError(f"out: cannot resume {file}: unit {family} {unit} has {counted.get(key, 0)} rows, "
-                                    f"expected {unit_rows[key]}; the store was edited; start a new store")
-        done.add(key)
-    if set(counted) - done:
-        family, unit = sorted(set(counted) - done)[0]
-        raise InvalidInputError(f"out: cannot resume {file}: rows of unit {family} {unit} are stored without the unit; "
-                                f"the store was edited; start a new store")
-    return done
+        if rows != unit_rows[(family, unit)]:
+            raise InvalidInputError(f"out: cannot resume {file}: unit {family} {unit} has {rows} rows, expected "
+                                    f"{unit_rows[(family, unit)]}; the store was edited; start a new store")
+    return set(units)
 
 
 __all__ = ["KEY", "STORE_SUFFIXES", "SweepStore", "is_sqlite_file", "is_store_path", "read_store_rows"]
