@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from mjtraj.exceptions import InvalidInputError
+from mjtraj.files import with_path
 from mjtraj.study.cells import VERSION_COLUMNS, cell_text, setting_cells
 from mjtraj.study.locks import lock_file
 from mjtraj.study.sweep_store import is_sqlite_file, read_store_rows
@@ -37,11 +38,18 @@ def csv_text(columns: list[str], rows: list[dict[str, Any]]) -> str:
 
 
 def append_rows(path: Path, columns: list[str], rows: list[dict[str, Any]]) -> None:
-    """Append `rows` to the CSV file `path` in one write, flushed and fsynced (durable when this returns)."""
-    with open(path, "a", newline="") as f:
-        f.write(format_rows(columns, rows))
-        f.flush()
-        os.fsync(f.fileno())
+    """Append `rows` to the CSV file `path` in one write, flushed and fsynced (durable when this returns).
+
+    Raises:
+      OSError: naming `path` (a full disk, a file-size limit); the file may end in a torn unit, which resume cuts.
+    """
+    try:
+        with open(path, "a", newline="") as f:
+            f.write(format_rows(columns, rows))
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as e:
+        raise with_path(e, path) from e
 
 
 def read_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:

@@ -15,6 +15,8 @@ versions and skips the stored units.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import os
 import sqlite3
@@ -197,6 +199,12 @@ class SweepStore:
         except sqlite3.IntegrityError as e:
             connection.execute("ROLLBACK")
             raise InvalidInputError(f"out: {self.path}: unit {family} {unit} is already stored ({e})") from e
+        except sqlite3.Error as e:  # the disk: full, a file-size limit, an I/O error; the unit is not stored
+            with contextlib.suppress(sqlite3.Error):
+                if connection.in_transaction:
+                    connection.execute("ROLLBACK")
+            raise OSError(errno.EIO, f"cannot store unit {family} {unit}: {e} (is the disk full?); the units "
+                          f"stored before it are whole: resume when there is room", str(self.path)) from e
         except BaseException:
             if connection.in_transaction:
                 connection.execute("ROLLBACK")
