@@ -26,7 +26,7 @@ def _median_time(fn: Callable[[], object], repeats: int) -> float:
     return float(np.median(times))
 
 
-def bench_plan(scenario: Scenario, steps: tuple[int, ...] = PLAN_STEPS, *, repeats: int = 9) -> list[dict[str, float]]:
+def bench_plan(scenario: Scenario, steps: tuple[int, ...] = PLAN_STEPS, *, repeats: int = 51) -> list[dict[str, float]]:
     """Median wall time of the optimal plan (linearise, build, solve) per horizon N, and its ratio to the first.
 
     The task keeps the scenario's start, goal and dt; T = N dt.
@@ -40,7 +40,7 @@ def bench_plan(scenario: Scenario, steps: tuple[int, ...] = PLAN_STEPS, *, repea
         def plan(t: Task = task) -> object:
             return planner.plan(t, model)
 
-        seconds = _median_time(plan, repeats if N <= 200 else max(3, repeats // 3))
+        seconds = _median_time(plan, repeats if N <= 200 else max(3, repeats // 5))
         rows.append({"N": N, "median_ms": 1e3 * seconds, "ratio_to_first": 1e3 * seconds / rows[0]["median_ms"]
                      if rows else 1.0})
     return rows
@@ -86,7 +86,7 @@ def _external_solvers(qp: Any) -> dict[str, Callable[[], np.ndarray]]:
 
 
 def bench_qp(scenario: Scenario, *, repeats: int = 21) -> list[dict[str, Any]]:
-    """The optimal planner's QP on the scenario's task, solved by mjtraj's Riccati active set (`box_lqr` on A_d,
+    """The optimal planner's QP on the scenario's task, solved by mjtraj's banded-KKT active set (`box_lqr` on A_d,
     B_d: its whole solve) and by each installed solver of QP_SOLVERS on the condensed QP (`build_qp`'s H, f, A_eq,
     b_eq and bounds, built once outside the timing): median seconds and the largest difference of the torques from
     mjtraj's, N m."""
@@ -98,13 +98,13 @@ def bench_qp(scenario: Scenario, *, repeats: int = 21) -> list[dict[str, Any]]:
     Q, R = planner.weights(task, facts["bound"])  # type: ignore[attr-defined]
     x0 = np.concatenate([task.q0 - task.qg, np.zeros(task.n)])
 
-    def riccati() -> np.ndarray:
+    def banded() -> np.ndarray:
         solution = box_lqr(facts["A_d"][None], facts["B_d"][None], Q[None], R[None], x0[None], task.steps,
                            facts["bound"][None])
         return solution.U[0].ravel()
 
-    mine = riccati()
-    rows = [{"solver": "mjtraj (Riccati active set)", "seconds": _median_time(riccati, repeats), "max_diff": 0.0}]
+    mine = banded()
+    rows = [{"solver": "mjtraj (banded KKT)", "seconds": _median_time(banded, repeats), "max_diff": 0.0}]
     for name, call in _external_solvers(qp).items():
         u = call()
         rows.append({"solver": name, "seconds": _median_time(call, repeats),

@@ -177,7 +177,7 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--delay", type=int, default=0, help="mismatch: actuation delay, control periods, 0 or 1")
     w.add_argument("--batch", type=int, default=250, help="scenarios per unit of work (default 250)")
     w.add_argument("--config", help="base scenario TOML: controller and planner options (default: paper.toml)")
-    w.add_argument("--model", help="your MJCF arm instead of the UR5 (nominal and aggressive families)")
+    w.add_argument("--model", help="your MJCF arm instead of the UR5")
     w.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
                    "(default: from the model's actuator force ranges)")
     w.add_argument("--out", type=Path, default=Path("sweep.sqlite"), help="results: a SQLite store (.sqlite, "
@@ -412,17 +412,17 @@ def _bench(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.config)
     if args.what in ("plan", "all"):
-        print("optimal planner (linearise + solve; the exact active-set Riccati solver, OSQP as fallback), median "
-              "wall time; target N=100 <= 1 ms, N=800 <= 10 ms")
+        print("optimal planner (linearise + solve; the exact active set on the banded KKT system, OSQP as "
+              "fallback), median wall time; target N=100 <= 1 ms, N=800 <= 10 ms")
         print(f"{'N':>6} {'median ms':>10} {'ratio to N=100':>15}")
         for row in bench_plan(scenario):
             print(f"{row['N']:>6} {row['median_ms']:>10.2f} {row['ratio_to_first']:>15.2f}")
         from mjtraj.bench import QP_SOLVERS, bench_qp
 
         qp_rows = bench_qp(scenario)
-        print(f"the same QP (N = {scenario.task.steps}), median wall time of the solve alone: mjtraj's Riccati active "
-              f"set vs {', '.join(QP_SOLVERS)} on the condensed QP (the `bench` extra; those not installed are left "
-              f"out); target: mjtraj at least 4 times faster than quadprog")
+        print(f"the same QP (N = {scenario.task.steps}), median wall time of the solve alone: mjtraj's banded-KKT "
+              f"active set vs {', '.join(QP_SOLVERS)} on the condensed QP (the `bench` extra; those not installed are "
+              f"left out); target: mjtraj at least 4 times faster than quadprog")
         print(f"{'solver':<28} {'median ms':>10} {'x mjtraj':>9} {'max |u - u_mjtraj| N m':>23}")
         for row in qp_rows:
             print(f"{row['solver']:<28} {1e3 * row['seconds']:>10.3f} {row['seconds'] / qp_rows[0]['seconds']:>9.2f} "

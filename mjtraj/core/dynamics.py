@@ -3,6 +3,9 @@ torque ID(q, qd, qdd) - G(q), and gravity, for many states in one call."""
 
 from __future__ import annotations
 
+import threading
+import weakref
+
 import mujoco
 import numpy as np
 from mujoco.batch import Batch
@@ -11,12 +14,58 @@ from numpy.typing import NDArray
 CHUNK = 4096
 """Most states evaluated per Batch call (bounds the probe's memory; any size gives the same numbers)."""
 
+SMALL = 32
+"""Probes of at most this many states run MuJoCo on one MjData per state in turn (a Batch costs about 1 ms to
+make, more than evaluating a few states); the numbers are the same bits either way (tested)."""
+
+_FIELDS = ("qpos", "qvel", "ctrl", "qacc", "qfrc_bias", "qfrc_passive", "qfrc_gravcomp", "M")
+_scratch = threading.local()
+
+
+def _scratch_data(model: mujoco.MjModel) -> mujoco.MjData:
+    """This thread's MjData of `model`, kept while the model lives. MjData reads the model at every call, so
+    edits of the model's parameters are seen (a Batch copies its model when made)."""
+    cache = getattr(_scratch, "data", None)
+    if cache is None:
+        cache = _scratch.data = weakref.WeakKeyDictionary()
+    data = cache.get(model)
+    if data is None:
+        data = cache[model] = mujoco.MjData(model)
+    return data
+
+
+class _DataLoop:
+    """The part of mujoco.batch.Batch a probe uses (`bind`, `forward`), on one MjData for every state in turn."""
+
+    def __init__(self, model: mujoco.MjModel, size: int) -> None:
+        self.model = model
+        data = _scratch_data(model)
+        self._arrays = {name: np.zeros((size, *getattr(data, name).shape)) for name in _FIELDS}
+
+    def bind(self, name: str) -> NDArray[np.float64]:
+        return self._arrays[name]
+
+    def forward(self, *, ids: NDArray[np.intp], stage: mujoco.mjtStage) -> None:
+        """mj_forward up to `stage` (VEL or ACC) for the states `ids`, outputs copied into the bound arrays."""
+        data, arrays = _scratch_data(self.model), self._arrays
+        for i in ids:
+            data.qpos[:], data.qvel[:], data.ctrl[:] = arrays["qpos"][i], arrays["qvel"][i], arrays["ctrl"][i]
+            if stage == mujoco.mjtStage.mjSTAGE_ACC:
+                mujoco.mj_forward(self.model, data)
+                arrays["qacc"][i] = data.qacc
+            else:
+                mujoco.mj_fwdPosition(self.model, data)
+                mujoco.mj_fwdVelocity(self.model, data)
+                for name in ("qfrc_bias", "qfrc_passive", "qfrc_gravcomp", "M"):
+                    arrays[name][i] = getattr(data, name)
+
 
 class DynamicsProbe:
     """Evaluates `model` at many states: arrays of shape (rows, n) in, (rows, n) out, `size` states per call.
 
-    Each call runs MuJoCo's own pipeline per state (mj_forward up to the needed stage) on a Batch, so
-    the numbers equal those of a loop over MjData (tested against mj_inverse and mj_forward).
+    Each call runs MuJoCo's own pipeline per state (mj_forward up to the needed stage) on a Batch, or for at
+    most SMALL states on one MjData in turn; the numbers equal those of a loop over MjData (tested against
+    mj_inverse and mj_forward).
     """
 
     def __init__(self, model: mujoco.MjModel, *, size: int = CHUNK, nthread: int = 1) -> None:
@@ -24,7 +73,8 @@ class DynamicsProbe:
         self.n = model.nv
         self.size = max(1, min(int(size), CHUNK))
         self.nthread = nthread
-        self._batch = Batch(model, self.size, nthread=nthread)
+        self._batch: Batch | _DataLoop = (_DataLoop(model, self.size) if self.size <= SMALL
+                                           else Batch(model, self.size, nthread=nthread))
         bind = self._batch.bind
         self._qpos, self._qvel, self._ctrl = bind("qpos"), bind("qvel"), bind("ctrl")
         self._qacc, self._bias, self._passive = bind("qacc"), bind("qfrc_bias"), bind("qfrc_passive")

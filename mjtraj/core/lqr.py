@@ -1,15 +1,23 @@
-"""The paper's QP solved exactly by fixed-endpoint Riccati recursions, batched over problems.
+"""The paper's QP solved exactly through its banded KKT system, with a primal-dual active set for the bounds.
 
 min 1/2 sum_{k=1..N} x_k^T Q x_k + 1/2 sum_{k=0..N-1} u_k^T R u_k  s.t.  x_{k+1} = Ad x_k + Bd u_k,  x_N = 0,
-|u_k| <= u_max. Box constraints are handled by a primal-dual active-set iteration: inputs in the active set
-are fixed at their bound and the rest solved by the recursion; the set changes until the KKT conditions hold
-(free inputs inside the box, fixed inputs pushed against their bound by the cost). A convex QP whose KKT
-conditions hold is solved: the result is the exact optimum, not an approximation. Problems whose set does not
-settle within `max_iter` are reported, for an iterative solver (OSQP) to take over.
+|u_k| <= u_max. Its first-order conditions, with multipliers lambda_{k+1} of the dynamics, are
+R u_k + Bd^T lambda_{k+1} = 0,  Q x_k + Ad^T lambda_{k+1} - lambda_k = 0,  Ad x_k + Bd u_k - x_{k+1} = 0.
+Unknowns ordered stage by stage as [lambda_{k+1}, u_k, x_{k+1}] make this one banded matrix, (nu + 2 nx) N square
+with 2 nx - 1 bands either side (11 for the 3-joint arm), factorised by LAPACK's banded LU (`gbtrf`, through
+SciPy): time linear in N, no condensing. A fixed variable (x_N, an input on its bound) has its row replaced by the
+identity; a few fixed inputs are instead solved from the first factorisation by a Schur complement.
+
+Box constraints: inputs in the active set are fixed at their bound and the rest solved; the set changes until the
+KKT conditions hold (free inputs inside the box, fixed inputs pushed against their bound by the cost). A convex QP
+whose KKT conditions hold is solved: the result is the exact optimum, not an approximation. Problems whose set does
+not settle within `max_iter`, or whose free inputs cannot reach x_N = 0, are reported, for an iterative solver
+(OSQP) to take over.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,121 +36,203 @@ class BoxLQRSolution:
     active: NDArray[np.int8]
 
 
-def fixed_input_lqr(Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.float64],
-                    R: NDArray[np.float64], x0: NDArray[np.float64], fixed: NDArray[np.float64],
-                    value: NDArray[np.float64]
-                    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """The QP without bounds but with inputs fixed where `fixed` is 1 (u_k,i = value_k,i), for P problems.
+@dataclass(frozen=True)
+class _Pattern:
+    """Where the KKT matrix's entries go in LAPACK's band storage, for one (nx, nu, N).
 
-    Writing u_k = M_k v_k + c_k (M_k selects the free inputs, c_k holds the fixed values), the cost-to-go with a
-    multiplier nu on x_N = 0 is V_k(x) = 1/2 x^T P x + x^T (S nu + p) + 1/2 nu^T W nu + nu^T q, with P_N = 0,
-    S_N = I, W_N = 0, p_N = 0, q_N = 0. Backwards, with B~ = B M, G = M R M + B~^T P B~ + (I - M),
-    r = B~^T (P B c + p) + M R c: v = -K x - L nu - h, [K, L, h] = G^-1 [B~^T P A, B~^T S, r];
-    P <- Q + A^T P (A - B~ K); S <- (A - B~ K)^T S; W <- W - (B~^T S)^T L; p <- A^T (P B c + p) - K^T r;
-    q <- q + S^T B c - L^T r. Then nu = -W_0^-1 (S_0^T x0 + q_0) gives x_N = 0.
+    `cells`: flat indices into the (2 kl + ku + 1, n) band array of the entries; `source`: for each, its index in
+    the stage template [vec Bd, vec Ad, vec R, vec Bd^T, vec Q, vec Ad^T, -1]; `rows`: (n, kl + ku + 1) flat
+    indices of each row's band cells, `valid` marking those inside the matrix."""
 
-    Args:
-      Ad (P, nx, nx), Bd (P, nx, nu), Q (P, nx, nx), R (P, nu, nu), x0 (P, nx);
-      fixed: (P, N, nu), 1 for a fixed input and 0 for a free one; value: (P, N, nu), the fixed values.
+    nx: int
+    nu: int
+    steps: int
+    kl: int
+    ku: int
+    cells: NDArray[np.intp]
+    source: NDArray[np.intp]
+    rows: NDArray[np.intp]
+    valid: NDArray[np.bool_]
 
-    Returns:
-      U (P, N, nu); X (P, N+1, nx); and the cost gradient dJ/du_k = R u_k + B^T lambda_{k+1} (P, N, nu),
-      lambda_{k+1} = dV_{k+1}/dx the costate: zero on free inputs, the bound's multiplier (sign aside) on fixed.
-      A problem whose x_N = 0 is not reachable with its free inputs (W_0 singular) gets NaN throughout.
-    """
-    n_p, nx, nu = Bd.shape
-    steps = fixed.shape[1]
-    At = Ad.transpose(0, 2, 1)
-    eye = np.eye(nu)
-    P = np.zeros((n_p, nx, nx))
-    S = np.broadcast_to(np.eye(nx), (n_p, nx, nx)).copy()
-    W = np.zeros((n_p, nx, nx))
-    p = np.zeros((n_p, nx, 1))
-    q = np.zeros((n_p, nx, 1))
-    gains = np.empty((steps, n_p, nu, 2 * nx + 1))
-    costate = np.empty((steps + 1, n_p, nx, nx + nx + 1))  # [P, S, p] of V_k for k = 1..N
-    costate[steps] = np.concatenate([P, S, p], axis=2)
-    for k in range(steps - 1, -1, -1):
-        free = 1.0 - fixed[:, k]
-        Bf = Bd * free[:, None, :]
-        Bft = Bf.transpose(0, 2, 1)
-        c = (value[:, k] * fixed[:, k])[:, :, None]
-        Mr = R * free[:, :, None] * free[:, None, :]
-        G = Mr + Bft @ P @ Bf + eye * fixed[:, k][:, None, :]
-        BfS = Bft @ S
-        Pc_p = P @ (Bd @ c) + p
-        r = Bft @ Pc_p + (R @ c) * free[:, :, None]
-        gains[k] = np.linalg.solve(G, np.concatenate([Bft @ P @ Ad, BfS, r], axis=2))
-        K, L, h = gains[k][:, :, :nx], gains[k][:, :, nx:2 * nx], gains[k][:, :, 2 * nx:]
-        closed = Ad - Bf @ K
-        q = q + S.transpose(0, 2, 1) @ (Bd @ c) - L.transpose(0, 2, 1) @ r
-        W = W - BfS.transpose(0, 2, 1) @ L
-        p = At @ Pc_p - K.transpose(0, 2, 1) @ r
-        S = closed.transpose(0, 2, 1) @ S
-        P = Q + At @ P @ closed
-        P = 0.5 * (P + P.transpose(0, 2, 1))
-        costate[k] = np.concatenate([P, S, p], axis=2)
-    rhs = S.transpose(0, 2, 1) @ x0[:, :, None] + q
-    reachable = np.linalg.cond(W) < 1e14
-    nu_ = np.full_like(rhs, np.nan)
-    nu_[reachable] = -np.linalg.solve(W[reachable], rhs[reachable])
-    X = np.empty((n_p, steps + 1, nx))
-    U = np.empty((n_p, steps, nu))
-    grad = np.empty((n_p, steps, nu))
-    X[:, 0] = x0
-    for k in range(steps):
-        x = X[:, k, :, None]
-        K, L, h = gains[k][:, :, :nx], gains[k][:, :, nx:2 * nx], gains[k][:, :, 2 * nx:]
-        v = -K @ x - L @ nu_ - h
-        U[:, k] = np.where(fixed[:, k] > 0, value[:, k], v[:, :, 0])
-        X[:, k + 1] = (Ad @ x + Bd @ U[:, k, :, None])[:, :, 0]
-        Pn, Sn, pn = costate[k + 1][:, :, :nx], costate[k + 1][:, :, nx:2 * nx], costate[k + 1][:, :, 2 * nx:]
-        lam = Pn @ X[:, k + 1, :, None] + Sn @ nu_ + pn
-        grad[:, k] = (R @ U[:, k, :, None] + Bd.transpose(0, 2, 1) @ lam)[:, :, 0]
-    return U, X, grad
+    @property
+    def size(self) -> int:
+        return (self.nu + 2 * self.nx) * self.steps
+
+    @property
+    def band_rows(self) -> int:
+        return 2 * self.kl + self.ku + 1
+
+    def band(self, Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.float64],
+             R: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The KKT matrix of (Ad, Bd, Q, R), every variable free, in band storage (2 kl + ku + 1, n)."""
+        template = np.concatenate([Bd.ravel(), Ad.ravel(), R.ravel(), Bd.T.ravel(), Q.ravel(), Ad.T.ravel(), [-1.0]])
+        band = np.zeros((self.band_rows, self.size))
+        band.reshape(-1)[self.cells] = template[self.source]
+        return band
+
+
+def _blocks(nx: int, nu: int) -> list[tuple[str, int, int, int, int, int]]:
+    """The KKT matrix's blocks: (value, row offset, column offset, stage shift, rows, columns), offsets within a
+    stage [lambda_{k+1}, u_k, x_{k+1}]; "-I" is -1 on the diagonal."""
+    lam, u, x = 0, nx, nx + nu
+    return [("Bd", lam, u, 0, nx, nu), ("-I", lam, x, 0, nx, nx), ("Ad", lam, x, -1, nx, nx),
+            ("R", u, u, 0, nu, nu), ("BdT", u, lam, 0, nu, nx),
+            ("Q", x, x, 0, nx, nx), ("-I", x, lam, 0, nx, nx), ("AdT", x, lam, 1, nx, nx)]
+
+
+@functools.lru_cache(maxsize=16)
+def _pattern(nx: int, nu: int, steps: int) -> _Pattern:
+    stage = nu + 2 * nx
+    n = stage * steps
+    sizes = {"Bd": nx * nu, "Ad": nx * nx, "R": nu * nu, "BdT": nu * nx, "Q": nx * nx, "AdT": nx * nx}
+    start = dict(zip(sizes, np.cumsum([0, *sizes.values()])[:-1].tolist(), strict=True))
+    minus_one = sum(sizes.values())
+    rows, cols, source = [], [], []
+    for name, r0, c0, shift, nr, nc in _blocks(nx, nu):
+        k = np.arange(max(0, -shift), steps - max(0, shift))       # stages whose shifted block exists
+        if name == "-I":  # the diagonal only
+            i, j, k = np.arange(nr)[None, :], np.arange(nc)[None, :], k[:, None]
+            where = np.full(i.shape, minus_one)
+        else:
+            i, j, k = np.arange(nr)[None, :, None], np.arange(nc)[None, None, :], k[:, None, None]
+            where = start[name] + nc * i + j
+        r, c, w = np.broadcast_arrays(stage * k + r0 + i, stage * (k + shift) + c0 + j, where)
+        rows.append(r.ravel())
+        cols.append(c.ravel())
+        source.append(w.ravel())
+    row, col = np.concatenate(rows), np.concatenate(cols)
+    kl, ku = int(np.max(row - col)), int(np.max(col - row))
+    cells = (kl + ku + row - col) * n + col
+    band_cols = np.arange(n)[:, None] + np.arange(-kl, ku + 1)[None, :]
+    valid = (band_cols >= 0) & (band_cols < n)
+    row_cells = (kl + ku + np.arange(n)[:, None] - band_cols) * n + np.clip(band_cols, 0, n - 1)
+    return _Pattern(nx, nu, steps, kl, ku, cells, np.concatenate(source), row_cells, valid)
+
+
+SCHUR_MAX = 6
+"""Most inputs on a bound solved from the first factorisation by a Schur complement (one band solve per input);
+more are solved by factorising the system with their rows replaced (about the cost of seven band solves)."""
+
+
+class _KKT:
+    """One problem's KKT system with x_N = 0, factorised once with every input free; `solve` fixes inputs.
+
+    Fixing the variables F at v borders the system: K z - E_F mu = rhs, E_F^T z = v, so with the columns
+    C = K^-1 E_F (cached per variable) mu = (E_F^T C)^-1 (v - z0[F]) and z = z0 + C mu, where z0 = K^-1 rhs;
+    mu is the fixed inputs' cost gradient."""
+
+    def __init__(self, pattern: _Pattern, matrices: tuple[NDArray[np.float64], ...], rhs: NDArray[np.float64],
+                 end_index: NDArray[np.intp]) -> None:
+        self.pattern, self.matrices, self.rhs, self.end_index = pattern, matrices, rhs, end_index
+        self.factor = self._factor(end_index)
+        self.z0 = self._solve(*self.factor, rhs) if self.factor is not None else None
+        self.columns: dict[int, NDArray[np.float64]] = {}
+
+    def _factor(self, fixed: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.int32]] | None:
+        """LU of the KKT matrix of `matrices` (Ad, Bd, Q, R) with the rows `fixed` replaced by the identity; None
+        if singular."""
+        from scipy.linalg.lapack import dgbtrf
+
+        pattern = self.pattern
+        ab = pattern.band(*self.matrices)
+        flat = ab.reshape(-1)
+        flat[pattern.rows[fixed][pattern.valid[fixed]]] = 0.0
+        flat[(pattern.kl + pattern.ku) * pattern.size + fixed] = 1.0
+        lu, piv, info = dgbtrf(ab, pattern.kl, pattern.ku, overwrite_ab=1)
+        return (lu, piv) if info == 0 else None
+
+    def _solve(self, lu: NDArray[np.float64], piv: NDArray[np.int32], b: NDArray[np.float64]
+               ) -> NDArray[np.float64]:
+        from scipy.linalg.lapack import dgbtrs
+
+        x, _ = dgbtrs(lu, self.pattern.kl, self.pattern.ku, b, piv)
+        return x  # type: ignore[no-any-return]
+
+    def solve(self, fixed: NDArray[np.intp], value: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """The solution with the input variables `fixed` (indices) held at `value`; None where it is singular."""
+        if self.z0 is None or self.factor is None:
+            return None
+        if fixed.size == 0:
+            return self.z0
+        if fixed.size > SCHUR_MAX:
+            factor = self._factor(np.concatenate([fixed, self.end_index]))
+            if factor is None:
+                return None
+            b = self.rhs.copy()
+            b[fixed] = value
+            return self._solve(*factor, b)
+        missing = [int(i) for i in fixed if int(i) not in self.columns]
+        if missing:
+            unit = np.zeros((self.pattern.size, len(missing)))
+            unit[missing, np.arange(len(missing))] = 1.0
+            for i, column in zip(missing, self._solve(*self.factor, unit).T, strict=True):
+                self.columns[i] = column
+        C = np.stack([self.columns[int(i)] for i in fixed], axis=1)
+        try:
+            mu = np.linalg.solve(C[fixed], value - self.z0[fixed])
+        except np.linalg.LinAlgError:
+            return None
+        z = self.z0 + C @ mu
+        z[fixed] = value
+        return z
 
 
 def box_lqr(Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.float64], R: NDArray[np.float64],
             x0: NDArray[np.float64], steps: int, u_max: NDArray[np.float64], *, max_iter: int = 30,
             tol: float = 1e-9) -> BoxLQRSolution:
-    """The bounded QP for P problems by primal-dual active sets over `fixed_input_lqr`.
+    """The bounded QP for P problems, each by a primal-dual active set over its banded KKT system.
 
     Start from the unbounded optimum; each iteration fixes at its bound every free input that lies outside the
-    box, and frees every fixed input whose cost gradient no longer pushes it against the bound; a problem is
-    solved when nothing changes (the KKT conditions hold to `tol`, relative to the bound and to the largest
-    gradient). Shapes as in `fixed_input_lqr`; u_max: (P, nu), N m.
+    box, and frees every fixed input whose cost gradient dJ/du_k = R u_k + Bd^T lambda_{k+1} no longer pushes it
+    against the bound; a problem is solved when nothing changes (the KKT conditions hold to `tol`, relative to the
+    bound and to the largest gradient). Each problem is solved on its own, so one problem gives the same bits alone
+    or among others.
+
+    Args:
+      Ad (P, nx, nx), Bd (P, nx, nu), Q (P, nx, nx), R (P, nu, nu), x0 (P, nx); u_max: (P, nu), N m.
+
+    Returns:
+      The solutions; a problem not solved (its set did not settle, or x_N = 0 is out of its free inputs' reach)
+      has `solved` False and its last iterate.
     """
     n_p, nx, nu = Bd.shape
-    active = np.zeros((n_p, steps, nu), dtype=np.int8)
+    pattern = _pattern(nx, nu, steps)
+    stage = nu + 2 * nx
     U = np.zeros((n_p, steps, nu))
     X = np.zeros((n_p, steps + 1, nx))
+    active = np.zeros((n_p, steps, nu), dtype=np.int8)
     solved = np.zeros(n_p, dtype=bool)
     iterations = np.zeros(n_p, dtype=np.int64)
-    bound = u_max[:, None, :]
-    todo = np.arange(n_p)
-    for _ in range(max_iter + 1):
-        if todo.size == 0:
-            break
-        a = active[todo]
-        fixed = (a != 0).astype(np.float64)
-        Ut, Xt, grad = fixed_input_lqr(Ad[todo], Bd[todo], Q[todo], R[todo], x0[todo], fixed, a * bound[todo])
-        U[todo], X[todo] = Ut, Xt
-        iterations[todo] += 1
-        b = bound[todo]
-        g_tol = tol * np.maximum(1.0, np.abs(grad).max(axis=(1, 2)))[:, None, None]
-        above = (a == 0) & (Ut > b * (1 + tol))
-        below = (a == 0) & (Ut < -b * (1 + tol))
-        release = ((a == 1) & (grad > g_tol)) | ((a == -1) & (grad < -g_tol))
-        changed = (above | below | release).any(axis=(1, 2))
-        # the free inputs cannot reach x_N = 0 (W_0 singular: NaN), or every input sits on a bound and the end state
-        # is missed: left to OSQP, which solves or proves the problem infeasible
-        scale = np.maximum(1.0, np.abs(x0[todo]).max(axis=1))
-        missed = np.abs(Xt[:, -1]).max(axis=1) > 1e-6 * scale
-        failed = ~np.isfinite(Ut).all(axis=(1, 2)) | ~np.isfinite(grad).all(axis=(1, 2)) | missed
-        changed &= ~failed
-        new = np.where(above, 1, np.where(below, -1, np.where(release, 0, a))).astype(np.int8)
-        active[todo] = new
-        solved[todo[~changed & ~failed]] = True
-        todo = todo[changed]
-    U = np.clip(U, -bound, bound)  # a free input within tol of its bound is put on it
+    input_index = (stage * np.arange(steps)[:, None] + nx + np.arange(nu)[None, :]).ravel()
+    end_index = stage * (steps - 1) + nx + nu + np.arange(nx)
+    for p in range(n_p):
+        rhs = np.zeros(pattern.size)
+        rhs[:nx] = -Ad[p] @ x0[p]
+        kkt = _KKT(pattern, (Ad[p], Bd[p], Q[p], R[p]), rhs, end_index)
+        bound = u_max[p][None, :]
+        scale = max(1.0, float(np.max(np.abs(x0[p]))))
+        a = active[p]
+        for _ in range(max_iter + 1):
+            on = np.flatnonzero(a.ravel())
+            z = kkt.solve(input_index[on], (a * bound).ravel()[on])
+            iterations[p] += 1
+            if z is None:
+                break
+            blocks = z.reshape(steps, stage)
+            lam, u = blocks[:, :nx], blocks[:, nx:nx + nu]
+            X[p, 0], X[p, 1:] = x0[p], blocks[:, nx + nu:]
+            U[p] = u
+            residual = np.max(np.abs(X[p, 1:] - X[p, :-1] @ Ad[p].T - u @ Bd[p].T))
+            if residual > 1e-6 * scale:  # x_N = 0 is out of the free inputs' reach: the system was singular
+                break
+            grad = u @ R[p].T + lam @ Bd[p]
+            g_tol = tol * max(1.0, float(np.max(np.abs(grad))))
+            above = (a == 0) & (u > bound * (1 + tol))
+            below = (a == 0) & (u < -bound * (1 + tol))
+            release = ((a == 1) & (grad > g_tol)) | ((a == -1) & (grad < -g_tol))
+            if not (above | below | release).any():
+                solved[p] = True
+                break
+            a[...] = np.where(above, 1, np.where(below, -1, np.where(release, 0, a)))
+    U = np.clip(U, -u_max[:, None, :], u_max[:, None, :])  # a free input within tol of its bound is put on it
     return BoxLQRSolution(U=U, X=X, solved=solved, iterations=iterations, active=active)

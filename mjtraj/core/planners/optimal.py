@@ -77,8 +77,8 @@ class Optimal(Planner):
         with Bryson's Q_pos, Q_vel (0.5: Bryson's own balance); with state_weight None only.
       torque_bound: |u_k| bound, shape (n,) or scalar, N m; None for the model's ctrlrange.
       fd_eps: finite-difference step of the linearisation.
-      solver: 'auto' = the exact active-set Riccati solver (`mjtraj.core.lqr.box_lqr`: the same optimum, verified by
-        its KKT conditions), OSQP where its active set does not settle; 'osqp' = OSQP always.
+      solver: 'auto' = the exact active-set solver on the banded KKT system (`mjtraj.core.lqr.box_lqr`: the same
+        optimum, verified by its KKT conditions), OSQP where its active set does not settle; 'osqp' = OSQP always.
       osqp_settings: overrides of `mjtraj.core.qp.DEFAULT_SETTINGS`.
     """
 
@@ -157,9 +157,9 @@ class Optimal(Planner):
         """Plan every task; the entry of a task that cannot be planned is its error (InfeasibleError,
         SolverError, InvalidInputError), so that one bad task does not stop the others.
 
-        Tasks of one grid (N, dt) are linearised in one batched call and solved together by the exact
-        active-set Riccati solver (`mjtraj.core.lqr.box_lqr`); with solver 'osqp', or where the active set does not
-        settle, OSQP solves the condensed QP.
+        Tasks of one grid (N, dt) are linearised in one batched call and solved by the exact active-set solver on
+        each one's banded KKT system (`mjtraj.core.lqr.box_lqr`); with solver 'osqp', or where the active set does
+        not settle, OSQP solves the condensed QP.
         """
         results: list[Reference | MjtrajError | None] = [None] * len(tasks)
         prepared: dict[tuple[int, float], list[tuple[int, Task, NDArray[np.float64], NDArray[np.float64]]]] = {}
@@ -197,7 +197,7 @@ class Optimal(Planner):
             facts = {"linearization": self.linearization if self.q_bar is None else "user", "q_bar": q_bar.tolist(),
                      "build_time": (built - start) / len(group)}
             if solved[j]:
-                info = {"solver": "riccati-active-set", "status": "solved", "polished": False,
+                info = {"solver": "kkt-active-set", "status": "solved", "polished": False,
                         "iterations": int(solution.iterations[j]),
                         "active_bounds": int(np.sum(solution.active[j] != 0)), "solve_time": share}
                 results[i] = self._reference(task, U[j], X[j], Q[j], R[j], bound, facts, info)
