@@ -87,7 +87,8 @@ class TrackCore:
         self.num = num
         self.model = settings.model
         n = settings.n
-        self.plant = perturbed_plant(self.model) if settings.plant_randomization != "none" else None
+        self.plant = (perturbed_plant(self.model, settings.model_path, settings.model_torque_limit)
+                      if settings.plant_randomization != "none" else None)
         """The simulated model whose fields each episode's perturbation sets; None: the nominal model."""
         fields = plant_fields(self.plant, [no_perturbation(n)] * num) if self.plant is not None else None
         self.loop = ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields)

@@ -91,6 +91,10 @@ class TrackSettings:
     """Everything an env instance needs, validated."""
 
     model: mujoco.MjModel
+    model_path: str | None
+    """The user's MJCF file the model was prepared from; None for the shipped UR5."""
+    model_torque_limit: float | None
+    """With model_path: every joint's corrective saturation given for it, N m."""
     planner: Planner
     planner_name: str
     action_mode: str
@@ -211,9 +215,6 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
         raise InvalidInputError(f"{unknown[0]}: unknown argument; valid: "
                                 f"{', '.join([*ENV_OWN, *env_names, *loop_names])}")
     own = EnvOptions(**{k: v for k, v in options.items() if k in env_names})
-    if xml_file is not None and own.plant_randomization != "none":
-        raise InvalidInputError(f"plant_randomization: {own.plant_randomization!r} is defined for the shipped UR5 "
-                                f"(its links and flange); with xml_file use 'none'")
     loop = dataclasses.replace(paper.loop, **{k: v for k, v in options.items() if k in loop_names})
     planner_name, planner_obj = _planner(planner, paper)
     if render_mode is not None and render_mode not in RENDER_MODES:
@@ -238,7 +239,8 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                                 "rule on each task")
     scoring = Scoring() if Q_exec is None else Scoring.fixed(Q_exec, R_exec, n)  # type: ignore[arg-type]
     width, height, camera = check_render_options(model, own.width, own.height, own.camera)
-    return TrackSettings(model=model, planner=planner_obj, planner_name=planner_name, action_mode=own.action_mode,
+    return TrackSettings(model=model, model_path=paper.model_path, model_torque_limit=paper.model_torque_limit,
+                         planner=planner_obj, planner_name=planner_name, action_mode=own.action_mode,
                          residual_scale=float(own.residual_scale), task_mode=own.task, fixed_task=fixed,
                          max_displacement=own.max_displacement,
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,

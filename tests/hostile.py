@@ -472,7 +472,6 @@ def env_cases() -> list[Case]:
         ("explicit out of range", {"task": "explicit", "q0": [0, 0, 4], "qg": [0, 0, 0]}),
         ("explicit nan", {"task": "explicit", "q0": [nan, 0, 0], "qg": [0, 0, 0]}),
         ("Q_exec nan", {"Q_exec": [nan] * 6, "R_exec": [1, 1, 1]}),
-        ("mismatch with xml_file", {"xml_file": "PLANAR", "plant_randomization": "mismatch"}),
     )]
     actions: list[Any] = [np.zeros(2), np.zeros((3, 1)), np.full(3, nan), np.full(3, np.inf), ["a", "b", "c"],
                           None, "x", np.zeros(0), 1.0]
@@ -523,16 +522,11 @@ def catalogue() -> list[Case]:
 
 def run_catalogue(cases: list[Case], folder: Path) -> list[Outcome]:
     """Run every case in a fresh sub-folder of `folder` (with a plain file, file.txt, to misuse as a folder)."""
-    from mjtraj.core.model import default_model_path
-
-    planar = str(default_model_path().parent / "planar_2link.xml")
     outcomes = []
     for i, case in enumerate(cases):
         tmp = folder / f"case{i:04d}"
         tmp.mkdir()
         (tmp / "file.txt").write_text("a file, not a folder\n")
-        if "PLANAR" in case.label:
-            case = Case(case.kind, case.label, _env(xml_file=planar, plant_randomization="mismatch"), case.expect)
         outcomes.append(classify(case, tmp))
         shutil.rmtree(tmp, ignore_errors=True)
     return outcomes

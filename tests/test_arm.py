@@ -201,9 +201,6 @@ def test_what_the_env_cannot_do_for_a_user_arm_is_refused(tmp_path):
 
     from mjtraj.exceptions import InvalidInputError
 
-    with pytest.raises(InvalidInputError, match=r"^plant_randomization: 'mismatch' is defined for the shipped UR5 "
-                                                r"\(its links and flange\); with xml_file use 'none'$"):
-        gym.make("ArmTrack-v0", xml_file=str(PLANAR), plant_randomization="mismatch")
     free = tmp_path / "free.xml"
     free.write_text(PLANAR.read_text().replace(' range="-2.5 2.5"', ""))
     env = gym.make("ArmTrack-v0", xml_file=str(free), task="random")
@@ -213,9 +210,7 @@ def test_what_the_env_cannot_do_for_a_user_arm_is_refused(tmp_path):
 
 
 def test_a_sweep_and_its_audit_on_a_user_arm(tmp_path, capsys):
-    from mjtraj.exceptions import InvalidInputError
     from mjtraj.study.store import read_rows
-    from mjtraj.study.sweep import SweepSettings
 
     out = tmp_path / "arm.csv"
     assert main(["sweep", "--model", str(PLANAR), "--family", "nominal,aggressive", "--scenarios", "3",
@@ -226,9 +221,6 @@ def test_a_sweep_and_its_audit_on_a_user_arm(tmp_path, capsys):
     assert main(["audit", str(out), "--out", str(tmp_path / "A.md")]) == 0
     text = (tmp_path / "A.md").read_text()
     assert "| paper task, ff_accel=sample, gravity_comp=native |" in text  # the arm's own task, run by the audit
-    with pytest.raises(InvalidInputError, match=r"^family: mismatch perturbs the shipped UR5's links and flange; "
-                                                r"with a model use nominal and aggressive$"):
-        SweepSettings(families=("mismatch",), model=str(PLANAR))
 
 
 def test_torque_limit_sets_every_joints_saturation_and_travels_with_the_scenario(tmp_path):
@@ -301,3 +293,70 @@ def test_bad_torque_limits_in_files_and_the_env(tmp_path):
         gym.make("UR5Track-v0", torque_limit=5)
     with pytest.raises(InvalidInputError, match=r"^torque_limit: only for your own arm"):
         load_model(torque_limit=5.0)
+
+
+def test_the_mismatch_plant_of_a_user_arm_carries_its_payload_by_the_flange_rule():
+    """The planar arm has no attachment_site: the payload sits at link2's centre of mass. Oracle: the gravity
+    torque of a point mass m there, m g (l1 cos q1 + lc2 cos(q1 + q2)) and m g lc2 cos(q1 + q2), is what the
+    plant adds at rest, not compensated; with no payload, unit scales and no damping or friction the plant
+    executes as the nominal model."""
+    from mjtraj.study.families import Perturbation, perturbed_plant, plant_fields
+
+    model = prepare_arm(PLANAR)
+    plant = perturbed_plant(model, str(PLANAR))
+    payload = plant.body("payload")
+    assert plant.body(int(payload.parentid[0])).name == "link2"
+    np.testing.assert_array_equal(plant.body_pos[payload.id], [LC2, 0.0, 0.0])
+    data = mujoco.MjData(plant)
+    mass = 3.0
+    plant.body_mass[payload.id] = mass
+    for q in ([0.3, -0.7], [-1.2, 2.0], [2.5, 0.4]):
+        data.qpos[:] = q
+        mujoco.mj_forward(plant, data)
+        uncompensated = data.qfrc_bias - data.qfrc_gravcomp
+        expected = mass * G * np.array([L1 * np.cos(q[0]) + LC2 * np.cos(q[0] + q[1]), LC2 * np.cos(q[0] + q[1])])
+        np.testing.assert_allclose(uncompensated, expected, atol=1e-10)
+    scenario = scenario_for_model(PLANAR)
+    ref = make("cubic").plan(scenario.task, scenario.model)
+    identity = Perturbation(0.0, np.ones(2), np.ones(2), np.zeros(2), np.zeros(2))
+    plant = perturbed_plant(scenario.model, str(PLANAR))
+    nominal = ClosedLoop(scenario.model, scenario.loop).run([ref])
+    fields = plant_fields(plant, [identity])
+    same = ClosedLoop(scenario.model, scenario.loop, plant=plant, plant_fields=fields).run([ref])
+    np.testing.assert_allclose(same.q, nominal.q, atol=1e-12)
+
+
+def test_the_mismatch_family_on_a_user_arm_in_a_sweep_and_the_env(tmp_path):
+    import gymnasium as gym
+
+    from mjtraj.study.store import read_rows
+
+    out = tmp_path / "arm.csv"
+    assert main(["sweep", "--model", str(PLANAR), "--family", "mismatch", "--scenarios", "4", "--planners",
+                 "cubic,optimal", "--out", str(out), "--no-progress"]) == 0
+    rows = read_rows(out)
+    assert len(rows) == 8 and {r["status"] for r in rows} == {"ok"}
+    assert {r["family"] for r in rows} == {"mismatch"} and "mass_scale_1" in rows[0] and "mass_scale_2" not in rows[0]
+    assert len({r["payload_kg"] for r in rows}) == 4  # one plant per scenario
+    env = gym.make("ArmTrack-v0", xml_file=str(PLANAR), plant_randomization="mismatch")
+    _, info = env.reset(seed=3)
+    assert set(info["plant"]) == {"payload_kg", *(f"{name}_{j}" for name in ("mass_scale", "inertia_scale",
+                                                                           "damping", "friction") for j in (0, 1))}
+    terminated = truncated = False
+    while not (terminated or truncated):
+        _, _, terminated, truncated, info = env.step(np.zeros(2))
+    assert not info["diverged"]
+
+
+def test_a_body_moved_by_two_joints_cannot_be_scaled_one_link_per_joint(tmp_path):
+    from mjtraj.study.families import perturbed_plant
+
+    two = tmp_path / "two.xml"
+    two.write_text(PLANAR.read_text().replace(
+        '<joint name="joint2" type="hinge" axis="0 -1 0" range="-2.5 2.5"/>',
+        '<joint name="joint2" type="hinge" axis="0 -1 0" range="-2.5 2.5"/>'
+        '<joint name="joint3" type="hinge" axis="0 0 1" range="-1 1"/>').replace(
+        '</actuator>', '<position name="servo3" joint="joint3" kp="100" forcerange="-20 20"/></actuator>'))
+    with pytest.raises(ModelError, match=rf"^model {two}: body 'link2' is moved by two joints; the mismatch family "
+                                         r"scales one link per joint$"):
+        perturbed_plant(prepare_arm(two), str(two))

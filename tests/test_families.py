@@ -33,3 +33,17 @@ def test_mismatch_scenarios_are_seeded(model):
     c = draw_scenario("aggressive", 3, 17, model, 0.02)
     assert 0.5 <= c.task.duration <= 1.0
 
+
+
+def test_the_payload_sits_at_the_flange(model):
+    """The payload's centre of mass is the flange site itself, in every pose (it once sat 0.45 m beyond it: an
+    unset inertial position is placed at the body's offset a second time)."""
+    import mujoco
+
+    plant = perturbed_plant(model)
+    data = mujoco.MjData(plant)
+    for q in ([0.3, -1.0, 0.8], [-2.0, -0.4, 2.1], [0.0, -1.5707963267948966, 0.0]):
+        data.qpos[:] = q
+        mujoco.mj_forward(plant, data)
+        np.testing.assert_allclose(data.xipos[plant.body("payload").id],
+                                   data.site_xpos[plant.site("attachment_site").id], atol=1e-12)

@@ -73,6 +73,24 @@ def prepare_arm(path: str | os.PathLike[str], *, dt: float | None = None, torque
     Raises:
       ModelError: the file is missing, does not compile, or is not an arm of actuatable hinges (names the element).
     """
+    return compile_arm(arm_spec(path, dt=dt, torque_limit=torque_limit), path)
+
+
+def compile_arm(spec: mujoco.MjSpec, path: str | os.PathLike[str]) -> mujoco.MjModel:
+    """Compile an arm's spec (from `arm_spec`, perhaps with more added); a failure is a ModelError naming `path`."""
+    try:
+        return spec.compile()
+    except ValueError as e:
+        raise ModelError(f"cannot prepare model {Path(path)}: {' '.join(str(e).split())}") from e
+
+
+def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_limit: float | None = None
+             ) -> mujoco.MjSpec:
+    """The MjSpec of the arm at `path` prepared by ARM_RULES, not yet compiled (`prepare_arm` compiles it).
+
+    Raises:
+      ModelError: as `prepare_arm`.
+    """
     file = Path(path)
     if not file.is_file():
         raise ModelError(f"model file not found: {file}")
@@ -99,10 +117,7 @@ def prepare_arm(path: str | os.PathLike[str], *, dt: float | None = None, torque
     spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     if dt is not None:
         spec.option.timestep = positive("dt", dt)
-    try:
-        return spec.compile()
-    except ValueError as e:
-        raise ModelError(f"cannot prepare model {file}: {' '.join(str(e).split())}") from e
+    return spec
 
 
 def home_pose(model: mujoco.MjModel) -> NDArray[np.float64]:

@@ -8,10 +8,13 @@ Rules (stated once, used by every sweep):
   (`mjtraj.core.task.random_task`), T = 2 s.
 - aggressive: the same tasks with T uniform in [0.5, 1.0] s, rounded to the control period.
 - mismatch: nominal tasks on a plant that differs from the nominal model (planner and feedforward keep the
-  nominal one): a point payload of U(0, 5) kg at the flange (attachment_site; a 5 cm sphere, not gravity
-  compensated); each link's mass and rotational inertia scaled by independent U(0.8, 1.2) factors, its gravity
-  compensation still that of the nominal mass (body_gravcomp = 1/scale); joint viscous damping U(0, 1) N m s/rad
-  and Coulomb friction U(0, 3) N m (2 % of the rated 150 N m) per joint.
+  nominal one): a point payload of U(0, 5) kg at the flange (a 5 cm sphere, not gravity compensated); each link's
+  mass and rotational inertia scaled by independent U(0.8, 1.2) factors, its gravity compensation still that of
+  the nominal mass (body_gravcomp = 1/scale); joint viscous damping U(0, 1) N m s/rad and Coulomb friction
+  U(0, 3) N m (2 % of the UR5's rated 150 N m) per joint. The links are the bodies the joints move, one per
+  joint; the flange is the site `attachment_site` (the UR5's, and MuJoCo Menagerie's name for a tool flange),
+  or on an arm without one the centre of mass of the last joint's body. The same absolute ranges apply to any
+  arm (FLANGE_RULE).
   Optional (sweep settings): measurement noise of std sigma on q and sqrt(2) sigma / dt on qd (the noise of a
   finite-difference velocity), and a one-period actuation delay.
 """
@@ -24,8 +27,10 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from mjtraj.core.arm import arm_spec, compile_arm
 from mjtraj.core.model import default_model_path
 from mjtraj.core.task import Task, random_task
+from mjtraj.exceptions import ModelError
 
 FAMILIES = ("nominal", "aggressive", "mismatch")
 FAMILY_ID = {"nominal": 0, "aggressive": 1, "mismatch": 2}
@@ -44,8 +49,9 @@ DAMPING = (0.0, 1.0)
 """N m s/rad, uniform per joint."""
 FRICTION = (0.0, 3.0)
 """N m, uniform per joint."""
-LINKS = ("shoulder_link", "upper_arm_link", "forearm_link")
 FLANGE_SITE = "attachment_site"
+FLANGE_RULE = (f"the payload sits at the site {FLANGE_SITE!r} if the arm has one, else at the centre of mass of the "
+               f"last joint's body; the links whose mass and inertia are scaled are the bodies the joints move")
 PERTURBATION_FIELDS = ("mass_scale", "inertia_scale", "damping", "friction")
 """The per-link or per-joint fields of a Perturbation, in column order."""
 
@@ -126,23 +132,48 @@ def measurement_noise(scenarios: list[FamilyScenario], steps: int, n: int, sigma
     return out
 
 
-def perturbed_plant(model: mujoco.MjModel) -> mujoco.MjModel:
-    """The nominal model with a payload body (mass set per simulation) welded at the flange, gravcomp 0."""
-    spec = mujoco.MjSpec.from_file(str(default_model_path()))
-    site = spec.site(FLANGE_SITE)
-    parent = site.parent
-    body = parent.add_body(name="payload", pos=site.pos, gravcomp=0.0)
+def perturbed_plant(model: mujoco.MjModel, path: str | None = None, torque_limit: float | None = None
+                    ) -> mujoco.MjModel:
+    """The nominal `model` with a payload body (mass set per simulation) welded at the flange (FLANGE_RULE),
+    gravcomp 0.
+
+    Args:
+      model: the nominal plant (its timestep is kept).
+      path, torque_limit: where `model` came from: None for the shipped UR5, else the user's MJCF file and its
+        torque limit, as given to `mjtraj.core.model.load_model`.
+
+    Raises:
+      ModelError: two joints move one body (the links could not be scaled one per joint).
+    """
+    if path is None:
+        spec = mujoco.MjSpec.from_file(str(default_model_path()))
+    else:
+        spec = arm_spec(path, torque_limit=torque_limit)
+    bodies = [joint.parent.name for joint in spec.joints]
+    if len(set(bodies)) != len(bodies):
+        shared = next(b for b in bodies if bodies.count(b) > 1)
+        raise ModelError(f"model {path}: body {shared!r} is moved by two joints; the mismatch family scales one "
+                         f"link per joint")
+    site = next((s for s in spec.sites if s.name == FLANGE_SITE), None)
+    if site is not None:
+        parent, position = site.parent, site.pos
+    else:
+        last = model.jnt_bodyid[model.njnt - 1]
+        parent, position = spec.body(model.body(last).name), model.body_ipos[last]
+    body = parent.add_body(name="payload", pos=position, gravcomp=0.0)
     body.explicitinertial = True
     body.mass = 1.0
     body.inertia = [0.4 * PAYLOAD_RADIUS**2] * 3
-    plant = spec.compile()
+    body.ipos = [0.0, 0.0, 0.0]  # the centre of mass at the body's origin (MuJoCo would place it at `pos` again)
+    body.iquat = [1.0, 0.0, 0.0, 0.0]
+    plant = spec.compile() if path is None else compile_arm(spec, path)
     plant.opt.timestep = model.opt.timestep
     return plant
 
 
 def plant_fields(plant: mujoco.MjModel, perturbations: list[Perturbation]) -> dict[str, NDArray[np.float64]]:
     """Per-simulation model fields of `plant` (from `perturbed_plant`) for `perturbations`, one per simulation."""
-    links = [plant.body(name).id for name in LINKS]
+    links = plant.jnt_bodyid.tolist()
     payload = plant.body("payload").id
     S = len(perturbations)
     mass = np.tile(plant.body_mass, (S, 1))

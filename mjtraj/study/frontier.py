@@ -116,7 +116,8 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
     others = tuple(name for name in default_planners() if name != "optimal")
     planners += [(name, None, None, scenario.planner(name)) for name in others]
     plans = [plan_all(p, tasks, model) for *_, p in planners]
-    plant = perturbed_plant(model) if family == "mismatch" else None
+    plant = (perturbed_plant(model, scenario.model_path, scenario.model_torque_limit) if family == "mismatch"
+             else None)
     jobs, where = [], []
     for i, refs in enumerate(plans):
         for b, ref in enumerate(refs):

@@ -115,9 +115,6 @@ class SweepSettings:
             if self.config is not None:
                 raise InvalidInputError("model, config: give one (a scenario file names its arm with model = "
                                         "\"PATH\")")
-            if "mismatch" in self.families:
-                raise InvalidInputError("family: mismatch perturbs the shipped UR5's links and flange; with a model "
-                                        "use nominal and aggressive")
         object.__setattr__(self, "base", load_scenario(self.config) if self.model is None else
                            scenario_for_model(self.model, torque_limit=self.torque_limit))
         self.loop_config(self.ff_accel[0], self.gravity_comp[0], mismatch=True)  # validates delay
@@ -314,7 +311,8 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
                 extras[key]["model_error"] = float(value)
     seconds["plan"] += time.perf_counter() - clock
     mismatch = family == "mismatch"
-    plant = perturbed_plant(model) if mismatch else None
+    base = settings.base
+    plant = perturbed_plant(model, base.model_path, base.model_torque_limit) if mismatch else None
     live = [(b, name) for b in range(len(scenarios)) for name in settings.planners
             if isinstance(plans[name][b], Reference)]
     references = [ref for b, name in live if isinstance(ref := plans[name][b], Reference)]

@@ -115,7 +115,8 @@ def objective(scenario: Scenario, planner: Planner, draws: Sequence[FamilyScenar
     refs = plan_all(planner, tasks, model)
     jobs = [Job(ref, scoring.weights(d.task, scenario.torque_limit), d.perturbation)
             for ref, d in zip(refs, draws, strict=True) if isinstance(ref, Reference)]
-    plant = perturbed_plant(model) if family == "mismatch" else None
+    plant = (perturbed_plant(model, scenario.model_path, scenario.model_torque_limit) if family == "mismatch"
+             else None)
     outcomes = execute(model, scenario.loop, jobs, plant=plant) if jobs else []
     failed = len(draws) - len(jobs) + sum(o.status != "ok" for o in outcomes)
     if failed:
