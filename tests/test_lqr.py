@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
+import quadprog  # a test dependency (extra 'test'): a missing one fails, never skips
 
 from mjtraj.core import lqr
 from mjtraj.core.linearize import discretize_zoh, linearize
@@ -12,8 +12,6 @@ from mjtraj.core.lqr import box_lqr
 from mjtraj.core.planners import make
 from mjtraj.core.qp import build_qp
 from mjtraj.core.task import random_task
-
-quadprog = pytest.importorskip("quadprog")
 
 
 def _problems(model, rng, count, steps):
