@@ -36,7 +36,7 @@ TASKS = ("paper", "random", "explicit")
 RENDER_MODES = ("rgb_array", "depth_array")
 PLANT_RANDOMIZATIONS = ("none", "mismatch")
 REWARD_BASELINES = ("none", "pid")
-RESIDUAL_SCALE = 10.0
+RESIDUAL_SCALE = 6.0
 """N m, the default authority of a residual action: the median per-joint RMS feedback torque of PID on the mismatch
 family (cubic references, 1000 scenarios: 10.2 N m, see docs/design.md), rounded to one significant figure. The
 residual is meant to supply what feedback supplies under model error, not the 60 N m saturation."""

@@ -57,7 +57,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     metrics equal `mjtraj compare`'s for the same planner.
 
     ## Action Space
-    `Box(-1, 1, (3,), float32)`, scaled to N m (`residual_scale` s in residual mode, default 10 N m; the 60 N m
+    `Box(-1, 1, (3,), float32)`, scaled to N m (`residual_scale` s in residual mode, default 6 N m; the 60 N m
     saturation in torque mode). Values outside [-1, 1] are clipped; a non-finite value raises InvalidInputError.
 
     | action_mode | the action                                                              |
@@ -138,7 +138,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | xml_file         | None       | an MJCF arm instead of the UR5 (ArmTrack-v0; docs/design.md, "Your own arm") |
     | torque_limit     | None       | with xml_file: every joint's corrective saturation, N m (None: the model's) |
     | action_mode      | "pid"      | pid, residual or torque                                                 |
-    | residual_scale   | 10.0       | s, N m per unit of action in residual mode (> 0)                        |
+    | residual_scale   | 6.0        | s, N m per unit of action in residual mode (> 0)                        |
     | task             | "paper"    | paper, random or explicit                                               |
     | q0               | None       | start, rad (task="explicit")                                            |
     | qg               | None       | goal, rad (task="explicit")                                             |

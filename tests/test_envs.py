@@ -109,7 +109,7 @@ def test_pid_paper_episode_is_compare(planner, scenario):
 
 def test_reward_terms_and_info(scenario):
     """The reward's two terms are -(x^T Q_exec x) and -(dtau^T R_exec dtau) with the paper scenario's weights, and
-    residual mode adds residual_scale a N m (default 10) before the saturation, torque mode 60 a N m."""
+    residual mode adds residual_scale a N m (default 6) before the saturation, torque mode 60 a N m."""
     action = np.array([0.5, -0.2, 0.1], dtype=np.float32)
     for kwargs, scale in (({"action_mode": "torque"}, 60.0),
                           ({"action_mode": "residual", "residual_scale": 100}, 100.0),
@@ -125,7 +125,7 @@ def test_reward_terms_and_info(scenario):
     _, reward, _, _, info = env.step(action)
     e, dtau = info["e"], info["dtau"]
     assert np.array_equal(e, np.zeros(3)) and np.array_equal(scenario.task.q0, env.reference.q[0])
-    np.testing.assert_allclose(dtau, np.clip(info["tau_ff"] + 10 * action.astype(float), -60, 60), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(dtau, np.clip(info["tau_ff"] + 6 * action.astype(float), -60, 60), rtol=0, atol=1e-12)
     assert info["reward_tracking"] == 0.0  # the arm starts on the reference, at rest
     assert info["reward_effort"] == pytest.approx(-np.sum(dtau**2 * scenario.R_exec), rel=1e-14)
     _, reward, _, _, info = env.step(np.zeros(3, dtype=np.float32))  # now the error is not zero

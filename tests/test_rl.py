@@ -193,7 +193,7 @@ def test_a_policy_records_its_residual_scale_and_old_records_mean_the_saturation
     del record["env"]["residual_scale"]  # a record written before residual_scale existed: 60 N m was used
     legacy = Policy(None, record, norm, 0)
     assert np.array_equal(legacy.settings().action_scale, np.full(3, 60.0))
-    assert TrainSettings().env_kwargs()["residual_scale"] == 10.0
+    assert TrainSettings().env_kwargs()["residual_scale"] == 6.0
 
 
 @pytest.mark.slow
@@ -268,7 +268,7 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
                  "--seed", "3", "--planners", "cubic,optimal", "--out", str(tmp_path)])
     assert code == 0
     table = capsys.readouterr().out
-    assert "| cubic+PID+residual SAC (10 N m) | " in table and "| optimal+PID | " in table
+    assert "| cubic+PID+residual SAC (6 N m) | " in table and "| optimal+PID | " in table
     rows = read_rows(tmp_path / "eval_aggressive.csv")
     sweep = run_unit(SweepSettings(families=("aggressive",), scenarios=5, seed=3, planners=("cubic", "optimal")),
                      ("aggressive", 0)).rows
@@ -279,7 +279,7 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
                    for k, v in want.items() if k not in ("reason",)), got["planner"]
     mine = [r for r in rows if r["policy"]]
     assert [r["scenario"] for r in mine] == [str(i) for i in range(5)]
-    assert all(r["method"] == "cubic+PID+residual SAC (10 N m)" and r["policy_timesteps"] == "240" for r in mine)
+    assert all(r["method"] == "cubic+PID+residual SAC (6 N m)" and r["policy_timesteps"] == "240" for r in mine)
     # the policy rows replay: its episodes on the same references, batched as eval batches them (scenarios of one
     # length together: torch's float32 kernels round differently for different batch sizes), give the same numbers
     policy = load_policy(trained / "policy.zip")
@@ -298,8 +298,8 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
             replayed += 1
     assert replayed == 5
     per_policy, over_seeds = (tmp_path / "EVAL_aggressive.md").read_text().split("Over seeds")
-    assert per_policy.count("| cubic+PID+residual SAC (10 N m) |") == 1
-    assert over_seeds.count("| cubic+PID+residual SAC (10 N m) | 1 |") == 1  # one configuration, one seed
+    assert per_policy.count("| cubic+PID+residual SAC (6 N m) |") == 1
+    assert over_seeds.count("| cubic+PID+residual SAC (6 N m) | 1 |") == 1  # one configuration, one seed
 
 
 
@@ -363,7 +363,7 @@ def test_ppo_trains_and_reloads(tmp_path):
                    tmp_path / "ppo", progress=False)
     policy = load_policy(report.policy)
     assert report.timesteps == 2048 and policy.model.n_steps == 256  # SB3's 2048 transitions per update
-    assert policy.label == "cubic+PID+residual PPO (10 N m)"
+    assert policy.label == "cubic+PID+residual PPO (6 N m)"
     assert len(read_rows(report.out / "learning_curve.csv")) == 3
 
 
@@ -565,9 +565,9 @@ def test_a_policy_failing_in_eval_is_recorded_and_eval_goes_on(trained, tmp_path
     evaluate([trained / "policy.zip"], scenarios=3, planners=("cubic",), out=tmp_path)
     rows = read_rows(tmp_path / "eval_nominal.csv")
     assert [(r["method"], r["status"]) for r in rows] == [("cubic+PID", "ok")] * 3 + [
-        ("cubic+PID+residual SAC (10 N m)", "error")] * 3
+        ("cubic+PID+residual SAC (6 N m)", "error")] * 3
     assert {r["reason"] for r in rows if r["policy"]} == {"RuntimeError: policy exploded"}
-    assert "| cubic+PID+residual SAC (10 N m) | 0 | 3 |" in (tmp_path / "EVAL_nominal.md").read_text()
+    assert "| cubic+PID+residual SAC (6 N m) | 0 | 3 |" in (tmp_path / "EVAL_nominal.md").read_text()
 
 
 
@@ -617,8 +617,8 @@ def test_eval_summarises_a_configuration_over_its_seeds(trained, tmp_path):
     rows = read_rows(report.csv)
     ref = np.array([numeric(r["cost"]) for r in rows if r["planner"] == "cubic"])
     lines = report.seeds.splitlines()[2:]
-    assert [line.split(" | ")[0:2] for line in lines] == [["| cubic+PID+residual SAC (10 N m)", "2"],
-                                                          ["| cubic+PID+residual SAC (10 N m) best", "2"]]
+    assert [line.split(" | ")[0:2] for line in lines] == [["| cubic+PID+residual SAC (6 N m)", "2"],
+                                                          ["| cubic+PID+residual SAC (6 N m) best", "2"]]
     for line, members in zip(lines, [[0, 1], [2, 3]], strict=True):
         labels = sorted({r["planner"] for r in rows if r["policy"] in {str(paths[i]) for i in members}})
         assert len(labels) == 2
