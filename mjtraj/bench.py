@@ -326,9 +326,11 @@ FLOOR_BATCH = 4096
 """Simulations per raw mujoco.batch step when timing the sweep's floor."""
 
 
-def bench_startup(*, repeats: int = 3) -> dict[str, float]:
+def bench_startup(*, repeats: int = 5) -> dict[str, float]:
     """Wall time of `mjtraj compare` on the paper scenario (no figures), imports included, against
-    `python -c "import mujoco, gymnasium, scipy"`, each in a fresh interpreter; medians of `repeats` runs."""
+    `python -c "import mujoco, gymnasium, scipy"` (the target's anchor) and against the same with `scipy.linalg`
+    (which compare needs: the discretisation's matrix exponential and the banded LU), each in a fresh interpreter;
+    medians of `repeats` runs."""
     import subprocess
     import sys
     import tempfile
@@ -342,6 +344,8 @@ def bench_startup(*, repeats: int = 3) -> dict[str, float]:
         return float(np.median(times))
 
     imports = wall([sys.executable, "-c", "import mujoco, gymnasium, scipy"])
+    linalg = wall([sys.executable, "-c", "import mujoco, gymnasium, scipy.linalg"])
     with tempfile.TemporaryDirectory() as folder:
         compare = wall([sys.executable, "-m", "mjtraj", "compare", "--no-figures", "--out", folder])
-    return {"imports_s": imports, "compare_s": compare, "ratio": compare / imports}
+    return {"imports_s": imports, "linalg_s": linalg, "compare_s": compare, "ratio": compare / imports,
+            "ratio_linalg": compare / linalg}

@@ -36,6 +36,7 @@ def test_startup_ratio_is_compare_over_imports():
     row = bench_startup(repeats=1)
     assert row["imports_s"] > 0 and row["compare_s"] > 0
     assert row["ratio"] == pytest.approx(row["compare_s"] / row["imports_s"], rel=1e-12)
+    assert row["ratio_linalg"] == pytest.approx(row["compare_s"] / row["linalg_s"], rel=1e-12)
 
 
 @pytest.mark.slow

@@ -14,9 +14,6 @@ from numpy.typing import NDArray
 CHUNK = 4096
 """Most states evaluated per Batch call (bounds the probe's memory; any size gives the same numbers)."""
 
-SMALL = 32
-"""Probes of at most this many states run MuJoCo on one MjData per state in turn (a Batch costs about 1 ms to
-make, more than evaluating a few states); the numbers are the same bits either way (tested)."""
 
 _FIELDS = ("qpos", "qvel", "ctrl", "qacc", "qfrc_bias", "qfrc_passive", "qfrc_gravcomp", "M")
 _scratch = threading.local()
@@ -63,17 +60,20 @@ class _DataLoop:
 class DynamicsProbe:
     """Evaluates `model` at many states: arrays of shape (rows, n) in, (rows, n) out, `size` states per call.
 
-    Each call runs MuJoCo's own pipeline per state (mj_forward up to the needed stage) on a Batch, or for at
-    most SMALL states on one MjData in turn; the numbers equal those of a loop over MjData (tested against
-    mj_inverse and mj_forward).
+    Each call runs MuJoCo's own pipeline per state (mj_forward up to the needed stage) on a Batch, or with
+    `serial` on this thread's one MjData of the model, state after state: a Batch costs about 1 ms to make, more
+    than a one-off evaluation of a few dozen states, while for repeated calls on many states it is the faster.
+    The numbers are the same bits either way, and equal those of a loop over MjData (tested against mj_inverse
+    and mj_forward).
     """
 
-    def __init__(self, model: mujoco.MjModel, *, size: int = CHUNK, nthread: int = 1) -> None:
+    def __init__(self, model: mujoco.MjModel, *, size: int = CHUNK, nthread: int = 1, serial: bool = False) -> None:
         self.model = model
         self.n = model.nv
         self.size = max(1, min(int(size), CHUNK))
         self.nthread = nthread
-        self._batch: Batch | _DataLoop = (_DataLoop(model, self.size) if self.size <= SMALL
+        self.serial = serial
+        self._batch: Batch | _DataLoop = (_DataLoop(model, self.size) if serial
                                            else Batch(model, self.size, nthread=nthread))
         bind = self._batch.bind
         self._qpos, self._qvel, self._ctrl = bind("qpos"), bind("qvel"), bind("ctrl")
@@ -89,13 +89,13 @@ class DynamicsProbe:
                 index += [a, a]
         self._dense = (np.array(rows), np.array(cols), np.array(index))
 
-    def __getstate__(self) -> tuple[mujoco.MjModel, int, int]:
+    def __getstate__(self) -> tuple[mujoco.MjModel, int, int, bool]:
         """The arguments: the probe is scratch space (mujoco's Batch itself cannot be pickled)."""
-        return self.model, self.size, self.nthread
+        return self.model, self.size, self.nthread, self.serial
 
-    def __setstate__(self, state: tuple[mujoco.MjModel, int, int]) -> None:
-        model, size, nthread = state
-        DynamicsProbe.__init__(self, model, size=size, nthread=nthread)
+    def __setstate__(self, state: tuple[mujoco.MjModel, int, int, bool]) -> None:
+        model, size, nthread, serial = state
+        DynamicsProbe.__init__(self, model, size=size, nthread=nthread, serial=serial)
 
     def _chunks(self, *arrays: NDArray[np.float64]):
         rows = arrays[0].shape[0]

@@ -22,6 +22,10 @@ def _points(name: str, value: npt.ArrayLike | None, shape: tuple[int, int]) -> N
     return array
 
 
+SERIAL_ROWS = 64
+"""Most perturbed states (6n per point) linearised serially on one MjData rather than on a Batch."""
+
+
 def linearize_many(model: mujoco.MjModel, q: npt.ArrayLike, qd: npt.ArrayLike | None = None,
                    u: npt.ArrayLike | None = None, *, eps: float = 1e-6, probe: DynamicsProbe | None = None
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -47,7 +51,8 @@ def linearize_many(model: mujoco.MjModel, q: npt.ArrayLike, qd: npt.ArrayLike | 
     steps = np.concatenate([eps * np.eye(3 * n), -eps * np.eye(3 * n)])      # rows: +e_i then -e_i over [q; qd; u]
     point = np.concatenate([q, qd, u], axis=1)
     perturbed = (point[:, None, :] + steps[None]).reshape(-1, 3 * n)          # (P * 6n, 3n)
-    probe = DynamicsProbe(model, size=perturbed.shape[0]) if probe is None else probe
+    if probe is None:  # one-off: a few points are evaluated serially, cheaper than making a Batch
+        probe = DynamicsProbe(model, size=perturbed.shape[0], serial=perturbed.shape[0] <= SERIAL_ROWS)
     qdd = probe.accelerations(perturbed[:, :n], perturbed[:, n:2 * n], perturbed[:, 2 * n:])
     f = np.concatenate([perturbed[:, n:2 * n], qdd], axis=1).reshape(P, 2, 3 * n, 2 * n)
     jac = (f[:, 0] - f[:, 1]).transpose(0, 2, 1) / (2 * eps)                 # (P, 2n, 3n): df/d[x; u]
