@@ -194,7 +194,7 @@ def _parser() -> argparse.ArgumentParser:
     x.add_argument("--out", type=Path, required=True, help="output: FILE.sqlite (or .db), FILE.jsonl or FILE.csv")
 
     a = sub.add_parser("audit", help="check the paper's claims against sweep files; writes AUDIT.md and figures")
-    a.add_argument("sweeps", nargs="+", type=Path, help="sweep CSV files")
+    a.add_argument("sweeps", nargs="+", type=Path, help="sweep results: SQLite stores or CSV files")
     a.add_argument("--out", type=Path, default=Path("results/AUDIT.md"), help="output Markdown (default "
                    "results/AUDIT.md)")
     a.add_argument("--partial", action="store_true", help="audit the complete units of an unfinished sweep (and say "

@@ -598,7 +598,7 @@ def test_training_under_mismatch_on_the_pid_advantage_is_recorded_and_validated_
     assert run["env"]["reward_baseline"] == "pid"
     policy = load_policy(out / "policy.zip")
     assert policy.settings().plant_randomization == "mismatch"
-    assert policy.label == "cubic+PID+residual SAC (10 N m, mismatch-trained, PID-advantage reward)"
+    assert policy.label == "cubic+PID+residual SAC (6 N m, mismatch-trained, PID-advantage reward)"
     settings = TrainSettings(**{**TINY, "seed": 4, "plant_randomization": "mismatch", "reward_baseline": "pid"})
     refs, weights, plants = validation_set(settings, policy.settings())
     pid = [o.metrics["cost"] for o in run_episodes(None, policy.settings(), refs, weights, plants)]
