@@ -38,7 +38,7 @@ PLANT_RANDOMIZATIONS = ("none", "mismatch")
 REWARD_BASELINES = ("none", "pid")
 RESIDUAL_SCALE = 6.0
 """N m, the default authority of a residual action: the median per-joint RMS feedback torque of PID on the mismatch
-family (cubic references, 1000 scenarios: 10.2 N m, see docs/design.md), rounded to one significant figure. The
+family (cubic references, 1000 scenarios: 6.40 N m, see docs/design.md), rounded to one significant figure. The
 residual is meant to supply what feedback supplies under model error, not the 60 N m saturation."""
 ENV_OWN = ("planner", "q0", "qg", "Q_exec", "R_exec", "render_mode", "xml_file", "torque_limit")
 """Arguments that are not declared options (objects, vectors or None)."""

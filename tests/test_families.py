@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 from mjtraj.core.closed_loop import ClosedLoop
@@ -38,8 +39,6 @@ def test_mismatch_scenarios_are_seeded(model):
 def test_the_payload_sits_at_the_flange(model):
     """The payload's centre of mass is the flange site itself, in every pose (it once sat 0.45 m beyond it: an
     unset inertial position is placed at the body's offset a second time)."""
-    import mujoco
-
     plant = perturbed_plant(model)
     data = mujoco.MjData(plant)
     for q in ([0.3, -1.0, 0.8], [-2.0, -0.4, 2.1], [0.0, -1.5707963267948966, 0.0]):
