@@ -251,6 +251,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         return self._renderer.frame(self._core.loop.positions[0], self._core.reference_pose(0))
 
     def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
+        renderer = getattr(self, "_renderer", None)  # absent if __init__ refused its arguments
+        if renderer is not None:
+            renderer.close()
             self._renderer = None

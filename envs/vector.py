@@ -166,6 +166,6 @@ class UR5TrackVectorEnv(VectorEnv):
                      for i in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
-        for renderer in self._renderers:
+        for renderer in getattr(self, "_renderers", ()):  # absent if __init__ refused its arguments
             renderer.close()
         self._renderers = []

@@ -451,3 +451,17 @@ def test_observe_control_appends_the_integral_and_the_next_feedforward():
         check_env(env.unwrapped, skip_render_check=True)
     env.close()
     plain.close()
+
+
+def test_an_env_whose_arguments_were_refused_closes_quietly():
+    """Gymnasium's __del__ closes an env whose __init__ raised: close must not depend on what __init__ set."""
+    from mjtraj.envs.ur5_track import UR5TrackEnv
+    from mjtraj.envs.vector import UR5TrackVectorEnv
+
+    from mjtraj.exceptions import InvalidInputError
+
+    for cls, kwargs in ((UR5TrackEnv, {}), (UR5TrackVectorEnv, {"num_envs": 2})):
+        with pytest.raises(InvalidInputError):
+            cls(bogus=1, **kwargs)
+        half_made = cls.__new__(cls)
+        half_made.close()  # must not raise
