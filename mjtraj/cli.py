@@ -230,10 +230,14 @@ def _parser() -> argparse.ArgumentParser:
                    help="residual (added to feedforward + PID) | torque (the whole corrective torque); default "
                    "residual")
     t.add_argument("--residual-scale", dest="residual_scale", type=float,
-                   help="N m per unit of action in residual mode (default 10: PID's median per-joint RMS feedback "
+                   help="N m per unit of action in residual mode (default 6: PID's median per-joint RMS feedback "
                    "torque on the mismatch family)")
     t.add_argument("--observe-control", dest="observe_control", action="store_true",
                    help="the policy also observes the PID integral and the next feedforward torque")
+    t.add_argument("--observation-scaling", dest="observation_scaling", default="running",
+                   help="running (VecNormalize's running statistics) | fixed (errors as the PID torque they make, "
+                   "in units of the residual scale; positions by pi rad, velocities by pi rad/s; docs/design.md) "
+                   "(default running)")
     t.add_argument("--reward-baseline", dest="reward_baseline", default="none",
                    help="none | pid: train on the advantage over PID alone on the same episode (a shadow run); "
                    "validation and evaluation still score J_exec (default none)")
@@ -613,6 +617,7 @@ def _rl(args: argparse.Namespace) -> int:
         extra: dict[str, Any] = {} if args.residual_scale is None else {"residual_scale": args.residual_scale}
         extra["overrides"] = _overrides(args.hyperparameters, args.hyperparameter)
         extra["observe_control"] = args.observe_control
+        extra["observation_scaling"] = args.observation_scaling
         extra["plant_randomization"] = args.plant_randomization
         extra["reward_baseline"] = args.reward_baseline
         settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **extra, planner=args.planner,

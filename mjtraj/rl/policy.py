@@ -97,14 +97,16 @@ class Policy:
     @property
     def label(self) -> str:
         """How results tables name its configuration: planner+PID+residual SAC (its scale in N m), or planner+SAC
-        torque; then ', mismatch-trained', ', sees PID' and ', PID-advantage reward' when it trained under plant
-        randomisation, observed the controller's state or was rewarded relative to PID alone. Runs that differ only
-        in their seed share a label."""
+        torque; then ', mismatch-trained', ', sees PID', ', PID-advantage reward' and ', fixed scales' when it
+        trained under plant randomisation, observed the controller's state, was rewarded relative to PID alone or
+        saw fixed observation scales. Runs that differ only in their seed share a label."""
         env = self.env_kwargs
         algo = self.algo.upper()
+        fixed = self.record["settings"].get("observation_scaling", "running") == "fixed"
         notes = "".join([", mismatch-trained" if env.get("plant_randomization", "none") != "none" else "",
                          ", sees PID" if env.get("observe_control", False) else "",
-                         ", PID-advantage reward" if env.get("reward_baseline", "none") != "none" else ""])
+                         ", PID-advantage reward" if env.get("reward_baseline", "none") != "none" else "",
+                         ", fixed scales" if fixed else ""])
         if env["action_mode"] == "residual":
             return f"{env['planner']}+PID+residual {algo} ({env['residual_scale']:g} N m{notes})"
         return f"{env['planner']}+{algo} torque{f' ({notes[2:]})' if notes else ''}"

@@ -7,10 +7,11 @@ with the TRAIN_STREAM seed of (s, i) (`mjtraj.rl.streams`), never with s + i.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
@@ -23,12 +24,21 @@ from stable_baselines3.common.vec_env import VecEnv  # noqa: E402
 
 
 class SB3TrackVecEnv(VecEnv):
-    """`num_envs` UR5Track-v0 episodes on one batch, as an SB3 VecEnv; keyword arguments are the env's."""
+    """`num_envs` UR5Track-v0 episodes on one batch, as an SB3 VecEnv; keyword arguments are the env's.
 
-    def __init__(self, num_envs: int, **env_kwargs: Any) -> None:
+    With `observe`, the agent sees `observe(obs)` (the final observations in the infos too) in the space
+    `observation_space`, instead of the env's observations: fixed scaling (`mjtraj.rl.scaling`)."""
+
+    def __init__(self, num_envs: int, *, observe: Callable[[NDArray[np.float64]], NDArray[np.float32]] | None = None,
+                 observation_space: spaces.Box | None = None, **env_kwargs: Any) -> None:
         self.env = UR5TrackVectorEnv(num_envs=num_envs, autoreset_mode=AutoresetMode.SAME_STEP, **env_kwargs)
         self._actions: NDArray[np.float32] | None = None
-        super().__init__(num_envs, self.env.single_observation_space, self.env.single_action_space)
+        self._observe = observe
+        super().__init__(num_envs, observation_space or self.env.single_observation_space,
+                         self.env.single_action_space)
+
+    def _seen(self, obs: NDArray[np.float64]) -> NDArray[Any]:
+        return obs if self._observe is None else self._observe(obs)
 
     def seed(self, seed: int | None = None) -> Sequence[int | None]:
         if seed is None:
@@ -36,27 +46,27 @@ class SB3TrackVecEnv(VecEnv):
         self._seeds = list(training_entropies(seed, self.num_envs))
         return self._seeds
 
-    def reset(self) -> NDArray[np.float64]:
+    def reset(self) -> NDArray[Any]:
         seeds = None if all(s is None for s in self._seeds) else list(self._seeds)
         obs, _ = self.env.reset(seed=seeds)
         self._reset_seeds()
         self._reset_options()
-        return obs
+        return self._seen(obs)
 
     def step_async(self, actions: NDArray[np.float32]) -> None:
         self._actions = actions
 
-    def step_wait(self) -> tuple[NDArray[np.float64], NDArray[np.float32], NDArray[np.bool_], list[dict[str, Any]]]:
+    def step_wait(self) -> tuple[NDArray[Any], NDArray[np.float32], NDArray[np.bool_], list[dict[str, Any]]]:
         assert self._actions is not None, "step_async first"
         obs, reward, terminated, truncated, info = self.env.step(self._actions)
         dones = terminated | truncated
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         for i in np.flatnonzero(dones):
-            infos[i] = {"terminal_observation": info["final_obs"][i],
+            infos[i] = {"terminal_observation": self._seen(info["final_obs"][i]),
                         "TimeLimit.truncated": bool(truncated[i] and not terminated[i]),
                         "metrics": {name: float(v[i]) for name, v in info["metrics"].items()},
                         "diverged": bool(info["diverged"][i])}
-        return obs, reward.astype(np.float32), dones, infos
+        return self._seen(obs), reward.astype(np.float32), dones, infos
 
     def close(self) -> None:
         self.env.close()

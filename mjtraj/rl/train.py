@@ -5,8 +5,9 @@ Rules (stated once, recorded in run.json):
   PPO collects SB3's default 2048 transitions per update (n_steps = 2048 / num_envs), and TD3 explores with
   Gaussian action noise of std 0.1 (the TD3 paper's; SB3 adds none). Nothing was tuned on evaluation scenarios.
   `overrides` (from `--hyperparameter NAME=VALUE` or a JSON file) replace them by name and are recorded as such;
-- observations and rewards are normalised by SB3's VecNormalize (running statistics, clip 10); saved policies
-  carry the observation statistics;
+- rewards are normalised by SB3's VecNormalize (running statistics); observations too (clip 10), or with
+  observation_scaling="fixed" divided by fixed physical scales instead (`mjtraj.rl.scaling`, clip 10); saved
+  policies carry the observation transform;
 - sub-env i trains on the TRAIN_STREAM seed (seed, i) and continues its stream across episodes; the learning
   curve's validation tasks come from VALIDATION_STREAM (mjtraj.rl.streams), so neither is a sweep scenario;
 - with plant randomisation every training episode runs on a plant drawn by the mismatch rules, and so does every
@@ -28,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 
 from mjtraj.checks import choice, positive, positive_int
 from mjtraj.core import LoopConfig, check_name, option_names
@@ -39,6 +41,7 @@ from mjtraj.rl.curve import CurveFile, plot_curve
 from mjtraj.rl.episodes import run_episodes
 from mjtraj.rl.extra import require_sb3, rl_versions
 from mjtraj.rl.policy import Normalization, Policy
+from mjtraj.rl.scaling import OBSERVATION_SCALINGS, fixed_normalization
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, check_seed, training_entropies
 from mjtraj.study import Outcome
 
@@ -57,6 +60,7 @@ class TrainSettings:
       action_mode: residual (added to feedforward + PID) or torque (the whole corrective torque).
       residual_scale: N m per unit of action in residual mode (the env's default rule: RESIDUAL_SCALE).
       observe_control: the policy also observes the PID integral and the next feedforward torque.
+      observation_scaling: running (VecNormalize's statistics) or fixed (`mjtraj.rl.scaling`'s stated scales).
       plant_randomization: none, or mismatch (each training and validation episode on a plant drawn by the
         mismatch family's rules).
       reward_baseline: none, or pid (train on the advantage over PID alone; validation and evaluation score J_exec).
@@ -78,6 +82,7 @@ class TrainSettings:
     action_mode: str = "residual"
     residual_scale: float = RESIDUAL_SCALE
     observe_control: bool = False
+    observation_scaling: str = "running"
     plant_randomization: str = "none"
     reward_baseline: str = "none"
     planner: str = "cubic"
@@ -96,6 +101,7 @@ class TrainSettings:
         choice("action_mode", self.action_mode, ACTION_MODES)
         choice("plant_randomization", self.plant_randomization, PLANT_RANDOMIZATIONS)
         choice("reward_baseline", self.reward_baseline, REWARD_BASELINES)
+        choice("observation_scaling", self.observation_scaling, OBSERVATION_SCALINGS)
         object.__setattr__(self, "residual_scale", positive("residual_scale", self.residual_scale))
         check_name("planner", self.planner)
         choice("task", self.task, tuple(t for t in TASKS if t != "explicit"))
@@ -229,12 +235,14 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
         torch.set_num_threads(settings.threads)
     env_kwargs = settings.env_kwargs()
     env = resolve(**env_kwargs)
+    fixed = fixed_normalization(env, CLIP_OBS) if settings.observation_scaling == "fixed" else None
     hyper = settings.hyperparameters()
     num_envs = int(settings.num_envs)  # type: ignore[arg-type]
     record: dict[str, Any] = {
         "format": RUN_FORMAT, "status": "running", "settings": dataclasses.asdict(settings), "env": env_kwargs,
         "hyperparameters": {"sb3_defaults_plus": hyper, "overrides": dict(settings.overrides)},
-        "normalization": {"norm_obs": True, "norm_reward": True, "clip_obs": CLIP_OBS},
+        "normalization": {"norm_obs": fixed is None, "norm_reward": True, "clip_obs": CLIP_OBS,
+                          "observation_scaling": settings.observation_scaling},
         "streams": {"train": {"stream": TRAIN_STREAM, "gym_seeds": training_entropies(settings.seed, num_envs)},
                     "validation": {"stream": VALIDATION_STREAM,
                                    "count": 1 if env.fixed_task is not None else settings.validation}},
@@ -244,7 +252,9 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
     clock = time.perf_counter()
     started = False
     try:
-        venv = VecNormalize(VecMonitor(SB3TrackVecEnv(num_envs, **env_kwargs)), clip_obs=CLIP_OBS)
+        seen = None if fixed is None else spaces.Box(-CLIP_OBS, CLIP_OBS, (env.obs_size,), np.float32)
+        agent_env = SB3TrackVecEnv(num_envs, observe=fixed, observation_space=seen, **env_kwargs)
+        venv = VecNormalize(VecMonitor(agent_env), norm_obs=fixed is None, clip_obs=CLIP_OBS)
         kwargs = copy.deepcopy(hyper)  # SB3 edits policy_kwargs in place; the record keeps what was given
         if settings.algo == "td3":
             n = env.n
@@ -267,7 +277,7 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
                                                 "streams", "versions", "torch_threads")}
 
         def snapshot() -> Policy:
-            return Policy(model, policy_record, Normalization.of(venv), int(model.num_timesteps))
+            return Policy(model, policy_record, fixed or Normalization.of(venv), int(model.num_timesteps))
 
         every_eval = max(num_envs, settings.steps // settings.evaluations)
         every_save = max(num_envs, settings.steps // settings.checkpoints)
@@ -362,8 +372,9 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
 def _title(settings: TrainSettings) -> str:
     scale = f" ({settings.residual_scale:g} N m)" if settings.action_mode == "residual" else ""
     plant = ", mismatch plants" if settings.plant_randomization != "none" else ""
+    scaling = ", fixed observation scales" if settings.observation_scaling == "fixed" else ""
     return (f"{settings.algo.upper()} {settings.action_mode}{scale} on {settings.planner} references, "
-            f"task={settings.task}{plant}, seed {settings.seed}")
+            f"task={settings.task}{plant}{scaling}, seed {settings.seed}")
 
 
 def plot_run(run: str | Path) -> Path:
