@@ -642,6 +642,11 @@ def _rl(args: argparse.Namespace) -> int:
     print()
     print("Over seeds:")
     print(evaluation.seeds)
+    if evaluation.payload:
+        from mjtraj.rl.evaluate import PAYLOAD_TITLE
+
+        print(f"\n{PAYLOAD_TITLE}")
+        print(evaluation.payload)
     print(f"\nwrote {evaluation.csv} and {evaluation.markdown}")
     return 0
 

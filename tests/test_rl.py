@@ -30,7 +30,7 @@ from mjtraj.rl.policy import Normalization, Policy, load_policy
 from mjtraj.rl.sb3_env import SB3TrackVecEnv
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, shared_streams, stream_seed, training_entropies
 from mjtraj.rl.train import TrainSettings, train, validation_set
-from mjtraj.study.families import FAMILIES, draw_perturbation, draw_scenario
+from mjtraj.study.families import FAMILIES, PAYLOAD_MASS, draw_perturbation, draw_scenario
 from mjtraj.study.store import numeric, read_rows
 from mjtraj.study.sweep import SweepSettings, plan_scenarios, run_unit
 
@@ -300,6 +300,31 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
     per_policy, over_seeds = (tmp_path / "EVAL_aggressive.md").read_text().split("Over seeds")
     assert per_policy.count("| cubic+PID+residual SAC (6 N m) |") == 1
     assert over_seeds.count("| cubic+PID+residual SAC (6 N m) | 1 |") == 1  # one configuration, one seed
+    assert "By payload" not in over_seeds  # no payloads on the aggressive family
+
+
+def test_eval_under_mismatch_splits_by_payload(trained, tmp_path):
+    """Oracle: each payload bin's ratio of mean J_exec and share won, recomputed from the rows with numpy."""
+    report = evaluate([trained / "policy.zip"], family="mismatch", scenarios=10, seed=5, planners=("cubic",),
+                      out=tmp_path)
+    rows = read_rows(report.csv)
+    ref = {int(r["scenario"]): r for r in rows if r["planner"] == "cubic"}
+    mine = {int(r["scenario"]): r for r in rows if r["policy"]}
+    assert sorted(ref) == sorted(mine) == list(range(10))
+    lo, hi = PAYLOAD_MASS
+    header, _, line = report.payload.splitlines()
+    cells = line.split(" | ")[1:]
+    assert len(cells) == 5
+    for b, cell in enumerate(cells):
+        inside = [k for k in ref if min(int((numeric(ref[k]["payload_kg"]) - lo) / (hi - lo) * 5), 4) == b]
+        assert f"({len(inside)})" in header.split(" | ")[b + 1]
+        if not inside:
+            assert cell.startswith("nan")
+            continue
+        cost = np.array([numeric(mine[k]["cost"]) for k in inside])
+        base = np.array([numeric(ref[k]["cost"]) for k in inside])
+        assert cell.rstrip(" |") == f"{cost.mean() / base.mean():.3g}, {100 * np.mean(cost < base):.0f} %"
+    assert report.payload in report.markdown.read_text()
 
 
 

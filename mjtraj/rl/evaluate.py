@@ -28,6 +28,7 @@ from mjtraj.rl.policy import Policy, load_policy
 from mjtraj.rl.streams import VALIDATION_STREAM, check_seed, family_entropies, shared_streams
 from mjtraj.study import (
     FAMILIES,
+    PAYLOAD_MASS,
     SWEPT,
     ActorSpec,
     Condition,
@@ -36,6 +37,7 @@ from mjtraj.study import (
     columns,
     csv_text,
     cvar,
+    numeric,
     paired_ratio,
     run_unit,
 )
@@ -51,6 +53,8 @@ class EvalReport:
     markdown: Path
     table: str
     seeds: str = ""
+    payload: str = ""
+    """The by-payload table ('' unless the scenarios' plants carry payloads: the mismatch family)."""
 
 
 def check_held_out(policy: Policy, family: str, seed: int, scenarios: int) -> None:
@@ -144,13 +148,16 @@ def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenari
     write_text_atomic(csv_path, csv_text([*columns(settings), *POLICY_COLUMNS], rows))
     reference = loaded[0].env_kwargs["planner"]
     table = comparison_table(csv_path, reference=reference)
-    seeds = seed_table(csv_path, configurations(loaded, labels), reference=reference)
+    groups = configurations(loaded, labels)
+    seeds = seed_table(csv_path, groups, reference=reference)
+    payload = payload_table(csv_path, groups, reference=reference)
     md_path = out / f"EVAL_{family}.md"
+    by_payload = [PAYLOAD_TITLE, "", payload, ""] if payload else []
     write_text_atomic(md_path, "\n".join([*_header(loaded, labels, family, scenarios, seed, policies,
                                                    settings.planners), table, "",
                                           "Over seeds (each configuration's policies; mean [min, max] over them):",
-                                          "", seeds, ""]))
-    return EvalReport(csv_path, md_path, table, seeds)
+                                          "", seeds, "", *by_payload]))
+    return EvalReport(csv_path, md_path, table, seeds, payload)
 
 
 def configurations(policies: Sequence[Policy], labels: Sequence[str]) -> dict[str, list[str]]:
@@ -198,6 +205,43 @@ def seed_table(csv_path: Path, groups: dict[str, list[str]], *, reference: str) 
         lines.append(f"| {name} | {len(members)} | {np.mean(ratios):.3g} [{min(ratios):.3g}, {max(ratios):.3g}] | "
                      f"{min(lows):.3g} .. {max(highs):.3g} | {np.mean(wins):.0f} % [{min(wins):.0f}, "
                      f"{max(wins):.0f}] |")
+    return "\n".join(lines)
+
+
+PAYLOAD_BINS = 5
+"""Equal-width bins of the mismatch family's payload range (PAYLOAD_MASS) in the by-payload table."""
+PAYLOAD_TITLE = ("By payload (each configuration's J_exec / reference+PID, ratio of means over the bin's scenarios, "
+                 "and share of them won; both the mean over its seeds):")
+
+
+def payload_table(csv_path: Path, groups: dict[str, list[str]], *, reference: str) -> str:
+    """Markdown: the over-seeds summary of `seed_table` within bins of the scenarios' payload mass; '' when no
+    scenario carries a payload (a family without plant mismatch)."""
+    data = SweepData([csv_path])
+    (condition,) = data.conditions
+    by_scenario = {int(r["scenario"]): numeric(r.get("payload_kg", "")) for r in data.rows
+                   if r["planner"] == reference}
+    payload = np.array([by_scenario[k] for k in sorted(by_scenario)])
+    if not np.any(payload > 0):
+        return ""
+    edges = np.linspace(*PAYLOAD_MASS, PAYLOAD_BINS + 1)
+    bins = np.clip(np.searchsorted(edges, payload, side="right") - 1, 0, PAYLOAD_BINS - 1)
+    ref = data.values(condition, reference, "cost")
+    head = " | ".join(f"{lo:g}-{hi:g} kg ({np.sum(bins == b)})" for b, (lo, hi) in
+                      enumerate(zip(edges[:-1], edges[1:], strict=True)))
+    lines = [f"| configuration | {head} |", "|---|" + "---|" * PAYLOAD_BINS]
+    for name, members in groups.items():
+        cells = []
+        for b in range(PAYLOAD_BINS):
+            inside = bins == b
+            ratios, wins = [], []
+            for label in members:
+                cost = data.values(condition, label, "cost")
+                both = inside & np.isfinite(cost) & np.isfinite(ref)
+                ratios.append(cost[both].mean() / ref[both].mean() if both.any() else np.nan)
+                wins.append(win_share(cost[inside], ref[inside]))
+            cells.append(f"{np.mean(ratios):.3g}, {np.mean(wins):.0f} %")
+        lines.append(f"| {name} | {' | '.join(cells)} |")
     return "\n".join(lines)
 
 

@@ -17,6 +17,7 @@ _EXPORTS = {
     "FAMILIES": "mjtraj.study.families",
     "FAMILY_ID": "mjtraj.study.families",
     "FamilyScenario": "mjtraj.study.families",
+    "PAYLOAD_MASS": "mjtraj.study.families",
     "Perturbation": "mjtraj.study.families",
     "draw_scenario": "mjtraj.study.families",
     "perturbed_plant": "mjtraj.study.families",
@@ -80,6 +81,7 @@ if TYPE_CHECKING:
     from mjtraj.study.families import (
         FAMILIES,
         FAMILY_ID,
+        PAYLOAD_MASS,
         FamilyScenario,
         Perturbation,
         draw_perturbation,
@@ -123,9 +125,9 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Actor", "ActorSpec", "BACKENDS", "Comparison", "Condition", "DEFAULT_PLANNERS", "EXTRA_METRICS", "FAMILIES",
-    "FAMILY_ID", "FamilyScenario", "Job", "Outcome", "PAPER_TABLE", "PairedRatio", "Perturbation", "ResultsFile",
-    "Row", "STATUSES", "SWEPT", "Scenario", "SweepData", "SweepReport", "SweepSettings", "UnitResult", "VARIANTS",
-    "VERSION_COLUMNS", "append_rows", "columns", "compare", "comparison_record", "csv_text", "cvar",
+    "FAMILY_ID", "FamilyScenario", "Job", "Outcome", "PAPER_TABLE", "PAYLOAD_MASS", "PairedRatio", "Perturbation",
+    "ResultsFile", "Row", "STATUSES", "SWEPT", "Scenario", "SweepData", "SweepReport", "SweepSettings", "UnitResult",
+    "VARIANTS", "VERSION_COLUMNS", "append_rows", "columns", "compare", "comparison_record", "csv_text", "cvar",
     "default_scenario_path", "draw_perturbation", "draw_scenario", "execute", "execute_batch", "fixed_columns",
     "format_report", "jobs_for", "load_scenario", "measurement_noise", "no_perturbation", "noise_scale", "numeric",
     "one_line", "paired_ratio", "perturbed_plant", "plan_failure", "plan_scenarios", "planner_names",
