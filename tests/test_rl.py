@@ -303,6 +303,24 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
     assert "By payload" not in over_seeds  # no payloads on the aggressive family
 
 
+def test_configurations_sharing_a_label_are_told_apart_by_their_settings(trained):
+    """Seeds of one configuration share a row; two budgets of it get their own, named by what differs."""
+    import copy
+
+    from mjtraj.rl.evaluate import configurations
+
+    def variant(seed, steps, stem="policy"):
+        base = load_policy(trained / "policy.zip")
+        record = copy.deepcopy(base.record)
+        record["settings"].update(seed=seed, steps=steps)
+        return Policy(base.model, record, base.normalization, base.timesteps, trained / f"{stem}.zip")
+
+    policies = [variant(0, 240), variant(1, 240), variant(0, 480), variant(0, 480, "best")]
+    groups = configurations(policies, ["a", "b", "c", "d"])
+    label = policies[0].label
+    assert groups == {f"{label} [steps=240]": ["a", "b"], f"{label} [steps=480]": ["c"], f"{label} best": ["d"]}
+
+
 def test_eval_under_mismatch_splits_by_payload(trained, tmp_path):
     """Oracle: each payload bin's ratio of mean J_exec and share won, recomputed from the rows with numpy."""
     report = evaluate([trained / "policy.zip"], family="mismatch", scenarios=10, seed=5, planners=("cubic",),

@@ -163,19 +163,28 @@ def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenari
 def configurations(policies: Sequence[Policy], labels: Sequence[str]) -> dict[str, list[str]]:
     """The policies' table labels grouped by configuration: everything of the training run but its seed and
     threads, and which of its saved policies it is (policy, best or a step checkpoint, by file name); the key is
-    the configuration's label (with the file's stem unless it is the final policy)."""
+    the configuration's label (with the file's stem unless it is the final policy), followed, where configurations
+    share a label, by the settings in which they differ (such as [steps=200000])."""
+    facts: dict[str, tuple[str, dict[str, Any]]] = {}
     groups: dict[str, list[str]] = {}
-    names: dict[str, str] = {}
     for policy, label in zip(policies, labels, strict=True):
         settings = {k: v for k, v in policy.record["settings"].items() if k not in ("seed", "threads")}
         kind = policy.path.stem if policy.path is not None else "policy"
         kind = "step" if kind.startswith("step_") else kind
         key = json.dumps([settings, policy.env_kwargs, kind], sort_keys=True, default=str)
-        if key not in names:
+        if key not in facts:
             name = policy.label if kind == "policy" else f"{policy.label} {kind}"
-            names[key] = name if name not in names.values() else f"{name} #{len(names) + 1}"
-        groups.setdefault(names[key], []).append(label)
-    return groups
+            facts[key] = name, {**policy.env_kwargs, **settings}
+        groups.setdefault(key, []).append(label)
+    names: dict[str, str] = {}
+    for key, (name, mine) in facts.items():
+        twins = [other for twin, other in facts.values() if twin == name]
+        if len(twins) > 1:
+            differ = sorted(k for k in set().union(*twins)
+                            if len({json.dumps(t.get(k), sort_keys=True, default=str) for t in twins}) > 1)
+            name = f"{name} [{', '.join(f'{k}={mine.get(k)}' for k in differ)}]"
+        names[key] = name
+    return {names[key]: members for key, members in groups.items()}
 
 
 def win_share(cost: np.ndarray, ref: np.ndarray) -> float:
