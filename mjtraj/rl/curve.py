@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -49,7 +50,7 @@ def plot_curve(csv_path: Path, out: Path, *, title: str) -> Path:
     top.set_yscale("log")
     top.set_ylabel("validation J_exec")
     top.legend(fontsize=8)
-    top.set_title(title, fontsize=9)
+    top.set_title(textwrap.fill(title, 85), fontsize=9)  # a long run description wraps, not cut off
     train = np.isfinite(col["train_return_mean"])
     middle.plot(t[train], -col["train_return_mean"][train], "o-", color="C1",
                 label="training episodes (stochastic policy), mean J_exec = -return")
