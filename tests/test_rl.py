@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import re
 import sys
@@ -24,7 +25,7 @@ from mjtraj.core.model import JointInfo
 from mjtraj.core.planners.optimal import bryson_weights
 from mjtraj.exceptions import InvalidInputError, MissingExtraError
 from mjtraj.rl.episodes import run_episodes
-from mjtraj.rl.evaluate import check_held_out, evaluate
+from mjtraj.rl.evaluate import check_held_out, configurations, evaluate
 from mjtraj.rl.extra import require_sb3
 from mjtraj.rl.policy import Normalization, Policy, load_policy
 from mjtraj.rl.sb3_env import SB3TrackVecEnv
@@ -305,10 +306,6 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
 
 def test_configurations_sharing_a_label_are_told_apart_by_their_settings(trained):
     """Seeds of one configuration share a row; two budgets of it get their own, named by what differs."""
-    import copy
-
-    from mjtraj.rl.evaluate import configurations
-
     def variant(seed, steps, stem="policy"):
         base = load_policy(trained / "policy.zip")
         record = copy.deepcopy(base.record)
