@@ -147,10 +147,11 @@ def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenari
     csv_path = out / f"eval_{family}.csv"
     write_text_atomic(csv_path, csv_text([*columns(settings), *POLICY_COLUMNS], rows))
     reference = loaded[0].env_kwargs["planner"]
-    table = comparison_table(csv_path, reference=reference)
+    data = SweepData([csv_path])
+    table = comparison_table(data, reference=reference)
     groups = configurations(loaded, labels)
-    seeds = seed_table(csv_path, groups, reference=reference)
-    payload = payload_table(csv_path, groups, reference=reference)
+    seeds = seed_table(data, groups, reference=reference)
+    payload = payload_table(data, groups, reference=reference)
     md_path = out / f"EVAL_{family}.md"
     by_payload = [PAYLOAD_TITLE, "", payload, ""] if payload else []
     write_text_atomic(md_path, "\n".join([*_header(loaded, labels, family, scenarios, seed, policies,
@@ -193,11 +194,10 @@ def win_share(cost: np.ndarray, ref: np.ndarray) -> float:
     return float(100 * np.mean(cost[both] < ref[both])) if both.any() else float("nan")
 
 
-def seed_table(csv_path: Path, groups: dict[str, list[str]], *, reference: str) -> str:
+def seed_table(data: SweepData, groups: dict[str, list[str]], *, reference: str) -> str:
     """Markdown: per configuration, its policies' J_exec / reference+PID (paired by scenario, ratio of means) and
     share of scenarios won, as the mean over its policies (seeds) with their min and max, and the seeds' 95 %
-    bootstrap intervals' hull."""
-    data = SweepData([csv_path])
+    bootstrap intervals' hull (`data`: the evaluation file's rows)."""
     (condition,) = data.conditions
     ref = data.values(condition, reference, "cost")
     lines = [f"| configuration | seeds | J_exec / {reference}+PID, mean [min, max] | 95 % CIs from .. to | beats "
@@ -223,10 +223,9 @@ PAYLOAD_TITLE = ("By payload (each configuration's J_exec / reference+PID, ratio
                  "and share of them won; both the mean over its seeds):")
 
 
-def payload_table(csv_path: Path, groups: dict[str, list[str]], *, reference: str) -> str:
+def payload_table(data: SweepData, groups: dict[str, list[str]], *, reference: str) -> str:
     """Markdown: the over-seeds summary of `seed_table` within bins of the scenarios' payload mass; '' when no
     scenario carries a payload (a family without plant mismatch)."""
-    data = SweepData([csv_path])
     (condition,) = data.conditions
     by_scenario = {int(r["scenario"]): numeric(r.get("payload_kg", "")) for r in data.rows
                    if r["planner"] == reference}
@@ -254,10 +253,9 @@ def payload_table(csv_path: Path, groups: dict[str, list[str]], *, reference: st
     return "\n".join(lines)
 
 
-def comparison_table(csv_path: Path, *, reference: str) -> str:
-    """The Markdown table of an evaluation file: every controller against `reference` + PID, paired by scenario,
-    with 95 % bootstrap intervals (mjtraj.study.stats)."""
-    data = SweepData([csv_path])
+def comparison_table(data: SweepData, *, reference: str) -> str:
+    """The Markdown table of an evaluation file's rows: every controller against `reference` + PID, paired by
+    scenario, with 95 % bootstrap intervals (mjtraj.study.stats)."""
     (condition,) = data.conditions
     by_planner = {r["planner"]: r["method"] for r in data.rows}
     lines = [f"| controller | ok | failed | J_exec mean | J_exec median | CVaR90 J_exec | J_exec / {reference}+PID "
