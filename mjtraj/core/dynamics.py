@@ -44,17 +44,21 @@ class _DataLoop:
 
     def forward(self, *, ids: NDArray[np.intp], stage: mujoco.mjtStage) -> None:
         """mj_forward up to `stage` (VEL or ACC) for the states `ids`, outputs copied into the bound arrays."""
-        data, arrays = _scratch_data(self.model), self._arrays
-        for i in ids:
-            data.qpos[:], data.qvel[:], data.ctrl[:] = arrays["qpos"][i], arrays["qvel"][i], arrays["ctrl"][i]
+        model, data, arrays = self.model, _scratch_data(self.model), self._arrays
+        qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl  # views, fetched once: each attribute read makes one
+        sources = arrays["qpos"], arrays["qvel"], arrays["ctrl"]
+        outputs = ("qacc",) if stage == mujoco.mjtStage.mjSTAGE_ACC else ("qfrc_bias", "qfrc_passive",
+                                                                          "qfrc_gravcomp", "M")
+        pairs = [(arrays[name], getattr(data, name)) for name in outputs]
+        for i in ids.tolist():
+            qpos[:], qvel[:], ctrl[:] = sources[0][i], sources[1][i], sources[2][i]
             if stage == mujoco.mjtStage.mjSTAGE_ACC:
-                mujoco.mj_forward(self.model, data)
-                arrays["qacc"][i] = data.qacc
+                mujoco.mj_forward(model, data)
             else:
-                mujoco.mj_fwdPosition(self.model, data)
-                mujoco.mj_fwdVelocity(self.model, data)
-                for name in ("qfrc_bias", "qfrc_passive", "qfrc_gravcomp", "M"):
-                    arrays[name][i] = getattr(data, name)
+                mujoco.mj_fwdPosition(model, data)
+                mujoco.mj_fwdVelocity(model, data)
+            for out, value in pairs:
+                out[i] = value
 
 
 class DynamicsProbe:

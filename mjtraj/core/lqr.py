@@ -40,17 +40,22 @@ class BoxLQRSolution:
 class _Pattern:
     """Where the KKT matrix's entries go in LAPACK's band storage, for one (nx, nu, N).
 
-    `cells`: flat indices into the (2 kl + ku + 1, n) band array of the entries; `source`: for each, its index in
-    the stage template [vec Bd, vec Ad, vec R, vec Bd^T, vec Q, vec Ad^T, -1]; `rows`: (n, kl + ku + 1) flat
-    indices of each row's band cells, `valid` marking those inside the matrix."""
+    The band array (2 kl + ku + 1, n) is Fortran-ordered, as LAPACK reads it (no copy on the way in), and flat
+    indices count column by column. The matrix is block-Toeplitz stage by stage, so every stage's columns hold the
+    same band entries: `stage_cells` are their flat indices into one stage's band columns, `source` for each its
+    index in the stage template [vec Bd, vec Ad, vec R, vec Bd^T, vec Q, vec Ad^T, -1]; `outside`: flat indices of
+    the band cells of rows outside the matrix (the first stage's columns get no Ad^T from a stage before it, the
+    last's no Ad from a stage after it). `rows`: (n, kl + ku + 1) flat indices of each row's band cells, `valid`
+    marking those inside the matrix."""
 
     nx: int
     nu: int
     steps: int
     kl: int
     ku: int
-    cells: NDArray[np.intp]
+    stage_cells: NDArray[np.intp]
     source: NDArray[np.intp]
+    outside: NDArray[np.intp]
     rows: NDArray[np.intp]
     valid: NDArray[np.bool_]
 
@@ -64,11 +69,13 @@ class _Pattern:
 
     def band(self, Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.float64],
              R: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The KKT matrix of (Ad, Bd, Q, R), every variable free, in band storage (2 kl + ku + 1, n)."""
+        """The KKT matrix of (Ad, Bd, Q, R), every variable free, in band storage (2 kl + ku + 1, n), Fortran order."""
         template = np.concatenate([Bd.ravel(), Ad.ravel(), R.ravel(), Bd.T.ravel(), Q.ravel(), Ad.T.ravel(), [-1.0]])
-        band = np.zeros((self.band_rows, self.size))
-        band.reshape(-1)[self.cells] = template[self.source]
-        return band
+        stage = np.zeros((self.nu + 2 * self.nx, self.band_rows))  # its columns, one per row
+        stage.reshape(-1)[self.stage_cells] = template[self.source]
+        columns = np.tile(stage, (self.steps, 1))
+        columns.reshape(-1)[self.outside] = 0.0
+        return columns.T
 
 
 def _blocks(nx: int, nu: int) -> list[tuple[str, int, int, int, int, int]]:
@@ -87,26 +94,30 @@ def _pattern(nx: int, nu: int, steps: int) -> _Pattern:
     sizes = {"Bd": nx * nu, "Ad": nx * nx, "R": nu * nu, "BdT": nu * nx, "Q": nx * nx, "AdT": nx * nx}
     start = dict(zip(sizes, np.cumsum([0, *sizes.values()])[:-1].tolist(), strict=True))
     minus_one = sum(sizes.values())
-    rows, cols, source = [], [], []
+    rows, cols, source = [], [], []  # of each block in the columns of one stage, rows relative to that stage
     for name, r0, c0, shift, nr, nc in _blocks(nx, nu):
-        k = np.arange(max(0, -shift), steps - max(0, shift))       # stages whose shifted block exists
+        if abs(shift) >= steps:  # a block between stages, and one stage
+            continue
         if name == "-I":  # the diagonal only
-            i, j, k = np.arange(nr)[None, :], np.arange(nc)[None, :], k[:, None]
+            i, j = np.arange(nr), np.arange(nc)
             where = np.full(i.shape, minus_one)
         else:
-            i, j, k = np.arange(nr)[None, :, None], np.arange(nc)[None, None, :], k[:, None, None]
+            i, j = np.arange(nr)[:, None], np.arange(nc)[None, :]
             where = start[name] + nc * i + j
-        r, c, w = np.broadcast_arrays(stage * k + r0 + i, stage * (k + shift) + c0 + j, where)
+        r, c, w = np.broadcast_arrays(r0 + i - stage * shift, c0 + j, where)
         rows.append(r.ravel())
         cols.append(c.ravel())
         source.append(w.ravel())
     row, col = np.concatenate(rows), np.concatenate(cols)
     kl, ku = int(np.max(row - col)), int(np.max(col - row))
-    cells = (kl + ku + row - col) * n + col
+    band_rows = 2 * kl + ku + 1
+    stage_cells = col * band_rows + kl + ku + row - col
+    matrix_rows = np.arange(n)[:, None] + np.arange(band_rows)[None, :] - kl - ku  # of each band cell, by column
+    outside = np.flatnonzero((matrix_rows < 0) | (matrix_rows >= n))
     band_cols = np.arange(n)[:, None] + np.arange(-kl, ku + 1)[None, :]
     valid = (band_cols >= 0) & (band_cols < n)
-    row_cells = (kl + ku + np.arange(n)[:, None] - band_cols) * n + np.clip(band_cols, 0, n - 1)
-    return _Pattern(nx, nu, steps, kl, ku, cells, np.concatenate(source), row_cells, valid)
+    row_cells = np.clip(band_cols, 0, n - 1) * band_rows + kl + ku + np.arange(n)[:, None] - band_cols
+    return _Pattern(nx, nu, steps, kl, ku, stage_cells, np.concatenate(source), outside, row_cells, valid)
 
 
 SCHUR_MAX = 6
@@ -135,9 +146,9 @@ class _KKT:
 
         pattern = self.pattern
         ab = pattern.band(*self.matrices)
-        flat = ab.reshape(-1)
+        flat = ab.reshape(-1, order="F")  # a view: the band is Fortran-ordered
         flat[pattern.rows[fixed][pattern.valid[fixed]]] = 0.0
-        flat[(pattern.kl + pattern.ku) * pattern.size + fixed] = 1.0
+        flat[fixed * pattern.band_rows + pattern.kl + pattern.ku] = 1.0
         lu, piv, info = dgbtrf(ab, pattern.kl, pattern.ku, overwrite_ab=1)
         return (lu, piv) if info == 0 else None
 
@@ -210,29 +221,30 @@ def box_lqr(Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.floa
         rhs[:nx] = -Ad[p] @ x0[p]
         kkt = _KKT(pattern, (Ad[p], Bd[p], Q[p], R[p]), rhs, end_index)
         bound = u_max[p][None, :]
-        scale = max(1.0, float(np.max(np.abs(x0[p]))))
-        a = active[p]
+        outside = bound * (1 + tol)
+        scale = max(1.0, float(np.abs(x0[p]).max()))
+        a, x, AdT, BdT = active[p], X[p], Ad[p].T, Bd[p].T
         for _ in range(max_iter + 1):
-            on = np.flatnonzero(a.ravel())
+            on = np.flatnonzero(a)
             z = kkt.solve(input_index[on], (a * bound).ravel()[on])
             iterations[p] += 1
             if z is None:
                 break
             blocks = z.reshape(steps, stage)
             lam, u = blocks[:, :nx], blocks[:, nx:nx + nu]
-            X[p, 0], X[p, 1:] = x0[p], blocks[:, nx + nu:]
+            x[0], x[1:] = x0[p], blocks[:, nx + nu:]
             U[p] = u
-            residual = np.max(np.abs(X[p, 1:] - X[p, :-1] @ Ad[p].T - u @ Bd[p].T))
+            residual = np.abs(x[1:] - x[:-1] @ AdT - u @ BdT).max()
             if residual > 1e-6 * scale:  # x_N = 0 is out of the free inputs' reach: the system was singular
                 break
             grad = u @ R[p].T + lam @ Bd[p]
-            g_tol = tol * max(1.0, float(np.max(np.abs(grad))))
-            above = (a == 0) & (u > bound * (1 + tol))
-            below = (a == 0) & (u < -bound * (1 + tol))
+            g_tol = tol * max(1.0, float(np.abs(grad).max()))
+            free = a == 0
+            above, below = free & (u > outside), free & (u < -outside)
             release = ((a == 1) & (grad > g_tol)) | ((a == -1) & (grad < -g_tol))
             if not (above | below | release).any():
                 solved[p] = True
                 break
-            a[...] = np.where(above, 1, np.where(below, -1, np.where(release, 0, a)))
+            a[above], a[below], a[release] = 1, -1, 0  # disjoint: the first two need a free input, the last a fixed
     U = np.clip(U, -u_max[:, None, :], u_max[:, None, :])  # a free input within tol of its bound is put on it
     return BoxLQRSolution(U=U, X=X, solved=solved, iterations=iterations, active=active)

@@ -32,12 +32,12 @@ class Reference:
     info: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        t = np.asarray(self.t, dtype=np.float64)
-        if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
+        t = np.array(self.t, dtype=np.float64)
+        if t.ndim != 1 or t.size < 2 or not (t[1:] > t[:-1]).all():
             raise InvalidInputError(f"t: expected at least two strictly increasing times, got shape {t.shape}")
         arrays = {"t": t}
         for name in ("q", "qd", "qdd"):
-            a = np.asarray(getattr(self, name), dtype=np.float64)
+            a = np.array(getattr(self, name), dtype=np.float64)
             if a.ndim != 2 or a.shape[0] != t.size:
                 raise InvalidInputError(f"{name}: expected shape ({t.size}, n), got {a.shape}")
             arrays[name] = a
@@ -46,15 +46,14 @@ class Reference:
             raise InvalidInputError(f"qd, qdd: expected {n} columns like q, got "
                                     f"{arrays['qd'].shape[1]} and {arrays['qdd'].shape[1]}")
         if self.u_plan is not None:
-            u = np.asarray(self.u_plan, dtype=np.float64)
+            u = np.array(self.u_plan, dtype=np.float64)
             if u.shape != (t.size - 1, n):
                 raise InvalidInputError(f"u_plan: expected shape ({t.size - 1}, {n}), got {u.shape}")
             arrays["u_plan"] = u
-        for name, a in arrays.items():
-            if not np.all(np.isfinite(a)):
+        for name, a in arrays.items():  # own copies (np.array copies), read-only
+            if not np.isfinite(a).all():
                 raise InvalidInputError(f"{name}: expected finite values in the {self.planner} reference")
-            a = np.array(a, dtype=np.float64, copy=True)
-            a.setflags(write=False)
+            a.flags.writeable = False
             object.__setattr__(self, name, a)
 
     @property

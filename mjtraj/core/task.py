@@ -75,9 +75,10 @@ class Task:
         """qg - q0; shape (n,), rad."""
         return self.qg - self.q0
 
-    def check_limits(self, model: mujoco.MjModel) -> None:
-        """Raise InvalidInputError if q0 or qg lies outside the model's joint ranges."""
-        joints = JointInfo.of(model)
+    def check_limits(self, model: mujoco.MjModel, joints: JointInfo | None = None) -> None:
+        """Raise InvalidInputError if q0 or qg lies outside the model's joint ranges (`joints`: those of `model`,
+        when already read)."""
+        joints = JointInfo.of(model) if joints is None else joints
         if self.n != joints.n:
             raise InvalidInputError(f"q0: expected {joints.n} values ({', '.join(joints.names)}), got {self.n}")
         for label, q in (("q0", self.q0), ("qg", self.qg)):

@@ -264,10 +264,10 @@ class NonlinearOptimal(Planner):
           SolverError: SLSQP failed (its message).
         """
         clock = time.perf_counter()
-        task.check_limits(model)
-        linear = self.linear()
-        bound = linear.bounds(task, model)
         joints = JointInfo.of(model)
+        task.check_limits(model, joints)
+        linear = self.linear()
+        bound = linear.bounds(task, model, joints)
         n = task.n
         Q, R = planner_weights(task, bound, self.state_weight, self.input_weight, self.alpha, self.split)
         limits = _Limits(bound, joints.lower, joints.upper, np.full(n, float(self.speed_limit)))

@@ -34,12 +34,12 @@ def planner_weights(task: Task, bound: NDArray[np.float64], state_weight: tuple[
     q_default, r_default = bryson_weights(task, bound)
     if state_weight is None:
         n = task.n
-        share = np.concatenate([np.full(n, 2.0 * split), np.full(n, 2.0 * (1.0 - split))])
+        share = np.repeat([2.0 * split, 2.0 * (1.0 - split)], n)
         q_diag = float(alpha) * (share * q_default)
     else:
         q_diag = vector("state_weight", state_weight, 2 * task.n)
     r_diag = r_default if input_weight is None else vector("input_weight", input_weight, task.n)
-    if np.any(q_diag < 0) or np.any(r_diag <= 0):
+    if (q_diag < 0).any() or (r_diag <= 0).any():
         raise InvalidInputError(f"state_weight, input_weight: expected Q >= 0 and R > 0, got "
                                 f"{q_diag.tolist()} and {r_diag.tolist()}")
     return np.diag(q_diag), np.diag(r_diag)
@@ -120,10 +120,10 @@ class Optimal(Planner):
         """(Q, R) as full matrices, shapes (2n, 2n) and (n, n) (`planner_weights`)."""
         return planner_weights(task, bound, self.state_weight, self.input_weight, self.alpha, self.split)
 
-    def bounds(self, task: Task, model: mujoco.MjModel) -> NDArray[np.float64]:
-        """|u| bound per joint; shape (n,), N m."""
+    def bounds(self, task: Task, model: mujoco.MjModel, joints: JointInfo | None = None) -> NDArray[np.float64]:
+        """|u| bound per joint; shape (n,), N m (`joints`: those of `model`, when already read)."""
         if self.torque_bound is None:
-            return JointInfo.of(model).torque_limit.copy()
+            return (JointInfo.of(model) if joints is None else joints).torque_limit.copy()
         bound = vector("torque_bound", self.torque_bound, task.n)
         if np.any(bound <= 0):
             raise InvalidInputError(f"torque_bound: expected positive values, got {bound.tolist()}")
@@ -163,10 +163,11 @@ class Optimal(Planner):
         """
         results: list[Reference | MjtrajError | None] = [None] * len(tasks)
         prepared: dict[tuple[int, float], list[tuple[int, Task, NDArray[np.float64], NDArray[np.float64]]]] = {}
+        joints = JointInfo.of(model)
         for i, task in enumerate(tasks):
             try:
-                task.check_limits(model)
-                entry = (i, task, self.operating_point(task), self.bounds(task, model))
+                task.check_limits(model, joints)
+                entry = (i, task, self.operating_point(task), self.bounds(task, model, joints))
             except MjtrajError as e:
                 results[i] = e
                 continue
@@ -228,10 +229,10 @@ class Optimal(Planner):
         n = task.n
         qd = X[:, n:]
         qdd = np.zeros_like(qd)
-        qdd[:-1] = np.diff(qd, axis=0) / task.dt
-        objective = 0.5 * float(np.einsum("ki,ij,kj->", X, Q, X) + np.einsum("ki,ij,kj->", U, R, U))
-        info = {**info, "objective": objective, "terminal_residual": float(np.max(np.abs(X[-1]))),
-                "bound_violation": float(max(0.0, np.max(np.abs(U) - bound))), **facts}
+        qdd[:-1] = (qd[1:] - qd[:-1]) / task.dt
+        objective = 0.5 * float(np.einsum("ki,ki->", X @ Q, X) + np.einsum("ki,ki->", U @ R, U))
+        info = {**info, "objective": objective, "terminal_residual": float(np.abs(X[-1]).max()),
+                "bound_violation": float(max(0.0, (np.abs(U) - bound).max())), **facts}
         info["plan_time"] = info["build_time"] + info["solve_time"]
         q = X[:, :n] + task.qg
         q[0] = task.q0  # exactly where the task starts ((q0 - qg) + qg may differ from q0 in the last bit)
