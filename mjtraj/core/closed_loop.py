@@ -310,19 +310,20 @@ class ClosedLoop:
                                     f"N={q_ref.shape[0] - 1}; start all simulations instead")
         N, n = s.steps, self.model.nv
         s.desync()
-        s.q_ref[:, rows], s.qd_ref[:, rows], s.tau_ff[:, rows] = q_ref, qd_ref, ff
+        where = slice(None) if np.array_equal(rows, s.rows) else rows  # all of them, in order: slices are faster
+        s.q_ref[:, where], s.qd_ref[:, where], s.tau_ff[:, where] = q_ref, qd_ref, ff
         if s.qdd_ref is not None:
-            s.qdd_ref[:, rows] = qdd
-        s.k[rows], s.integral[rows], s.diverged_step[rows] = 0, 0.0, -1
+            s.qdd_ref[:, where] = qdd
+        s.k[where], s.integral[where], s.diverged_step[where] = 0, 0.0, -1
         for name, record in s.records.items():
-            record[:, rows] = False if name == "saturated" else np.nan
-        s.q_final[rows] = s.qd_final[rows] = np.nan
+            record[:, where] = False if name == "saturated" else np.nan
+        s.q_final[where] = s.qd_final[where] = np.nan
         if checked is not None or s.noise is not None:
             if s.noise is None:
                 s.noise = np.zeros((N, self.nsim, 2 * n))
-            s.noise[:, rows] = 0.0 if checked is None else checked
+            s.noise[:, where] = 0.0 if checked is None else checked
         if s.held is not None:
-            s.held[rows] = 0.0
+            s.held[where] = 0.0
         s.resync()
         self._plant.reset(q_ref[0], qd_ref[0], rows)
 
@@ -430,7 +431,7 @@ class ClosedLoop:
         """What simulations `ids` (all if None) recorded since their start, as a Rollout (rows in `ids` order)."""
         s = self._running()
         rows = s.rows if ids is None else np.asarray(ids, dtype=np.intp).reshape(-1)
-        rec = {name: np.ascontiguousarray(s.records[name][:, rows].swapaxes(0, 1)) for name in RECORDED}
+        rec = {name: s.records[name].swapaxes(0, 1)[rows] for name in RECORDED}  # one copy each, C-ordered
         q_final, qd_final = s.q_final[rows].copy(), s.qd_final[rows].copy()
         return Rollout(**rec, q_final=q_final, qd_final=qd_final, e_final=s.q_ref[s.steps, rows] - q_final,
                        diverged_step=s.diverged_step[rows].copy(), dt=self.dt)
