@@ -84,3 +84,20 @@ def test_lazy_names_resolve_to_their_modules():
 ])
 def test_env_registration(code):
     _fresh(code + "; print('ok')", MUJOCO_GL="osmesa")
+
+
+def test_recorded_versions_are_the_installed_distributions():
+    """versions() reads an imported module's __version__; importlib.metadata is the oracle."""
+    from importlib import metadata
+
+    import gymnasium  # noqa: F401 - imported, so that versions() reads its __version__
+    import mujoco  # noqa: F401
+    import scipy  # noqa: F401
+
+    from mjtraj.versions import LIBRARIES, library_version, versions
+
+    recorded = versions()
+    assert recorded["mjtraj"] == mjtraj.__version__
+    for name in LIBRARIES:
+        assert recorded[name] == library_version(name) == metadata.version(name)
+    assert library_version("no-such-distribution-mjtraj") == ""

@@ -56,7 +56,7 @@ def installed(tmp_path, monkeypatch):
               "mjtraj.controllers": [EntryPoint("pid_again", "toy_plugin:pid_again", "mjtraj.controllers")]}
 
     def use(points_by_group):
-        monkeypatch.setattr(plugins, "entry_points", lambda group: points_by_group.get(group, []))
+        monkeypatch.setattr(plugins, "group_entry_points", lambda group: points_by_group.get(group, []))
         plugins.plugins.cache_clear()
 
     registry, on_request = dict(base._REGISTRY), set(base._ON_REQUEST)

@@ -31,9 +31,10 @@ def one_by_one(model, gains, references, *, moving):
 
 def test_batched_check_equals_the_one_by_one_oracle(model, scenario):
     refs = [scenario.planner(name).plan(scenario.task, model) for name in default_names()]
-    radii = spectral_radii(model, scenario.loop.gains, refs)
+    radii = spectral_radii(model, scenario.loop.gains, refs)  # on every core's thread
     assert radii["at_rest"] == one_by_one(model, scenario.loop.gains, refs, moving=False)
     assert radii["moving"] == one_by_one(model, scenario.loop.gains, refs, moving=True)
+    assert spectral_radii(model, scenario.loop.gains, refs, nthread=1) == radii
 
 
 def test_default_gains_are_stable_along_every_reference(model, scenario):
