@@ -181,17 +181,19 @@ def bench_loop(scenario: Scenario, sizes: tuple[int, ...] = LOOP_SIZES, *, nthre
 
 
 def bench_env(*, episodes: int = 20, rounds: int = 5) -> dict[str, float]:
-    """UR5Track-v0 `env.step` rate in pid mode through gym.make (default wrappers) against a raw mj_step loop on
-    the same model; the step loops of whole episodes are timed (reset excluded), raw and env passes alternate."""
+    """UR5Track-v0 `env.step` rate in pid mode through gym.make (default wrappers) against two raw mj_step loops on
+    the same model: the arm at rest (keyframe 0, no torque), and the same motion as the env's (its last episode's
+    start state and torques, replayed: a moving arm costs MuJoCo a little more). The step loops of whole episodes
+    are timed (reset excluded); raw and env passes alternate."""
     import gymnasium as gym
     import mujoco
 
     env = gym.make("UR5Track-v0")
     env.reset(seed=0)
-    settings: Any = getattr(env.unwrapped, "settings")  # noqa: B009 - UR5TrackEnv's
-    model = settings.model
+    unwrapped: Any = env.unwrapped
+    model = unwrapped.settings.model
     data = mujoco.MjData(model)
-    steps = settings.steps
+    steps = unwrapped.settings.steps
     action = env.action_space.sample()
 
     def env_pass() -> float:
@@ -212,28 +214,48 @@ def bench_env(*, episodes: int = 20, rounds: int = 5) -> dict[str, float]:
         return time.perf_counter() - start
 
     raw_pass(), env_pass()
-    raw, stepped = [], []
+    played = unwrapped.loop.rollout()
+    q0, qd0, torques = played.q[0, 0], played.qd[0, 0], played.dtau[0]
+
+    def replay_pass() -> float:
+        total = 0.0
+        ctrl = data.ctrl
+        for _ in range(episodes):
+            mujoco.mj_resetData(model, data)
+            data.qpos[:], data.qvel[:] = q0, qd0
+            start = time.perf_counter()
+            for torque in torques:
+                ctrl[:] = torque
+                mujoco.mj_step(model, data)
+            total += time.perf_counter() - start
+        return total
+
+    raw, replayed, stepped = [], [], []
     for _ in range(rounds):
         raw.append(raw_pass())
+        replayed.append(replay_pass())
         stepped.append(env_pass())
     env.close()
     raw_rate = episodes * steps / float(np.median(raw))
+    replay_rate = episodes * steps / float(np.median(replayed))
     env_rate = episodes * steps / float(np.median(stepped))
-    return {"raw_steps_per_s": raw_rate, "env_steps_per_s": env_rate, "ratio": env_rate / raw_rate}
+    return {"raw_steps_per_s": raw_rate, "replay_steps_per_s": replay_rate, "env_steps_per_s": env_rate,
+            "ratio": env_rate / raw_rate, "ratio_replay": env_rate / replay_rate}
 
 
 def bench_vector_env(sizes: tuple[int, ...] = (64, 1024), *, rounds: int = 3) -> list[dict[str, float]]:
     """Vector env steps/s (all sub-envs, autoresets included) against raw mujoco.batch stepping of as many
-    simulations, passes of one episode alternating."""
+    simulations, at rest and replaying the env's own motions (its last episodes' start states and torques);
+    passes of one episode alternating."""
     import gymnasium as gym
 
     rows = []
     for B in sizes:
         env = gym.make_vec("UR5Track-v0", num_envs=B, vectorization_mode="vector_entry_point")
         env.reset(seed=0)
-        settings: Any = getattr(env.unwrapped, "settings")  # noqa: B009 - UR5TrackVectorEnv's
-        model = settings.model
-        steps = settings.steps
+        unwrapped: Any = env.unwrapped
+        model = unwrapped.settings.model
+        steps = unwrapped.settings.steps
         raw = Batch(model, B)
         actions = np.zeros((B, model.nu), dtype=np.float32)
 
@@ -245,17 +267,37 @@ def bench_vector_env(sizes: tuple[int, ...] = (64, 1024), *, rounds: int = 3) ->
             for _ in range(steps + 1):
                 raw.step()
 
+        for _ in range(steps):  # one episode; its records are kept until the next step's autoreset
+            env.step(actions)
+        played = unwrapped.loop.rollout()
         env_pass()
         raw_pass()
-        env_times, raw_times = [], []
+        q0, qd0 = played.q[:, 0].copy(), played.qd[:, 0].copy()
+        torques = np.ascontiguousarray(played.dtau.swapaxes(0, 1))  # (N, B, n)
+        replay = Batch(model, B)
+        qpos, qvel, ctrl = replay.bind("qpos"), replay.bind("qvel"), replay.bind("ctrl")
+
+        def replay_pass(replay: Batch = replay, torques: np.ndarray = torques, q0: np.ndarray = q0,
+                        qd0: np.ndarray = qd0, qpos: np.ndarray = qpos, qvel: np.ndarray = qvel,
+                        ctrl: np.ndarray = ctrl) -> None:
+            replay.reset()
+            qpos[:], qvel[:] = q0, qd0
+            for torque in (*torques, torques[-1]):  # as many steps as the env pass
+                ctrl[:] = torque
+                replay.step()
+
+        replay_pass()
+        env_times, raw_times, replay_times = [], [], []
         for _ in range(rounds):
             raw_times.append(_median_time(raw_pass, 1))
+            replay_times.append(_median_time(replay_pass, 1))
             env_times.append(_median_time(env_pass, 1))
         env.close()
         raw_rate = B * (steps + 1) / float(np.median(raw_times))
+        replay_rate = B * (steps + 1) / float(np.median(replay_times))
         env_rate = B * (steps + 1) / float(np.median(env_times))
-        rows.append({"envs": B, "raw_steps_per_s": raw_rate, "env_steps_per_s": env_rate,
-                     "ratio": env_rate / raw_rate})
+        rows.append({"envs": B, "raw_steps_per_s": raw_rate, "replay_steps_per_s": replay_rate,
+                     "env_steps_per_s": env_rate, "ratio": env_rate / raw_rate, "ratio_replay": env_rate / replay_rate})
     return rows
 
 

@@ -70,3 +70,33 @@ def test_render_ratio_is_fast_ur5_over_reacher_in_one_run():
     assert row["size"] == "64x48"
     assert all(row[k] > 0 for k in ("fast_fps", "high_fps", "reacher_fps"))  # Reacher-v5 present: not skipped
     assert row["ratio"] == pytest.approx(row["fast_fps"] / row["reacher_fps"], rel=1e-12)
+
+
+def test_env_ratios_are_env_rate_over_each_raw_rate():
+    from mjtraj.bench import bench_env, bench_vector_env
+
+    for row in (bench_env(episodes=1, rounds=1), *bench_vector_env((4,), rounds=1)):
+        assert all(row[k] > 0 for k in ("raw_steps_per_s", "replay_steps_per_s", "env_steps_per_s"))
+        assert row["ratio"] == pytest.approx(row["env_steps_per_s"] / row["raw_steps_per_s"], rel=1e-12)
+        assert row["ratio_replay"] == pytest.approx(row["env_steps_per_s"] / row["replay_steps_per_s"], rel=1e-12)
+
+
+def test_the_replay_anchor_steps_the_envs_own_motions():
+    """What the bench's replay pass relies on: raw mujoco.batch stepping of the recorded start states under the
+    recorded torques reproduces the vector env's episode bit for bit."""
+    import gymnasium as gym
+    from mujoco.batch import Batch
+
+    env = gym.make_vec("UR5Track-v0", num_envs=3, vectorization_mode="vector_entry_point")
+    env.reset(seed=4)
+    unwrapped = env.unwrapped
+    for _ in range(unwrapped.settings.steps):
+        env.step(np.zeros((3, 3), dtype=np.float32))
+    played = unwrapped.loop.rollout()
+    raw = Batch(unwrapped.settings.model, 3)
+    raw.bind("qpos")[:], raw.bind("qvel")[:] = played.q[:, 0], played.qd[:, 0]
+    for k in range(played.dtau.shape[1]):
+        raw.bind("ctrl")[:] = played.dtau[:, k]
+        raw.step()
+    assert np.array_equal(raw.bind("qpos"), played.q_final) and np.array_equal(raw.bind("qvel"), played.qd_final)
+    env.close()
