@@ -9,7 +9,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from mjtraj.checks import positive, vector
-from mjtraj.core.dynamics import DynamicsProbe
+from mjtraj.core.dynamics import DynamicsProbe, serial_probe
 from mjtraj.exceptions import InvalidInputError
 
 
@@ -52,7 +52,8 @@ def linearize_many(model: mujoco.MjModel, q: npt.ArrayLike, qd: npt.ArrayLike | 
     point = np.concatenate([q, qd, u], axis=1)
     perturbed = (point[:, None, :] + steps[None]).reshape(-1, 3 * n)          # (P * 6n, 3n)
     if probe is None:  # one-off: a few points are evaluated serially, cheaper than making a Batch
-        probe = DynamicsProbe(model, size=perturbed.shape[0], serial=perturbed.shape[0] <= SERIAL_ROWS)
+        rows = perturbed.shape[0]
+        probe = serial_probe(model, SERIAL_ROWS) if rows <= SERIAL_ROWS else DynamicsProbe(model, size=rows)
     qdd = probe.accelerations(perturbed[:, :n], perturbed[:, n:2 * n], perturbed[:, 2 * n:])
     f = np.concatenate([perturbed[:, n:2 * n], qdd], axis=1).reshape(P, 2, 3 * n, 2 * n)
     jac = (f[:, 0] - f[:, 1]).transpose(0, 2, 1) / (2 * eps)                 # (P, 2n, 3n): df/d[x; u]
