@@ -96,7 +96,7 @@ def _pattern(nx: int, nu: int, steps: int) -> _Pattern:
     minus_one = sum(sizes.values())
     rows, cols, source = [], [], []  # of each block in the columns of one stage, rows relative to that stage
     for name, r0, c0, shift, nr, nc in _blocks(nx, nu):
-        if abs(shift) >= steps:  # a block between stages, and one stage
+        if abs(shift) >= steps:  # one stage: no block between stages
             continue
         if name == "-I":  # the diagonal only
             i, j = np.arange(nr), np.arange(nc)
@@ -221,7 +221,7 @@ def box_lqr(Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.floa
         rhs[:nx] = -Ad[p] @ x0[p]
         kkt = _KKT(pattern, (Ad[p], Bd[p], Q[p], R[p]), rhs, end_index)
         bound = u_max[p][None, :]
-        outside = bound * (1 + tol)
+        edge = bound * (1 + tol)  # a free input beyond it is out of the box
         scale = max(1.0, float(np.abs(x0[p]).max()))
         a, x, AdT, BdT = active[p], X[p], Ad[p].T, Bd[p].T
         for _ in range(max_iter + 1):
@@ -240,7 +240,7 @@ def box_lqr(Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.floa
             grad = u @ R[p].T + lam @ Bd[p]
             g_tol = tol * max(1.0, float(np.abs(grad).max()))
             free = a == 0
-            above, below = free & (u > outside), free & (u < -outside)
+            above, below = free & (u > edge), free & (u < -edge)
             release = ((a == 1) & (grad > g_tol)) | ((a == -1) & (grad < -g_tol))
             if not (above | below | release).any():
                 solved[p] = True
