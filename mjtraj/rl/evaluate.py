@@ -39,6 +39,7 @@ from mjtraj.study import (
     cvar,
     numeric,
     paired_ratio,
+    ratio_of_means,
     run_unit,
 )
 
@@ -239,15 +240,12 @@ def payload_table(data: SweepData, groups: dict[str, list[str]], *, reference: s
                       enumerate(zip(edges[:-1], edges[1:], strict=True)))
     lines = [f"| configuration | {head} |", "|---|" + "---|" * PAYLOAD_BINS]
     for name, members in groups.items():
+        costs = [data.values(condition, label, "cost") for label in members]
         cells = []
         for b in range(PAYLOAD_BINS):
             inside = bins == b
-            ratios, wins = [], []
-            for label in members:
-                cost = data.values(condition, label, "cost")
-                both = inside & np.isfinite(cost) & np.isfinite(ref)
-                ratios.append(cost[both].mean() / ref[both].mean() if both.any() else np.nan)
-                wins.append(win_share(cost[inside], ref[inside]))
+            ratios = [ratio_of_means(cost[inside], ref[inside]) for cost in costs]
+            wins = [win_share(cost[inside], ref[inside]) for cost in costs]
             cells.append(f"{np.mean(ratios):.3g}, {np.mean(wins):.0f} %")
         lines.append(f"| {name} | {' | '.join(cells)} |")
     return "\n".join(lines)

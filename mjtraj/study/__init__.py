@@ -64,6 +64,7 @@ _EXPORTS = {
     "BACKENDS": "mjtraj.study.backends",
     "PairedRatio": "mjtraj.study.stats",
     "paired_ratio": "mjtraj.study.stats",
+    "ratio_of_means": "mjtraj.study.stats",
     "cvar": "mjtraj.study.stats",
     "Condition": "mjtraj.study.audit",
     "SweepData": "mjtraj.study.audit",
@@ -104,7 +105,7 @@ if TYPE_CHECKING:
         scenario_for_model,
         scenario_from_dict,
     )
-    from mjtraj.study.stats import PairedRatio, cvar, paired_ratio
+    from mjtraj.study.stats import PairedRatio, cvar, paired_ratio, ratio_of_means
     from mjtraj.study.store import VERSION_COLUMNS, ResultsFile, append_rows, csv_text, numeric, read_rows
     from mjtraj.study.sweep import (
         DEFAULT_PLANNERS,
@@ -131,6 +132,6 @@ __all__ = [
     "default_scenario_path", "draw_perturbation", "draw_scenario", "execute", "execute_batch", "fixed_columns",
     "format_report", "jobs_for", "load_scenario", "measurement_noise", "no_perturbation", "noise_scale", "numeric",
     "one_line", "paired_ratio", "perturbed_plant", "plan_failure", "plan_scenarios", "planner_names",
-    "plant_fields", "read_rows", "results_csv", "run_sweep", "run_unit", "scenario_for_model", "scenario_from_dict",
-    "scoring_weights", "unit_scenarios", "write_audit",
+    "plant_fields", "ratio_of_means", "read_rows", "results_csv", "run_sweep", "run_unit", "scenario_for_model",
+    "scenario_from_dict", "scoring_weights", "unit_scenarios", "write_audit",
 ]

@@ -46,6 +46,13 @@ def _pair(a: npt.ArrayLike, b: npt.ArrayLike) -> tuple[NDArray[np.float64], NDAr
     return x[keep], y[keep]
 
 
+def ratio_of_means(a: npt.ArrayLike, b: npt.ArrayLike) -> float:
+    """mean(a) / mean(b) over the scenarios where both are finite (shape (S,) each); NaN if there are none. The
+    point estimate of `paired_ratio`, without its bootstrap."""
+    x, y = _pair(a, b)
+    return float(x.mean() / y.mean()) if x.size else float("nan")
+
+
 def paired_ratio(a: npt.ArrayLike, b: npt.ArrayLike, *, resamples: int = BOOTSTRAP_RESAMPLES,
                  seed: int = BOOTSTRAP_SEED, level: float = 0.95) -> PairedRatio:
     """mean(a) / mean(b) over the scenarios where both are finite, with a percentile-bootstrap interval.
@@ -62,7 +69,7 @@ def paired_ratio(a: npt.ArrayLike, b: npt.ArrayLike, *, resamples: int = BOOTSTR
     ratios = x[picks].mean(axis=1) / y[picks].mean(axis=1)
     tail = 100.0 * (1.0 - level) / 2.0
     low, high = np.percentile(ratios, [tail, 100.0 - tail])
-    return PairedRatio(float(x.mean() / y.mean()), float(low), float(high), float(np.mean(y < x)), int(x.size))
+    return PairedRatio(ratio_of_means(x, y), float(low), float(high), float(np.mean(y < x)), int(x.size))
 
 
 def cvar(values: npt.ArrayLike, alpha: float = 0.9) -> float:
