@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import threading
 import weakref
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -22,12 +23,19 @@ _NO_CONSTRAINTS = int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | int(mujoco.mjtDisab
 _scratch = threading.local()
 
 
+def _per_model(name: str) -> weakref.WeakKeyDictionary[mujoco.MjModel, Any]:
+    """This thread's cache `name`, model -> an object of it, an entry kept while its model lives."""
+    cache = getattr(_scratch, name, None)
+    if cache is None:
+        cache = weakref.WeakKeyDictionary()
+        setattr(_scratch, name, cache)
+    return cache
+
+
 def _scratch_data(model: mujoco.MjModel) -> mujoco.MjData:
     """This thread's MjData of `model`, kept while the model lives. MjData reads the model at every call, so
     edits of the model's parameters are seen (a Batch copies its model when made)."""
-    cache = getattr(_scratch, "data", None)
-    if cache is None:
-        cache = _scratch.data = weakref.WeakKeyDictionary()
+    cache = _per_model("data")
     data = cache.get(model)
     if data is None:
         data = cache[model] = mujoco.MjData(model)
@@ -182,9 +190,7 @@ class DynamicsProbe:
 def serial_probe(model: mujoco.MjModel, size: int) -> DynamicsProbe:
     """This thread's serial probe of `model` for up to `size` states per call, kept while the model lives: one-off
     evaluations of a few states (a plan's linearisation) reuse it rather than make one each time (about 10 us)."""
-    cache = getattr(_scratch, "probes", None)
-    if cache is None:
-        cache = _scratch.probes = weakref.WeakKeyDictionary()
+    cache = _per_model("probes")
     probe = cache.get(model)
     if probe is None or probe.size < size:
         probe = cache[model] = DynamicsProbe(model, size=size, serial=True)
