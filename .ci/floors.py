@@ -17,13 +17,13 @@ project = tomllib.loads((Path(__file__).parent.parent / "pyproject.toml").read_t
 for requirement in [*project["dependencies"], *project["optional-dependencies"]["test"]]:
     if ";" in requirement:
         continue
-    match = re.fullmatch(r"([A-Za-z0-9_.-]+)(?:>=([0-9][0-9A-Za-z.]*))?", requirement)
+    match = re.fullmatch(r"([A-Za-z0-9_.-]+)(?:>=([0-9][0-9A-Za-z.]*))?,?(<[0-9][0-9.]*)?", requirement)
     if match is None:
         sys.exit(f"floors: cannot read the requirement {requirement!r}")
-    name, floor = match.groups()
+    name, floor, ceiling = match.groups()
     if name in LEFT_OUT:
         print(f"floors: {name} left out: {LEFT_OUT[name]}", file=sys.stderr)
     elif floor is not None:
         print(f"{name}=={floor}")
     else:
-        print(name)
+        print(f"{name}{ceiling or ''}")

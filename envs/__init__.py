@@ -17,12 +17,22 @@ ARM_ENV_ID = "ArmTrack-v0"
 """The same env for any MJCF arm: gym.make("ArmTrack-v0", xml_file=PATH); without xml_file, the UR5."""
 
 
+BENCHMARK_ID = "UR5Track-v1"
+BENCHMARK_DEFAULTS = {"action_mode": "residual", "task": "random", "family": "nominal"}
+"""UR5Track-v1's arguments beyond v0's defaults: it acts (a residual of residual_scale, default 6 N m, on cubic +
+feedforward + PID) and each seed draws a new task by the nominal family's rules."""
+BENCHMARK_VARIANTS = {BENCHMARK_ID: BENCHMARK_DEFAULTS,
+                      "UR5TrackAggressive-v1": {**BENCHMARK_DEFAULTS, "family": "aggressive"},
+                      "UR5TrackMismatch-v1": {**BENCHMARK_DEFAULTS, "family": "mismatch"}}
+"""The benchmark's registered envs (docs/benchmark.md): v1 and its aggressive and mismatch variants."""
+
+
 def register_envs() -> None:
-    """Register UR5Track-v0 and ArmTrack-v0 with Gymnasium (idempotent)."""
-    for env_id in (ENV_ID, ARM_ENV_ID):
+    """Register UR5Track-v0, ArmTrack-v0 and the v1 benchmark envs with Gymnasium (idempotent)."""
+    for env_id, kwargs in ((ENV_ID, {}), (ARM_ENV_ID, {}), *BENCHMARK_VARIANTS.items()):
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point="mjtraj.envs.ur5_track:UR5TrackEnv",
-                         vector_entry_point="mjtraj.envs.vector:UR5TrackVectorEnv")
+                         vector_entry_point="mjtraj.envs.vector:UR5TrackVectorEnv", kwargs=dict(kwargs))
     # no max_episode_steps: an episode ends by itself after N = duration/dt steps, whatever the duration
 
 
@@ -66,7 +76,8 @@ if TYPE_CHECKING:
     from mjtraj.envs.vector import UR5TrackVectorEnv
 
 __all__ = [
-    "ACTION_MODES", "ENV_ID", "EnvOptions", "PLANT_RANDOMIZATIONS", "RESIDUAL_SCALE", "REWARD_BASELINES", "STEP_INFO",
+    "ACTION_MODES", "BENCHMARK_DEFAULTS", "BENCHMARK_ID", "BENCHMARK_VARIANTS", "ENV_ID", "EnvOptions",
+    "PLANT_RANDOMIZATIONS", "RESIDUAL_SCALE", "REWARD_BASELINES", "STEP_INFO",
     "TASKS", "TrackCore", "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
     "observation_space", "observe", "register_envs", "resolve", "scale_action",
 ]

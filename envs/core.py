@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, Task, metrics_arrays, step_cost
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.study import Perturbation, no_perturbation, perturbed_plant, plant_fields
+from mjtraj.study import FamilyScenario, Perturbation, measurement_noise, no_perturbation, perturbed_plant, plant_fields
 
 STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort", "reward_baseline")
 """Keys of every step's info (arrays of shape (B, n), or (B,) for the reward terms)."""
@@ -76,6 +76,8 @@ class Episode(NamedTuple):
     weights: tuple[NDArray[np.float64], NDArray[np.float64]]
     plant: Perturbation | None = None
     noise: NDArray[np.float64] | None = None
+    task: Task | None = None
+    """The task the reference was planned for (reset's info reports it)."""
 
 
 class TrackCore:
@@ -88,7 +90,7 @@ class TrackCore:
         self.model = settings.model
         n = settings.n
         self.plant = (perturbed_plant(self.model, settings.model_path, settings.model_torque_limit)
-                      if settings.plant_randomization != "none" else None)
+                      if settings.perturbs else None)
         """The simulated model whose fields each episode's perturbation sets; None: the nominal model."""
         fields = plant_fields(self.plant, [no_perturbation(n)] * num) if self.plant is not None else None
         self.loop = ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields)
@@ -101,20 +103,33 @@ class TrackCore:
         self.references: list[Reference | None] = [None] * num
         self.plants: list[Perturbation | None] = [None] * num
         """Each simulation's current plant (None: nominal)."""
+        self.tasks: list[Task | None] = [None] * num
+        """Each simulation's current task."""
         self._q_diag = np.zeros((num, 2 * n))
         self._r_diag = np.zeros((num, n))
 
     def plan(self, rng: np.random.Generator, task: Task | None = None) -> Episode:
         """The next episode, drawn from `rng` in a fixed order: the task (unless given, or the env's task is fixed:
         then planned once), then the plant, then the measurement noise."""
+        s = self.settings
         if task is not None:
-            reference, weights = self.settings.planner.plan(task, self.model), self.settings.weights(task)
+            reference, weights, plant = s.planner.plan(task, self.model), s.weights(task), s.sample_plant(rng)
         elif self.fixed is not None:
-            reference, weights = self.fixed
+            (reference, weights), plant = self.fixed, s.sample_plant(rng)
         else:
-            task = self.settings.sample_task(rng)
-            reference, weights = self.settings.planner.plan(task, self.model), self.settings.weights(task)
-        return Episode(reference, weights, self.settings.sample_plant(rng), self.settings.sample_noise(rng))
+            task, plant = s.sample_episode(rng)
+            reference, weights = s.planner.plan(task, self.model), s.weights(task)
+        return Episode(reference, weights, plant, s.sample_noise(rng), task if task is not None else s.fixed_task)
+
+    def replay(self, scenario: FamilyScenario) -> Episode:
+        """The episode of a sweep scenario, as sweeps run it: its task planned by this env's planner, Bryson's
+        weights, its plant (None: nominal) and, for a perturbed one under measurement noise, the noise drawn from
+        its own seed (`mjtraj.study.families.measurement_noise`)."""
+        s, task = self.settings, scenario.task
+        noise = None
+        if scenario.perturbation is not None and s.measurement_noise > 0:
+            noise = measurement_noise([scenario], task.steps, s.n, s.measurement_noise, self.model.opt.timestep)[:, 0]
+        return Episode(s.planner.plan(task, self.model), s.weights(task), scenario.perturbation, noise, task)
 
     def reset(self, rngs: Sequence[np.random.Generator], ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
         """Start new episodes on simulations `ids` (all if None), one rng each; their observations (len, d)."""
@@ -124,7 +139,7 @@ class TrackCore:
         """Start `episodes` on simulations `ids` (all if None); their observations (len, d)."""
         rows = np.arange(self.num) if ids is None else ids
         for row, episode in zip(rows, episodes, strict=True):
-            self.references[row], self.plants[row] = episode.reference, episode.plant
+            self.references[row], self.plants[row], self.tasks[row] = episode.reference, episode.plant, episode.task
             self._q_diag[row], self._r_diag[row] = episode.weights
         loops = [self.loop] if self.shadow is None else [self.loop, self.shadow]
         if self.plant is not None:
@@ -144,6 +159,15 @@ class TrackCore:
             else:
                 loop.restart(ids, references, noise=noise)
         return self.observe()[rows]
+
+    def start_info(self, ids: NDArray[np.intp]) -> dict[str, dict[str, NDArray[np.float64]]]:
+        """What reset's info says of the episodes of simulations `ids`: "task" (q0, qg: (len(ids), n) rad;
+        duration: (len(ids),) s) and, on perturbed plants, "plant" (`plant_info`)."""
+        tasks = [self.tasks[i] for i in ids]
+        out = {"task": {"q0": np.array([t.q0 for t in tasks]), "qg": np.array([t.qg for t in tasks]),  # type: ignore
+                        "duration": np.array([t.duration for t in tasks])}}  # type: ignore[union-attr]
+        plant = self.plant_info(ids)
+        return {**out, "plant": plant} if plant else out
 
     def plant_info(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
         """The plants of simulations `ids` as info columns (payload_kg, mass_scale_j, inertia_scale_j, damping_j,

@@ -29,10 +29,22 @@ from mjtraj.core import (
 )
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.media import RENDER_QUALITIES, check_render_options
-from mjtraj.study import Perturbation, Scenario, draw_perturbation, load_scenario, noise_scale
+from mjtraj.study import (
+    FAMILIES,
+    FamilyScenario,
+    Perturbation,
+    Scenario,
+    draw_family,
+    draw_perturbation,
+    draw_scenario,
+    load_scenario,
+    noise_scale,
+)
 
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
+ENV_FAMILIES = ("none", *FAMILIES)
+"""The env's `family` values: none (tasks by `task`), or a sweep family whose rules draw each episode."""
 RENDER_MODES = ("rgb_array", "depth_array")
 PLANT_RANDOMIZATIONS = ("none", "mismatch")
 REWARD_BASELINES = ("none", "pid")
@@ -53,6 +65,9 @@ class EnvOptions:
     residual_scale: float = option(RESIDUAL_SCALE, "N m per unit of action in residual mode (torque mode scales by "
                                    "the saturation)", positive=True)
     task: str = option("paper", "paper, random or explicit", choices=TASKS)
+    family: str = option("none", "none, or a sweep family (nominal, aggressive, mismatch): each episode is drawn from "
+                         "the reset's generator by that family's rules (task, duration, plant); needs task='random'",
+                         choices=ENV_FAMILIES)
     max_displacement: float = option(1.5, "largest abs(qg - q0) per joint of task='random', rad", positive=True)
     duration: float = option(2.0, "T, s (a whole number of dt)", positive=True)
     dt: float = option(0.02, "control period, s", positive=True)
@@ -112,6 +127,8 @@ class TrackSettings:
     """The observation ends with the PID integral and the next feedforward torque."""
     plant_randomization: str
     """'none' or 'mismatch' (`mjtraj.study.families` rules, drawn per episode)."""
+    family: str
+    """'none', or the sweep family whose rules draw every episode's task and plant."""
     measurement_noise: float
     """Std of the noise on measured q, rad (0: exact)."""
     reward_baseline: str
@@ -150,6 +167,39 @@ class TrackSettings:
             return np.full(self.n, self.residual_scale)
         return self.torque_limit
 
+    @property
+    def perturbs(self) -> bool:
+        """Episodes run on perturbed plants (plant randomisation, or the mismatch family)."""
+        return self.plant_randomization != "none" or self.family == "mismatch"
+
+    def sample_episode(self, rng: np.random.Generator) -> tuple[Task, Perturbation | None]:
+        """The next episode's task and plant (None: nominal), drawn from `rng`: by the family's rules, or the task
+        (`sample_task`) then the plant (`sample_plant`)."""
+        if self.family != "none":
+            return draw_family(rng, self.family, self.model, self.dt)
+        return self.sample_task(rng), self.sample_plant(rng)
+
+    def scenario(self, spec: Any) -> FamilyScenario:
+        """The held-out sweep scenario `spec` = {"family": F, "seed": S, "index": i} names (what
+        `reset(options={"scenario": spec})` replays), drawn as sweeps draw it.
+
+        Raises:
+          InvalidInputError: a malformed spec, or a mismatch scenario in an env without perturbed plants.
+        """
+        keys = ("family", "seed", "index")
+        if not isinstance(spec, dict) or set(spec) != set(keys):
+            raise InvalidInputError(f"options: 'scenario' expects a dict with the keys {', '.join(keys)}, got {spec!r}")
+        family = spec["family"]
+        if family not in FAMILIES:
+            raise InvalidInputError(f"options: scenario family {family!r} is unknown; valid: {', '.join(FAMILIES)}")
+        for key in ("seed", "index"):
+            if isinstance(spec[key], bool) or not isinstance(spec[key], (int, np.integer)) or spec[key] < 0:
+                raise InvalidInputError(f"options: scenario {key} must be a whole number >= 0, got {spec[key]!r}")
+        if family == "mismatch" and not self.perturbs:
+            raise InvalidInputError("options: a mismatch scenario runs on a perturbed plant; make the env with "
+                                    "family='mismatch' (UR5TrackMismatch-v1) or plant_randomization='mismatch'")
+        return draw_scenario(family, int(spec["seed"]), int(spec["index"]), self.model, self.dt)
+
     def weights(self, task: Task) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """diag(Q_exec) (2n,) and diag(R_exec) (n,) that score an episode of `task` (`mjtraj.core.scoring`): the
         given ones, else Bryson's rule for the task, the rule sweeps score every scenario by. For the paper task
@@ -157,9 +207,9 @@ class TrackSettings:
         return self.scoring.weights(task, self.torque_limit)
 
     def sample_plant(self, rng: np.random.Generator) -> Perturbation | None:
-        """The next episode's plant: None for the nominal one, else a mismatch plant drawn from `rng` (after the
-        task) by the sweeps' mismatch rules."""
-        return draw_perturbation(rng, self.n) if self.plant_randomization == "mismatch" else None
+        """The next episode's plant: None for the nominal one, else (plant randomisation or the mismatch family) a
+        mismatch plant drawn from `rng` (after the task) by the sweeps' mismatch rules."""
+        return draw_perturbation(rng, self.n) if self.perturbs else None
 
     def sample_noise(self, rng: np.random.Generator) -> NDArray[np.float64] | None:
         """The next episode's measurement noise on [q; qd], shape (N, 2n), drawn from `rng` after the plant; None
@@ -215,6 +265,12 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
         raise InvalidInputError(f"{unknown[0]}: unknown argument; valid: "
                                 f"{', '.join([*ENV_OWN, *env_names, *loop_names])}")
     own = EnvOptions(**{k: v for k, v in options.items() if k in env_names})
+    if own.family != "none" and own.task != "random":
+        raise InvalidInputError(f"family: {own.family!r} draws every episode's task; use task='random', got "
+                                f"task={own.task!r}")
+    if own.family != "none" and own.plant_randomization != "none":
+        raise InvalidInputError(f"plant_randomization: with family={own.family!r} the family's rules draw the plant; "
+                                "use family='mismatch' for perturbed plants")
     loop = dataclasses.replace(paper.loop, **{k: v for k, v in options.items() if k in loop_names})
     planner_name, planner_obj = _planner(planner, paper)
     if render_mode is not None and render_mode not in RENDER_MODES:
@@ -245,6 +301,7 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          max_displacement=own.max_displacement,
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,
                          observe_control=own.observe_control, plant_randomization=own.plant_randomization,
+                         family=own.family,
                          measurement_noise=own.measurement_noise, reward_baseline=own.reward_baseline,
                          scoring=scoring,
                          render_mode=render_mode, width=width, height=height, camera=camera,

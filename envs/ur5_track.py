@@ -16,8 +16,20 @@ from mjtraj.core import ClosedLoop, JointInfo, Task
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.media import ArmRenderer
 
-RESET_OPTIONS = ("q0", "qg", "duration")
-"""Keys `reset(options=...)` accepts: one episode of that task (the others keep the env's)."""
+RESET_OPTIONS = ("q0", "qg", "duration", "scenario")
+"""Keys `reset(options=...)` accepts: one episode of that task (the others keep the env's), or "scenario": one
+held-out sweep scenario {"family": F, "seed": S, "index": i} (task, duration and plant; not with the others)."""
+
+
+def check_reset_options(options: dict[str, Any] | None) -> None:
+    """InvalidInputError unless `options` holds only RESET_OPTIONS, and "scenario" alone."""
+    if not options:
+        return
+    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    if unknown:
+        raise InvalidInputError(f"options: unknown key {unknown[0]!r}; valid: {', '.join(RESET_OPTIONS)}")
+    if "scenario" in options and len(options) > 1:
+        raise InvalidInputError("options: 'scenario' sets the task, duration and plant; give it alone")
 VELOCITY_BOUND = 200.0
 """rad/s, the velocity bounds of the observation space: 60 N m on the lightest joint inertia (0.09 kg m^2) cannot
 reach it before the tracking error exceeds pi, which ends the episode."""
@@ -142,6 +154,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | task             | "paper"    | paper, random or explicit                                               |
     | q0               | None       | start, rad (task="explicit")                                            |
     | qg               | None       | goal, rad (task="explicit")                                             |
+    | family           | "none"     | none, or nominal, aggressive, mismatch: each episode by its rules  |
     | max_displacement | 1.5        | largest abs(qg - q0) per joint of task="random", rad                    |
     | duration         | 2.0        | T, s (a whole number of dt)                                             |
     | dt               | 0.02       | control period, s                                                       |
@@ -198,17 +211,23 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float64], dict[str, Any]]:
         super().reset(seed=seed)
-        task = self._task_of(options) if options else None
-        obs = self._core.begin([self._core.plan(self.np_random, task)])
+        check_reset_options(options)
+        if options and "scenario" in options:
+            episode = self._core.replay(self.settings.scenario(options["scenario"]))
+        else:
+            episode = self._core.plan(self.np_random, self._task_of(options) if options else None)
+        obs = self._core.begin([episode])
         self._running = True
-        plant = self._core.plant_info(np.zeros(1, np.intp))
-        return obs[0], {"plant": {name: float(v[0]) for name, v in plant.items()}} if plant else {}
+        info = self._core.start_info(np.zeros(1, np.intp))
+        task = info["task"]
+        out: dict[str, Any] = {"task": {"q0": task["q0"][0], "qg": task["qg"][0],
+                                        "duration": float(task["duration"][0])}}
+        if "plant" in info:
+            out["plant"] = {name: float(v[0]) for name, v in info["plant"].items()}
+        return obs[0], out
 
     def _task_of(self, options: dict[str, Any]) -> Task:
         """The task `reset(options=...)` asks for: q0, qg (rad) and duration (s), each defaulting to this env's."""
-        unknown = sorted(set(options) - set(RESET_OPTIONS))
-        if unknown:
-            raise InvalidInputError(f"options: unknown key {unknown[0]!r}; valid: {', '.join(RESET_OPTIONS)}")
         s = self.settings
         base = s.fixed_task
         q0 = options.get("q0", None if base is None else base.q0)

@@ -83,11 +83,22 @@ class UR5TrackVectorEnv(VectorEnv):
             seeds = [None if seed is None else seed + i for i in range(self.num_envs)]
         if seed is not None or not self._rngs:
             self._rngs = [seeding.np_random(s)[0] for s in seeds]
-        obs = self._core.reset(self._rngs)
+        if options:
+            unknown = sorted(set(options) - {"scenario"})
+            if unknown:
+                raise InvalidInputError(f"options: unknown key {unknown[0]!r}; the vector env takes 'scenario' (a "
+                                        f"list of {self.num_envs} scenarios, one per sub-env)")
+            specs = options["scenario"]
+            if not isinstance(specs, (list, tuple)) or len(specs) != self.num_envs:
+                raise InvalidInputError(f"options: 'scenario' expects a list of {self.num_envs} scenarios (one per "
+                                        f"sub-env), got {specs!r}")
+            obs = self._core.begin([self._core.replay(self.settings.scenario(spec)) for spec in specs])
+        else:
+            obs = self._core.reset(self._rngs)
         self._autoreset[:] = False
         self._elapsed[:] = 0
         info: dict[str, Any] = {}
-        self._plant_info(np.arange(self.num_envs), info)
+        self._start_info(np.arange(self.num_envs), info)
         return obs, info
 
     def step(self, actions: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
@@ -137,18 +148,18 @@ class UR5TrackVectorEnv(VectorEnv):
         and their plants into info."""
         obs[ids] = self._core.reset([self._rngs[i] for i in ids], ids)
         self._elapsed[ids] = 0
-        self._plant_info(ids, info)
+        self._start_info(ids, info)
 
-    def _plant_info(self, ids: NDArray[np.intp], info: dict[str, Any]) -> None:
-        """With plant randomisation, info["plant"] (name -> (num_envs,), NaN elsewhere) and its mask
-        info["_plant"] for the episodes of sub-envs `ids` that start now."""
-        values = self._core.plant_info(ids)
-        if not values:
-            return
-        info["plant"] = {name: np.full(self.num_envs, np.nan) for name in values}
-        for name, value in values.items():
-            info["plant"][name][ids] = value
-        info["_plant"] = np.isin(np.arange(self.num_envs), ids)
+    def _start_info(self, ids: NDArray[np.intp], info: dict[str, Any]) -> None:
+        """info["task"] (q0, qg: (num_envs, n); duration: (num_envs,); NaN elsewhere) and, on perturbed plants,
+        info["plant"] (name -> (num_envs,)), each with its mask ("_task", "_plant"), for the episodes of sub-envs
+        `ids` that start now."""
+        mask = np.isin(np.arange(self.num_envs), ids)
+        for key, values in self._core.start_info(ids).items():
+            info[key] = {name: np.full((self.num_envs, *value.shape[1:]), np.nan) for name, value in values.items()}
+            for name, value in values.items():
+                info[key][name][ids] = value
+            info[f"_{key}"] = mask.copy()
 
     def render(self) -> tuple[NDArray[Any], ...] | None:
         """One frame per sub-env: rgb_array (executed arm and translucent reference), (height, width, 3) uint8;

@@ -8,6 +8,7 @@ import logging
 import math
 import os
 import re
+import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -43,8 +44,9 @@ def _counts(text: str) -> list[int]:
 NEGATIVE = re.compile(r"-\.?\d")
 
 
-def _overrides(file: Path | None, pairs: list[str]) -> dict[str, Any]:
-    """rl train's hyperparameter overrides: the JSON object in `file`, then each NAME=VALUE of `pairs`."""
+def _overrides(file: Path | None, pairs: list[str], what: str = "hyperparameter") -> dict[str, Any]:
+    """rl train's hyperparameter overrides (or rl eval's policy env settings, `what`): the JSON object in `file`,
+    then each NAME=VALUE of `pairs` (VALUE as JSON, else a string)."""
     out: dict[str, Any] = {}
     if file is not None:
         try:
@@ -57,7 +59,7 @@ def _overrides(file: Path | None, pairs: list[str]) -> dict[str, Any]:
     for pair in pairs:
         name, sep, text = pair.partition("=")
         if not sep or not name:
-            raise InvalidInputError(f"hyperparameter: expected NAME=VALUE, got {pair!r}")
+            raise InvalidInputError(f"{what}: expected NAME=VALUE, got {pair!r}")
         try:
             out[name] = json.loads(text)
         except ValueError:
@@ -148,6 +150,9 @@ def _parser() -> argparse.ArgumentParser:
     u.add_argument("--budget", type=int, default=32, help="evaluations per planner (default 32)")
     u.add_argument("--on-task", action="store_true", help="oracle mode: tune on the scenario's own task (labelled; "
                    "not a held-out result)")
+    u.add_argument("--gains", action="store_true", help="tune the PID gains instead (factors on kp, ki, kd, "
+                   "log-uniform in [1/4, 4]; cubic references; --planners and --on-task do not apply); the file is "
+                   "rl eval's --tuned-gains baseline")
     u.add_argument("--out", type=Path, default=Path("tuned.toml"), help="the tuned scenario file (default "
                    "tuned.toml)")
 
@@ -245,6 +250,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="none | mismatch: train and validate on plants drawn by the mismatch family's rules "
                    "(default none)")
     t.add_argument("--planner", default="cubic", help="planner whose references the policy tracks (default cubic)")
+    t.add_argument("--controller", default="pid", help="control law the residual acts on: pid | computed_torque "
+                   "(or a plug-in law; default pid)")
     t.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
     t.add_argument("--steps", type=int, default=100_000, help="environment steps (default 100000)")
     t.add_argument("--seed", type=int, default=0, help="the run's seed, 0 <= seed < 2^32 (default 0)")
@@ -252,7 +259,8 @@ def _parser() -> argparse.ArgumentParser:
     t.add_argument("--checkpoints", type=int, default=5, help="checkpoints along the run (default 5)")
     t.add_argument("--evaluations", type=int, default=20, help="validation points of the learning curve (default 20)")
     t.add_argument("--validation", type=int, default=32, help="validation tasks (default 32)")
-    t.add_argument("--threads", type=int, help="PyTorch CPU threads (default: all cores)")
+    t.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, as in the Python API: "
+                   "small networks run fastest on one, and runs can go side by side; recorded in run.json)")
     t.add_argument("--hyperparameter", dest="hyperparameter", action="append", default=[], metavar="NAME=VALUE",
                    help="an SB3 argument replacing the default (VALUE as JSON, else a string); repeat for several")
     t.add_argument("--hyperparameters", type=Path, metavar="FILE",
@@ -264,16 +272,30 @@ def _parser() -> argparse.ArgumentParser:
     p = rl_sub.add_parser("plot", help="redraw a run's learning_curve.png from its learning_curve.csv (also of a run "
                           "still going or interrupted)")
     p.add_argument("run", type=Path, help="the folder rl train wrote")
-    e = rl_sub.add_parser("eval", help="policies and planners on the same held-out sweep scenarios: rows and a "
-                          "comparison table with 95 %% intervals")
-    e.add_argument("--policy", dest="policies", action="append", type=Path, required=True,
-                   help="a policy .zip written by rl train (repeat for several)")
-    e.add_argument("--family", default="nominal", help="nominal | aggressive | mismatch (default nominal)")
-    e.add_argument("--scenarios", type=int, default=200, help="held-out scenarios (default 200)")
+    e = rl_sub.add_parser("eval", help="the benchmark protocol: any policies beside the planners under every control "
+                          "law on the same held-out scenarios; eval.csv, summary.json, SUMMARY.md, profiles.png")
+    e.add_argument("--policy", dest="policies", action="append", default=[],
+                   help="PATH.zip (rl train's), baseline:NAME (mjtraj rl baselines), MODULE:ATTR or FILE.py:ATTR (a "
+                   "callable or torch module; docs/benchmark.md); repeat for several; none: the classical methods")
+    e.add_argument("--policy-env", dest="policy_env", action="append", default=[], metavar="KEY=VALUE",
+                   help="an env setting for policies that are not zips and do not declare it (planner, controller, "
+                   "action_mode, residual_scale, observe_control, preview; default UR5Track-v1's); repeatable")
+    e.add_argument("--family", type=_names, default=["nominal"],
+                   help="families, comma-separated: nominal, aggressive, mismatch (default nominal)")
+    e.add_argument("--scenarios", type=int, default=200, help="held-out scenarios per family (default 200)")
     e.add_argument("--seed", type=int, default=0, help="the scenarios' seed (default 0, as mjtraj sweep's)")
-    e.add_argument("--planners", type=_names, help="planners with PID alone to compare (default: optimal, cubic, "
-                   "quintic, trapezoidal)")
+    e.add_argument("--planners", type=_names, default=["cubic"],
+                   help="planners scored under each control law (cubic, the reference's, always; default cubic)")
+    e.add_argument("--controllers", type=_names, default=["pid"],
+                   help="control laws the planners run under: pid, computed_torque or plug-ins (pid always; each "
+                   "policy also runs on its own)")
+    e.add_argument("--tuned-gains", dest="tuned_gains", type=Path,
+                   help="a scenario file from `mjtraj tune --gains`, scored as 'cubic+PID (tuned gains)'")
+    e.add_argument("--reps", type=int, default=2000, help="bootstrap resamples per interval (default 2000)")
+    e.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")
     e.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
+    e.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rl_sub.add_parser("baselines", help="list the shipped trained policies (use them as --policy baseline:NAME)")
 
     g = sub.add_parser("gains", help="derive the default PID gains and optimal weights by their stated rules")
     g.add_argument("--config", type=Path, help="scenario TOML whose task to use (default: the paper scenario)")
@@ -390,6 +412,20 @@ def _tune(args: argparse.Namespace) -> int:
     from mjtraj.study.tuning import tune
 
     base = _base_scenario(args)
+    if args.gains:
+        from mjtraj.study.tuning import tune_gains
+
+        tuned, gains = tune_gains(base, family=args.family, scenarios=args.scenarios, seed=args.seed,
+                                  budget=args.budget)
+        write_text_atomic(args.out, dumps(tuned.as_dict(), header=(
+            f"Written by `mjtraj tune --gains` from {args.config or 'the shipped paper.toml'}: the PID gains below "
+            "were tuned by the rules recorded in [tuning]. Score them with `mjtraj rl eval --tuned-gains`.")))
+        best = gains.best
+        print(f"PID gains: {', '.join(f'{k} = {v:.4g}' for k, v in best.parameters.items())}; mean J_exec "
+              f"{best.objective:.4g} over {args.scenarios} {args.family} training scenarios "
+              f"({len(gains.trials)} evaluations)")
+        print(f"wrote {args.out}")
+        return 0
     tuned, results = tune(base, planners=args.planners, family=args.family, scenarios=args.scenarios,
                           seed=args.seed, budget=args.budget, on_task=args.on_task)
     import textwrap
@@ -624,7 +660,7 @@ def _rl(args: argparse.Namespace) -> int:
         extra["plant_randomization"] = args.plant_randomization
         extra["reward_baseline"] = args.reward_baseline
         settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **extra, planner=args.planner,
-                                 task=args.task,
+                                 controller=args.controller, task=args.task,
                                  steps=args.steps, seed=args.seed, num_envs=args.num_envs,
                                  checkpoints=args.checkpoints, evaluations=args.evaluations,
                                  validation=args.validation, threads=args.threads)
@@ -636,21 +672,24 @@ def _rl(args: argparse.Namespace) -> int:
               f"{report.out / 'learning_curve.csv'}, {report.out / 'learning_curve.png'}, {report.out / 'run.json'} "
               f"and {report.out / 'checkpoints'}/")
         return 0
+    if args.rl_command == "baselines":
+        from mjtraj.rl.baselines import baseline_names, describe
+
+        for name in baseline_names():
+            facts = describe(name)
+            print(f"baseline:{name}  {facts['algo'].upper()} seed {facts['seed']}, {facts['timesteps']} steps, "
+                  f"controller {facts['env'].get('controller', 'pid')}, plants {facts['env']['plant_randomization']}")
+        return 0
     from mjtraj.rl.evaluate import evaluate
-    from mjtraj.study.sweep import DEFAULT_PLANNERS
 
-    evaluation = evaluate(args.policies, family=args.family, scenarios=args.scenarios, seed=args.seed,
-                          planners=tuple(args.planners or DEFAULT_PLANNERS), out=args.out)
+    command = "mjtraj " + " ".join(shlex.quote(a) for a in args.argv)
+    evaluation = evaluate(args.policies, families=tuple(args.family), scenarios=args.scenarios, seed=args.seed,
+                          planners=tuple(args.planners), controllers=tuple(args.controllers),
+                          tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
+                          settings=_overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
+                          progress=not args.no_progress)
     print(evaluation.table)
-    print()
-    print("Over seeds:")
-    print(evaluation.seeds)
-    if evaluation.payload:
-        from mjtraj.rl.evaluate import PAYLOAD_TITLE
-
-        print(f"\n{PAYLOAD_TITLE}")
-        print(evaluation.payload)
-    print(f"\nwrote {evaluation.csv} and {evaluation.markdown}")
+    print(f"\nwrote {evaluation.csv}, {evaluation.summary_json}, {evaluation.markdown} and {evaluation.figure}")
     return 0
 
 
@@ -664,7 +703,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if "numpy" not in sys.modules:  # its BLAS reads this once, when it loads
         for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(name, "1")
-    args = _parser().parse_args(_join_negative_values(sys.argv[1:] if argv is None else argv))
+    words = _join_negative_values(sys.argv[1:] if argv is None else argv)
+    args = _parser().parse_args(words)
+    args.argv = words
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         commands = {"compare": _compare, "frontier": _frontier, "tune": _tune, "bench": _bench, "gains": _gains,

@@ -60,7 +60,7 @@ def test_reset_options_run_one_episode_of_that_task(scenario):
     assert env.reference.steps == 50 and np.allclose(env.reference.q[-1], [0.5, -1.5, 0.0], atol=1e-15)
     env.reset(seed=0)
     assert env.reference.steps == 100  # the next plain reset is the env's own task again
-    with pytest.raises(InvalidInputError, match=r"^options: unknown key 'goal'; valid: q0, qg, duration$"):
+    with pytest.raises(InvalidInputError, match=r"^options: unknown key 'goal'; valid: q0, qg, duration, scenario$"):
         env.reset(options={"goal": [0, 0, 0]})
     with pytest.raises(InvalidInputError, match=r"^options: a random-task env needs both q0 and qg \(rad\)$"):
         env.reset(options={"qg": [0.5, -1.5, 0.0]})
@@ -292,7 +292,7 @@ def test_docstring_arguments_table_matches_the_code():
     env = UR5TrackEnv()  # and those defaults are what an env built without arguments uses
     s = env.settings
     applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,
-               "task": s.task_mode, "observe_control": s.observe_control,
+               "task": s.task_mode, "family": s.family, "observe_control": s.observe_control,
                "plant_randomization": s.plant_randomization, "measurement_noise": s.measurement_noise,
                "reward_baseline": s.reward_baseline,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
@@ -362,7 +362,7 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, xml_file, "
                    r"torque_limit, "
                    r"action_mode, "
-                   r"residual_scale, task, max_displacement, duration, dt, preview, observe_control, "
+                   r"residual_scale, task, family, max_displacement, duration, dt, preview, observe_control, "
                    r"plant_randomization, measurement_noise, reward_baseline, width, height, camera, render_quality, "
                    r"controller, "
                    r"feedforward, ff_accel, gravity_comp, anti_windup, substeps, divergence_bound, delay$"),

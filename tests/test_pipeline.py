@@ -42,7 +42,7 @@ class Nothing:
 
     action_mode = "residual"
 
-    def begin(self, loop, references):
+    def begin(self, loop, references, plants=()):
         self.calls = 0
 
     def act(self, loop):

@@ -32,6 +32,7 @@ _EXPORTS = {
     "PIDGains": "mjtraj.core.controller",
     "ControlOutput": "mjtraj.core.controller",
     "control_law": "mjtraj.core.controller",
+    "controller_names": "mjtraj.core.controller",
     "ANTI_WINDUP": "mjtraj.core.controller",
     "CONTROLLERS": "mjtraj.core.controller",
     "Controller": "mjtraj.core.controller",
@@ -81,6 +82,7 @@ if TYPE_CHECKING:
         ControlOutput,
         PIDGains,
         control_law,
+        controller_names,
     )
     from mjtraj.core.dynamics import DynamicsProbe
     from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many
@@ -104,7 +106,8 @@ __all__ = [
     "ControlOutput", "Controller", "DynamicsProbe", "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE",
     "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics",
     "PID", "PIDGains", "Planner", "QPSolution", "Reference", "Rollout", "Scoring", "Step", "Task", "available",
-    "box_lqr", "bryson_weights", "build_qp", "check_name", "check_options", "control_law", "declared_options",
+    "box_lqr", "bryson_weights", "build_qp", "check_name", "check_options", "control_law", "controller_names",
+    "declared_options",
     "default_model_path", "default_names", "discretize_zoh", "executed_cost", "feedforward_many", "from_mapping",
     "gain_rule", "gravity_along", "linearize_many", "load_model", "make", "metrics_arrays", "option",
     "option_names", "plan_all", "random_task", "reduction", "register", "solve_qp", "spectral_radii", "step_cost",

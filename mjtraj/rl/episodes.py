@@ -14,7 +14,8 @@ from numpy.typing import NDArray
 
 from mjtraj.core import ClosedLoop, Reference
 from mjtraj.envs import TrackSettings, observe, scale_action
-from mjtraj.study import Job, Outcome, Perturbation, execute, perturbed_plant
+from mjtraj.rl.adapters import ScoredPolicy
+from mjtraj.study import Job, Outcome, Perturbation, execute, no_perturbation, perturbed_plant
 
 Policy = Callable[[NDArray[np.float64]], NDArray[np.float32]]
 """Observations (B, d) -> actions (B, n) in [-1, 1]."""
@@ -22,19 +23,29 @@ Policy = Callable[[NDArray[np.float64]], NDArray[np.float32]]
 
 class PolicyActor:
     """A policy acting in the env's `settings` (action mode, residual scale, preview): observations as the env
-    builds them, actions scaled to torque as the env scales them."""
+    builds them, actions scaled to torque as the env scales them. `policy` is a batched callable or a
+    ScoredPolicy (mjtraj.rl.adapters), which is told when episodes start and, if privileged, their plants."""
 
-    def __init__(self, policy: Policy, settings: TrackSettings) -> None:
+    def __init__(self, policy: Policy | ScoredPolicy, settings: TrackSettings) -> None:
         self.policy = policy
         self.settings = settings
         self.action_mode = settings.action_mode
         self._limit = np.zeros((0, settings.n))
+        self._plants: list[dict[str, float]] | None = None
 
-    def begin(self, loop: ClosedLoop, references: Sequence[Reference]) -> None:
+    def begin(self, loop: ClosedLoop, references: Sequence[Reference],
+              plants: Sequence[Perturbation | None] = ()) -> None:
         self._limit = np.tile(self.settings.action_scale, (loop.nsim, 1))
+        if isinstance(self.policy, ScoredPolicy):
+            n = self.settings.n
+            given = list(plants) or [None] * loop.nsim
+            self._plants = [(p if p is not None else no_perturbation(n)).as_dict() for p in given]
+            self.policy.start(np.ones(loop.nsim, dtype=bool))
 
     def act(self, loop: ClosedLoop) -> NDArray[np.float64]:
         obs = observe(loop, self.settings.preview, self.settings.observe_control)
+        if isinstance(self.policy, ScoredPolicy):
+            return scale_action(self.policy.act(obs, self._plants), self._limit)
         return scale_action(self.policy(obs), self._limit)
 
 

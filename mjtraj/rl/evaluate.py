@@ -1,65 +1,65 @@
-"""`mjtraj rl eval`: policies and planners on the same held-out sweep scenarios, one table.
+"""`mjtraj rl eval`: the benchmark protocol. Any policies, the planners and every control law on the same
+held-out sweep scenarios, in one table with the field's statistics (docs/benchmark.md).
 
-The scenarios are a sweep family's (mjtraj.study.families: seed streams [seed, FAMILY_ID, i]), which no training run
-draws from (checked against each policy's recorded training and validation streams). The planners' rows are the
-sweep's own (`run_unit`); each policy tracks its planner's reference for the same scenario on the same plant
-(perturbed per scenario in `mismatch`), with the same controller and saturation, and is scored by the same
-metrics and weights. Rows are written in the sweep's format plus the columns `controller` and `policy*`.
+The scenarios are sweep families' (mjtraj.study.families: seed streams [seed, FAMILY_ID, i]), which no training run
+draws from (checked against each zip's recorded training and validation streams). The planners' rows are the
+sweep's own (`run_unit`) under each control law; each policy tracks its planner's reference for the same scenario
+on the same plant (perturbed per scenario in `mismatch`), on the control law it acts on, with the same saturation,
+and is scored by the same metrics and weights. The reference method is cubic+PID. Rows are the sweep's format plus
+the columns POLICY_COLUMNS; `eval.csv` holds them all, `summary.json` and `SUMMARY.md` the statistics
+(mjtraj.rl.protocol_stats), `profiles.png` the performance profiles.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mjtraj.checks import choice, positive_int
 from mjtraj.core import LoopConfig
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
+from mjtraj.rl.adapters import ScoredPolicy, load_any
 from mjtraj.rl.episodes import PolicyActor
-from mjtraj.rl.extra import require_sb3
-from mjtraj.rl.policy import Policy, load_policy
+from mjtraj.rl.extra import require_sb3, rl_versions
+from mjtraj.rl.protocol_stats import FAILURE_RULE, MethodSummary, improvement, profile_figure, summarize
 from mjtraj.rl.streams import VALIDATION_STREAM, check_seed, family_entropies, shared_streams
 from mjtraj.study import (
     FAMILIES,
     PAYLOAD_MASS,
     SWEPT,
     ActorSpec,
-    Condition,
-    SweepData,
     SweepSettings,
     columns,
     csv_text,
-    cvar,
     numeric,
-    paired_ratio,
-    ratio_of_means,
     run_unit,
 )
 
-POLICY_COLUMNS = ("method", "policy", "policy_sha256", "policy_timesteps")
+POLICY_COLUMNS = ("method", "policy", "policy_kind", "policy_sha256", "policy_timesteps", "policy_privileged",
+                  "policy_env")
+REFERENCE = "cubic+PID"
+"""The reference method of every statistic: the cubic planner under feedforward + PID, the paper's baseline."""
+LAW_LABELS = {"pid": "PID", "computed_torque": "CT"}
+"""How a control law is named in a method (planner+LAW); a plug-in law by its own name."""
+LAW_SCENARIOS = {"pid": None, "computed_torque": "paper_computed_torque"}
+"""The shipped base scenario of each built-in law (None: paper.toml); a plug-in law runs paper.toml with its
+controller replaced, written into the output folder."""
+TUNED_LABEL = "cubic+PID (tuned gains)"
 
 
-@dataclass
-class EvalReport:
-    """The rows file, the Markdown file, the per-policy table's text and the over-seeds summary's."""
-
-    csv: Path
-    markdown: Path
-    table: str
-    seeds: str = ""
-    payload: str = ""
-    """The by-payload table ('' unless the scenarios' plants carry payloads: the mismatch family)."""
-
-
-def check_held_out(policy: Policy, family: str, seed: int, scenarios: int) -> None:
-    """InvalidInputError if any evaluation scenario's stream is one the policy trained or validated on."""
+def check_held_out(policy: Any, family: str, seed: int, scenarios: int) -> None:
+    """InvalidInputError if any evaluation scenario's stream is one the policy (a zip: its record) trained or
+    validated on; a policy without a record (a user's callable) declares no streams."""
+    if policy.record is None:
+        return
     streams = policy.record["streams"]
     train_seed = int(policy.record["settings"]["seed"])
     used = list(streams["train"]["gym_seeds"]) + [[train_seed, VALIDATION_STREAM, i]
@@ -70,113 +70,70 @@ def check_held_out(policy: Policy, family: str, seed: int, scenarios: int) -> No
                                 f"with {policy.path}'s training; choose another seed")
 
 
-def _labels(policies: Sequence[Policy]) -> list[str]:
-    """Each policy's table label: its configuration's, and where labels repeat, its run folder and (unless it is
-    the final policy.zip) the file's stem; the position in the list if even that repeats."""
+
+
+@dataclass
+class EvalReport:
+    """Where the evaluation wrote its files, and the summary table's text."""
+
+    out: Path
+    csv: Path
+    summary_json: Path
+    markdown: Path
+    figure: Path
+    table: str
+    summaries: dict[str, dict[str, MethodSummary]]
+    """family -> method -> its summary."""
+
+
+def law_label(law: str) -> str:
+    return LAW_LABELS.get(law, law)
+
+
+def _labels(policies: Sequence[ScoredPolicy]) -> list[str]:
+    """Each policy's table label: its own, and where labels repeat, its run folder and (unless it is the final
+    policy.zip) the file's stem; the position in the list if even that repeats."""
     labels = [p.label for p in policies]
     where = [("" if p.path is None else p.path.parent.name if p.path.stem == "policy" else
               f"{p.path.parent.name}/{p.path.stem}") for p in policies]
-    out = [f"{label} [{w}]" if labels.count(label) > 1 else label for label, w in zip(labels, where, strict=True)]
+    out = [f"{label} [{w}]" if labels.count(label) > 1 and w else label
+           for label, w in zip(labels, where, strict=True)]
     return [f"{label} #{k + 1}" if out.count(label) > 1 else label for k, label in enumerate(out)]
 
 
-def _settings(policies: Sequence[Policy], family: str, scenarios: int, seed: int, planners: Sequence[str],
-              batch: int) -> SweepSettings:
-    """The sweep the planners' rows come from: the policies' controller variant, every planner they track."""
-    loops = {(p.settings().loop.ff_accel, p.settings().loop.gravity_comp) for p in policies}
-    if len(loops) > 1:
-        raise InvalidInputError(f"policy: the policies were trained with different controllers (ff_accel, "
-                                f"gravity_comp): {sorted(loops)}; evaluate them separately")
-    ((ff, gc),) = loops
-    names = tuple(dict.fromkeys([*planners, *(p.env_kwargs["planner"] for p in policies)]))
-    settings = SweepSettings(families=(family,), scenarios=scenarios, seed=seed, planners=names, ff_accel=(ff,),
-                             gravity_comp=(gc,), batch=batch)
-    for p in policies:  # every other controller setting must be the base scenario's
-        mine, base = p.settings().loop, settings.base.loop
-        for f in dataclasses.fields(LoopConfig):
-            if f.name not in SWEPT and not _same(getattr(mine, f.name), getattr(base, f.name)):
-                raise InvalidInputError(f"policy: {p.path} was trained with a different controller ({f.name}) than "
-                                        f"the sweep's base scenario")
-    return settings
+def _training_settings(record: dict[str, Any]) -> dict[str, Any]:
+    """A record's training settings with every default of the current TrainSettings filled in (records written
+    before a setting existed group with those that write its default)."""
+    from mjtraj.rl.train import TrainSettings
+
+    known = {f.name: f.default for f in dataclasses.fields(TrainSettings)
+             if f.default is not dataclasses.MISSING}
+    return {**known, **record["settings"]}
 
 
-def _same(a: Any, b: Any) -> bool:
-    if hasattr(a, "kp"):
-        return all(np.array_equal(getattr(a, k), getattr(b, k)) for k in ("kp", "ki", "kd"))
-    return bool(a == b)
-
-
-def actor_specs(policies: Sequence[Policy], labels: Sequence[str]) -> list[ActorSpec]:
-    """Each policy as an actor of the sweep's units: its label, the planner it tracks, its row columns."""
-    return [ActorSpec(label, p.env_kwargs["planner"], PolicyActor(p.act, p.settings()),
-                      {"method": label, "policy": str(p.path), "policy_sha256": p.sha256[:16],
-                       "policy_timesteps": p.timesteps})
-            for p, label in zip(policies, labels, strict=True)]
-
-
-def evaluate(policies: Sequence[str | Path], *, family: str = "nominal", scenarios: int = 200, seed: int = 0,
-             planners: Sequence[str] = ("optimal", "cubic", "quintic", "trapezoidal"), out: str | Path = "rl_eval",
-             batch: int = 250) -> EvalReport:
-    """Evaluate `policies` (zips from `mjtraj rl train`) and the `planners` with PID alone on scenarios
-    0..scenarios-1 of `family` under `seed`; writes eval_<family>.csv and EVAL_<family>.md into `out`.
-
-    Raises:
-      InvalidInputError: bad arguments, an unreadable or mismatched policy file, or scenarios that are not
-        held out from a policy's training streams.
-      MissingExtraError: the rl extra is not installed.
-    """
-    require_sb3()
-    choice("family", family, FAMILIES)
-    positive_int("scenarios", scenarios)
-    check_seed("seed", seed)
-    if not policies:
-        raise InvalidInputError("policy: expected at least one policy file, got none")
-    loaded = [load_policy(p) for p in policies]
-    for p in loaded:
-        check_held_out(p, family, seed, scenarios)
-    labels = _labels(loaded)
-    settings = _settings(loaded, family, scenarios, seed, planners, batch)
-    rows: list[dict[str, Any]] = []
-    actors = actor_specs(loaded, labels)
-    names = {spec.label for spec in actors}
-    for unit in settings.units():
-        for row in run_unit(settings, unit, actors=actors).rows:
-            rows.append(row if row["planner"] in names else
-                        {**row, "method": f"{row['planner']}+PID", "policy": "", "policy_sha256": "",
-                         "policy_timesteps": ""})
-    out = Path(out)
-    csv_path = out / f"eval_{family}.csv"
-    write_text_atomic(csv_path, csv_text([*columns(settings), *POLICY_COLUMNS], rows))
-    reference = loaded[0].env_kwargs["planner"]
-    data = SweepData([csv_path])
-    table = comparison_table(data, reference=reference)
-    groups = configurations(loaded, labels)
-    seeds = seed_table(data, groups, reference=reference)
-    payload = payload_table(data, groups, reference=reference)
-    md_path = out / f"EVAL_{family}.md"
-    by_payload = [PAYLOAD_TITLE, "", payload, ""] if payload else []
-    write_text_atomic(md_path, "\n".join([*_header(loaded, labels, family, scenarios, seed, policies,
-                                                   settings.planners), table, "",
-                                          "Over seeds (each configuration's policies; mean [min, max] over them):",
-                                          "", seeds, "", *by_payload]))
-    return EvalReport(csv_path, md_path, table, seeds, payload)
-
-
-def configurations(policies: Sequence[Policy], labels: Sequence[str]) -> dict[str, list[str]]:
-    """The policies' table labels grouped by configuration: everything of the training run but its seed and
-    threads, and which of its saved policies it is (policy, best or a step checkpoint, by file name); the key is
-    the configuration's label (with the file's stem unless it is the final policy), followed, where configurations
-    share a label, by the settings in which they differ (such as [steps=200000])."""
+def configurations(policies: Sequence[Any], labels: Sequence[str]) -> dict[str, list[str]]:
+    """The policies' table labels grouped by configuration: for a zip everything of the training run but its seed
+    and threads, and which of its saved policies it is (policy, best or a step checkpoint, by file name); a user's
+    policy is a configuration of its own. The key is the configuration's label (with the file's stem unless it is
+    the final policy), followed, where configurations share a label, by the settings in which they differ (such
+    as [steps=200000])."""
     facts: dict[str, tuple[str, dict[str, Any]]] = {}
     groups: dict[str, list[str]] = {}
     for policy, label in zip(policies, labels, strict=True):
-        settings = {k: v for k, v in policy.record["settings"].items() if k not in ("seed", "threads")}
+        if policy.record is None:
+            key = json.dumps(["object", label])
+            facts[key] = label, {}
+            groups.setdefault(key, []).append(label)
+            continue
+        settings = {k: v for k, v in _training_settings(policy.record).items() if k not in ("seed", "threads")}
+        env = dict(getattr(policy, "env_kwargs", None) or policy.env)
         kind = policy.path.stem if policy.path is not None else "policy"
         kind = "step" if kind.startswith("step_") else kind
-        key = json.dumps([settings, policy.env_kwargs, kind], sort_keys=True, default=str)
+        key = json.dumps([settings, env, kind], sort_keys=True, default=str)
         if key not in facts:
-            name = policy.label if kind == "policy" else f"{policy.label} {kind}"
-            facts[key] = name, {**policy.env_kwargs, **settings}
+            base = policy.label.split(" [")[0]
+            name = base if kind == "policy" else f"{base} {kind}"
+            facts[key] = name, {**env, **settings}
         groups.setdefault(key, []).append(label)
     names: dict[str, str] = {}
     for key, (name, mine) in facts.items():
@@ -189,114 +146,256 @@ def configurations(policies: Sequence[Policy], labels: Sequence[str]) -> dict[st
     return {names[key]: members for key, members in groups.items()}
 
 
-def win_share(cost: np.ndarray, ref: np.ndarray) -> float:
-    """Percentage of the scenarios where both are finite in which `cost` is strictly below `ref`; NaN if none."""
-    both = np.isfinite(cost) & np.isfinite(ref)
-    return float(100 * np.mean(cost[both] < ref[both])) if both.any() else float("nan")
+def _law_config(law: str, out: Path) -> str | None:
+    """The base scenario of control law `law` (see LAW_SCENARIOS); a plug-in's written into `out`."""
+    if law in LAW_SCENARIOS:
+        return LAW_SCENARIOS[law]
+    from mjtraj.study import load_scenario, scenario_text
+
+    scenario = load_scenario().replace(loop={"controller": law}, name=f"paper_{law}")
+    path = out / "scenarios" / f"paper_{law}.toml"
+    write_text_atomic(path, scenario_text(scenario, f"paper.toml with the control law {law} (by mjtraj rl eval)"))
+    return str(path)
 
 
-def seed_table(data: SweepData, groups: dict[str, list[str]], *, reference: str) -> str:
-    """Markdown: per configuration, its policies' J_exec / reference+PID (paired by scenario, ratio of means) and
-    share of scenarios won, as the mean over its policies (seeds) with their min and max, and the seeds' 95 %
-    bootstrap intervals' hull (`data`: the evaluation file's rows)."""
-    (condition,) = data.conditions
-    ref = data.values(condition, reference, "cost")
-    lines = [f"| configuration | seeds | J_exec / {reference}+PID, mean [min, max] | 95 % CIs from .. to | beats "
-             f"{reference}+PID in, mean [min, max] |", "|---|---|---|---|---|"]
+def _check_loop(policy: ScoredPolicy, settings: SweepSettings) -> None:
+    """InvalidInputError unless the policy's controller is the sweep's base scenario's (its law aside)."""
+    mine, base = policy.settings().loop, settings.base.loop
+    for f in dataclasses.fields(LoopConfig):
+        if f.name in ("controller", *SWEPT):
+            continue
+        if not _same(getattr(mine, f.name), getattr(base, f.name)):
+            raise InvalidInputError(f"policy: {policy.source} was trained with a different controller ({f.name}) "
+                                    f"than the sweep's base scenario")
+    for axis in SWEPT:
+        if getattr(mine, axis) != getattr(base, axis):
+            raise InvalidInputError(f"policy: {policy.source} acts with {axis}={getattr(mine, axis)!r}; the "
+                                    f"benchmark's controller uses {getattr(base, axis)!r}")
+
+
+def _same(a: Any, b: Any) -> bool:
+    if hasattr(a, "kp"):
+        return all(np.array_equal(getattr(a, k), getattr(b, k)) for k in ("kp", "ki", "kd"))
+    return bool(a == b)
+
+
+def _blank_policy(row: dict[str, Any], method: str) -> dict[str, Any]:
+    return {**row, "method": method, **{k: "" for k in POLICY_COLUMNS if k != "method"}}
+
+
+def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",), scenarios: int = 200,
+             seed: int = 0, planners: Sequence[str] = ("cubic",), controllers: Sequence[str] = ("pid",),
+             tuned_gains: str | Path | None = None, settings: Mapping[str, Any] | None = None,
+             out: str | Path = "rl_eval", batch: int = 250, reps: int = 2000, threads: int | None = 1,
+             command: str = "", progress: bool = False) -> EvalReport:
+    """Score `policies` beside the `planners` under every law of `controllers` on scenarios 0..scenarios-1 of each
+    of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md and profiles.png into `out`.
+
+    Args:
+      policies: zips from `mjtraj rl train`, "baseline:NAME", "MODULE:ATTR" / "FILE.py:ATTR", or the objects
+        themselves (callables, torch modules; see mjtraj.rl.adapters). May be empty: the classical methods alone.
+      controllers: control laws the planners run under; each policy runs on its own law (added if missing).
+      tuned_gains: a scenario file with tuned PID gains (`mjtraj tune-gains`), scored as TUNED_LABEL.
+      settings: env settings (adapters.ENV_KEYS) for policies that are not zips and do not declare them.
+      reps: bootstrap resamples of every interval.
+      threads: PyTorch CPU threads (mjtraj.rl.train.THREADS_RULE; None: PyTorch's default), recorded.
+      command: the command line that regenerates the files (written into SUMMARY.md).
+
+    Raises:
+      InvalidInputError: bad arguments, an unreadable policy, or scenarios not held out from a policy's training.
+      MissingExtraError: the rl extra is not installed.
+    """
+    require_sb3()
+    if threads is not None:
+        import torch
+
+        torch.set_num_threads(positive_int("threads", threads))
+    for family in families:
+        choice("family", family, FAMILIES)
+    if not families:
+        raise InvalidInputError("family: expected at least one family, got none")
+    positive_int("scenarios", scenarios)
+    positive_int("reps", reps)
+    check_seed("seed", seed)
+    planner_list = list(dict.fromkeys(["cubic", *planners]))
+    laws = list(dict.fromkeys(["pid", *controllers]))
+    loaded = [load_any(p, settings=settings) for p in policies]
+    for policy in loaded:
+        for family in families:
+            check_held_out(policy, family, seed, scenarios)
+        choice("controller", policy.controller, tuple(dict.fromkeys([*laws, policy.controller])))
+    laws = list(dict.fromkeys([*laws, *(p.controller for p in loaded)]))
+    labels = _labels(loaded)
+    out = Path(out)
+    plans = []
+    for family in families:
+        for law in laws:
+            mine = [(p, label) for p, label in zip(loaded, labels, strict=True) if p.controller == law]
+            names = tuple(dict.fromkeys([*planner_list, *(p.planner for p, _ in mine)]))
+            sweep = SweepSettings(families=(family,), scenarios=scenarios, seed=seed, planners=names,
+                                  config=_law_config(law, out), batch=batch)
+            for policy, _ in mine:
+                _check_loop(policy, sweep)
+            plans.append((family, law, sweep, mine))
+        if tuned_gains is not None:
+            plans.append((family, "tuned", SweepSettings(families=(family,), scenarios=scenarios, seed=seed,
+                                                         planners=("cubic",), config=str(tuned_gains),
+                                                         batch=batch), []))
+    rows: list[dict[str, Any]] = []
+    units = [(plan, unit) for plan in plans for unit in plan[2].units()]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(units), unit="unit", desc="rl eval", dynamic_ncols=True)
+    for (_, law, sweep, mine), unit in units:
+        actors = [ActorSpec(label, p.planner, PolicyActor(p, p.settings()), {**p.columns(), "method": label})
+                  for p, label in mine]
+        acting = {spec.label for spec in actors}
+        for row in run_unit(sweep, unit, actors=actors).rows:
+            if row["planner"] in acting:
+                rows.append(row)
+            else:
+                method = TUNED_LABEL if law == "tuned" else f"{row['planner']}+{law_label(law)}"
+                rows.append(_blank_policy(row, method))
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    csv_path = out / "eval.csv"
+    write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS], rows))
+    groups = configurations(loaded, labels)
+    summaries, scores = summarise_rows(rows, groups, families, reps=reps)
+    figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps)
+    table = summary_table(summaries, families)
+    payload = payload_table(rows, groups) if "mismatch" in families else ""
+    record = {"format": "mjtraj-benchmark-summary/1", "reference": REFERENCE, "failure_rule": FAILURE_RULE,
+              "families": list(families), "scenarios": scenarios, "seed": seed, "reps": reps,
+              "controllers": laws, "planners": planner_list, "tuned_gains": str(tuned_gains or ""),
+              "policies": [{"label": label, **p.columns()} for p, label in zip(loaded, labels, strict=True)],
+              "configurations": groups, "versions": rl_versions(), "command": command,
+              "torch_threads": _torch_threads(),
+              "summary": {family: {m: s.as_dict() for m, s in per.items()} for family, per in summaries.items()}}
+    json_path = out / "summary.json"
+    write_text_atomic(json_path, json.dumps(record, indent=1) + "\n")
+    md_path = out / "SUMMARY.md"
+    write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded))
+    return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries)
+
+
+def _torch_threads() -> int:
+    import torch
+
+    return int(torch.get_num_threads())
+
+
+def method_costs(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[str]], family: str
+                 ) -> tuple[NDArray[np.float64], dict[str, NDArray[np.float64]]]:
+    """The reference's J_exec per scenario (K,) and each method's (S, K) (NaN: failed) on `family`; a
+    configuration's seeds are its rows, every other method (planner+law, tuned gains, a user's policy) one row."""
+    by_method: dict[str, dict[int, float]] = {}
+    for r in rows:
+        if r["family"] == family:
+            cost = numeric(r["cost"]) if r["status"] == "ok" else float("nan")
+            by_method.setdefault(r["method"], {})[int(r["scenario"])] = cost
+    order = sorted(by_method[REFERENCE])
+    vector = {m: np.array([v[k] for k in order]) for m, v in by_method.items()}
+    grouped = {member for members in groups.values() for member in members}
+    out = {m: c[None, :] for m, c in vector.items() if m not in grouped}
     for name, members in groups.items():
-        ratios, lows, highs, wins = [], [], [], []
-        for label in members:
-            cost = data.values(condition, label, "cost")
-            r = paired_ratio(cost, ref)
-            ratios.append(r.ratio)
-            lows.append(r.low)
-            highs.append(r.high)
-            wins.append(win_share(cost, ref))
-        lines.append(f"| {name} | {len(members)} | {np.mean(ratios):.3g} [{min(ratios):.3g}, {max(ratios):.3g}] | "
-                     f"{min(lows):.3g} .. {max(highs):.3g} | {np.mean(wins):.0f} % [{min(wins):.0f}, "
-                     f"{max(wins):.0f}] |")
+        out[name] = np.stack([vector[m] for m in members])
+    return vector[REFERENCE], out
+
+
+def summarise_rows(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[str]], families: Sequence[str],
+                   *, reps: int) -> tuple[dict[str, dict[str, MethodSummary]], dict[str, dict[str, Any]]]:
+    """Each family's method summaries and improvement scores (S, K) (mjtraj.rl.protocol_stats)."""
+    summaries, scores = {}, {}
+    for family in families:
+        ref, costs = method_costs(rows, groups, family)
+        summaries[family] = {m: summarize(c, ref, reps=reps) for m, c in costs.items()}
+        scores[family] = {m: improvement(c, ref) for m, c in costs.items()}
+    return summaries, scores
+
+
+def _cell(i: Any, digits: str = ".3g") -> str:
+    return f"{i.value:{digits}} [{i.low:{digits}}, {i.high:{digits}}]"
+
+
+def summary_table(summaries: Mapping[str, Mapping[str, MethodSummary]], families: Sequence[str]) -> str:
+    """Markdown: one row per method, per family the ratio of mean J_exec to the reference's, the IQM of the
+    per-episode improvement, the probability of improvement (each with its 95 % interval) and the failures."""
+    methods = list(dict.fromkeys(m for family in families for m in summaries[family]))
+    head = "| method | seeds | " + " | ".join(f"{f}: J / {REFERENCE} | {f}: IQM improvement | {f}: P(improve) | "
+                                              f"{f}: failed" for f in families) + " |"
+    lines = [head, "|---|---|" + "---|---|---|---|" * len(families)]
+    for m in methods:
+        cells = []
+        seeds = max(summaries[f][m].seeds for f in families if m in summaries[f])
+        for f in families:
+            s = summaries[f].get(m)
+            if s is None:
+                cells += ["-"] * 4
+            elif m == REFERENCE:
+                cells += ["1 (reference)", "0 (reference)", "-", f"{s.failures}"]
+            else:
+                cells += [_cell(s.ratio_of_means), _cell(s.iqm, ".2f"), _cell(s.probability_of_improvement, ".2f"),
+                          f"{s.failures} of {s.seeds * s.scenarios}"]
+        lines.append(f"| {m} | {seeds} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
 PAYLOAD_BINS = 5
 """Equal-width bins of the mismatch family's payload range (PAYLOAD_MASS) in the by-payload table."""
-PAYLOAD_TITLE = ("By payload (each configuration's J_exec / reference+PID, ratio of means over the bin's scenarios, "
-                 "and share of them won; both the mean over its seeds):")
 
 
-def payload_table(data: SweepData, groups: dict[str, list[str]], *, reference: str) -> str:
-    """Markdown: the over-seeds summary of `seed_table` within bins of the scenarios' payload mass; '' when no
-    scenario carries a payload (a family without plant mismatch)."""
-    (condition,) = data.conditions
-    by_scenario = {int(r["scenario"]): numeric(r.get("payload_kg", "")) for r in data.rows
-                   if r["planner"] == reference}
-    payload = np.array([by_scenario[k] for k in sorted(by_scenario)])
-    if not np.any(payload > 0):
-        return ""
+def payload_table(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[str]]) -> str:
+    """Markdown: on the mismatch family, each method's ratio of mean J_exec to the reference's within bins of the
+    scenario's payload (its seeds pooled; FAILURE_RULE)."""
+    from mjtraj.rl.protocol_stats import ratio_of_means
+
+    ref, costs = method_costs(rows, groups, "mismatch")
+    payload = {int(r["scenario"]): numeric(r["payload_kg"]) for r in rows
+               if r["family"] == "mismatch" and r["method"] == REFERENCE}
+    kg = np.array([payload[k] for k in sorted(payload)])
     edges = np.linspace(*PAYLOAD_MASS, PAYLOAD_BINS + 1)
-    bins = np.clip(np.searchsorted(edges, payload, side="right") - 1, 0, PAYLOAD_BINS - 1)
-    ref = data.values(condition, reference, "cost")
+    bins = np.clip(np.searchsorted(edges, kg, side="right") - 1, 0, PAYLOAD_BINS - 1)
     head = " | ".join(f"{lo:g}-{hi:g} kg ({np.sum(bins == b)})" for b, (lo, hi) in
                       enumerate(zip(edges[:-1], edges[1:], strict=True)))
-    lines = [f"| configuration | {head} |", "|---|" + "---|" * PAYLOAD_BINS]
-    for name, members in groups.items():
-        costs = [data.values(condition, label, "cost") for label in members]
+    lines = [f"| method | {head} |", "|---|" + "---|" * PAYLOAD_BINS]
+    for m, c in costs.items():
         cells = []
         for b in range(PAYLOAD_BINS):
             inside = bins == b
-            ratios = [ratio_of_means(cost[inside], ref[inside]) for cost in costs]
-            wins = [win_share(cost[inside], ref[inside]) for cost in costs]
-            cells.append(f"{np.mean(ratios):.3g}, {np.mean(wins):.0f} %")
-        lines.append(f"| {name} | {' | '.join(cells)} |")
+            refs = np.broadcast_to(ref[inside], c[:, inside].shape)
+            cells.append(f"{ratio_of_means(c[:, inside], refs)[0]:.3g}" if inside.any() else "-")
+        lines.append(f"| {m} | {' | '.join(cells)} |")
     return "\n".join(lines)
 
 
-def comparison_table(data: SweepData, *, reference: str) -> str:
-    """The Markdown table of an evaluation file's rows: every controller against `reference` + PID, paired by
-    scenario, with 95 % bootstrap intervals (mjtraj.study.stats)."""
-    (condition,) = data.conditions
-    by_planner = {r["planner"]: r["method"] for r in data.rows}
-    lines = [f"| controller | ok | failed | J_exec mean | J_exec median | CVaR90 J_exec | J_exec / {reference}+PID "
-             f"[95 % CI] | beats {reference}+PID in | RMS err mean (rad) | RMS dtau mean (N m) |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    ref = data.values(condition, reference, "cost")
-    for planner in data.planners:
-        lines.append(_table_row(data, condition, planner, by_planner[planner], None if planner == reference else ref))
-    return "\n".join(lines)
-
-
-def _table_row(data: SweepData, c: Condition, planner: str, name: str, ref: np.ndarray | None) -> str:
-    """One controller's row; `ref` the reference's J_exec per scenario (None: this is the reference)."""
-    cost = data.values(c, planner, "cost")
-    ok = int(np.sum(np.isfinite(cost)))
-    failed = data.failures(c, planner)
-    if not ok:
-        return f"| {name} | 0 | {failed} | - | - | - | - | - | - | - |"
-    err, dtau = data.values(c, planner, "rms_err"), data.values(c, planner, "rms_dtau")
-    if ref is None:
-        ratio, wins = "1 (reference)", "-"
-    else:
-        r = paired_ratio(cost, ref)
-        ratio = f"{r.ratio:.3g} [{r.low:.3g}, {r.high:.3g}]"
-        share = win_share(cost, ref)
-        wins = "-" if np.isnan(share) else f"{share:.0f} %"
-    return (f"| {name} | {ok} | {failed} | {np.nanmean(cost):.4g} | {np.nanmedian(cost):.4g} | {cvar(cost, 0.9):.4g} | "
-            f"{ratio} | {wins} | {np.nanmean(err):.3g} | {np.nanmean(dtau):.3g} |")
-
-
-def _header(policies: Sequence[Policy], labels: Sequence[str], family: str, scenarios: int, seed: int,
-            paths: Sequence[str | Path], planners: Sequence[str]) -> list[str]:
-    lines = [f"# Policies and planners on held-out {family} scenarios", "",
-             f"Regenerate: `mjtraj rl eval {' '.join(f'--policy {p}' for p in paths)} --family {family} "
-             f"--scenarios {scenarios} --seed {seed} --planners {','.join(planners)}`.", "",
-             f"Scenarios 0..{scenarios - 1} of the {family} family under seed {seed} (mjtraj/families.py); none "
-             "shares a seed stream with the policies' training or validation (checked). Every controller runs the "
-             "same plant, saturation and scoring (J_exec with Bryson's weights per task); a failed row (diverged, "
-             "unstable, plan failed) is counted under 'failed' and left out of the paired statistics.", "",
-             "Policies:"]
+def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: Sequence[str],
+                     policies: Sequence[ScoredPolicy]) -> str:
+    """SUMMARY.md: how to regenerate it, the protocol in brief, the table, the by-payload table, the policies."""
+    families = ", ".join(record["families"])
+    lines = ["# Benchmark summary", ""]
+    if record["command"]:
+        lines += [f"Regenerate: `{record['command']}`", ""]
+    lines += [f"Held-out scenarios 0..{record['scenarios'] - 1} of each family ({families}) under seed "
+              f"{record['seed']}; every method on the same scenarios, plants, saturation and score (J_exec, Bryson's "
+              f"weights per task). Reference: {REFERENCE}. Per family: J / {REFERENCE} is the ratio of mean J_exec "
+              "(seeds pooled); IQM improvement the interquartile mean of 1 - J / J_ref over every (seed, "
+              "scenario); P(improve) the probability that an episode beats the reference's (ties one half); "
+              f"95 % stratified-bootstrap intervals ({record['reps']} resamples over scenarios and seeds, "
+              f"rliable). Failures: {record['failure_rule']}. Methods: planner+PID (feedforward + PID), "
+              f"planner+CT (computed torque on the nominal model), {TUNED_LABEL}, and each policy configuration "
+              "(its seeds pooled; `seeds` counts them).", "", table, ""]
+    if payload:
+        lines += ["By payload on the mismatch family (J / reference, seeds pooled; scenarios per bin in brackets):",
+                  "", payload, ""]
+    lines += ["![performance profiles](profiles.png)", "", "Policies:"]
     for label, p in zip(labels, policies, strict=True):
-        s = p.record["settings"]
-        lines.append(f"- {label}: {p.path} ({p.algo.upper()}, {p.timesteps} steps, task={s['task']}, "
-                     f"seed {s['seed']}; stable-baselines3 {p.record['versions']['stable_baselines3']}, torch "
-                     f"{p.record['versions']['torch']})")
-    return [*lines, ""]
+        what = (f"{p.record['settings']['algo'].upper()}, {p.timesteps} steps, seed {p.record['settings']['seed']}"
+                if p.record is not None else p.kind)
+        lines.append(f"- {label}: `{p.source}` ({what}; acts in {json.loads(p.columns()['policy_env'])}"
+                     f"{', privileged: sees the plant' if p.privileged else ''})")
+    return "\n".join(lines) + "\n"

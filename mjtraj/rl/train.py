@@ -32,7 +32,7 @@ import numpy as np
 from gymnasium import spaces
 
 from mjtraj.checks import choice, positive, positive_int
-from mjtraj.core import LoopConfig, check_name, option_names
+from mjtraj.core import LoopConfig, check_name, controller_names, option_names
 from mjtraj.envs import PLANT_RANDOMIZATIONS, RESIDUAL_SCALE, REWARD_BASELINES, TASKS, TrackSettings, resolve
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
@@ -49,6 +49,10 @@ RUN_FORMAT = "mjtraj-rl-run/1"
 DEFAULT_NUM_ENVS = {"sac": 4, "td3": 4, "ppo": 8}
 CLIP_OBS = 10.0
 TD3_NOISE_STD = 0.1
+THREADS_RULE = ("PyTorch runs on 1 CPU thread unless threads says otherwise (library and command line alike): the "
+                "networks are small, so more threads only add synchronisation (12 steps/s with PyTorch's default "
+                "threads against 345 with one, on a 2-core machine), and one thread each lets runs go side by side; "
+                "run.json records the count used")
 
 
 @dataclass(frozen=True)
@@ -65,6 +69,7 @@ class TrainSettings:
         mismatch family's rules).
       reward_baseline: none, or pid (train on the advantage over PID alone; validation and evaluation score J_exec).
       planner: the planner whose references the policy tracks.
+      controller: the control law the residual acts on (pid, computed_torque or a plug-in law; LoopConfig's).
       task: paper (always the paper's move) or random (a new random move each episode).
       steps: environment steps to train for (PPO rounds up to whole rollouts).
       seed: the run's seed, in [0, 2^32).
@@ -73,7 +78,7 @@ class TrainSettings:
       evaluations: validation points of the learning curve, evenly spaced, the last on the final policy (plus one
         before training).
       validation: validation tasks (task=random; the paper task is its own single validation task).
-      threads: PyTorch CPU threads (None: PyTorch's default, every core).
+      threads: PyTorch CPU threads (THREADS_RULE: 1 unless given; None: PyTorch's default, every core).
       overrides: SB3 keyword arguments that replace the defaults above, name -> JSON value (see
         `overridable`).
     """
@@ -86,6 +91,7 @@ class TrainSettings:
     plant_randomization: str = "none"
     reward_baseline: str = "none"
     planner: str = "cubic"
+    controller: str = "pid"
     task: str = "random"
     steps: int = 100_000
     seed: int = 0
@@ -93,7 +99,7 @@ class TrainSettings:
     checkpoints: int = 5
     evaluations: int = 20
     validation: int = 32
-    threads: int | None = None
+    threads: int | None = 1
     overrides: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -104,6 +110,7 @@ class TrainSettings:
         choice("observation_scaling", self.observation_scaling, OBSERVATION_SCALINGS)
         object.__setattr__(self, "residual_scale", positive("residual_scale", self.residual_scale))
         check_name("planner", self.planner)
+        choice("controller", self.controller, controller_names())
         choice("task", self.task, tuple(t for t in TASKS if t != "explicit"))
         positive_int("steps", self.steps)
         check_seed("seed", self.seed)
@@ -121,7 +128,8 @@ class TrainSettings:
         """UR5Track-v0's arguments, every one that shapes the episodes (defaults written out)."""
         s = resolve(planner=self.planner, action_mode=self.action_mode, task=self.task,
                     residual_scale=self.residual_scale, observe_control=self.observe_control,
-                    plant_randomization=self.plant_randomization, reward_baseline=self.reward_baseline)
+                    plant_randomization=self.plant_randomization, reward_baseline=self.reward_baseline,
+                    controller=self.controller)
         return {"planner": self.planner, "action_mode": self.action_mode, "residual_scale": s.residual_scale,
                 "task": self.task,
                 "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt,

@@ -94,12 +94,21 @@ def draw_scenario(family: str, seed: int, index: int, model: mujoco.MjModel, dt:
     """Draw scenario `index` of `family` (see the module rules) from the stream [seed, stream, index]; the family's
     own stream FAMILY_ID[family] unless another is given (tuning draws its training scenarios elsewhere)."""
     rng = np.random.default_rng([seed, FAMILY_ID[family] if stream is None else stream, index])
+    task, perturbation = draw_family(rng, family, model, dt)
+    return FamilyScenario(family, index, task, perturbation, int(rng.integers(2**63 - 1)))
+
+
+def draw_family(rng: np.random.Generator, family: str, model: mujoco.MjModel, dt: float
+                ) -> tuple[Task, Perturbation | None]:
+    """A task and plant (None: nominal) of `family` by the module's rules, drawn from `rng` in a fixed order: the
+    duration (aggressive), the task, then the plant (mismatch). Sweeps draw from a scenario's own stream, the env
+    (its `family` argument) from the episode's generator."""
     duration = NOMINAL_DURATION
     if family == "aggressive":
         duration = round(rng.uniform(*AGGRESSIVE_DURATION) / dt) * dt
     task = random_task(rng, model, max_displacement=MAX_DISPLACEMENT, duration=duration, dt=dt)
     perturbation = draw_perturbation(rng, model.nv) if family == "mismatch" else None
-    return FamilyScenario(family, index, task, perturbation, int(rng.integers(2**63 - 1)))
+    return task, perturbation
 
 
 def draw_perturbation(rng: np.random.Generator, n: int) -> Perturbation:

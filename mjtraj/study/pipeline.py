@@ -35,8 +35,9 @@ class Actor(Protocol):
     action_mode: str
     """'residual' (added to feedforward + PID before the saturation) or 'torque' (the whole corrective torque)."""
 
-    def begin(self, loop: ClosedLoop, references: Sequence[Reference]) -> None:
-        """A new batch of episodes has started on `loop`."""
+    def begin(self, loop: ClosedLoop, references: Sequence[Reference],
+              plants: Sequence[Perturbation | None] = ()) -> None:
+        """A new batch of episodes has started on `loop`, on `plants` (one per episode; None: nominal)."""
         ...
 
     def act(self, loop: ClosedLoop) -> NDArray[np.float64]:
@@ -114,7 +115,7 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
         rollout = loop.run(references, noise=noise)
     else:
         loop.start(references, noise=noise)
-        actor.begin(loop, references)
+        actor.begin(loop, references, [job.perturbation for job in jobs])
         residual = actor.action_mode == "residual"
         for _ in range(loop.steps):
             torque = actor.act(loop)

@@ -133,6 +133,13 @@ class Scenario:
         return out
 
 
+def scenario_text(scenario: Scenario, header: str = "") -> str:
+    """A scenario as the TOML text of a scenario file (`header` as comments); `load_scenario` reads it back."""
+    from mjtraj.study.toml_text import dumps
+
+    return dumps(scenario.as_dict(), header=header)
+
+
 def default_scenario_path() -> Path:
     """The shipped `paper.toml`."""
     return Path(str(resources.files("mjtraj.study.scenarios").joinpath("paper.toml")))

@@ -44,6 +44,9 @@ PARAMETERS: dict[str, dict[str, tuple[str, float, float]]] = {
     "quintic": {},
 }
 """Planner -> parameter -> (scale, low, high). A linear parameter is drawn in (low, high]."""
+GAIN_PARAMETERS: dict[str, tuple[str, float, float]] = {"kp_scale": ("log", 0.25, 4.0), "ki_scale": ("log", 0.25, 4.0),
+                                                        "kd_scale": ("log", 0.25, 4.0)}
+"""The PID gains' free parameters (`tune_gains`): factors on the stated rule's kp, ki and kd (every joint alike)."""
 OPTIMISER = "scrambled Sobol sequence over the parameter box (scipy.stats.qmc.Sobol), best point kept"
 OBJECTIVE = "mean J_exec over the training scenarios (Bryson's rule per task; +inf if any failed)"
 
@@ -176,3 +179,44 @@ def tune(scenario: Scenario, *, planners: Sequence[str] = ("optimal", "trapezoid
     tuned = dataclasses.replace(scenario, name=scenario.name + suffix, planner_options=options, tuning=record,
                                 source="")
     return tuned, results
+
+
+def tune_gains(scenario: Scenario, *, family: str = "mismatch", scenarios: int = 50, seed: int = 0,
+               budget: int = 32) -> tuple[Scenario, PlannerTuning]:
+    """Tune the PID gains of `scenario` by the module's rules, with the cubic planner's references: GAIN_PARAMETERS
+    (factors on kp, ki, kd) on a Sobol sequence of `budget` points, each scored by the mean J_exec over the
+    training scenarios of `family`; the scenario with the best gains and its record.
+
+    Raises:
+      InvalidInputError: an unknown family, a budget or scenario count below 1, or a scenario whose law is not
+        PID (its gains would be unused).
+    """
+    positive_int("budget", budget)
+    positive_int("scenarios", scenarios)
+    if family not in FAMILIES:
+        raise InvalidInputError(f"family: unknown value {family!r}; valid: {', '.join(FAMILIES)}")
+    if scenario.loop.controller != "pid":
+        raise InvalidInputError(f"gains: the scenario's control law is {scenario.loop.controller!r}, which does not "
+                                "use the PID gains; tune them on a pid scenario")
+    stream = training_stream(family)
+    draws = [draw_scenario(family, seed, i, scenario.model, scenario.task.dt, stream=stream) for i in range(scenarios)]
+    g = scenario.loop.gains
+    trials = []
+    cubic = make("cubic")
+    for point in points(GAIN_PARAMETERS, budget, seed):
+        gains = dataclasses.replace(g, kp=g.kp * point["kp_scale"], ki=g.ki * point["ki_scale"],
+                                    kd=g.kd * point["kd_scale"])
+        value, failed = objective(scenario.replace(loop={"gains": gains}), cubic, draws, Scoring(), family)
+        trials.append(Trial(point, value, failed))
+    tuning = PlannerTuning("pid_gains", trials)
+    best = tuning.best.parameters
+    gains = dataclasses.replace(g, kp=g.kp * best["kp_scale"], ki=g.ki * best["ki_scale"], kd=g.kd * best["kd_scale"])
+    record = {"mode": "held out", "what": "PID gains (factors on the stated rule's kp, ki, kd)", "family": family,
+              "scenarios": scenarios, "seed": seed, "stream": f"[seed, {stream}, i]", "budget": budget,
+              "optimiser": OPTIMISER, "objective": OBJECTIVE + ", cubic references",
+              "parameters": {k: list(v) for k, v in GAIN_PARAMETERS.items()},
+              "result": {"pid_gains": {**best, "objective": tuning.best.objective, "evaluations": len(trials)}},
+              "base": scenario.name, "versions": versions()}
+    tuned = dataclasses.replace(scenario.replace(loop={"gains": gains}), name=scenario.name + "_tuned_gains",
+                                tuning=record, source="")
+    return tuned, tuning

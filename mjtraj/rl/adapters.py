@@ -1,0 +1,233 @@
+"""Any policy as the benchmark scores it: an SB3 zip from `mjtraj rl train`, a shipped baseline, a plain callable
+or a `torch.nn.Module`, behind one batched interface that knows the env settings it acts in.
+
+The protocol a user's policy follows (every part optional but the call):
+- `policy(obs) -> action`: one observation (d,) to one action (n,) in [-1, 1], Gymnasium's convention; with
+  `policy.batched = True` a batch (B, d) to (B, n) instead (a torch module is always batched);
+- `policy.reset(starts)`: called before the first action of a batch of episodes, `starts` a bool array (B,) of the
+  episodes that start (a recurrent policy clears its state there);
+- `policy.privileged = True`: the policy also receives each episode's plant, the dict the env reports as
+  `info["plant"]` (payload_kg, mass_scale_j, inertia_scale_j, damping_j, friction_j; the nominal plant's values on
+  a nominal scenario): `policy(obs, plant)`, batched `policy(obs, plants)` with a list of dicts; a torch module gets
+  a float32 tensor (B, 1 + 4n) in that order;
+- `policy.env = {...}`: the env settings it acts in (ENV_KEYS); missing ones come from the caller's settings, then
+  BENCHMARK_ENV (UR5Track-v1's defaults).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import inspect
+import json
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.envs import RESIDUAL_SCALE, TrackSettings, resolve
+from mjtraj.exceptions import InvalidInputError
+
+BENCHMARK_ENV: dict[str, Any] = {"planner": "cubic", "controller": "pid", "action_mode": "residual",
+                                 "residual_scale": RESIDUAL_SCALE, "observe_control": False, "preview": 0}
+"""The env settings of a policy that declares none: UR5Track-v1's."""
+ENV_KEYS = tuple(BENCHMARK_ENV)
+"""The env settings a policy acts in (a zip's come from its training record)."""
+KINDS = ("sb3-zip", "callable", "torch")
+
+
+@dataclass
+class ScoredPolicy:
+    """A policy ready to be scored: batched actions, episode starts, plants if privileged, and its env settings.
+
+    Attributes:
+      label: how tables name it.
+      source: what the user gave (a path, MODULE:ATTR, baseline:NAME or the object's repr).
+      kind: sb3-zip, callable or torch.
+      env: the ENV_KEYS settings it acts in (a zip: plus everything else its training env set).
+      privileged: it receives the plants.
+      sha256: of the zip, or of the callable's source file ('' if none).
+      timesteps: training steps (a zip), else ''.
+      record: a zip's training record (None otherwise).
+    """
+
+    label: str
+    source: str
+    kind: str
+    env: dict[str, Any]
+    act_batch: Callable[..., Any] = field(repr=False)
+    reset_hook: Callable[[NDArray[np.bool_]], Any] | None = field(default=None, repr=False)
+    privileged: bool = False
+    sha256: str = ""
+    timesteps: int | str = ""
+    record: dict[str, Any] | None = field(default=None, repr=False)
+    path: Path | None = None
+    _settings: TrackSettings | None = field(default=None, repr=False)
+
+    def settings(self) -> TrackSettings:
+        """The env settings it acts in (resolved once)."""
+        if self._settings is None:
+            self._settings = resolve(**self.env)
+        return self._settings
+
+    @property
+    def controller(self) -> str:
+        return str(self.env.get("controller", "pid"))
+
+    @property
+    def planner(self) -> str:
+        return str(self.env["planner"])
+
+    def start(self, starts: NDArray[np.bool_]) -> None:
+        """Episodes `starts` (bool (B,)) begin: the policy's reset hook, if it has one."""
+        if self.reset_hook is not None:
+            self.reset_hook(starts)
+
+    def act(self, obs: NDArray[np.float64], plants: Sequence[dict[str, float]] | None = None) -> NDArray[np.float64]:
+        """Actions (B, n) for observations (B, d); `plants` one dict per row for a privileged policy."""
+        out = self.act_batch(obs, plants) if self.privileged else self.act_batch(obs)
+        return np.asarray(out, dtype=np.float64)
+
+    def columns(self) -> dict[str, Any]:
+        """What every evaluation row of this policy records about it."""
+        return {"method": self.label, "policy": self.source, "policy_kind": self.kind,
+                "policy_sha256": self.sha256[:16], "policy_timesteps": self.timesteps,
+                "policy_privileged": int(self.privileged),
+                "policy_env": json.dumps({k: self.env.get(k) for k in ENV_KEYS}, sort_keys=True)}
+
+
+def _env_of(declared: Any, settings: Mapping[str, Any] | None) -> dict[str, Any]:
+    """BENCHMARK_ENV, then the caller's settings, then the policy's own declaration (its `env` attribute)."""
+    if declared is not None and not isinstance(declared, Mapping):
+        raise InvalidInputError(f"policy: its env attribute must be a dict of env settings, got {declared!r}")
+    out = {**BENCHMARK_ENV, **(settings or {}), **(declared or {})}
+    unknown = sorted(set(out) - set(ENV_KEYS))
+    if unknown:
+        raise InvalidInputError(f"policy: unknown env setting {unknown[0]!r}; valid: {', '.join(ENV_KEYS)}")
+    return out
+
+
+def _source_sha(obj: Any) -> str:
+    try:
+        file = inspect.getsourcefile(obj if inspect.isfunction(obj) or inspect.isclass(obj) else type(obj))
+    except TypeError:
+        return ""
+    return hashlib.sha256(Path(file).read_bytes()).hexdigest() if file and Path(file).is_file() else ""
+
+
+def _is_torch_module(obj: Any) -> bool:
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(obj, torch.nn.Module)
+
+
+def plant_vector(plants: Sequence[dict[str, float]]) -> NDArray[np.float32]:
+    """The plants' dicts as rows (B, 1 + 4n) in the dicts' order (payload_kg, mass_scale_j, ...)."""
+    return np.array([list(p.values()) for p in plants], dtype=np.float32)
+
+
+def from_object(obj: Any, *, label: str | None = None, source: str | None = None,
+                settings: Mapping[str, Any] | None = None) -> ScoredPolicy:
+    """A user's callable or torch module (see the module docstring for what it may declare).
+
+    Raises:
+      InvalidInputError: not callable, or a bad declaration.
+    """
+    if isinstance(obj, ScoredPolicy):
+        return obj
+    from mjtraj.rl.policy import Policy
+
+    if isinstance(obj, Policy):
+        return from_zip_policy(obj, label=label)
+    if not callable(obj):
+        raise InvalidInputError(f"policy: expected a callable, a torch.nn.Module, an SB3 zip or baseline:NAME, got "
+                                f"{obj!r}")
+    privileged = bool(getattr(obj, "privileged", False))
+    env = _env_of(getattr(obj, "env", None), settings)
+    reset = getattr(obj, "reset", None)
+    if reset is not None and not callable(reset):
+        raise InvalidInputError(f"policy: its reset attribute must be callable(starts), got {reset!r}")
+    name = label or getattr(obj, "name", None) or source or getattr(obj, "__qualname__", type(obj).__name__)
+    if _is_torch_module(obj):
+        import torch
+
+        def act_torch(obs: NDArray[np.float64], plants: Sequence[dict[str, float]] | None = None) -> Any:
+            with torch.no_grad():
+                x = torch.as_tensor(np.asarray(obs, dtype=np.float32))
+                y = obj(x, torch.as_tensor(plant_vector(plants))) if plants is not None else obj(x)
+            return y.numpy()
+
+        return ScoredPolicy(str(name), source or repr(type(obj).__name__), "torch", env, act_torch, reset,
+                            privileged, _source_sha(obj))
+    if getattr(obj, "batched", False):
+        act = obj
+    else:
+        def act(obs: NDArray[np.float64], plants: Sequence[dict[str, float]] | None = None) -> Any:
+            if plants is None:
+                return np.stack([np.asarray(obj(o), dtype=np.float64) for o in obs])
+            return np.stack([np.asarray(obj(o, p), dtype=np.float64) for o, p in zip(obs, plants, strict=True)])
+
+    return ScoredPolicy(str(name), source or str(name), "callable", env, act, reset, privileged, _source_sha(obj))
+
+
+def from_zip_policy(policy: Any, *, label: str | None = None, source: str | None = None) -> ScoredPolicy:
+    """A Policy loaded from a zip (mjtraj.rl.policy): its recorded env, batched, not privileged."""
+    return ScoredPolicy(label or policy.label, source or str(policy.path), "sb3-zip", dict(policy.env_kwargs),
+                        policy.act, None, False, policy.sha256, policy.timesteps, policy.record, policy.path,
+                        policy.settings())
+
+
+def import_attribute(spec: str) -> Any:
+    """MODULE:ATTR (an importable module, or a .py file) -> the attribute.
+
+    Raises:
+      InvalidInputError: the module or the attribute cannot be found (the message says which).
+    """
+    module_name, _, attr = spec.rpartition(":")
+    if not module_name or not attr:
+        raise InvalidInputError(f"policy: expected PATH.zip, baseline:NAME or MODULE:ATTR, got {spec!r}")
+    if module_name.endswith(".py"):
+        path = Path(module_name)
+        if not path.is_file():
+            raise InvalidInputError(f"policy: file not found: {path}")
+        loader = importlib.util.spec_from_file_location(f"mjtraj_user_policy_{path.stem}", path)
+        assert loader is not None and loader.loader is not None
+        module = importlib.util.module_from_spec(loader)
+        loader.loader.exec_module(module)
+    else:
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError as e:
+            raise InvalidInputError(f"policy: cannot import module {module_name!r} ({e})") from e
+    try:
+        return getattr(module, attr)
+    except AttributeError as e:
+        raise InvalidInputError(f"policy: module {module_name!r} has no attribute {attr!r}") from e
+
+
+def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> ScoredPolicy:
+    """A policy from what a user names: PATH.zip (rl train's), baseline:NAME (shipped), MODULE:ATTR or FILE.py:ATTR
+    (a callable or torch module), or the object itself. `settings` (ENV_KEYS) apply to policies that are not zips
+    where they do not declare their own.
+
+    Raises:
+      InvalidInputError: nothing loadable by that name (the message says why).
+      MissingExtraError: a zip without the rl extra installed.
+    """
+    from mjtraj.rl.policy import load_policy
+
+    if not isinstance(source, (str, Path)):
+        return from_object(source, settings=settings)
+    text = str(source)
+    if text.startswith("baseline:"):
+        from mjtraj.rl.baselines import baseline_path
+
+        name = text.split(":", 1)[1]
+        return from_zip_policy(load_policy(baseline_path(name)), source=text)
+    if text.endswith(".zip") or ":" not in text or Path(text).exists():
+        return from_zip_policy(load_policy(text), source=text)
+    return from_object(import_attribute(text), source=text, settings=settings)

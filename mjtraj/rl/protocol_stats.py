@@ -1,0 +1,190 @@
+"""The benchmark's statistics (Agarwal et al., 2021, through rliable): per family and method, against a reference
+method on the same held-out scenarios.
+
+Scores: the per-scenario improvement over the reference, d = 1 - J / J_ref (1: no cost at all, 0: the reference's,
+negative: worse), one value per (seed, scenario).
+
+FAILURE_RULE (a failed episode: diverged, unstable, plan failed, error) is chosen so that turning any episode into a
+failure can never improve any summary: the failed episode's J is +inf. Its improvement is then -inf (0 where the
+reference failed too; 1 for a success where only the reference failed); the ratio of means is +inf as soon as one
+episode failed where the reference did not; order statistics (IQM, probability of improvement, performance
+profiles) rank it below every success. Scenarios where the reference failed leave the ratio of means (it is not
+defined there) and are counted in `reference_failures`.
+
+Intervals: 95 % percentile intervals (the order statistics at 2.5 % and 97.5 % of the resampled values, so that a
+resample with an infinite value stays infinite) of a seeded stratified bootstrap: rliable's StratifiedBootstrap,
+which draws from NumPy's global generator (seeded here, then restored), resampling scenarios and, within each,
+seeds (task_bootstrap). The reference is one deterministic run per scenario, resampled with the method's scenario
+(pairs stay paired).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+FAILURE_RULE = ("a failed episode scores J = +inf: improvement -inf (0 if the reference failed too), ratio of means "
+                "+inf once any episode failed where the reference did not; never better than any success")
+CONFIDENCE = 0.95
+BOOTSTRAP_SEED = 0
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate and its 95 % bootstrap interval."""
+
+    value: float
+    low: float
+    high: float
+
+
+@dataclass(frozen=True)
+class MethodSummary:
+    """One method on one family against the reference (see the module docstring)."""
+
+    seeds: int
+    scenarios: int
+    failures: int
+    """Episodes (seed, scenario) that failed."""
+    reference_failures: int
+    ratio_of_means: Interval
+    iqm: Interval
+    """IQM of the per-(seed, scenario) improvement over the reference."""
+    probability_of_improvement: Interval
+    """P(J < J_ref) over scenarios, seeds paired with the reference's (ties count one half)."""
+    wins: float
+    """Share of (seed, scenario) pairs with J strictly below the reference's, %."""
+
+    def as_dict(self) -> dict[str, Any]:
+        return _json_ready(asdict(self))
+
+
+def _json_ready(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _json_ready(v) for k, v in value.items()}
+    if isinstance(value, float) and not np.isfinite(value):
+        return "inf" if value > 0 else "-inf" if value < 0 else "nan"
+    return value
+
+
+def failed_as_inf(cost: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Costs with NaN (a failed episode's, as rows record it) replaced by +inf (FAILURE_RULE)."""
+    return np.where(np.isnan(cost), np.inf, cost)
+
+
+def improvement(cost: NDArray[np.float64], ref: NDArray[np.float64]) -> NDArray[np.float64]:
+    """d = 1 - J / J_ref per (seed, scenario), shape of `cost` (S, K); `ref` (K,); failures (NaN or inf) by
+    FAILURE_RULE."""
+    c, r = failed_as_inf(cost), np.broadcast_to(failed_as_inf(ref), cost.shape)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = 1.0 - c / r
+    d = np.where(np.isinf(c) & np.isfinite(r), -np.inf, d)
+    d = np.where(np.isinf(r) & np.isfinite(c), 1.0, d)
+    return np.where(np.isinf(r) & np.isinf(c), 0.0, d)
+
+
+def ratio_of_means(cost: NDArray[np.float64], ref: NDArray[np.float64]) -> NDArray[np.float64]:
+    """mean J / mean J_ref over the (seed, scenario) entries whose reference succeeded, as a 1-element array
+    (rliable's convention); `cost` and `ref` of one shape (S, K); +inf if any such entry failed."""
+    c, r = failed_as_inf(cost), failed_as_inf(ref)
+    keep = np.isfinite(r)
+    if not keep.any():
+        return np.array([np.nan])
+    return np.array([np.sum(c[keep]) / np.sum(r[keep])])
+
+
+def iqm(scores: NDArray[np.float64]) -> NDArray[np.float64]:
+    """rliable's interquartile mean of all entries, as a 1-element array."""
+    from rliable import metrics
+
+    with np.errstate(invalid="ignore"):
+        return np.array([metrics.aggregate_iqm(scores)])
+
+
+def probability_of_improvement(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
+    """P(X > Y) averaged over tasks (columns), runs (rows) of X against runs of Y, ties one half: rliable's
+    `metrics.probability_of_improvement` (its Mann-Whitney U statistic, per task), vectorised over tasks so that
+    bootstraps stay fast. A test holds it equal to rliable's."""
+    greater = (x[:, None, :] > y[None, :, :]).mean(axis=(0, 1))
+    ties = (x[:, None, :] == y[None, :, :]).mean(axis=(0, 1))
+    return np.array([np.mean(greater + 0.5 * ties)])
+
+
+@contextlib.contextmanager
+def seeded_global_rng(seed: int) -> Iterator[None]:
+    """NumPy's global generator seeded for the block (rliable's bootstraps draw from it), then restored."""
+    state = np.random.get_state()  # noqa: NPY002 - rliable draws from the global generator
+    np.random.seed(seed)  # noqa: NPY002
+    try:
+        yield
+    finally:
+        np.random.set_state(state)  # noqa: NPY002
+
+
+def _interval(value: NDArray[np.float64], bootstrap: Any, func: Any, reps: int) -> Interval:
+    """The point estimate and its percentile interval; a bound that resamples with +inf make NaN (inf - inf in
+    the interpolation) is +inf, -inf likewise."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        stats = np.sort(bootstrap.apply(func, reps)[:, 0])
+    tail = (1.0 - CONFIDENCE) / 2.0
+    low, high = (stats[min(len(stats) - 1, int(np.floor(q * len(stats))))] for q in (tail, 1.0 - tail))
+    return Interval(float(value[0]), float(low), float(high))
+
+
+def summarize(cost: NDArray[np.float64], ref: NDArray[np.float64], *, reps: int = 2000,
+              seed: int = BOOTSTRAP_SEED) -> MethodSummary:
+    """A method's summary from its costs (S seeds, K scenarios; NaN = failed) and the reference's (K,)."""
+    from rliable.library import StratifiedBootstrap
+
+    cost = np.asarray(cost, dtype=np.float64)
+    S, K = cost.shape
+    refs = np.broadcast_to(np.asarray(ref, dtype=np.float64), cost.shape).copy()
+    scores = improvement(cost, ref)
+    x, y = -failed_as_inf(cost), -failed_as_inf(np.asarray(ref, dtype=np.float64))[None, :]
+    with seeded_global_rng(seed):
+        ratio = _interval(ratio_of_means(cost, refs), StratifiedBootstrap(cost, refs, task_bootstrap=True),
+                          ratio_of_means, reps)
+        mid = _interval(iqm(scores), StratifiedBootstrap(scores, task_bootstrap=True), iqm, reps)
+        ys = np.broadcast_to(y, x.shape).copy()  # the reference's one run beside each seed: resampled as a pair
+        poi = _interval(probability_of_improvement(x, y), StratifiedBootstrap(x, ys, task_bootstrap=True),
+                        probability_of_improvement, reps)
+    wins = float(100 * np.mean(x > y))
+    return MethodSummary(S, K, int(np.sum(~np.isfinite(failed_as_inf(cost)))),
+                         int(np.sum(~np.isfinite(failed_as_inf(np.asarray(ref))))), ratio, mid, poi, wins)
+
+
+def profile_figure(scores: dict[str, dict[str, NDArray[np.float64]]], path: Any, *, reference: str,
+                   reps: int = 2000, seed: int = BOOTSTRAP_SEED) -> Any:
+    """rliable's performance profiles, one panel per family: the share of (seed, scenario) episodes whose
+    improvement over `reference` exceeds tau, with 95 % bootstrap bands; `scores` family -> method -> (S, K)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from rliable import library as rly
+    from rliable import plot_utils
+
+    taus = np.linspace(-1.0, 1.0, 41)
+    families = list(scores)
+    fig, axes = plt.subplots(1, len(families), figsize=(5.0 * len(families), 4.2), squeeze=False)
+    methods = list(dict.fromkeys(m for family in families for m in scores[family]))
+    cmap = plt.get_cmap("tab10" if len(methods) <= 10 else "tab20")
+    colors = {m: cmap(i % cmap.N) for i, m in enumerate(methods)}
+    for ax, family in zip(axes[0], families, strict=True):
+        with seeded_global_rng(seed):
+            profiles, bands = rly.create_performance_profile(scores[family], taus, reps=reps)
+        plot_utils.plot_performance_profiles(profiles, taus, performance_profile_cis=bands, colors=colors,
+                                             xlabel=f"improvement over {reference}, tau = 1 - J / J_ref",
+                                             ylabel="fraction of episodes with improvement > tau", ax=ax)
+        ax.set_title(f"{family} scenarios", fontsize="medium")
+    handles = [plt.Line2D([], [], color=colors[m], lw=2, label=m) for m in methods]
+    fig.legend(handles=handles, loc="lower center", ncol=2, fontsize="small", frameon=False)
+    fig.tight_layout(rect=(0, 0.06 * (1 + len(methods) // 2), 1, 1))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

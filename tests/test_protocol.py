@@ -1,0 +1,205 @@
+"""The benchmark protocol: any policy scored beside the planners and control laws, its statistics and their
+failure rule (oracles: the classical rows bit for bit, rliable's own metric, closed forms, invariants)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from rliable import metrics
+
+from mjtraj.cli import main
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.rl.adapters import BENCHMARK_ENV, load_any
+from mjtraj.rl.evaluate import evaluate
+from mjtraj.rl.protocol_stats import improvement, probability_of_improvement, ratio_of_means, summarize
+from mjtraj.study import draw_scenario, load_scenario, no_perturbation
+from mjtraj.study.store import read_rows
+from mjtraj.study.tuning import GAIN_PARAMETERS, objective, points, training_stream, tune_gains
+
+
+def zero(obs):
+    """A single-observation policy: no residual."""
+    assert obs.shape == (19,)
+    return np.zeros(3)
+
+
+def costs(rows, method, family="nominal"):
+    return [r["cost"] for r in rows if r["method"] == method and r["family"] == family]
+
+
+def test_a_zero_residual_is_the_controller_alone_bit_for_bit_under_each_law(tmp_path):
+    """A user's callable (one observation), a torch module and a computed-torque callable that add nothing score
+    exactly as cubic+PID and cubic+CT, scenario by scenario."""
+
+    class ZeroModule(torch.nn.Module):
+        def forward(self, x):
+            return torch.zeros(x.shape[0], 3)
+
+    class ZeroCT:
+        env = {"controller": "computed_torque"}
+        name = "zero on CT"
+
+        def __call__(self, obs):
+            return np.zeros(3)
+
+    report = evaluate([zero, ZeroModule(), ZeroCT()], families=("nominal", "aggressive"), scenarios=4, seed=3,
+                      reps=20, out=tmp_path)
+    rows = read_rows(report.csv)
+    for family in ("nominal", "aggressive"):
+        pid, ct = costs(rows, "cubic+PID", family), costs(rows, "cubic+CT", family)
+        assert len(pid) == 4 and pid != ct  # computed torque ran because a policy acts on it
+        assert costs(rows, "zero", family) == pid
+        assert costs(rows, "ZeroModule", family) == pid
+        assert costs(rows, "zero on CT", family) == ct
+    kinds = {r["method"]: (r["policy_kind"], json.loads(r["policy_env"])["controller"]) for r in rows if r["policy"]}
+    assert kinds == {"zero": ("callable", "pid"), "ZeroModule": ("torch", "pid"),
+                     "zero on CT": ("callable", "computed_torque")}
+    s = report.summaries["nominal"]["zero"]
+    assert (s.ratio_of_means.value, s.iqm.value, s.probability_of_improvement.value, s.failures) == (1.0, 0.0, 0.5, 0)
+
+
+def test_a_recurrent_policy_is_told_when_its_episodes_start(tmp_path):
+    """Oracle: the phase in the observation is 0 exactly at the first call after each reset, on every batch (the
+    aggressive family's episodes come in batches of one length each)."""
+
+    class Counting:
+        batched = True
+
+        def __init__(self):
+            self.k, self.calls, self.resets = 0, [], []
+
+        def reset(self, starts):
+            self.resets.append(starts.copy())
+            self.k = 0
+
+        def __call__(self, obs):
+            self.calls.append((self.k, obs[:, 18].copy()))
+            self.k += 1
+            return np.zeros((len(obs), 3))
+
+    policy = Counting()
+    evaluate([policy], families=("aggressive",), scenarios=5, seed=1, reps=20, out=tmp_path)
+    assert len(policy.resets) >= 2 and all(r.all() for r in policy.resets)
+    assert sum(len(r) for r in policy.resets) == 5
+    for k, phase in policy.calls:
+        assert (phase == 0).all() if k == 0 else (phase > 0).all()
+
+
+def test_a_privileged_policy_receives_each_scenarios_plant(tmp_path):
+    class Privileged:
+        batched = True
+        privileged = True
+
+        def __init__(self):
+            self.seen = []
+
+        def __call__(self, obs, plants):
+            if obs[0, 18] == 0:
+                self.seen += plants
+            return np.zeros((len(obs), 3))
+
+    policy = Privileged()
+    evaluate([policy], families=("mismatch", "nominal"), scenarios=3, seed=2, reps=20, out=tmp_path)
+    model = load_scenario().model
+    expected = [draw_scenario("mismatch", 2, i, model, 0.02).perturbation.as_dict() for i in range(3)]
+    assert policy.seen == expected + [no_perturbation(3).as_dict()] * 3
+
+
+def test_the_cli_scores_a_users_file_beside_the_classical_methods(tmp_path, capsys, monkeypatch):
+    (tmp_path / "mine.py").write_text("import numpy as np\n\ndef policy(obs):\n    return np.full(3, 0.1)\n")
+    tuned = tmp_path / "gains.toml"
+    assert main(["tune", "--gains", "--family", "mismatch", "--scenarios", "3", "--budget", "2", "--out",
+                 str(tuned)]) == 0
+    out = tmp_path / "eval"
+    code = main(["rl", "eval", "--policy", f"{tmp_path / 'mine.py'}:policy", "--policy-env", "residual_scale=2",
+                 "--family", "nominal,mismatch", "--scenarios", "3", "--controllers", "pid,computed_torque",
+                 "--tuned-gains", str(tuned), "--reps", "20", "--out", str(out), "--no-progress"])
+    assert code == 0, capsys.readouterr().err
+    text = capsys.readouterr().out
+    for method in ("cubic+PID", "cubic+CT", "cubic+PID (tuned gains)", f"{tmp_path / 'mine.py'}:policy"):
+        assert f"| {method} | 1 |" in text
+    rows = read_rows(out / "eval.csv")
+    assert {json.loads(r["policy_env"])["residual_scale"] for r in rows if r["policy"]} == {2}
+    summary = (out / "SUMMARY.md").read_text()
+    assert summary.startswith("# Benchmark summary\n\nRegenerate: `mjtraj rl eval --policy ")
+    assert "By payload on the mismatch family" in summary and (out / "profiles.png").stat().st_size > 10_000
+    record = json.loads((out / "summary.json").read_text())
+    assert record["controllers"] == ["pid", "computed_torque"] and record["reference"] == "cubic+PID"
+
+
+def test_policies_that_cannot_be_loaded_are_refused_with_the_reason(tmp_path):
+    with pytest.raises(InvalidInputError, match=r"^policy: cannot import module 'no_such_module'"):
+        load_any("no_such_module:policy")
+    with pytest.raises(InvalidInputError, match=r"^policy: module 'json' has no attribute 'nothing'$"):
+        load_any("json:nothing")
+    with pytest.raises(InvalidInputError, match=r"^policy: no baseline 'nope'; shipped: "):
+        load_any("baseline:nope")
+    with pytest.raises(InvalidInputError, match=r"^policy: unknown env setting 'gain'; valid: planner, controller"):
+        load_any(zero, settings={"gain": 2})
+    with pytest.raises(InvalidInputError, match=r"^policy: expected a callable"):
+        load_any(3)
+    assert load_any(zero).env == BENCHMARK_ENV
+
+
+def test_improvement_and_ratio_follow_their_closed_forms_and_the_failure_rule():
+    cost = np.array([[1.0, 4.0, np.nan, np.nan, 2.0]])
+    ref = np.array([2.0, 2.0, 2.0, np.nan, np.nan])
+    np.testing.assert_array_equal(improvement(cost, ref), [[0.5, -1.0, -np.inf, 0.0, 1.0]])
+    assert ratio_of_means(cost[:, :2], np.array([[2.0, 2.0]]))[0] == 5.0 / 4.0
+    assert ratio_of_means(cost, ref[None, :])[0] == np.inf
+
+
+def test_our_probability_of_improvement_is_rliables():
+    rng = np.random.default_rng(4)
+    for runs in (1, 3, 5):
+        x = rng.integers(0, 4, size=(runs, 30)).astype(float)  # ties on purpose
+        y = rng.integers(0, 4, size=(1, 30)).astype(float)
+        assert probability_of_improvement(x, y)[0] == pytest.approx(metrics.probability_of_improvement(x, y),
+                                                                    abs=1e-12)
+
+
+def test_turning_episodes_into_failures_never_improves_a_summary():
+    rng = np.random.default_rng(11)
+    for trial in range(6):
+        cost = rng.gamma(2.0, 1.0, size=(3, 40))
+        ref = rng.gamma(2.0, 1.0, size=40)
+        before = summarize(cost, ref, reps=50, seed=trial)
+        failed = cost.copy()
+        failed[rng.random(cost.shape) < 0.1 + 0.05 * trial] = np.nan
+        after = summarize(failed, ref, reps=50, seed=trial)
+        assert after.failures > before.failures == 0
+        assert after.ratio_of_means.value >= before.ratio_of_means.value
+        assert after.iqm.value <= before.iqm.value
+        assert after.probability_of_improvement.value <= before.probability_of_improvement.value
+        assert after.wins <= before.wins
+
+
+def test_same_seed_same_intervals():
+    rng = np.random.default_rng(2)
+    cost, ref = rng.gamma(2.0, 1.0, size=(2, 25)), rng.gamma(2.0, 1.0, size=25)
+    state = np.random.get_state()[1].copy()  # noqa: NPY002 - the global generator rliable uses
+    assert summarize(cost, ref, reps=50) == summarize(cost, ref, reps=50)
+    np.testing.assert_array_equal(np.random.get_state()[1], state)  # noqa: NPY002 - left as it was
+
+
+def test_tuned_gains_are_the_best_of_their_trials():
+    """Oracle: every trial re-scored by the tuning objective; the file's gains are the best trial's factors."""
+    base = load_scenario()
+    tuned, tuning = tune_gains(base, family="mismatch", scenarios=3, budget=4, seed=1)
+    draws = [draw_scenario("mismatch", 1, i, base.model, 0.02, stream=training_stream("mismatch")) for i in range(3)]
+    from mjtraj.core.planners import make
+    from mjtraj.core.scoring import Scoring
+
+    assert [t.parameters for t in tuning.trials] == points(GAIN_PARAMETERS, 4, 1)
+    best = min(tuning.trials, key=lambda t: t.objective)
+    assert best is tuning.best
+    factors = best.parameters
+    np.testing.assert_array_equal(tuned.loop.gains.kp, base.loop.gains.kp * factors["kp_scale"])
+    np.testing.assert_array_equal(tuned.loop.gains.kd, base.loop.gains.kd * factors["kd_scale"])
+    assert objective(tuned, make("cubic"), draws, Scoring(), "mismatch")[0] == best.objective
+    with pytest.raises(InvalidInputError, match=r"^gains: the scenario's control law is 'computed_torque'"):
+        tune_gains(load_scenario("paper_computed_torque"))
+
