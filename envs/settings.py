@@ -84,7 +84,8 @@ class EnvOptions:
                                   "loop); metrics keep J_exec", choices=REWARD_BASELINES)
     width: int = option(640, "image width, px", minimum=1)
     height: int = option(480, "image height, px", minimum=1)
-    camera: str = option("front", "front, side or top")
+    camera: str = option("front", "a camera of the model (the UR5: front, side, top) or free (framed on the model); "
+                         "front falls back to free on a model without it")
     render_quality: str = option("fast", "fast (no shadows or reflection, fewer facets) or high (the model's own "
                                  "scene, for publication frames)", choices=RENDER_QUALITIES)
 
@@ -252,8 +253,11 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
         if scenario is not None:
             raise InvalidInputError("xml_file, scenario: give one")
         dt = options.get("dt", 0.02)
+        drawn = options.get("task") == "random" or options.get("family", "none") != "none"
         scenario = scenario_for_model(xml_file, dt=dt if isinstance(dt, (int, float)) else 0.02,
-                                      torque_limit=torque_limit)
+                                      torque_limit=torque_limit, workspace=drawn,  # gains for every drawn task
+                                      q0=q0 if options.get("task") == "explicit" else None,
+                                      qg=qg if options.get("task") == "explicit" else None)
     elif torque_limit is not None:
         raise InvalidInputError(f"torque_limit: only with xml_file (your own arm), got {torque_limit!r} for the "
                                 f"UR5, whose saturation is its motors' 60 N m")

@@ -60,8 +60,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     """Track a planned joint-space reference with a 3-DoF UR5 under the paper's controller.
 
     ## Description
-    The plant is MuJoCo's model of a UR5 reduced to shoulder_pan, shoulder_lift and elbow (`assets/ur5_3dof.xml`,
-    RK4, gravity compensated). Each episode a planner (cubic, quintic, trapezoidal, optimal or your own) plans a
+    Registered as UR5Track-v0 (the defaults below) and as the benchmark UR5Track-v1 with its variants
+    UR5TrackAggressive-v1 and UR5TrackMismatch-v1 (see Version History). The plant is MuJoCo's model of a UR5
+    reduced to shoulder_pan, shoulder_lift and elbow (`assets/ur5_3dof.xml`, RK4, gravity compensated). Each episode a planner (cubic, quintic, trapezoidal, optimal or your own) plans a
     point-to-point move q0 -> qg of `duration` seconds; every step is one control period dt, in which the
     corrective torque dtau = clip(tau_ff + tau_fb [+ residual], -60, 60) N m is applied on top of G(q): tau_ff
     from inverse dynamics of the reference, tau_fb from a PID on the tracking error. This is `mjtraj compare`'s
@@ -176,13 +177,24 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | render_mode      | None       | None, "rgb_array" or "depth_array"                                      |
     | width            | 640        | image width, px                                                         |
     | height           | 480        | image height, px                                                        |
-    | camera           | "front"    | front, side or top                                                      |
+    | camera           | "front"    | the model's (UR5: front, side, top) or free; front falls back to free  |
     | render_quality   | "fast"     | fast (no shadows or reflection, fewer facets) or high (publication)     |
 
     The PID gains are the paper scenario's, identical for every planner and task (their rule: `mjtraj gains`).
 
     ## Version History
-    * v0: initial version.
+    | id | defaults beyond the arguments table | since |
+    |----|-------------------------------------|-------|
+    | UR5Track-v0 | none: action_mode="pid" (the action is ignored), task="paper" | 0.1.0 |
+    | UR5Track-v1 | action_mode="residual" (6 N m), task="random", family="nominal" (docs/benchmark.md) | 0.2.0 |
+    | UR5TrackAggressive-v1 | as v1 with family="aggressive" (T uniform in [0.5, 1] s) | 0.2.0 |
+    | UR5TrackMismatch-v1 | as v1 with family="mismatch" (a perturbed plant each episode) | 0.2.0 |
+
+    v0 is kept unchanged for reproducibility (its dynamics and residual default changed within 0.1.0 before the
+    benchmark was versioned); new work should use v1. `reset(options={"scenario": {"family": F, "seed": S,
+    "index": i}})` replays held-out sweep scenario i of family F under seed S (task, duration, plant), bit for bit
+    the episode `mjtraj sweep` and `mjtraj rl eval` score; reset's info carries the task (q0, qg, duration) and, on
+    perturbed plants, the plant.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}

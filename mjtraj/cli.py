@@ -216,7 +216,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--format", dest="formats", type=_names, default=["mp4"], help="mp4 and/or gif (default: mp4)")
     r.add_argument("--width", type=int, default=640, help="image width, px (default 640)")
     r.add_argument("--height", type=int, default=480, help="image height, px (default 480)")
-    r.add_argument("--camera", default="front", help="front | side | top (default front)")
+    r.add_argument("--camera", default="front", help="a camera of the model (the UR5: front, side, top) or free (a "
+                   "free camera framed on the model); default front, or free on a model without it")
     r.add_argument("--quality", default="fast", help="fast: no shadows or floor reflection, fewer facets (default); "
                    "high: the model's own scene, for publication frames")
     r.add_argument("--every", type=int, default=1, help="keep one control period in EVERY (default 1)")
@@ -277,6 +278,7 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--policy", dest="policies", action="append", default=[],
                    help="PATH.zip (rl train's), baseline:NAME (mjtraj rl baselines), MODULE:ATTR or FILE.py:ATTR (a "
                    "callable or torch module; docs/benchmark.md); repeat for several; none: the classical methods")
+    e.add_argument("--baselines", action="store_true", help="also score every shipped baseline (mjtraj rl baselines)")
     e.add_argument("--policy-env", dest="policy_env", action="append", default=[], metavar="KEY=VALUE",
                    help="an env setting for policies that are not zips and do not declare it (planner, controller, "
                    "action_mode, residual_scale, observe_control, preview; default UR5Track-v1's); repeatable")
@@ -296,6 +298,12 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
     e.add_argument("--no-progress", action="store_true", help="no progress bar")
     rl_sub.add_parser("baselines", help="list the shipped trained policies (use them as --policy baseline:NAME)")
+    h = rl_sub.add_parser("ship", help="ship a run's policy as a baseline: its zip without optimiser states (the same "
+                          "actions, checked), its record and run.json")
+    h.add_argument("run", type=Path, help="the folder rl train wrote")
+    h.add_argument("--name", required=True, help="the baseline's name (letters, digits, _ and -)")
+    h.add_argument("--which", default="best", help="best (selected on validation; default) | policy (the final one)")
+    h.add_argument("--into", type=Path, help="folder of baselines (default: the package's own, mjtraj/rl/baselines)")
 
     g = sub.add_parser("gains", help="derive the default PID gains and optimal weights by their stated rules")
     g.add_argument("--config", type=Path, help="scenario TOML whose task to use (default: the paper scenario)")
@@ -324,7 +332,7 @@ def _scenario(args: argparse.Namespace):  # noqa: ANN202
     return scenario.replace(task=task, loop=loop) if task or loop else scenario
 
 
-def _base_scenario(args: argparse.Namespace, **task: Any):  # noqa: ANN202
+def _base_scenario(args: argparse.Namespace, *, workspace: bool = False, **task: Any):  # noqa: ANN202
     """The scenario of --config, or of --model PATH by the arm rules (with `task` overrides), never both."""
     from mjtraj.study.scenario import load_scenario, scenario_for_model
 
@@ -335,7 +343,7 @@ def _base_scenario(args: argparse.Namespace, **task: Any):  # noqa: ANN202
         return load_scenario(args.config)
     if args.config is not None:
         raise InvalidInputError("model, config: give one (a scenario file names its arm with model = \"PATH\")")
-    return scenario_for_model(args.model, torque_limit=args.torque_limit, **task)
+    return scenario_for_model(args.model, torque_limit=args.torque_limit, workspace=workspace, **task)
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -385,7 +393,7 @@ def _frontier(args: argparse.Namespace) -> int:
         if value is not None and args.family is None:
             raise InvalidInputError(f"{flag}: only used with --family (without it the frontier is on the scenario's "
                                     f"task)")
-    scenario = _base_scenario(args)
+    scenario = _base_scenario(args, workspace=args.family is not None)  # drawn tasks: gains over the workspace
     result = frontier(scenario, alphas=args.alphas if args.alphas is not None else DEFAULT_ALPHAS,
                       splits=args.splits if args.splits is not None else DEFAULT_SPLITS, family=args.family,
                       scenarios=100 if args.scenarios is None else args.scenarios,
@@ -402,7 +410,8 @@ def _frontier(args: argparse.Namespace) -> int:
         print(json.dumps(record, indent=2))
     else:
         print(format_frontier(result))
-        print(f"\nwrote {args.out / (name + '.json')}" + (f" and {figure}" if figure else ""))
+        print(f"\nwrote {args.out / (name + '.json')}" + (f" and {figure}" if figure else "") +
+              ("" if figure or args.no_figures else " (no figure: no execution succeeded)"))
     return 0
 
 
@@ -411,7 +420,7 @@ def _tune(args: argparse.Namespace) -> int:
     from mjtraj.study.toml_text import dumps
     from mjtraj.study.tuning import tune
 
-    base = _base_scenario(args)
+    base = _base_scenario(args, workspace=not args.on_task)  # drawn tasks: gains over the workspace
     if args.gains:
         from mjtraj.study.tuning import tune_gains
 
@@ -680,10 +689,22 @@ def _rl(args: argparse.Namespace) -> int:
             print(f"baseline:{name}  {facts['algo'].upper()} seed {facts['seed']}, {facts['timesteps']} steps, "
                   f"controller {facts['env'].get('controller', 'pid')}, plants {facts['env']['plant_randomization']}")
         return 0
+    if args.rl_command == "ship":
+        from mjtraj.checks import choice
+        from mjtraj.rl.baselines import ship
+
+        choice("which", args.which, ("best", "policy"))
+        print(f"wrote {ship(args.run, args.name, which=args.which, into=args.into)}")
+        return 0
     from mjtraj.rl.evaluate import evaluate
 
     command = "mjtraj " + " ".join(shlex.quote(a) for a in args.argv)
-    evaluation = evaluate(args.policies, families=tuple(args.family), scenarios=args.scenarios, seed=args.seed,
+    policies = list(args.policies)
+    if args.baselines:
+        from mjtraj.rl.baselines import baseline_names
+
+        policies += [f"baseline:{name}" for name in baseline_names()]
+    evaluation = evaluate(policies, families=tuple(args.family), scenarios=args.scenarios, seed=args.seed,
                           planners=tuple(args.planners), controllers=tuple(args.controllers),
                           tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
                           settings=_overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,

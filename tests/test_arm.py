@@ -304,7 +304,7 @@ def test_the_mismatch_plant_of_a_user_arm_carries_its_payload_by_the_flange_rule
 
     model = prepare_arm(PLANAR)
     plant = perturbed_plant(model, str(PLANAR))
-    payload = plant.body("payload")
+    payload = plant.body("mjtraj_payload")
     assert plant.body(int(payload.parentid[0])).name == "link2"
     np.testing.assert_array_equal(plant.body_pos[payload.id], [LC2, 0.0, 0.0])
     data = mujoco.MjData(plant)

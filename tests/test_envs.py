@@ -344,7 +344,7 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                      r"got 3$"),
     ({"action_mode": "velocity"}, r"^action_mode: unknown value 'velocity'; valid: pid, residual, torque$"),
     ({"task": "circle"}, r"^task: unknown value 'circle'; valid: paper, random, explicit$"),
-    ({"camera": "wrist"}, r"^camera: unknown camera 'wrist'; valid: front, side, top$"),
+    ({"camera": "wrist"}, r"^camera: unknown camera 'wrist'; valid: front, side, top, free \(the model's cameras"),
     ({"render_quality": "ultra"}, r"^render_quality: unknown value 'ultra'; valid: fast, high$"),
     ({"task": "explicit", "q0": [0, 0, 4], "qg": [0, 0, 0]},
      r"^q0: joint 'elbow_joint' = 4.0 rad is outside its range \[-3.141592653589793, 3.141592653589793\]$"),

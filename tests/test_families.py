@@ -44,5 +44,5 @@ def test_the_payload_sits_at_the_flange(model):
     for q in ([0.3, -1.0, 0.8], [-2.0, -0.4, 2.1], [0.0, -1.5707963267948966, 0.0]):
         data.qpos[:] = q
         mujoco.mj_forward(plant, data)
-        np.testing.assert_allclose(data.xipos[plant.body("payload").id],
+        np.testing.assert_allclose(data.xipos[plant.body("mjtraj_payload").id],
                                    data.site_xpos[plant.site("attachment_site").id], atol=1e-12)

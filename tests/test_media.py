@@ -138,7 +138,8 @@ def test_labels_scale_with_the_image():
 
 def test_render_command_bad_input(capsys):
     assert main(["render", "--camera", "wrist"]) == 2
-    assert capsys.readouterr().err == "mjtraj: error: camera: unknown camera 'wrist'; valid: front, side, top\n"
+    assert capsys.readouterr().err == ("mjtraj: error: camera: unknown camera 'wrist'; valid: front, side, top, free "
+                                          "(the model's cameras, and 'free', a free camera framed on the model)\n")
     assert main(["render", "--quality", "best"]) == 2
     assert capsys.readouterr().err == "mjtraj: error: quality: unknown value 'best'; valid: fast, high\n"
     assert main(["render", "--format", "avi"]) == 2

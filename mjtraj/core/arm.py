@@ -19,9 +19,12 @@ from mjtraj.exceptions import ModelError
 ARM_RULES = (
     "every joint must be a hinge, with no tendons or equality constraints; each hinge keeps its passive properties "
     "(damping, armature, friction loss) and range. The model's actuators are replaced by one torque motor per hinge "
-    "(gear 1) whose control range is the corrective saturation: the torque_limit given (--torque-limit), for "
-    "every joint; else the range of an existing torque motor on that joint, else the force range of the actuator "
-    "that drove it, else the joint's actuator force range; every body gets native gravity compensation (gravcomp "
+    "(gear 1, set explicitly whatever the file's default class says) whose control range is the corrective "
+    "saturation: the torque_limit given (--torque-limit), for every joint; else the torque an existing motor on "
+    "that joint can apply (gear x gain x its control range, within gear x its force range), else gear x the force "
+    "range of the actuator that drove it, else the joint's actuator force range, and never more than that range; "
+    "sensors of the replaced actuators "
+    "are removed and keyframes' ctrl set to zero; every body gets native gravity compensation (gravcomp "
     "1, applied at the joints); contacts are disabled (the study's plant is the free arm); the integrator is RK4 "
     "at the control period dt")
 
@@ -44,18 +47,29 @@ def _hinges(spec: mujoco.MjSpec, file: Path) -> list[mujoco.MjsJoint]:
 
 
 def _saturation(spec: mujoco.MjSpec, joint: mujoco.MjsJoint, torque_limit: float | None, file: Path) -> float:
-    """The corrective saturation of `joint`, N m, by ARM_RULES."""
+    """The corrective saturation of `joint`, N m, by ARM_RULES: what its actuators can apply, within the joint's own
+    actuator force range when it has one."""
     if torque_limit is not None:
         return positive("torque_limit", torque_limit)
+    limit = _actuator_limit(spec, joint, file)
+    if joint.actfrclimited != mujoco.mjtLimited.mjLIMITED_FALSE and np.any(joint.actfrcrange):
+        limit = min(limit, float(np.min(np.abs(joint.actfrcrange))))
+    return limit
+
+
+def _actuator_limit(spec: mujoco.MjSpec, joint: mujoco.MjsJoint, file: Path) -> float:
     mine = [a for a in spec.actuators if a.trntype == mujoco.mjtTrn.mjTRN_JOINT and a.target == joint.name]
-    for actuator in mine:
-        is_motor = (actuator.gaintype == mujoco.mjtGain.mjGAIN_FIXED and actuator.gainprm[0] == 1.0
-                    and actuator.biastype == mujoco.mjtBias.mjBIAS_NONE and actuator.gear[0] == 1.0)
+    for actuator in mine:  # a motor (also geared): joint torque = gear x gain x ctrl, within gear x forcerange
+        is_motor = (actuator.gaintype == mujoco.mjtGain.mjGAIN_FIXED and actuator.gainprm[0] != 0.0
+                    and actuator.biastype == mujoco.mjtBias.mjBIAS_NONE and actuator.gear[0] != 0.0)
         if is_motor and actuator.ctrllimited != mujoco.mjtLimited.mjLIMITED_FALSE and np.any(actuator.ctrlrange):
-            return float(np.min(np.abs(actuator.ctrlrange)))
+            limit = abs(actuator.gear[0] * actuator.gainprm[0]) * float(np.min(np.abs(actuator.ctrlrange)))
+            if actuator.forcelimited == mujoco.mjtLimited.mjLIMITED_TRUE and np.any(actuator.forcerange):
+                limit = min(limit, abs(actuator.gear[0]) * float(np.min(np.abs(actuator.forcerange))))
+            return limit
     for actuator in mine:
         if actuator.forcelimited != mujoco.mjtLimited.mjLIMITED_FALSE and np.any(actuator.forcerange):
-            return float(np.min(np.abs(actuator.forcerange)))
+            return abs(actuator.gear[0]) * float(np.min(np.abs(actuator.forcerange)))
     if np.any(joint.actfrcrange):
         return float(np.min(np.abs(joint.actfrcrange)))
     raise ModelError(f"model {file}: joint {joint.name!r} has no actuator force range to take the corrective "
@@ -103,14 +117,24 @@ def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_li
         if not joint.name:
             raise ModelError(f"model {file}: every hinge needs a name (a motor is attached by name)")
     limits = [_saturation(spec, joint, torque_limit, file) for joint in joints]
+    replaced = {a.name for a in spec.actuators if a.name}
     for actuator in list(spec.actuators):
         spec.delete(actuator)
+    for sensor in list(spec.sensors):  # sensors of the replaced actuators would name actuators that are gone
+        if sensor.objtype == mujoco.mjtObj.mjOBJ_ACTUATOR and sensor.objname in replaced:
+            spec.delete(sensor)
     for joint, limit in zip(joints, limits, strict=True):
         motor = spec.add_actuator(name=f"{joint.name}_motor", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         motor.set_to_motor()
+        motor.gear = np.array([1.0, 0, 0, 0, 0, 0])  # set, not inherited: the file's default class may gear motors
+        motor.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        motor.actlimited = mujoco.mjtLimited.mjLIMITED_FALSE
         motor.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
         motor.ctrlrange = np.array([-limit, limit])
         joint.actgravcomp = True
+    for key in spec.keys:  # a keyframe's ctrl was for the replaced actuators: the new motors start at zero
+        if len(key.ctrl):
+            key.ctrl = np.zeros(len(joints))
     for body in spec.bodies[1:]:
         body.gravcomp = 1.0
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_RK4

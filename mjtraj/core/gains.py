@@ -41,18 +41,50 @@ def free_inertia(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, *,
     return inertia.min(axis=0), inertia.max(axis=0)
 
 
+WORKSPACE_RULE = (
+    "on a user's arm whose tasks are drawn (sweeps, tune, the env's random tasks) the gain rule takes J_min and J_max "
+    "over the workspace instead of one move: the 21 poses of the default move and 64 poses of a scrambled Sobol "
+    "sequence (scipy.stats.qmc.Sobol, seed 0) over the joint ranges (a joint without a range over [-pi, pi]), so "
+    "that the gains suit every task a family draws; the same gains for every planner")
+WORKSPACE_POSES = 64
+
+
+def workspace_poses(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, *, samples: int = 21,
+                    count: int = WORKSPACE_POSES) -> NDArray[np.float64]:
+    """The poses WORKSPACE_RULE sizes gains over: `samples` on the segment q0->qg, then `count` Sobol poses in
+    the joint ranges; shape (samples + count, n), rad."""
+    from scipy.stats import qmc
+
+    a, b = vector("q0", q0, model.nq), vector("qg", qg, model.nq)
+    line = a + np.linspace(0.0, 1.0, positive_int("samples", samples))[:, None] * (b - a)
+    limited = model.jnt_limited.astype(bool)
+    low = np.where(limited, model.jnt_range[:, 0], -np.pi)
+    high = np.where(limited, model.jnt_range[:, 1], np.pi)
+    unit = qmc.Sobol(d=model.nq, scramble=True, seed=0).random(positive_int("count", count))
+    return np.vstack([line, low + unit * (high - low)])
+
+
+def free_inertia_at(model: mujoco.MjModel, poses: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Least and largest 1/(D(q)^-1)_ii over `poses` (P, n); shape (n,) each, kg m^2 (see `free_inertia`)."""
+    inertia = np.array([1.0 / np.diag(np.linalg.inv(mass_matrix(model, q))) for q in np.asarray(poses)])
+    return inertia.min(axis=0), inertia.max(axis=0)
+
+
 def gain_rule(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, dt: float, *,
-              bandwidth: float | None = None, damping: float = 1.0, integral_ratio: float = 0.1) -> PIDGains:
+              bandwidth: float | None = None, damping: float = 1.0, integral_ratio: float = 0.1,
+              workspace: bool = False) -> PIDGains:
     """The default gains (GAIN_RULE): kp = J_min w^2, kd = 2 zeta J_min w, ki = kp w_low integral_ratio.
 
     Args:
       q0, qg: the move, shape (n,), rad. dt: control period, s.
       bandwidth: w in rad/s; None for 2 pi / (20 dt).
+      workspace: J_min and J_max over WORKSPACE_RULE's poses instead of the move's.
     """
     w = 2 * np.pi / (20 * positive("dt", dt)) if bandwidth is None else positive("bandwidth", bandwidth)
     zeta = positive("damping", damping)
     ratio = positive("integral_ratio", integral_ratio)
-    lightest, heaviest = free_inertia(model, q0, qg)
+    lightest, heaviest = (free_inertia_at(model, workspace_poses(model, q0, qg)) if workspace
+                          else free_inertia(model, q0, qg))
     w_low = w * np.sqrt(lightest / heaviest)
     kp = lightest * w**2
     return PIDGains.create(kp, kp * ratio * w_low, 2 * zeta * lightest * w, model.nv)

@@ -33,12 +33,33 @@ def cameras(model: mujoco.MjModel) -> tuple[str, ...]:
     return tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_CAMERA, i) for i in range(model.ncam))
 
 
+FREE_CAMERA = "free"
+"""A camera every model has: MuJoCo's free camera aimed at the model's centre from 1.6 times its extent, azimuth
+135 degrees, elevation -20 degrees. The default camera 'front' falls back to it on a model without a 'front'."""
+DEFAULT_CAMERA = "front"
+
+
+def free_camera(model: mujoco.MjModel) -> mujoco.MjvCamera:
+    """FREE_CAMERA of `model`."""
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    cam.lookat[:] = model.stat.center
+    cam.distance = 1.6 * float(model.stat.extent)
+    cam.azimuth, cam.elevation = 135.0, -20.0
+    return cam
+
+
 def check_render_options(model: mujoco.MjModel, width: int, height: int, camera: str) -> tuple[int, int, str]:
-    """Validate an image size against the offscreen buffer and a camera name; return them (no GL needed)."""
+    """Validate an image size against the offscreen buffer and a camera name (one of the model's, or
+    FREE_CAMERA; the default 'front' falls back to FREE_CAMERA on a model without it); return them (no GL
+    needed)."""
     width, height = positive_int("width", width), positive_int("height", height)
-    valid = cameras(model)
+    valid = (*cameras(model), FREE_CAMERA)
+    if camera == DEFAULT_CAMERA and camera not in valid:
+        camera = FREE_CAMERA
     if camera not in valid:
-        raise InvalidInputError(f"camera: unknown camera {camera!r}; valid: {', '.join(valid)}")
+        raise InvalidInputError(f"camera: unknown camera {camera!r}; valid: {', '.join(valid)} (the model's "
+                                f"cameras, and {FREE_CAMERA!r}, a free camera framed on the model)")
     for name, size, limit, attribute in (("width", width, model.vis.global_.offwidth, "offwidth"),
                                          ("height", height, model.vis.global_.offheight, "offheight")):
         if size > limit:
@@ -54,13 +75,14 @@ class ArmRenderer:
     Args:
       width, height: image size in pixels, at most the model's offscreen buffer
         (MJCF `<visual><global offwidth=... offheight=...>`).
-      camera: one of the model's named cameras.
+      camera: one of the model's named cameras, or FREE_CAMERA.
       quality: one of RENDER_QUALITIES.
     """
 
     def __init__(self, model: mujoco.MjModel, *, width: int = 640, height: int = 480, camera: str = "front",
                  quality: str = "fast") -> None:
         self.width, self.height, self.camera = check_render_options(model, width, height, camera)
+        self._view: str | mujoco.MjvCamera = free_camera(model) if self.camera == FREE_CAMERA else self.camera
         self.quality = choice("quality", quality, RENDER_QUALITIES)
         self.model = model
         self._data = mujoco.MjData(model)
@@ -86,7 +108,7 @@ class ArmRenderer:
         self._data.qpos[:] = vector("q", q, self.model.nq)
         mujoco.mj_kinematics(self.model, self._data)
         mujoco.mj_camlight(self.model, self._data)
-        self._renderer.update_scene(self._data, self.camera)
+        self._renderer.update_scene(self._data, self._view)
         if q_ref is not None:
             self._ghost.qpos[:] = vector("q_ref", q_ref, self.model.nq)
             mujoco.mj_kinematics(self.model, self._ghost)
@@ -104,7 +126,7 @@ class ArmRenderer:
         self._data.qpos[:] = vector("q", q, self.model.nq)
         mujoco.mj_kinematics(self.model, self._data)
         mujoco.mj_camlight(self.model, self._data)
-        self._renderer.update_scene(self._data, self.camera)
+        self._renderer.update_scene(self._data, self._view)
         self._renderer.enable_depth_rendering()
         try:
             return self._renderer.render()

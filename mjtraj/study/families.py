@@ -52,6 +52,8 @@ FRICTION = (0.0, 3.0)
 FLANGE_SITE = "attachment_site"
 FLANGE_RULE = (f"the payload sits at the site {FLANGE_SITE!r} if the arm has one, else at the centre of mass of the "
                f"last joint's body; the links whose mass and inertia are scaled are the bodies the joints move")
+PAYLOAD_BODY = "mjtraj_payload"
+"""The payload body's name in the perturbed plant (an arm may not have a body of that name)."""
 PERTURBATION_FIELDS = ("mass_scale", "inertia_scale", "damping", "friction")
 """The per-link or per-joint fields of a Perturbation, in column order."""
 
@@ -169,7 +171,10 @@ def perturbed_plant(model: mujoco.MjModel, path: str | None = None, torque_limit
     else:
         last = model.jnt_bodyid[model.njnt - 1]
         parent, position = spec.body(model.body(last).name), model.body_ipos[last]
-    body = parent.add_body(name="payload", pos=position, gravcomp=0.0)
+    if any(b.name == PAYLOAD_BODY for b in spec.bodies):
+        raise ModelError(f"model {path}: a body is named {PAYLOAD_BODY!r}, the name mjtraj gives the mismatch "
+                         f"family's payload; rename it")
+    body = parent.add_body(name=PAYLOAD_BODY, pos=position, gravcomp=0.0)
     body.explicitinertial = True
     body.mass = 1.0
     body.inertia = [0.4 * PAYLOAD_RADIUS**2] * 3
@@ -183,7 +188,7 @@ def perturbed_plant(model: mujoco.MjModel, path: str | None = None, torque_limit
 def plant_fields(plant: mujoco.MjModel, perturbations: list[Perturbation]) -> dict[str, NDArray[np.float64]]:
     """Per-simulation model fields of `plant` (from `perturbed_plant`) for `perturbations`, one per simulation."""
     links = plant.jnt_bodyid.tolist()
-    payload = plant.body("payload").id
+    payload = plant.body(PAYLOAD_BODY).id
     S = len(perturbations)
     mass = np.tile(plant.body_mass, (S, 1))
     inertia = np.tile(plant.body_inertia, (S, 1, 1))

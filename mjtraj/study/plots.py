@@ -155,10 +155,13 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
 
 
 def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
-                    points: dict[str, tuple[float, float]] | None = None) -> Path:
+                    points: dict[str, tuple[float, float]] | None = None) -> Path | None:
     """Corrective effort (RMS dtau) against tracking error (RMS error), log-log: the optimal planner's curve over
     alpha for each split, labelled by alpha, every other planner as a point, and `points` (label -> (RMS dtau N m,
-    RMS error rad)) as stars. Written atomically."""
+    RMS error rad)) as stars. Written atomically; None (nothing written) when no execution succeeded."""
+    drawable = [(r.metrics["rms_dtau"], r.metrics["rms_err"]) for r in result.rows] + list((points or {}).values())
+    if not any(np.isfinite(x) and np.isfinite(y) and x > 0 and y > 0 for x, y in drawable):
+        return None
     import matplotlib
 
     matplotlib.use("Agg")

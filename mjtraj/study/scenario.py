@@ -275,7 +275,8 @@ MOVE = 0.5
 """rad: in the default task of a user's arm, every joint moves this far from the home pose (see ARM_TASK_RULE)."""
 ARM_TASK_RULE = (
     "start at the model's keyframe 'home' (else its qpos0), clipped into the joint ranges; every joint moves 0.5 rad, "
-    "upward unless that leaves its range by less than 0.05 rad of margin, then downward; T = 2 s at dt = 0.02 s. "
+    "upward unless that leaves less than 0.05 rad to its range's end, then downward; a joint whose range has not "
+    "0.5 rad of room on either side moves to 0.05 rad short of the end with more room; T = 2 s at dt = 0.02 s. "
     "Gains by the PID gain rule along that move, the optimal planner's weights and the score by Bryson's rule on the "
     "task, the other planners at their defaults. Integrator steps per period: the fewest that keep every joint's "
     "passive damping rate (damping over the least inertia the joint presents along the move) times the step at or "
@@ -284,26 +285,33 @@ ARM_TASK_RULE = (
 
 
 def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any = None, duration: float = 2.0,
-                       dt: float = 0.02, torque_limit: float | None = None) -> Scenario:
+                       dt: float = 0.02, torque_limit: float | None = None, workspace: bool = False) -> Scenario:
     """The study's scenario for the MJCF arm at `path` (prepared by `mjtraj.core.arm.ARM_RULES`): the move `q0` ->
     `qg` (rad, shape (n,)), or ARM_TASK_RULE's for what is not given; `torque_limit` (N m) is every joint's
-    corrective saturation (None: from the model).
+    corrective saturation (None: from the model). With `workspace` (drawn tasks: sweeps, tune, the env's random
+    tasks) the gains and the integrator steps follow `mjtraj.core.gains.WORKSPACE_RULE`.
 
     Raises:
       ModelError: the model cannot be prepared (names the element). InvalidInputError: a bad task.
     """
     from mjtraj.core.arm import home_pose, prepare_arm
-    from mjtraj.core.gains import free_inertia, gain_rule
+    from mjtraj.core.gains import free_inertia, free_inertia_at, gain_rule, workspace_poses
 
     model = prepare_arm(path, dt=dt, torque_limit=torque_limit)
     start = home_pose(model) if q0 is None else np.asarray(q0, dtype=np.float64)
     if qg is None:
-        upper = np.where(model.jnt_limited.astype(bool), model.jnt_range[:, 1], np.inf)
-        qg = start + np.where(start + MOVE <= upper - 0.05, MOVE, -MOVE)
+        limited = model.jnt_limited.astype(bool)
+        room_up = np.where(limited, model.jnt_range[:, 1] - start - 0.05, np.inf)
+        room_down = np.where(limited, start - model.jnt_range[:, 0] - 0.05, np.inf)
+        step = np.where(room_up >= MOVE, MOVE, np.where(room_down >= MOVE, -MOVE,
+                        np.where(room_up >= room_down, np.maximum(room_up, 0.0), -np.maximum(room_down, 0.0))))
+        qg = start + step
     task = Task.create(start, qg, duration, dt, model=model)
     name = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(path).stem) or "arm"
-    lightest, _ = free_inertia(model, task.q0, task.qg)
+    lightest, _ = (free_inertia_at(model, workspace_poses(model, task.q0, task.qg)) if workspace
+                   else free_inertia(model, task.q0, task.qg))
     rate = float(np.max(model.dof_damping / lightest)) * dt
-    loop = LoopConfig(gain_rule(model, task.q0, task.qg, dt), substeps=max(1, int(np.ceil(rate - 1e-12))))
+    loop = LoopConfig(gain_rule(model, task.q0, task.qg, dt, workspace=workspace),
+                      substeps=max(1, int(np.ceil(rate - 1e-12))))
     return Scenario(name=name, task=task, loop=loop, scoring=Scoring(), model_path=str(path),
                     model_torque_limit=None if torque_limit is None else float(torque_limit))

@@ -35,7 +35,7 @@ from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
 from mjtraj.exceptions import InvalidInputError, MjtrajError
 from mjtraj.study.families import FAMILIES, FamilyScenario, draw_scenario, measurement_noise, perturbed_plant
-from mjtraj.study.pipeline import Actor, Job, Outcome, execute, one_line, plan_failure
+from mjtraj.study.pipeline import Actor, Job, Outcome, execute, goal_checked, one_line, plan_failure
 from mjtraj.study.rows import Row
 from mjtraj.study.scenario import Scenario, load_scenario, scenario_for_model
 from mjtraj.study.store import VERSION_COLUMNS
@@ -116,7 +116,7 @@ class SweepSettings:
                 raise InvalidInputError("model, config: give one (a scenario file names its arm with model = "
                                         "\"PATH\")")
         object.__setattr__(self, "base", load_scenario(self.config) if self.model is None else
-                           scenario_for_model(self.model, torque_limit=self.torque_limit))
+                           scenario_for_model(self.model, torque_limit=self.torque_limit, workspace=True))
         self.loop_config(self.ff_accel[0], self.gravity_comp[0], mismatch=True)  # validates delay
 
     def units(self) -> list[tuple[str, int]]:
@@ -336,6 +336,8 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
                     else:
                         result, extra, solver = outcomes[(b, name, ff, gc)], extras.get((b, name), {}), \
                             str(plan.info.get("solver", ""))
+                    if family == "nominal":
+                        result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
                     rows.append(Row(family=family, scenario=s.index, unit=u, planner=name, ff_accel=ff,
                                     gravity_comp=gc, outcome=result, extras=extra, solver=solver, task=s.task,
                                     perturbation=s.perturbation, settings=fixed).columns())
@@ -354,6 +356,8 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
             plan = refs[b]
             result = done[b] if b in done else plan_failure(plan) if isinstance(plan, MjtrajError) else \
                 Outcome("error", "not executed")
+            if family == "nominal":
+                result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
             rows.append(Row(family=family, scenario=s.index, unit=u, planner=spec.label, ff_accel=ff,
                             gravity_comp=gc, outcome=result, task=s.task, perturbation=s.perturbation,
                             settings=fixed, more=spec.columns).columns())

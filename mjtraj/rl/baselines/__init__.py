@@ -7,12 +7,20 @@ TRAINING.md beside this file gives the command that trained each.
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
+import shutil
+import zipfile
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from mjtraj.exceptions import InvalidInputError
+from mjtraj.files import atomic_path, write_text_atomic
+
+OPTIMIZER_MEMBERS = ("actor.optimizer.pth", "critic.optimizer.pth", "ent_coef_optimizer.pth", "policy.optimizer.pth")
+"""Members of an SB3 zip that hold optimiser states: needed to continue training, never to act."""
 
 
 def baselines_folder() -> Path:
@@ -43,3 +51,54 @@ def describe(name: str) -> dict[str, Any]:
     run = record["run"]
     return {"name": name, "algo": run["settings"]["algo"], "seed": run["settings"]["seed"],
             "timesteps": record["timesteps"], "env": run["env"], "settings": run["settings"]}
+
+
+def strip_optimizers(source: Path, target: Path) -> None:
+    """Copy the SB3 zip `source` to `target` with every optimiser's state emptied (its parameter groups kept, so
+    that SB3 still loads it): about half the size, the same actions bit for bit (acting reads only the policy)."""
+    import torch
+
+    with zipfile.ZipFile(source) as zin, atomic_path(target) as tmp, \
+            zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            data = zin.read(info)
+            if info.filename in OPTIMIZER_MEMBERS:
+                state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=False)
+                buffer = io.BytesIO()
+                torch.save({"state": {}, "param_groups": state["param_groups"]}, buffer)
+                data = buffer.getvalue()
+            zout.writestr(info.filename, data)
+
+
+def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | None = None) -> Path:
+    """Ship policy `which` (best: selected on validation; policy: the final one) of the training run folder `run`
+    as baseline `name`: its zip without optimiser states, its record (zip_sha256 updated, the original's kept as
+    source_zip_sha256), run.json and learning_curve.csv, into `into` (default: this package's folder).
+
+    Raises:
+      InvalidInputError: no such run or policy, or a name that is not a plain folder name.
+    """
+    from mjtraj.rl.policy import load_policy, record_path
+
+    run = Path(run)
+    source = run / f"{which}.zip"
+    if not source.is_file() or not (run / "run.json").is_file():
+        raise InvalidInputError(f"run: {source} or {run / 'run.json'} not found; expected a folder of rl train")
+    if not name or not all(c.isalnum() or c in "_-" for c in name):
+        raise InvalidInputError(f"name: expected letters, digits, _ and -, got {name!r}")
+    folder = Path(into) if into is not None else baselines_folder()
+    target = folder / name
+    target.mkdir(parents=True, exist_ok=True)
+    strip_optimizers(source, target / "policy.zip")
+    body = json.loads(record_path(source).read_text())
+    sha = hashlib.sha256((target / "policy.zip").read_bytes()).hexdigest()
+    body.update(source_zip_sha256=body["zip_sha256"], zip_sha256=sha, shipped_from=f"{run.name}/{which}.zip")
+    write_text_atomic(target / "policy.json", json.dumps(body, indent=1) + "\n")
+    shutil.copyfile(run / "run.json", target / "run.json")
+    original, shipped = load_policy(source), load_policy(target / "policy.zip")
+    import numpy as np
+
+    probe = np.random.default_rng(0).normal(size=(64, original.normalization.mean.size)) * 2.0
+    if not np.array_equal(original.act(probe), shipped.act(probe)):
+        raise InvalidInputError(f"ship: the stripped zip of {source} acts differently; not shipped")
+    return target / "policy.zip"

@@ -1,0 +1,178 @@
+"""Arms users bring: no silent wrong numbers (gains that fit every drawn task, missed goals visible), and no refusal
+of a reasonable file (default classes, geared motors, sensors and keyframes of the replaced actuators, a body
+named like ours, a narrow joint range, an explicit task in the env). The arm files are written here."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import mujoco
+import numpy as np
+import pytest
+from mjtraj.envs import UR5TrackEnv
+
+from mjtraj.core.arm import prepare_arm
+from mjtraj.core.gains import free_inertia, free_inertia_at, workspace_poses
+from mjtraj.exceptions import ModelError
+from mjtraj.study import Outcome, SweepSettings, perturbed_plant, run_unit
+from mjtraj.study.pipeline import GOAL_TOLERANCE, goal_checked
+from mjtraj.study.scenario import scenario_for_model
+
+LIGHT = """<mujoco model="light">
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="base" pos="0 0 0.1">
+      <joint name="pan" axis="0 0 1" range="-3 3" actuatorfrcrange="-5 5"/>
+      <geom type="cylinder" size="0.03 0.02" mass="0.1"/>
+      <body name="upper" pos="0 0 0.03">
+        <joint name="lift" axis="0 1 0" range="-1.5 1.5" actuatorfrcrange="-5 5"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.01" mass="0.1"/>
+        <body name="fore" pos="0 0 0.3">
+          <joint name="elbow" axis="0 1 0" range="-2.8 2.8" actuatorfrcrange="-5 5"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.01" mass="0.1"/>
+          <site name="attachment_site" pos="0 0 0.3"/>
+          <geom type="sphere" pos="0 0 0.3" size="0.02" mass="0.2"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <keyframe><key name="home" qpos="0 1.4 0"/></keyframe>
+</mujoco>
+"""
+"""A light arm whose home pose (stretched out) is its heaviest for the pan joint: gains sized on the home move
+are about 85 times too stiff for the folded poses random tasks reach."""
+
+GEARED = """<mujoco model="geared">
+  <compiler angle="radian"/>
+  <default>
+    <motor gear="50" ctrlrange="-1 1"/>
+    <joint damping="0.1"/>
+  </default>
+  <worldbody>
+    <body name="l1" pos="0 0 0.1">
+      <joint name="j1" axis="0 0 1" range="-3 3" actuatorfrcrange="-20 20"/>
+      <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.03" mass="1"/>
+      <body name="l2" pos="0.4 0 0">
+        <joint name="j2" axis="0 1 0" range="-2 2"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="0.5"/>
+        <body name="payload" pos="0.3 0 0"><geom type="sphere" size="0.02" mass="0.05"/></body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor name="m1" joint="j1"/>
+    <motor name="m2" joint="j2"/>
+  </actuator>
+  <sensor><actuatorfrc name="f1" actuator="m1"/><jointpos name="p2" joint="j2"/></sensor>
+  <keyframe><key name="home" qpos="0 0.3" ctrl="0.5 -0.5"/></keyframe>
+</mujoco>
+"""
+"""A default class that gears every motor by 50, a keyframe with ctrl, an actuator sensor, and a body named
+payload: what Menagerie-style files have."""
+
+
+@pytest.fixture
+def arms(tmp_path):
+    out = {}
+    for name, text in (("light", LIGHT), ("geared", GEARED)):
+        out[name] = tmp_path / f"{name}.xml"
+        out[name].write_text(text)
+    return out
+
+
+def test_drawn_tasks_get_gains_for_the_whole_workspace_and_track_every_nominal_task(arms):
+    """Oracle: with the home move's gains the cubic's nominal rows miss their goals (now visible as missed_goal);
+    with the workspace rule every one ends within 2 % of its move (terminal and RMS error)."""
+    home = scenario_for_model(arms["light"])
+    drawn = scenario_for_model(arms["light"], workspace=True)
+    lightest_move, _ = free_inertia(home.model, home.task.q0, home.task.qg)
+    lightest_all, _ = free_inertia_at(home.model, workspace_poses(home.model, home.task.q0, home.task.qg))
+    assert lightest_move[0] > 50 * lightest_all[0]  # the pan joint: the stretched home move is far the heaviest
+    np.testing.assert_allclose(drawn.loop.gains.kp, home.loop.gains.kp * lightest_all / lightest_move)
+    settings = SweepSettings(families=("nominal",), scenarios=30, seed=0, model=str(arms["light"]),
+                             planners=("cubic",))
+    assert np.array_equal(settings.base.loop.gains.kp, drawn.loop.gains.kp)
+    rows = run_unit(settings, ("nominal", 0)).rows
+    assert Counter(r["status"] for r in rows) == {"ok": 30}
+    for r in rows:
+        assert float(r["terminal_err"]) < 0.02 * float(r["max_displacement"])
+        assert float(r["rms_err"]) < 0.02 * float(r["max_displacement"])
+    import mjtraj.study.sweep as sweep_module
+
+    original = sweep_module.scenario_for_model
+    try:  # the old rule, for the record: the same tasks with the home move's gains
+        sweep_module.scenario_for_model = lambda path, torque_limit=None, workspace=True: original(path)
+        old = run_unit(SweepSettings(families=("nominal",), scenarios=30, seed=0, model=str(arms["light"]),
+                                     planners=("cubic",)), ("nominal", 0)).rows
+    finally:
+        sweep_module.scenario_for_model = original
+    assert sum(r["status"] == "missed_goal" for r in old) >= 5
+    assert all(r["status"] != "ok" or float(r["terminal_err"]) <= GOAL_TOLERANCE * float(r["max_displacement"])
+               for r in old)
+
+
+def test_the_env_sizes_gains_for_drawn_tasks_and_takes_an_explicit_task(arms):
+    drawn = UR5TrackEnv(xml_file=arms["light"], task="random")
+    assert np.array_equal(drawn.settings.loop.gains.kp, scenario_for_model(arms["light"], workspace=True).loop.gains.kp)
+    explicit = UR5TrackEnv(xml_file=arms["light"], task="explicit", q0=[0.0, 0.2, 0.3], qg=[0.4, 0.5, 0.9])
+    obs, info = explicit.reset(seed=0)
+    np.testing.assert_array_equal(info["task"]["qg"], [0.4, 0.5, 0.9])
+
+
+def test_a_missed_goal_is_a_status_with_its_reason():
+    ok = Outcome("ok", "", {"terminal_err": 0.3})
+    assert goal_checked(ok, 2.0) is ok
+    missed = goal_checked(ok, 1.0)
+    assert missed.status == "missed_goal" and missed.metrics == ok.metrics
+    assert missed.reason == "terminal error 0.3 rad > 0.2 x the move (1 rad) on the nominal plant"
+    failed = Outcome("diverged", "x")
+    assert goal_checked(failed, 1.0) is failed
+
+
+def test_motors_ignore_the_files_default_class_and_geared_limits_count(arms):
+    model = prepare_arm(arms["geared"], dt=0.02)
+    np.testing.assert_array_equal(model.actuator_gear[:, 0], [1.0, 1.0])
+    # j1: gear 50 x ctrl 1 = 50 N m, within the joint's own 20 N m; j2: 50 N m
+    np.testing.assert_array_equal(model.actuator_ctrlrange, [[-20.0, 20.0], [-50.0, 50.0]])
+    assert [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SENSOR, i) for i in range(model.nsensor)] == ["p2"]
+    np.testing.assert_array_equal(model.key_ctrl, [[0.0, 0.0]])
+
+
+def test_an_arm_with_a_body_named_payload_runs_the_mismatch_family(arms, tmp_path):
+    settings = SweepSettings(families=("mismatch",), scenarios=3, seed=1, model=str(arms["geared"]),
+                             planners=("cubic",))
+    rows = run_unit(settings, ("mismatch", 0)).rows
+    assert [r["status"] for r in rows] == ["ok"] * 3
+    clash = tmp_path / "clash.xml"
+    clash.write_text(GEARED.replace('name="payload"', 'name="mjtraj_payload"'))
+    with pytest.raises(ModelError, match=r"a body is named 'mjtraj_payload', the name mjtraj gives the mismatch "
+                                         r"family's payload; rename it$"):
+        perturbed_plant(prepare_arm(clash), str(clash))
+
+
+def test_the_default_goal_stays_inside_a_narrow_range(tmp_path):
+    narrow = tmp_path / "narrow.xml"
+    narrow.write_text(GEARED.replace('range="-2 2"', 'range="-0.2 0.4"'))
+    task = scenario_for_model(narrow).task
+    assert -0.2 <= task.qg[1] <= 0.4 and task.qg[1] != task.q0[1]
+    assert task.qg[0] - task.q0[0] == 0.5
+
+
+def test_frontier_draws_no_figure_when_nothing_succeeded(tmp_path):
+    from mjtraj.study import load_scenario
+    from mjtraj.study.frontier import frontier
+    from mjtraj.study.plots import frontier_figure
+
+    result = frontier(load_scenario(), alphas=(1.0,), splits=(0.5,))
+    for row in result.rows:
+        row.metrics.update({k: float("nan") for k in row.metrics})
+    assert frontier_figure(result, tmp_path / "f.png") is None and not (tmp_path / "f.png").exists()
+
+
+def test_an_arm_without_cameras_renders_through_the_free_camera(arms):
+    env = UR5TrackEnv(xml_file=arms["light"], task="random", render_mode="rgb_array", width=64, height=48)
+    assert env.settings.camera == "free"
+    env.reset(seed=1)
+    frame = env.render()
+    assert frame.shape == (48, 64, 3) and frame.std() > 5  # an arm was drawn, not a blank image
+    env.close()
