@@ -62,12 +62,12 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     ## Description
     Registered as UR5Track-v0 (the defaults below) and as the benchmark UR5Track-v1 with its variants
     UR5TrackAggressive-v1 and UR5TrackMismatch-v1 (see Version History). The plant is MuJoCo's model of a UR5
-    reduced to shoulder_pan, shoulder_lift and elbow (`assets/ur5_3dof.xml`, RK4, gravity compensated). Each
-    episode a planner (cubic, quintic, trapezoidal, optimal or your own) plans a point-to-point move q0 -> qg of
-    `duration` seconds; every step is one control period dt, in which the corrective torque dtau = clip(tau_ff + tau_fb [+ residual], -60, 60) N m is applied on top of G(q): tau_ff
-    from inverse dynamics of the reference, tau_fb from a PID on the tracking error. This is `mjtraj compare`'s
-    closed loop (`mjtraj.ClosedLoop`), not a copy of it: in `pid` mode with the `paper` task the episode's
-    metrics equal `mjtraj compare`'s for the same planner.
+    reduced to shoulder_pan, shoulder_lift and elbow (`assets/ur5_3dof.xml`, RK4, gravity compensated). Each episode
+    a planner (cubic, quintic, trapezoidal, optimal or your own) plans a point-to-point move q0 -> qg of `duration`
+    seconds; every step is one control period dt, in which the corrective torque dtau = clip(tau_ff + tau_fb [+
+    residual], -60, 60) N m is applied on top of G(q): tau_ff from inverse dynamics of the reference, tau_fb from a
+    PID on the tracking error. This is `mjtraj compare`'s closed loop (`mjtraj.ClosedLoop`), not a copy of it: in
+    `pid` mode with the `paper` task the episode's metrics equal `mjtraj compare`'s for the same planner.
 
     ## Action Space
     `Box(-1, 1, (3,), float32)`, scaled to N m (`residual_scale` s in residual mode, default 6 N m; the 60 N m
