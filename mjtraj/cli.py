@@ -99,8 +99,11 @@ def _loop_flags(parser: argparse.ArgumentParser) -> None:
 
 
 def _parser() -> argparse.ArgumentParser:
+    from mjtraj.versions import __version__
+
     parser = _Parser(prog="mjtraj", description="How the trajectory planner changes closed-loop execution.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser.add_argument("--version", action="version", version=f"mjtraj {__version__}")
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
 
     c = sub.add_parser("compare", help="the paper's Table I: every planner through one closed loop")
     c.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
@@ -165,7 +168,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--scenarios", type=int, default=10_000, help="sweep: nominal scenarios (default 10000)")
     b.add_argument("--workers", type=int, help="sweep: worker processes (default: all cores)")
 
-    w = sub.add_parser("sweep", help="every planner on many seeded scenarios; rows appended to a CSV file")
+    w = sub.add_parser("sweep", help="every planner on many seeded scenarios; rows committed unit by unit to a "
+                       "SQLite store (resumable)")
     w.add_argument("--family", dest="families", type=_names, default=["nominal"],
                    help="nominal, aggressive and/or mismatch, comma-separated (default nominal)")
     w.add_argument("--scenarios", type=int, default=1000, help="scenarios per family (default 1000)")
@@ -725,7 +729,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(name, "1")
     words = _join_negative_values(sys.argv[1:] if argv is None else argv)
-    args = _parser().parse_args(words)
+    parser = _parser()
+    args = parser.parse_args(words)
+    if args.command is None:  # a bare `mjtraj`: what it can do
+        parser.print_help()
+        return 0
     args.argv = words
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:

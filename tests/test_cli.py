@@ -154,3 +154,14 @@ def test_compare_keeps_its_time_series(tmp_path, scenario):
     np.testing.assert_array_equal(series["dtau"], expected.rollout.dtau)
     np.testing.assert_array_equal(series["q_ref"][1], expected.references["optimal"].q)
     assert series["e"].shape == (2, 100, 3) and series["t"].shape == (101,)
+
+
+def test_version_and_a_bare_command_print_what_a_user_needs(capsys):
+    from mjtraj import __version__
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0 and capsys.readouterr().out == f"mjtraj {__version__}\n"
+    assert main([]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: mjtraj") and "compare" in out and "rl" in out

@@ -171,7 +171,7 @@ def profile_figure(scores: dict[str, dict[str, NDArray[np.float64]]], path: Any,
 
     taus = np.linspace(-1.0, 1.0, 41)
     families = list(scores)
-    fig, axes = plt.subplots(1, len(families), figsize=(5.0 * len(families), 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, len(families), figsize=(4.6 * len(families), 3.8), squeeze=False)
     methods = list(dict.fromkeys(m for family in families for m in scores[family]))
     cmap = plt.get_cmap("tab10" if len(methods) <= 10 else "tab20")
     colors = {m: cmap(i % cmap.N) for i, m in enumerate(methods)}
@@ -179,9 +179,10 @@ def profile_figure(scores: dict[str, dict[str, NDArray[np.float64]]], path: Any,
         with seeded_global_rng(seed):
             profiles, bands = rly.create_performance_profile(scores[family], taus, reps=reps)
         plot_utils.plot_performance_profiles(profiles, taus, performance_profile_cis=bands, colors=colors,
-                                             xlabel=f"improvement over {reference}, tau = 1 - J / J_ref",
-                                             ylabel="fraction of episodes with improvement > tau", ax=ax)
-        ax.set_title(f"{family} scenarios", fontsize="medium")
+                                             xlabel=r"$\tau$ (improvement $d = 1 - J / J_{ref}$)",
+                                             ylabel=r"share of episodes with $d > \tau$", ax=ax,
+                                             labelsize="medium", ticklabelsize="small")
+        ax.set_title(f"{family} scenarios, against {reference}", fontsize="medium")
     handles = [plt.Line2D([], [], color=colors[m], lw=2, label=m) for m in methods]
     fig.legend(handles=handles, loc="lower center", ncol=2, fontsize="small", frameon=False)
     fig.tight_layout(rect=(0, 0.06 * (1 + len(methods) // 2), 1, 1))
