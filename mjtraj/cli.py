@@ -700,7 +700,7 @@ def _rl(args: argparse.Namespace) -> int:
         choice("which", args.which, ("best", "policy"))
         print(f"wrote {ship(args.run, args.name, which=args.which, into=args.into)}")
         return 0
-    from mjtraj.rl.evaluate import evaluate
+    from mjtraj.rl.evaluate import REFERENCE, evaluate
 
     command = "mjtraj " + " ".join(shlex.quote(a) for a in args.argv)
     policies = list(args.policies)
@@ -714,6 +714,8 @@ def _rl(args: argparse.Namespace) -> int:
                           settings=_overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
                           progress=not args.no_progress)
     print(evaluation.table)
+    print(f"\nIn short (J / {REFERENCE}, then P(improve)):\n")
+    print(evaluation.compact)
     print(f"\nwrote {evaluation.csv}, {evaluation.summary_json}, {evaluation.markdown} and {evaluation.figure}")
     return 0
 

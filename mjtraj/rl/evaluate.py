@@ -84,6 +84,8 @@ class EvalReport:
     table: str
     summaries: dict[str, dict[str, MethodSummary]]
     """family -> method -> its summary."""
+    compact: str = ""
+    """The short table: ratio of means and probability of improvement per family."""
 
 
 def law_label(law: str) -> str:
@@ -268,6 +270,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
     summaries, scores = summarise_rows(rows, groups, families, reps=reps)
     figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps)
     table = summary_table(summaries, families)
+    compact = compact_table(summaries, families)
     payload = payload_table(rows, groups) if "mismatch" in families else ""
     record = {"format": "mjtraj-benchmark-summary/1", "reference": REFERENCE, "failure_rule": FAILURE_RULE,
               "families": list(families), "scenarios": scenarios, "seed": seed, "reps": reps,
@@ -279,8 +282,8 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
     json_path = out / "summary.json"
     write_text_atomic(json_path, json.dumps(record, indent=1) + "\n")
     md_path = out / "SUMMARY.md"
-    write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded))
-    return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries)
+    write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded, compact))
+    return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact)
 
 
 def _torch_threads() -> int:
@@ -345,6 +348,22 @@ def summary_table(summaries: Mapping[str, Mapping[str, MethodSummary]], families
     return "\n".join(lines)
 
 
+def compact_table(summaries: Mapping[str, Mapping[str, MethodSummary]], families: Sequence[str]) -> str:
+    """Markdown: one row per method, per family its ratio of mean J_exec to the reference's (failures by
+    FAILURE_RULE, so a method that failed anywhere reads inf) and its probability of improvement."""
+    methods = list(dict.fromkeys(m for family in families for m in summaries[family]))
+    lines = ["| method | " + " | ".join(f"{f}: J / {REFERENCE}, P(improve)" for f in families) + " |",
+             "|---|" + "---|" * len(families)]
+    for m in methods:
+        cells = []
+        for f in families:
+            s = summaries[f].get(m)
+            cells.append("-" if s is None else "1, -" if m == REFERENCE else
+                         f"{s.ratio_of_means.value:.3g}, {s.probability_of_improvement.value:.2f}")
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 PAYLOAD_BINS = 5
 """Equal-width bins of the mismatch family's payload range (PAYLOAD_MASS) in the by-payload table."""
 
@@ -374,7 +393,7 @@ def payload_table(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[
 
 
 def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: Sequence[str],
-                     policies: Sequence[ScoredPolicy]) -> str:
+                     policies: Sequence[ScoredPolicy], compact: str = "") -> str:
     """SUMMARY.md: how to regenerate it, the protocol in brief, the table, the by-payload table, the policies."""
     families = ", ".join(record["families"])
     lines = ["# Benchmark summary", ""]
@@ -389,6 +408,8 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
               f"rliable). Failures: {record['failure_rule']}. Methods: planner+PID (feedforward + PID), "
               f"planner+CT (computed torque on the nominal model), {TUNED_LABEL}, and each policy configuration "
               "(its seeds pooled; `seeds` counts them).", "", table, ""]
+    if compact:
+        lines += ["In short (J / reference, then P(improve)):", "", compact, ""]
     if payload:
         lines += ["By payload on the mismatch family (J / reference, seeds pooled; scenarios per bin in brackets):",
                   "", payload, ""]
