@@ -183,3 +183,13 @@ def test_depth_frames_see_the_arm_at_its_distance():
     assert rgb.render().shape == (72, 96, 3)
     env.close()
     rgb.close()
+
+
+def test_a_script_that_renders_and_never_closes_exits_quietly():
+    script = ("from mjtraj.envs import UR5TrackEnv\n"
+              "env = UR5TrackEnv(render_mode='rgb_array', width=32, height=24)\n"
+              "env.reset(seed=0)\n"
+              "print(env.render().shape)\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout == "(24, 32, 3)\n"
+    assert done.stderr == ""

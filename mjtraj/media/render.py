@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import atexit
 import copy
+import weakref
 from types import TracebackType
 
 import mujoco
@@ -26,6 +28,17 @@ reflection included, for publication frames."""
 FAST_SLICES, FAST_STACKS = 16, 8
 """Facets of round geoms in fast frames (MuJoCo's defaults: 28 and 16)."""
 _FAST_OFF = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION)
+
+
+_LIVE: weakref.WeakSet[ArmRenderer] = weakref.WeakSet()
+"""Renderers not closed yet: closed at interpreter exit, while ctypes and OpenGL can still free their contexts
+(left to garbage collection at shutdown, OSMesa's free fails with a ctypes traceback)."""
+
+
+@atexit.register
+def _close_live() -> None:
+    for renderer in list(_LIVE):
+        renderer.close()
 
 
 def cameras(model: mujoco.MjModel) -> tuple[str, ...]:
@@ -102,6 +115,7 @@ class ArmRenderer:
         if self.quality == "fast":
             for flag in _FAST_OFF:
                 self._renderer.scene.flags[flag] = False
+        _LIVE.add(self)
 
     def frame(self, q: npt.ArrayLike, q_ref: npt.ArrayLike | None = None) -> NDArray[np.uint8]:
         """The image, shape (height, width, 3) uint8, of the arm at q (rad) and the ghost at q_ref (if given)."""
