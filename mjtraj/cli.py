@@ -44,6 +44,26 @@ def _counts(text: str) -> list[int]:
 NEGATIVE = re.compile(r"-\.?\d")
 
 
+class _Progress:
+    """A tqdm bar on stderr driven by progress(done, total) callbacks; off with --no-progress or when stderr is
+    not a terminal."""
+
+    def __init__(self, desc: str, unit: str, enabled: bool) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(desc=desc, unit=unit, file=sys.stderr, leave=False, disable=None if enabled else True)
+
+    def __call__(self, done: int, total: int) -> None:
+        self.bar.total = total
+        self.bar.update(done - self.bar.n)
+
+    def __enter__(self) -> _Progress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.bar.close()
+
+
 def _overrides(file: Path | None, pairs: list[str], what: str = "hyperparameter") -> dict[str, Any]:
     """rl train's hyperparameter overrides (or rl eval's policy env settings, `what`): the JSON object in `file`,
     then each NAME=VALUE of `pairs` (VALUE as JSON, else a string)."""
@@ -137,6 +157,7 @@ def _parser() -> argparse.ArgumentParser:
     f.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
     f.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     f.add_argument("--no-figures", action="store_true", help="skip the frontier figure")
+    f.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     u = sub.add_parser("tune", help="tune every planner's free parameters with an equal, held-out budget; writes a "
                        "scenario file with the tuned options and the tuning record")
@@ -156,6 +177,7 @@ def _parser() -> argparse.ArgumentParser:
     u.add_argument("--gains", action="store_true", help="tune the PID gains instead (factors on kp, ki, kd, "
                    "log-uniform in [1/4, 4]; cubic references; --planners and --on-task do not apply); the file is "
                    "rl eval's --tuned-gains baseline")
+    u.add_argument("--no-progress", action="store_true", help="no progress bar")
     u.add_argument("--out", type=Path, default=Path("tuned.toml"), help="the tuned scenario file (default "
                    "tuned.toml)")
 
@@ -398,10 +420,11 @@ def _frontier(args: argparse.Namespace) -> int:
             raise InvalidInputError(f"{flag}: only used with --family (without it the frontier is on the scenario's "
                                     f"task)")
     scenario = _base_scenario(args, workspace=args.family is not None)  # drawn tasks: gains over the workspace
-    result = frontier(scenario, alphas=args.alphas if args.alphas is not None else DEFAULT_ALPHAS,
-                      splits=args.splits if args.splits is not None else DEFAULT_SPLITS, family=args.family,
-                      scenarios=100 if args.scenarios is None else args.scenarios,
-                      seed=0 if args.seed is None else args.seed)
+    with _Progress("mjtraj frontier", "planner", not args.no_progress) as progress:
+        result = frontier(scenario, alphas=args.alphas if args.alphas is not None else DEFAULT_ALPHAS,
+                          splits=args.splits if args.splits is not None else DEFAULT_SPLITS, family=args.family,
+                          scenarios=100 if args.scenarios is None else args.scenarios,
+                          seed=0 if args.seed is None else args.seed, progress=progress)
     name = "frontier" if args.family is None else f"frontier_{args.family}"
     record = _json_safe({"setting": result.setting, "rows": [row.as_dict() for row in result.rows]})
     write_text_atomic(args.out / f"{name}.json", json.dumps(record, indent=2) + "\n")
@@ -428,8 +451,9 @@ def _tune(args: argparse.Namespace) -> int:
     if args.gains:
         from mjtraj.study.tuning import tune_gains
 
-        tuned, gains = tune_gains(base, family=args.family, scenarios=args.scenarios, seed=args.seed,
-                                  budget=args.budget)
+        with _Progress("mjtraj tune --gains", "point", not args.no_progress) as progress:
+            tuned, gains = tune_gains(base, family=args.family, scenarios=args.scenarios, seed=args.seed,
+                                      budget=args.budget, progress=progress)
         write_text_atomic(args.out, dumps(tuned.as_dict(), header=(
             f"Written by `mjtraj tune --gains` from {args.config or 'the shipped paper.toml'}: the PID gains below "
             "were tuned by the rules recorded in [tuning]. Score them with `mjtraj rl eval --tuned-gains`.")))
@@ -439,8 +463,9 @@ def _tune(args: argparse.Namespace) -> int:
               f"({len(gains.trials)} evaluations)")
         print(f"wrote {args.out}")
         return 0
-    tuned, results = tune(base, planners=args.planners, family=args.family, scenarios=args.scenarios,
-                          seed=args.seed, budget=args.budget, on_task=args.on_task)
+    with _Progress("mjtraj tune", "point", not args.no_progress) as progress:
+        tuned, results = tune(base, planners=args.planners, family=args.family, scenarios=args.scenarios,
+                              seed=args.seed, budget=args.budget, on_task=args.on_task, progress=progress)
     import textwrap
 
     use = ("ORACLE: tuned on the scenario's own task, to show what that task allows; never a held-out result."

@@ -203,3 +203,22 @@ def test_tuned_gains_are_the_best_of_their_trials():
     with pytest.raises(InvalidInputError, match=r"^gains: the scenario's control law is 'computed_torque'"):
         tune_gains(load_scenario("paper_computed_torque"))
 
+
+
+@pytest.mark.slow
+def test_a_shipped_baseline_rescores_to_the_summarys_rows_bit_for_bit(tmp_path):
+    """Anyone re-scoring a shipped baseline gets the benchmark's own rows (docs/results/benchmark/eval.csv)."""
+    from pathlib import Path
+
+    from mjtraj.rl.baselines import baseline_names
+
+    shipped = read_rows(Path(__file__).resolve().parent.parent / "docs" / "results" / "benchmark" / "eval.csv")
+    name = baseline_names()[0]
+    mine = [r for r in shipped if r["policy"] == f"baseline:{name}" and r["family"] == "mismatch"]
+    assert len(mine) == 200
+    report = evaluate([f"baseline:{name}"], families=("mismatch",), scenarios=200, seed=1, reps=10,
+                      out=tmp_path)
+    again = [r for r in read_rows(report.csv) if r["policy"] == f"baseline:{name}"]
+    assert [r["cost"] for r in again] == [r["cost"] for r in mine]
+    reference = [r["cost"] for r in read_rows(report.csv) if r["method"] == "cubic+PID"]
+    assert reference == [r["cost"] for r in shipped if r["method"] == "cubic+PID" and r["family"] == "mismatch"]

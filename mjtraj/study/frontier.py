@@ -8,7 +8,7 @@ scenarios it holds medians over the scenarios, with 95 % bootstrap intervals of 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -89,8 +89,9 @@ def optimal_at(scenario: Scenario, alpha: float, split: float) -> Planner:
 
 def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
              splits: Sequence[float] = DEFAULT_SPLITS, family: str | None = None, scenarios: int = 0,
-             seed: int = 0) -> Frontier:
-    """The weight frontier on the scenario's task (family None) or on `scenarios` scenarios of `family`.
+             seed: int = 0, progress: Callable[[int, int], None] | None = None) -> Frontier:
+    """The weight frontier on the scenario's task (family None) or on `scenarios` scenarios of `family`;
+    `progress(done, total)` is called as planning and execution advance.
 
     The score is the scenario's on its own task, and Bryson's rule per task over a family (as sweeps score them);
     the controller is the scenario's throughout.
@@ -115,7 +116,11 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
         ("optimal", a, s, optimal_at(scenario, a, s)) for s in splits for a in alphas]
     others = tuple(name for name in default_planners() if name != "optimal")
     planners += [(name, None, None, scenario.planner(name)) for name in others]
-    plans = [plan_all(p, tasks, model) for *_, p in planners]
+    plans = []
+    for *_, p in planners:
+        plans.append(plan_all(p, tasks, model))
+        if progress is not None:
+            progress(len(plans), len(planners) + 1)
     plant = (perturbed_plant(model, scenario.model_path, scenario.model_torque_limit) if family == "mismatch"
              else None)
     jobs, where = [], []
@@ -128,6 +133,8 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
                                       for ref in refs] for refs in plans]
     for (i, b), result in zip(where, execute(model, scenario.loop, jobs, plant=plant, total_torque=True), strict=True):
         outcomes[i][b] = result
+    if progress is not None:
+        progress(len(planners) + 1, len(planners) + 1)
     cubic = outcomes[len(planners) - len(others) + others.index(REFERENCE)]
     rows = [_row(name, a, s, mine, cubic) for (name, a, s, _), mine in zip(planners, outcomes, strict=True)]
     setting = {"task": "scenario" if family is None else family, "scenarios": len(draws), "seed": seed,

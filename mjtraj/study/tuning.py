@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,9 +129,10 @@ def objective(scenario: Scenario, planner: Planner, draws: Sequence[FamilyScenar
 
 def tune(scenario: Scenario, *, planners: Sequence[str] = ("optimal", "trapezoidal", "scurve"),
          family: str = "nominal",
-         scenarios: int = 50, seed: int = 0, budget: int = 32, on_task: bool = False
-         ) -> tuple[Scenario, list[PlannerTuning]]:
-    """Tune `planners` (see the module rules); the scenario with the tuned options and its tuning record.
+         scenarios: int = 50, seed: int = 0, budget: int = 32, on_task: bool = False,
+         progress: Callable[[int, int], None] | None = None) -> tuple[Scenario, list[PlannerTuning]]:
+    """Tune `planners` (see the module rules); the scenario with the tuned options and its tuning record;
+    `progress(done, total)` is called after every evaluated point.
 
     Raises:
       InvalidInputError: an unknown planner or family, a budget or scenario count below 1.
@@ -152,11 +153,16 @@ def tune(scenario: Scenario, *, planners: Sequence[str] = ("optimal", "trapezoid
         scoring, where = Scoring(), family
     results = []
     options = {k: dict(v) for k, v in scenario.planner_options.items()}
+    grids = {name: points(PARAMETERS.get(name, {}), budget, seed) for name in planners}
+    total, done = sum(len(g) for g in grids.values()), 0
     for name in planners:
         trials = []
-        for point in points(PARAMETERS.get(name, {}), budget, seed):
+        for point in grids[name]:
             value, failed = objective(scenario, planner_with(scenario, name, point), draws, scoring, where)
             trials.append(Trial(point, value, failed))
+            done += 1
+            if progress is not None:
+                progress(done, total)
         tuning = PlannerTuning(name, trials)
         results.append(tuning)
         if PARAMETERS.get(name):
@@ -182,7 +188,8 @@ def tune(scenario: Scenario, *, planners: Sequence[str] = ("optimal", "trapezoid
 
 
 def tune_gains(scenario: Scenario, *, family: str = "mismatch", scenarios: int = 50, seed: int = 0,
-               budget: int = 32) -> tuple[Scenario, PlannerTuning]:
+               budget: int = 32, progress: Callable[[int, int], None] | None = None
+               ) -> tuple[Scenario, PlannerTuning]:
     """Tune the PID gains of `scenario` by the module's rules, with the cubic planner's references: GAIN_PARAMETERS
     (factors on kp, ki, kd) on a Sobol sequence of `budget` points, each scored by the mean J_exec over the
     training scenarios of `family`; the scenario with the best gains and its record.
@@ -208,6 +215,8 @@ def tune_gains(scenario: Scenario, *, family: str = "mismatch", scenarios: int =
                                     kd=g.kd * point["kd_scale"])
         value, failed = objective(scenario.replace(loop={"gains": gains}), cubic, draws, Scoring(), family)
         trials.append(Trial(point, value, failed))
+        if progress is not None:
+            progress(len(trials), budget)
     tuning = PlannerTuning("pid_gains", trials)
     best = tuning.best.parameters
     gains = dataclasses.replace(g, kp=g.kp * best["kp_scale"], ki=g.ki * best["ki_scale"], kd=g.kd * best["kd_scale"])
