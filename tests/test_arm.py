@@ -196,17 +196,23 @@ def test_a_stiffly_damped_arm_gets_the_substeps_that_keep_rk4_stable(tmp_path):
     assert ClosedLoop(single.model, single.loop).run([reference]).diverged_step[0] >= 0
 
 
-def test_what_the_env_cannot_do_for_a_user_arm_is_refused(tmp_path):
+def test_a_continuous_joint_is_drawn_within_plus_minus_pi(tmp_path):
+    """Oracle: the env's random task of an arm without a joint range is the draw by hand, [-pi, pi] there."""
     import gymnasium as gym
-
-    from mjtraj.exceptions import InvalidInputError
 
     free = tmp_path / "free.xml"
     free.write_text(PLANAR.read_text().replace(' range="-2.5 2.5"', ""))
     env = gym.make("ArmTrack-v0", xml_file=str(free), task="random")
-    with pytest.raises(InvalidInputError, match=r"^task: random tasks are drawn in the joint ranges; joint 'joint2' "
-                                                r"has none$"):
-        env.reset(seed=0)
+    _, info = env.reset(seed=0)
+    model = env.unwrapped.settings.model
+    rng = np.random.default_rng(0)
+    limited = model.jnt_limited.astype(bool)
+    lower = np.where(limited, model.jnt_range[:, 0], -np.pi)
+    upper = np.where(limited, model.jnt_range[:, 1], np.pi)
+    q0 = rng.uniform(lower, upper)
+    np.testing.assert_array_equal(info["task"]["q0"], q0)
+    assert not limited.all()
+    env.close()
 
 
 def test_a_sweep_and_its_audit_on_a_user_arm(tmp_path, capsys):

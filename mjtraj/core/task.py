@@ -90,16 +90,19 @@ class Task:
                     f"[{float(joints.lower[j])!r}, {float(joints.upper[j])!r}]")
 
 
+UNLIMITED_RANGE = np.pi
+"""rad: random tasks draw a joint without a range (a continuous joint) in [-UNLIMITED_RANGE, UNLIMITED_RANGE]."""
+
+
 def random_task(rng: np.random.Generator, model: mujoco.MjModel, *, max_displacement: float, duration: float,
                 dt: float) -> Task:
     """A start uniform in the joint ranges and a goal uniform in the ranges within +-max_displacement (rad) of
-    it, per joint: two draws of n uniforms from `rng`."""
+    it, per joint: two draws of n uniforms from `rng`. A joint without a range (continuous) is drawn in
+    [-pi, pi] (UNLIMITED_RANGE)."""
     joints = JointInfo.of(model)
-    unlimited = [name for name, lo, hi in zip(joints.names, joints.lower, joints.upper, strict=True)
-                 if not (np.isfinite(lo) and np.isfinite(hi))]
-    if unlimited:
-        raise InvalidInputError(f"task: random tasks are drawn in the joint ranges; joint {unlimited[0]!r} has none")
-    q0 = rng.uniform(joints.lower, joints.upper)
-    low = np.maximum(joints.lower, q0 - max_displacement)
-    high = np.minimum(joints.upper, q0 + max_displacement)
+    lower = np.where(np.isfinite(joints.lower), joints.lower, -UNLIMITED_RANGE)
+    upper = np.where(np.isfinite(joints.upper), joints.upper, UNLIMITED_RANGE)
+    q0 = rng.uniform(lower, upper)
+    low = np.maximum(lower, q0 - max_displacement)
+    high = np.minimum(upper, q0 + max_displacement)
     return Task.create(q0, rng.uniform(low, high), duration, dt)
