@@ -176,3 +176,16 @@ def test_an_arm_without_cameras_renders_through_the_free_camera(arms):
     frame = env.render()
     assert frame.shape == (48, 64, 3) and frame.std() > 5  # an arm was drawn, not a blank image
     env.close()
+
+
+def test_unnamed_joints_and_bodies_are_named_in_the_copy_and_run_every_family(tmp_path):
+    unnamed = tmp_path / "unnamed.xml"
+    unnamed.write_text(LIGHT.replace(' name="base"', "").replace(' name="upper"', "").replace(' name="fore"', "")
+                       .replace(' name="lift"', "").replace(' name="elbow"', ""))
+    text = unnamed.read_text()
+    model = prepare_arm(unnamed)
+    assert [model.joint(j).name for j in range(model.njnt)] == ["pan", "joint1", "joint2"]
+    assert unnamed.read_text() == text  # named in mjtraj's copy only
+    for family in ("nominal", "mismatch"):
+        settings = SweepSettings(families=(family,), scenarios=2, seed=0, model=str(unnamed), planners=("cubic",))
+        assert [r["status"] for r in run_unit(settings, (family, 0)).rows] == ["ok", "ok"]

@@ -17,7 +17,8 @@ from mjtraj.checks import positive
 from mjtraj.exceptions import ModelError
 
 ARM_RULES = (
-    "every joint must be a hinge, with no tendons or equality constraints; each hinge keeps its passive properties "
+    "every joint must be a hinge, with no tendons or equality constraints (an unnamed hinge is named jointK in "
+    "mjtraj's copy); each hinge keeps its passive properties "
     "(damping, armature, friction loss) and range. The model's actuators are replaced by one torque motor per hinge "
     "(gear 1, set explicitly whatever the file's default class says) whose control range is the corrective "
     "saturation: the torque_limit given (--torque-limit), for every joint; else the torque an existing motor on "
@@ -113,9 +114,12 @@ def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_li
     except ValueError as e:
         raise ModelError(f"cannot load model {file}: {' '.join(str(e).split())}") from e
     joints = _hinges(spec, file)
-    for joint in joints:
-        if not joint.name:
-            raise ModelError(f"model {file}: every hinge needs a name (a motor is attached by name)")
+    taken = {joint.name for joint in joints}
+    for j, joint in enumerate(joints):
+        if not joint.name:  # a motor is attached by name: name it in this copy (the file is not edited)
+            joint.name = next(name for k in range(j, j + len(joints) + 1)
+                              if (name := f"joint{k}") not in taken)
+            taken.add(joint.name)
     limits = [_saturation(spec, joint, torque_limit, file) for joint in joints]
     replaced = {a.name for a in spec.actuators if a.name}
     for actuator in list(spec.actuators):

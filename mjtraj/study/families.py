@@ -160,11 +160,12 @@ def perturbed_plant(model: mujoco.MjModel, path: str | None = None, torque_limit
         spec = mujoco.MjSpec.from_file(str(default_model_path()))
     else:
         spec = arm_spec(path, torque_limit=torque_limit)
-    bodies = [joint.parent.name for joint in spec.joints]
+    bodies = model.jnt_bodyid.tolist()
     if len(set(bodies)) != len(bodies):
         shared = next(b for b in bodies if bodies.count(b) > 1)
-        raise ModelError(f"model {path}: body {shared!r} is moved by two joints; the mismatch family scales one "
-                         f"link per joint")
+        name = model.body(shared).name or f"number {shared} (unnamed)"
+        raise ModelError(f"model {path}: body {name} is moved by two joints; the mismatch family scales one link "
+                         f"per joint, so it runs only on arms with one hinge per body (the other families run)")
     site = next((s for s in spec.sites if s.name == FLANGE_SITE), None)
     if site is not None:
         parent, position = site.parent, site.pos
