@@ -189,3 +189,20 @@ def test_unnamed_joints_and_bodies_are_named_in_the_copy_and_run_every_family(tm
     for family in ("nominal", "mismatch"):
         settings = SweepSettings(families=(family,), scenarios=2, seed=0, model=str(unnamed), planners=("cubic",))
         assert [r["status"] for r in run_unit(settings, (family, 0)).rows] == ["ok", "ok"]
+
+
+def test_dry_friction_is_left_out_of_linearisations_and_every_planner_plans(arms, tmp_path):
+    """Oracle: the friction arm linearises exactly as the same arm without friction loss; compare then runs every
+    planner (the optimal one had been refused: friction read as a 10^6 N m s/rad damper at rest)."""
+    from mjtraj.core.linearize import linearize
+    from mjtraj.study import compare
+
+    rough = tmp_path / "rough.xml"
+    rough.write_text(GEARED.replace('<joint damping="0.1"/>', '<joint damping="0.1" frictionloss="2"/>'))
+    with_friction, without = prepare_arm(rough, dt=0.02), prepare_arm(arms["geared"], dt=0.02)
+    assert with_friction.dof_frictionloss.tolist() == [2.0, 2.0]
+    for q in ([0.0, 0.3], [1.0, -0.5]):
+        for a, b in zip(linearize(with_friction, q), linearize(without, q), strict=True):
+            np.testing.assert_array_equal(a, b)
+    result = compare(scenario_for_model(rough))
+    assert all(np.isfinite(m.cost) for m in result.metrics.values()) and "optimal" in result.planners

@@ -187,6 +187,20 @@ class DynamicsProbe:
         return out
 
 
+def without_dry_friction(model: mujoco.MjModel) -> mujoco.MjModel:
+    """`model` itself, or if any joint has friction loss a copy without it (kept while the model lives): what
+    linearisations see. Dry friction has no derivative at rest; a finite difference across zero velocity reads
+    it as an enormous viscous term (a 2 N m friction loss as about 10^6 N m s/rad). Viscous damping stays."""
+    if not np.any(model.dof_frictionloss):
+        return model
+    cache = _per_model("smooth")
+    smooth = cache.get(model)
+    if smooth is None:
+        smooth = cache[model] = copy.copy(model)
+        smooth.dof_frictionloss[:] = 0.0
+    return smooth  # type: ignore[no-any-return]
+
+
 def serial_probe(model: mujoco.MjModel, size: int) -> DynamicsProbe:
     """This thread's serial probe of `model` for up to `size` states per call, kept while the model lives: one-off
     evaluations of a few states (a plan's linearisation) reuse it rather than make one each time (about 10 us)."""

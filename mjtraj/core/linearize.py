@@ -9,7 +9,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from mjtraj.checks import positive, vector
-from mjtraj.core.dynamics import DynamicsProbe, serial_probe
+from mjtraj.core.dynamics import DynamicsProbe, serial_probe, without_dry_friction
 from mjtraj.exceptions import InvalidInputError
 
 
@@ -32,7 +32,8 @@ def linearize_many(model: mujoco.MjModel, q: npt.ArrayLike, qd: npt.ArrayLike | 
     """Continuous-time A_c = df/dx, B_c = df/du of f(x, u) = [qd; qdd] at P operating points, by central differences.
 
     The plant torque is G(q) + u (the model's own gravity compensation), so qdd = D(q)^-1 (u - C(q, qd) qd),
-    the paper's eq. (3). All 2 (2n + n) perturbed states of all points are evaluated in one batched call.
+    the paper's eq. (3). All 2 (2n + n) perturbed states of all points are evaluated in one batched call. Dry
+    friction (friction loss) is left out (`without_dry_friction`); a given `probe` must be of such a model.
 
     Args:
       q: joint positions, shape (P, n), rad. qd: velocities, shape (P, n), rad/s (default 0).
@@ -52,6 +53,7 @@ def linearize_many(model: mujoco.MjModel, q: npt.ArrayLike, qd: npt.ArrayLike | 
     point = np.concatenate([q, qd, u], axis=1)
     perturbed = (point[:, None, :] + steps[None]).reshape(-1, 3 * n)          # (P * 6n, 3n)
     if probe is None:  # one-off: a few points are evaluated serially, cheaper than making a Batch
+        model = without_dry_friction(model)
         rows = perturbed.shape[0]
         probe = serial_probe(model, SERIAL_ROWS) if rows <= SERIAL_ROWS else DynamicsProbe(model, size=rows)
     qdd = probe.accelerations(perturbed[:, :n], perturbed[:, n:2 * n], perturbed[:, 2 * n:])

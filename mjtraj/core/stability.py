@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from mjtraj.checks import positive_int
 from mjtraj.core.controller import PIDGains
-from mjtraj.core.dynamics import DynamicsProbe
+from mjtraj.core.dynamics import DynamicsProbe, without_dry_friction
 from mjtraj.core.linearize import discretize_zoh, linearize_many
 from mjtraj.core.model import JointInfo
 from mjtraj.core.reference import Reference
@@ -67,7 +67,8 @@ def spectral_radii(model: mujoco.MjModel, gains: PIDGains, references: Sequence[
         qdd.append(ref.qdd[k])
         dts.append(np.full(k.size, ref.dt))
     Q, QD, QDD, dt = (np.concatenate(a) for a in (q, qd, qdd, dts))
-    probe = DynamicsProbe(model, size=6 * model.nv * Q.shape[0], nthread=nthread)  # one Batch for the three calls
+    probe = DynamicsProbe(without_dry_friction(model), size=6 * model.nv * Q.shape[0],  # one Batch, three calls
+                          nthread=nthread)
     ff = np.clip(probe.inverse(Q, QD, QDD), -limit, limit)
     zero = np.zeros_like(Q)
     out = {}
