@@ -281,6 +281,12 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             return self._renderer.depth(self._core.loop.positions[0])
         return self._renderer.frame(self._core.loop.positions[0], self._core.reference_pose(0))
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Everything but the renderer (an OpenGL context): a copy makes its own at its first render()."""
+        state = self.__dict__.copy()
+        state["_renderer"] = None
+        return state
+
     def close(self) -> None:
         renderer = getattr(self, "_renderer", None)  # absent if __init__ refused its arguments
         if renderer is not None:

@@ -176,6 +176,12 @@ class UR5TrackVectorEnv(VectorEnv):
         return tuple(self._renderers[0].frame(positions[i], self._core.reference_pose(i))
                      for i in range(self.num_envs))
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Everything but the renderers (OpenGL contexts): a copy makes its own at its first render()."""
+        state = self.__dict__.copy()
+        state["_renderers"] = []
+        return state
+
     def close_extras(self, **kwargs: Any) -> None:
         for renderer in getattr(self, "_renderers", ()):  # absent if __init__ refused its arguments
             renderer.close()

@@ -1,0 +1,116 @@
+"""Every arm of the suite (tests/arm_suite.py) through every command: compare with figures, render, sweep
+(nominal and mismatch), frontier, tune and ArmTrack-v0 (make, reset, step, render, pickle, check_env). Oracles: no
+NaN where a row is ok; on the nominal plant the cubic ends within 2 % of every nominal task's move (RMS error
+within 5 %), except on arms with dry friction, whose rows must then say missed_goal with the reason; the files that
+must be refused are refused in one line matching what is unsupported. `python -m pytest tests/test_arm_suite.py -m
+slow -s` prints the table of arms x commands."""
+
+from __future__ import annotations
+
+import pickle
+import re
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mjtraj.envs  # noqa: F401
+from mjtraj.cli import main
+from mjtraj.study.store import read_rows
+
+from arm_suite import write_suite
+
+COMMANDS = ("compare", "render", "sweep", "frontier", "tune", "env")
+RESULTS: dict[str, dict[str, str]] = {}
+
+
+@pytest.fixture(scope="module")
+def suite(tmp_path_factory):
+    return write_suite(tmp_path_factory.mktemp("arms"))
+
+
+def run(argv, capsys) -> tuple[int, str, str]:
+    code = main(argv)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def check_env(path) -> None:
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    env = gym.make("ArmTrack-v0", xml_file=str(path), task="random", action_mode="residual",
+                   render_mode="rgb_array", width=48, height=32)
+    obs, info = env.reset(seed=0)
+    assert np.isfinite(obs).all() and "task" in info
+    for _ in range(3):
+        obs, reward, *_ = env.step(env.action_space.sample() * 0.0)
+        assert np.isfinite(obs).all() and np.isfinite(reward)
+    frame = env.render()
+    assert frame.shape == (32, 48, 3)
+    clone = pickle.loads(pickle.dumps(env.unwrapped))
+    np.testing.assert_array_equal(clone.step(np.zeros(env.action_space.shape))[0],
+                                  env.unwrapped.step(np.zeros(env.action_space.shape))[0])
+    env.close()
+    clone.close()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sb3_check(gym.make("ArmTrack-v0", xml_file=str(path), task="random", action_mode="residual").unwrapped)
+
+
+@pytest.mark.slow
+def test_every_arm_through_every_command(suite, tmp_path, capsys):
+    for name, path, refusal in suite:
+        out = tmp_path / name
+        row = RESULTS.setdefault(name, {})
+        if refusal is not None:
+            code, _, err = run(["compare", "--model", str(path), "--no-figures", "--out", str(out)], capsys)
+            assert code == 2 and err.count("\n") == 1 and re.search(refusal, err), (name, err)
+            row.update({c: "refused" for c in COMMANDS})
+            continue
+        code, text, err = run(["compare", "--model", str(path), "--out", str(out)], capsys)
+        assert code == 0, (name, err)
+        assert len(list(out.glob("*.png"))) >= 4 and "nan" not in text.split("Table I")[1].split("\n\n")[0]
+        row["compare"] = "ok"
+        code, _, err = run(["render", "--model", str(path), "--planners", "cubic", "--width", "64", "--height",
+                            "48", "--every", "25", "--format", "gif", "--out", str(out / "videos")], capsys)
+        assert code == 0 and list((out / "videos").glob("*.gif")), (name, err)
+        row["render"] = "ok"
+        store = out / "sweep.csv"
+        code, _, err = run(["sweep", "--model", str(path), "--family", "nominal,mismatch", "--scenarios", "6",
+                            "--planners", "cubic,optimal", "--out", str(store), "--no-progress"], capsys)
+        assert code == 0, (name, err)
+        rows = read_rows(store)
+        friction = "friction" in name
+        for r in rows:
+            if r["status"] == "ok":
+                assert all(np.isfinite(float(r[m])) for m in ("cost", "rms_err", "rms_dtau")), (name, r)
+            else:
+                assert r["reason"], (name, r)
+            if r["family"] == "nominal" and r["planner"] == "cubic":
+                if friction:
+                    assert r["status"] in ("ok", "missed_goal"), (name, r["status"])
+                else:
+                    move = float(r["max_displacement"])
+                    assert r["status"] == "ok", (name, r["reason"])
+                    assert float(r["terminal_err"]) < 0.02 * move and float(r["rms_err"]) < 0.05 * move, name
+        row["sweep"] = "ok" if all(r["status"] == "ok" for r in rows) else \
+            ", ".join(sorted({r["status"] for r in rows}))
+        code, _, err = run(["frontier", "--model", str(path), "--alphas", "0,1", "--splits", "0.5", "--out",
+                            str(out / "frontier"), "--no-progress"], capsys)
+        assert code == 0 and (out / "frontier" / "frontier.png").exists(), (name, err)
+        row["frontier"] = "ok"
+        code, _, err = run(["tune", "--model", str(path), "--planners", "trapezoidal", "--scenarios", "3",
+                            "--budget", "2", "--out", str(out / "tuned.toml"), "--no-progress"], capsys)
+        assert code == 0, (name, err)
+        assert main(["compare", "--config", str(out / "tuned.toml"), "--no-figures", "--out", str(out / "t")]) == 0
+        capsys.readouterr()
+        row["tune"] = "ok"
+        check_env(path)
+        row["env"] = "ok"
+    with capsys.disabled():
+        print("\n| arm | " + " | ".join(COMMANDS) + " |\n|---|" + "---|" * len(COMMANDS))
+        for name, row in RESULTS.items():
+            print(f"| {name} | " + " | ".join(row.get(c, "-") for c in COMMANDS) + " |")
+        sane = sum(all(v != "refused" for v in r.values()) for r in RESULTS.values())
+        print(f"\n{sane} arms ran every command; {len(RESULTS) - sane} files refused in one line")
