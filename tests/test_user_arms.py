@@ -206,3 +206,25 @@ def test_dry_friction_is_left_out_of_linearisations_and_every_planner_plans(arms
             np.testing.assert_array_equal(a, b)
     result = compare(scenario_for_model(rough))
     assert all(np.isfinite(m.cost) for m in result.metrics.values()) and "optimal" in result.planners
+
+
+def test_shipped_arms_by_name_and_a_tuned_file_that_works_from_any_folder(tmp_path, capsys, monkeypatch):
+    from mjtraj.cli import main
+
+    env = UR5TrackEnv(xml_file="planar_2link", task="random")
+    assert env.settings.n == 2
+    env.close()
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "arms").mkdir()
+    (tmp_path / "arms" / "light.xml").write_text(LIGHT)
+    assert main(["compare", "--model", "ur5_6dof", "--no-figures", "--out", "out6"]) == 0
+    out = capsys.readouterr().out
+    assert "6 joints" in out and "Table I as published" not in out  # the paper's table is the UR5's, not any arm's
+    assert main(["tune", "--model", "arms/light.xml", "--planners", "trapezoidal", "--scenarios", "2", "--budget",
+                 "1", "--out", "tuned.toml", "--no-progress"]) == 0
+    capsys.readouterr()
+    monkeypatch.chdir(tmp_path / "arms")
+    assert main(["compare", "--config", str(tmp_path / "tuned.toml"), "--no-figures", "--out", "o"]) == 0
+    with pytest.raises(ModelError, match=r"model file not found: nope \(a shipped arm is named without a folder: "
+                                         r"planar_2link, ur5_3dof, ur5_6dof\)$"):
+        prepare_arm("nope")

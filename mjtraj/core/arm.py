@@ -99,6 +99,31 @@ def compile_arm(spec: mujoco.MjSpec, path: str | os.PathLike[str]) -> mujoco.MjM
         raise ModelError(f"cannot prepare model {Path(path)}: {' '.join(str(e).split())}") from e
 
 
+def shipped_arms() -> tuple[str, ...]:
+    """The arms shipped with mjtraj, usable by name wherever a model path is taken."""
+    from mjtraj.core.model import default_model_path
+
+    return tuple(sorted(p.stem for p in default_model_path().parent.glob("*.xml")))
+
+
+def arm_file(path: str | os.PathLike[str]) -> Path:
+    """The MJCF file `path` names: a file, or the name of a shipped arm (planar_2link, ur5_3dof, ur5_6dof).
+
+    Raises:
+      ModelError: neither (the message lists the shipped arms).
+    """
+    from mjtraj.core.model import default_model_path
+
+    file = Path(path)
+    if file.is_file():
+        return file
+    shipped = default_model_path().parent / f"{file.name}.xml"
+    if file.name == str(path) and shipped.is_file():
+        return shipped
+    raise ModelError(f"model file not found: {file} (a shipped arm is named without a folder: "
+                     f"{', '.join(shipped_arms())})")
+
+
 def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_limit: float | None = None
              ) -> mujoco.MjSpec:
     """The MjSpec of the arm at `path` prepared by ARM_RULES, not yet compiled (`prepare_arm` compiles it).
@@ -106,9 +131,7 @@ def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_li
     Raises:
       ModelError: as `prepare_arm`.
     """
-    file = Path(path)
-    if not file.is_file():
-        raise ModelError(f"model file not found: {file}")
+    file = arm_file(path)
     try:
         spec = mujoco.MjSpec.from_file(str(file))
     except ValueError as e:

@@ -93,8 +93,9 @@ def format_report(result: Comparison) -> str:
         info = result.references["optimal"].info
         lines.append(f"  optimal plan: {info['solver']} {info['status']}, {info['iterations']} iterations, "
                      f"terminal residual {info['terminal_residual']:.2e}, plan time {1e3 * info['plan_time']:.1f} ms")
-    lines += ["", "Table I as published (the paper, docs/paper.md; for reference only, never a target)",
-              _grid(paper_rows())]
+    if s.model_path is None:  # the paper's table describes the UR5, not a user's arm
+        lines += ["", "Table I as published (the paper, docs/paper.md; for reference only, never a target)",
+                  _grid(paper_rows())]
     return "\n".join(lines)
 
 

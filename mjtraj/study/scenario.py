@@ -313,5 +313,7 @@ def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any 
     rate = float(np.max(model.dof_damping / lightest)) * dt
     loop = LoopConfig(gain_rule(model, task.q0, task.qg, dt, workspace=workspace),
                       substeps=max(1, int(np.ceil(rate - 1e-12))))
-    return Scenario(name=name, task=task, loop=loop, scoring=Scoring(), model_path=str(path),
+    where = Path(path)  # a file by its absolute path (a scenario file written from it works from any folder); a
+    return Scenario(name=name, task=task, loop=loop, scoring=Scoring(),  # shipped arm by its name
+                    model_path=str(where.resolve()) if where.is_file() else str(path),
                     model_torque_limit=None if torque_limit is None else float(torque_limit))
