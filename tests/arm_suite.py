@@ -103,9 +103,8 @@ def write_suite(folder: Path) -> list[tuple[str, Path, str | None]]:
                                                                 ("0 1 0", "-2.8 2.8", 0.3, 0.3)],
                                        tail='<keyframe><key name="home" qpos="0 1.4 0"/></keyframe>'), None),
         "unnamed": (chain("unnamed", THREE).replace(' name="link1"', "").replace(' name="j2"', ""), None),
-        "rotated_base": (chain("rotated_base", THREE).replace('<body name="link0" pos="0 0 0.1">',
-                                                              '<body name="link0" pos="0.2 0.1 0.1" quat="0.92 0 0 0.38">'),
-                         None),
+        "rotated_base": (chain("rotated_base", THREE).replace(
+            '<body name="link0" pos="0 0 0.1">', '<body name="link0" pos="0.2 0.1 0.1" quat="0.92 0 0 0.38">'), None),
         "body_named_payload": (chain("body_named_payload", THREE).replace(
             '<site name="attachment_site"', '<body name="payload" pos="0 0 0.35"><geom type="sphere" size="0.03" '
             'mass="0.2"/></body><site name="attachment_site"'), None),

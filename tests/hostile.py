@@ -154,10 +154,17 @@ def cli_cases() -> list[Case]:
                          ("--plant-randomization", ["heavy"]), ("--planner", ["spline"]), ("--task", ["circle"]),
                          ("--hyperparameter", ["lr", "bogus=1", "learning_rate=x y"])):
         cases += _flag_cases("CLI names", rl, flag, values, [])
+    evaluate = ["rl", "eval", "--scenarios", "2", "--reps", "10", "--no-progress", "--out", "{tmp}/eval"]
+    for flag, values in (("--family", ["hard", ""]), ("--controllers", ["lqr"]), ("--planners", ["spline"]),
+                         ("--policy", ["nope.zip", "no_such_module:policy", "json:nothing", "baseline:nope"]),
+                         ("--policy-env", ["gain=2", "action_mode=flying"])):
+        cases += _flag_cases("CLI names", evaluate, flag, values, [])
+    cases += _flag_cases("CLI numbers", evaluate, "--reps", ["0", "x"], [])
     cases += [Case("CLI usage", " ".join(a), cli(a)) for a in (
-        ["bogus"], [], ["compare", "--bogus"], ["compare", "extra"], ["compare", "--dt"], ["sweep", "--out"],
-        ["audit"], ["export", "{tmp}/x.csv"], ["rl"], ["rl", "eval"], ["compare", "--config", "paper", "--model",
-                                                                        "x.xml"],
+        ["bogus"], ["--bogus"], ["compare", "--bogus"], ["compare", "extra"], ["compare", "--dt"],
+        ["sweep", "--out"],
+        ["audit"], ["export", "{tmp}/x.csv"], ["rl"], ["rl", "eval", "--policy"],
+        ["compare", "--config", "paper", "--model", "x.xml"],
         ["compare", "--torque-limit", "5"])]
     cases += [Case("CLI output paths", f"compare --out {p}", cli(["compare", "--planners", "cubic", "--out", p]))
               for p in ("{tmp}/file.txt/sub", "/proc/version", "/proc/mjtraj", "{tmp}/file.txt")]

@@ -12,14 +12,13 @@ import re
 import warnings
 
 import gymnasium as gym
+import mjtraj.envs  # noqa: F401
 import numpy as np
 import pytest
+from arm_suite import write_suite
 
-import mjtraj.envs  # noqa: F401
 from mjtraj.cli import main
 from mjtraj.study.store import read_rows
-
-from arm_suite import write_suite
 
 COMMANDS = ("compare", "render", "sweep", "frontier", "tune", "env")
 RESULTS: dict[str, dict[str, str]] = {}

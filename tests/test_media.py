@@ -193,3 +193,23 @@ def test_a_script_that_renders_and_never_closes_exits_quietly():
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stdout == "(24, 32, 3)\n"
     assert done.stderr == ""
+
+
+@pytest.mark.slow
+def test_gymnasiums_record_video_records_an_episode(tmp_path):
+    """RecordVideo works after the documented install (the video extra: moviepy)."""
+    from gymnasium.wrappers import RecordVideo
+
+    import mjtraj.envs  # noqa: F401
+
+    env = RecordVideo(gym.make("UR5Track-v1", render_mode="rgb_array", width=96, height=72),
+                      video_folder=str(tmp_path), episode_trigger=lambda episode: True, disable_logger=True)
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(np.zeros(3))
+        done = terminated or truncated
+    env.close()
+    (video,) = tmp_path.glob("*.mp4")
+    frames = iio.imread(video)
+    assert frames.shape[0] >= 100 and frames.shape[1:3] == (72, 96)
