@@ -112,6 +112,13 @@ def _env_of(declared: Any, settings: Mapping[str, Any] | None) -> dict[str, Any]
     return out
 
 
+def check_settings(settings: Mapping[str, Any] | None) -> None:
+    """InvalidInputError unless `settings` are env settings (ENV_KEYS) with valid values, whether or not a policy
+    ends up using them."""
+    if settings:
+        resolve(**_env_of(None, settings))
+
+
 def _source_sha(obj: Any) -> str:
     try:
         file = inspect.getsourcefile(obj if inspect.isfunction(obj) or inspect.isclass(obj) else type(obj))

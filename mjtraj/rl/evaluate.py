@@ -26,7 +26,7 @@ from mjtraj.checks import choice, positive_int
 from mjtraj.core import LoopConfig
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
-from mjtraj.rl.adapters import ScoredPolicy, load_any
+from mjtraj.rl.adapters import ScoredPolicy, check_settings, load_any
 from mjtraj.rl.episodes import PolicyActor
 from mjtraj.rl.extra import require_sb3, rl_versions
 from mjtraj.rl.protocol_stats import FAILURE_RULE, MethodSummary, improvement, profile_figure, summarize
@@ -219,6 +219,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
     positive_int("scenarios", scenarios)
     positive_int("reps", reps)
     check_seed("seed", seed)
+    check_settings(settings)
     planner_list = list(dict.fromkeys(["cubic", *planners]))
     laws = list(dict.fromkeys(["pid", *controllers]))
     loaded = [load_any(p, settings=settings) for p in policies]
