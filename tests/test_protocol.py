@@ -119,7 +119,7 @@ def test_the_cli_scores_a_users_file_beside_the_classical_methods(tmp_path, caps
                  "--tuned-gains", str(tuned), "--reps", "20", "--out", str(out), "--no-progress"])
     assert code == 0, capsys.readouterr().err
     text = capsys.readouterr().out
-    for method in ("cubic+PID", "cubic+CT", "cubic+PID (tuned gains)", f"{tmp_path / 'mine.py'}:policy"):
+    for method in ("cubic+PID", "cubic+CT", "cubic+PID (tuned gains)", "mine.py:policy"):
         assert f"| {method} | 1 |" in text
     rows = read_rows(out / "eval.csv")
     assert {json.loads(r["policy_env"])["residual_scale"] for r in rows if r["policy"]} == {2}

@@ -237,4 +237,7 @@ def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> Score
         return from_zip_policy(load_policy(baseline_path(name)), source=text)
     if text.endswith(".zip") or ":" not in text or Path(text).exists():
         return from_zip_policy(load_policy(text), source=text)
-    return from_object(import_attribute(text), source=text, settings=settings)
+    module, _, attr = text.rpartition(":")
+    short = f"{Path(module).name if module.endswith('.py') else module}:{attr}"  # a file by its name, not its folder
+    obj = import_attribute(text)
+    return from_object(obj, label=None if getattr(obj, "name", None) else short, source=text, settings=settings)
