@@ -55,7 +55,8 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
     ro = result.rollout
     t = np.arange(ro.e.shape[1]) * ro.dt
     n = ro.e.shape[2]
-    joints = ("shoulder_pan", "shoulder_lift", "elbow")[:n] if n <= 3 else tuple(f"joint {i}" for i in range(n))
+    model = result.scenario.model
+    joints = tuple(model.joint(j).name or f"joint {j}" for j in range(n))  # the model's own joint names
     colors = {name: f"C{i}" for i, name in enumerate(names)}
     variant = _variant(result)
     written = []
@@ -67,7 +68,8 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
         written.append(out / filename)
 
     def per_joint(filename: str, series: dict[str, np.ndarray], ylabel: str, times: np.ndarray, *,
-                  steps: bool = False, limit: float | None = None) -> None:
+                  steps: bool = False, limit: np.ndarray | None = None) -> None:
+        """One panel per joint; `limit` (n,) draws each joint's own saturation dashed."""
         zoom = _dwarfed(series)
         biggest = max(series, key=lambda k: float(np.nanmax(np.abs(series[k]))))
         fig, grid = plt.subplots(n, 2 if zoom else 1, figsize=(11 if zoom else 7, 2.1 * n), sharex=True,
@@ -84,12 +86,12 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
                         ax.plot(times, series[name][:, j], label=name, color=colors[name], lw=1.4)
                 if limit is not None and c == 0:
                     for sign in (-1, 1):
-                        ax.axhline(sign * limit, color="k", ls="--", lw=0.8)
+                        ax.axhline(sign * limit[j], color="k", ls="--", lw=0.8)
                 ax.grid(alpha=0.3)
-                if c == 0:
-                    ax.set_ylabel(f"{joints[j]}\n{ylabel}")
+                ax.set_ylabel(f"{joints[j]}\n{ylabel}" if c == 0 else ylabel)
                 if j == 0:
-                    ax.set_title("all planners" + (f" (dashed: saturation ±{limit:g})" if limit else "") if c == 0
+                    ax.set_title("all planners" + (" (dashed: each joint's saturation)" if limit is not None else "")
+                                 if c == 0
                                  else f"zoom: without {biggest}", fontsize=9)
         grid[0, 0].legend(ncol=len(names), fontsize=7, loc="upper right")
         for c in range(grid.shape[1]):
@@ -102,7 +104,7 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
     per_joint("fig2_planned_acceleration.png", {k: result.references[k].qdd for k in names}, "qdd [rad/s²]", ref_t,
               steps=True)
     per_joint("fig3_tracking_error.png", {k: ro.e[i] for i, k in enumerate(names)}, "e [rad]", t)
-    limit = float(np.max(result.scenario.torque_limit))
+    limit = np.asarray(result.scenario.torque_limit, dtype=np.float64)
     per_joint("fig4_corrective_torque.png", {k: ro.dtau[i] for i, k in enumerate(names)}, "Δτ [N m]", t, steps=True,
               limit=limit)
 
