@@ -198,9 +198,8 @@ def test_a_script_that_renders_and_never_closes_exits_quietly():
 @pytest.mark.slow
 def test_gymnasiums_record_video_records_an_episode(tmp_path):
     """RecordVideo works after the documented install (the video extra: moviepy)."""
-    from gymnasium.wrappers import RecordVideo
-
     import mjtraj.envs  # noqa: F401
+    from gymnasium.wrappers import RecordVideo
 
     env = RecordVideo(gym.make("UR5Track-v1", render_mode="rgb_array", width=96, height=72),
                       video_folder=str(tmp_path), episode_trigger=lambda episode: True, disable_logger=True)

@@ -228,3 +228,22 @@ def test_shipped_arms_by_name_and_a_tuned_file_that_works_from_any_folder(tmp_pa
     with pytest.raises(ModelError, match=r"model file not found: nope \(a shipped arm is named without a folder: "
                                          r"planar_2link, ur5_3dof, ur5_6dof\)$"):
         prepare_arm("nope")
+
+
+def test_the_mismatch_ranges_scale_with_the_arm_and_not_for_the_ur5(arms):
+    """Oracle: the scales by hand (total body mass over the shipped UR5's, saturation over 60 N m); every light-arm
+    draw within its scaled ranges; the UR5's draws are those of the unscaled rule, bit for bit."""
+    from mjtraj.study import arm_scales, draw_perturbation, draw_scenario, load_scenario
+
+    ur5 = load_scenario().model
+    light = scenario_for_model(arms["light"], workspace=True).model
+    mass, torque = arm_scales(light)
+    assert mass == pytest.approx(np.sum(light.body_mass[1:]) / np.sum(ur5.body_mass[1:]), rel=1e-15)
+    np.testing.assert_allclose(torque, light.actuator_ctrlrange[:, 1] / 60.0, rtol=1e-15)
+    for i in range(20):
+        p = draw_scenario("mismatch", 0, i, light, 0.02).perturbation
+        assert 0 <= p.payload <= 5 * mass and np.all(p.friction <= 3 * torque) and np.all(p.damping <= torque)
+    for seed in range(5):
+        a = draw_perturbation(np.random.default_rng(seed), 3, arm_scales(ur5))
+        b = draw_perturbation(np.random.default_rng(seed), 3)
+        assert a.as_dict() == b.as_dict()

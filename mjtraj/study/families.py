@@ -13,14 +13,15 @@ Rules (stated once, used by every sweep):
   the nominal mass (body_gravcomp = 1/scale); joint viscous damping U(0, 1) N m s/rad and Coulomb friction
   U(0, 3) N m (2 % of the UR5's rated 150 N m) per joint. The links are the bodies the joints move, one per
   joint; the flange is the site `attachment_site` (the UR5's, and MuJoCo Menagerie's name for a tool flange),
-  or on an arm without one the centre of mass of the last joint's body. The same absolute ranges apply to any
-  arm (FLANGE_RULE).
+  or on an arm without one the centre of mass of the last joint's body (FLANGE_RULE). On another arm the payload,
+  damping and friction ranges scale with it (ARM_SCALE_RULE).
   Optional (sweep settings): measurement noise of std sigma on q and sqrt(2) sigma / dt on qd (the noise of a
   finite-difference velocity), and a one-period actuation delay.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import mujoco
@@ -109,16 +110,46 @@ def draw_family(rng: np.random.Generator, family: str, model: mujoco.MjModel, dt
     if family == "aggressive":
         duration = round(rng.uniform(*AGGRESSIVE_DURATION) / dt) * dt
     task = random_task(rng, model, max_displacement=MAX_DISPLACEMENT, duration=duration, dt=dt)
-    perturbation = draw_perturbation(rng, model.nv) if family == "mismatch" else None
+    perturbation = draw_perturbation(rng, model.nv, arm_scales(model)) if family == "mismatch" else None
     return task, perturbation
 
 
-def draw_perturbation(rng: np.random.Generator, n: int) -> Perturbation:
+UR5_TORQUE = 60.0
+"""N m: the UR5's corrective saturation, the torque the damping and friction ranges are stated for."""
+ARM_SCALE_RULE = ("on another arm the ranges scale with it: the payload's by the arm's total body mass over the "
+                  "shipped UR5's, each joint's damping and friction by its corrective saturation over the UR5's 60 N "
+                  "m (the UR5's own scales are exactly 1)")
+
+
+def arm_scales(model: mujoco.MjModel) -> tuple[float, NDArray[np.float64]]:
+    """ARM_SCALE_RULE's factors of `model` (a prepared arm): the payload's, and each joint's damping and friction
+    factor, shape (n,)."""
+    from mjtraj.core.model import JointInfo
+
+    shipped = _shipped_mass()
+    mass = float(np.sum(model.body_mass[1:]))
+    limits = JointInfo.of(model).torque_limit
+    return (1.0 if mass == shipped else mass / shipped), np.where(limits == UR5_TORQUE, 1.0, limits / UR5_TORQUE)
+
+
+@functools.cache
+def _shipped_mass() -> float:
+    """kg: the shipped UR5 model's total body mass."""
+    from mjtraj.core.model import load_model
+
+    return float(np.sum(load_model().body_mass[1:]))
+
+
+def draw_perturbation(rng: np.random.Generator, n: int,
+                      scales: tuple[float, NDArray[np.float64]] | None = None) -> Perturbation:
     """A mismatch plant by the module's rules, drawn from `rng` in a fixed order: the payload, then n link mass
-    scales, n inertia scales, n dampings and n frictions."""
-    return Perturbation(payload=float(rng.uniform(*PAYLOAD_MASS)), mass_scale=rng.uniform(*LINK_SCALE, n),
-                        inertia_scale=rng.uniform(*LINK_SCALE, n), damping=rng.uniform(*DAMPING, n),
-                        friction=rng.uniform(*FRICTION, n))
+    scales, n inertia scales, n dampings and n frictions; `scales` (`arm_scales`) stretch the payload's, the
+    dampings' and the frictions' ranges (None: the UR5's)."""
+    payload_scale, torque_scale = (1.0, np.ones(n)) if scales is None else scales
+    return Perturbation(payload=float(rng.uniform(PAYLOAD_MASS[0], PAYLOAD_MASS[1] * payload_scale)),
+                        mass_scale=rng.uniform(*LINK_SCALE, n), inertia_scale=rng.uniform(*LINK_SCALE, n),
+                        damping=rng.uniform(DAMPING[0], DAMPING[1] * torque_scale, n),
+                        friction=rng.uniform(FRICTION[0], FRICTION[1] * torque_scale, n))
 
 
 def no_perturbation(n: int) -> Perturbation:
