@@ -247,3 +247,15 @@ def test_the_mismatch_ranges_scale_with_the_arm_and_not_for_the_ur5(arms):
         a = draw_perturbation(np.random.default_rng(seed), 3, arm_scales(ur5))
         b = draw_perturbation(np.random.default_rng(seed), 3)
         assert a.as_dict() == b.as_dict()
+
+
+def test_one_planners_failure_does_not_stop_the_others(capsys, tmp_path):
+    from mjtraj.cli import main
+    from mjtraj.study import compare, load_scenario
+
+    result = compare(load_scenario().replace(task={"duration": 0.1}), ["optimal", "cubic", "scurve"])
+    assert result.planners == ("cubic",) and set(result.failed) == {"optimal", "scurve"}
+    assert result.failed["optimal"].startswith("InfeasibleError: optimal: x_N = 0 cannot be reached")
+    assert main(["compare", "--duration", "0.1", "--planners", "optimal,scurve", "--no-figures", "--out",
+                 str(tmp_path)]) == 2  # none could plan: the first reason, in one line
+    assert capsys.readouterr().err.startswith("mjtraj: error: optimal: x_N = 0 cannot be reached")

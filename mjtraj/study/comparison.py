@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from mjtraj.core.gains import GAIN_RULE
@@ -12,9 +12,9 @@ from mjtraj.core.planners import check_name, default_names
 from mjtraj.core.reference import Reference
 from mjtraj.core.rollout import Rollout
 from mjtraj.core.stability import spectral_radii
-from mjtraj.exceptions import InvalidInputError
+from mjtraj.exceptions import InfeasibleError, InvalidInputError, MjtrajError, SolverError
 from mjtraj.study.paper import PAPER_TABLE
-from mjtraj.study.pipeline import Job, execute_batch
+from mjtraj.study.pipeline import Job, execute_batch, one_line
 from mjtraj.study.scenario import Scenario
 from mjtraj.versions import versions
 
@@ -32,6 +32,8 @@ class Comparison:
     metrics: dict[str, Metrics]
     stability: dict[str, float]
     """Frozen-time spectral radii of the linearised closed loop: 'at_rest' and 'moving' (see mjtraj.core.stability)."""
+    failed: dict[str, str] = field(default_factory=dict)
+    """Planners that could not plan the task -> the one-line reason (they have no row)."""
 
     def reduction(self, planner: str, metric: str) -> float:
         """100 (M_planner - M_optimal) / M_planner in %; NaN without an optimal row."""
@@ -58,9 +60,12 @@ def compare(scenario: Scenario, planners: Sequence[str] | None = None, *,
     Args:
       progress: called with a short label before each stage (for a progress bar).
 
+    A planner that cannot plan the task (InfeasibleError, SolverError) is left out with its reason (`failed`);
+    the others run.
+
     Raises:
       InvalidInputError: no planner, an unknown or repeated one, or a task outside the joint ranges.
-      InfeasibleError, SolverError: a planner could not plan the task.
+      InfeasibleError, SolverError: no planner could plan the task (the first one's error).
     """
     names = tuple(planners) if planners is not None else default_planners()
     if not names:
@@ -72,11 +77,20 @@ def compare(scenario: Scenario, planners: Sequence[str] | None = None, *,
         raise InvalidInputError(f"planners: expected distinct planners, got {', '.join(repeated)} more than once")
     model = scenario.model
     scenario.task.check_limits(model)
-    references = {}
+    references: dict[str, Reference] = {}
+    failed: dict[str, str] = {}
+    errors: list[MjtrajError] = []
     for name in names:
         if progress:
             progress(f"plan {name}")
-        references[name] = scenario.planner(name).plan(scenario.task, model)
+        try:
+            references[name] = scenario.planner(name).plan(scenario.task, model)
+        except (InfeasibleError, SolverError) as e:  # that planner has no row; the others run
+            failed[name] = one_line(e)
+            errors.append(e)
+    if not references:
+        raise errors[0]
+    names = tuple(name for name in names if name in references)
     if progress:
         progress("execute")
     weights = (scenario.Q_exec, scenario.R_exec)
@@ -87,7 +101,7 @@ def compare(scenario: Scenario, planners: Sequence[str] | None = None, *,
     scored = {name: Metrics(**result.metrics) if result.status == "ok" else Metrics.nan()
               for name, result in zip(names, outcomes, strict=True)}
     return Comparison(scenario=scenario, planners=names, references=references, rollout=rollout, metrics=scored,
-                      stability=stability(scenario, names, references))
+                      stability=stability(scenario, names, references), failed=failed)
 
 
 def stability(scenario: Scenario, names: tuple[str, ...], references: dict[str, Reference]) -> dict[str, float]:
@@ -116,4 +130,5 @@ def comparison_record(result: Comparison) -> dict[str, Any]:
         }
     return {"scenario": result.scenario.as_dict(), "scenario_file": result.scenario.source,
             "gain_rule": GAIN_RULE, "stability": result.stability, "versions": versions(), "planners": planners,
+            "not_planned": dict(result.failed),
             "paper_table_i": PAPER_TABLE}

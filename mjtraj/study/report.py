@@ -89,6 +89,8 @@ def format_report(result: Comparison) -> str:
     ]
     if diverged:
         lines.append(f"  diverged (metrics NaN): {', '.join(diverged)}")
+    for name, reason in result.failed.items():
+        lines.append(f"  not planned: {name}: {reason}")
     if "optimal" in result.references:
         info = result.references["optimal"].info
         lines.append(f"  optimal plan: {info['solver']} {info['status']}, {info['iterations']} iterations, "
