@@ -31,6 +31,16 @@ def _floats(text: str) -> list[float]:
         raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from e
 
 
+def _figure_formats(text: str) -> list[str]:
+    from mjtraj.study.plots import FIGURE_FORMATS
+
+    kinds = [k.strip() for k in text.split(",")]
+    unknown = [k for k in kinds if k not in FIGURE_FORMATS]
+    if unknown or not text:
+        raise argparse.ArgumentTypeError(f"expected {', '.join(FIGURE_FORMATS)} (comma-separated), got {text!r}")
+    return list(dict.fromkeys(kinds))
+
+
 def _counts(text: str) -> list[int]:
     try:
         values = [int(x) for x in text.split(",")]
@@ -139,7 +149,9 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--planners", type=_names, help="comma-separated planner names (default: all)")
     c.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
     c.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
-    c.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    c.add_argument("--no-figures", action="store_true", help="skip the figures")
+    c.add_argument("--figure-format", dest="figure_format", type=_figure_formats, default=["png"],
+                   help="figure formats, comma-separated: png, pdf, svg (default png)")
 
     f = sub.add_parser("frontier", help="the optimal planner over its weight frontier (Q = alpha Q_bryson), beside the "
                        "other planners, by the scenario's fixed score")
@@ -400,7 +412,7 @@ def _compare(args: argparse.Namespace) -> int:
             from mjtraj.study.plots import write_figures
 
             progress("figures")
-            figures = write_figures(result, args.out)
+            figures = write_figures(result, args.out, formats=tuple(args.figure_format))
     if args.json:
         print(json.dumps(record, indent=2))
     else:

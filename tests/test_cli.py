@@ -165,3 +165,13 @@ def test_version_and_a_bare_command_print_what_a_user_needs(capsys):
     assert main([]) == 0
     out = capsys.readouterr().out
     assert out.startswith("usage: mjtraj") and "compare" in out and "rl" in out
+
+
+def test_compare_writes_figures_in_every_format_asked(tmp_path, capsys):
+    assert main(["compare", "--planners", "cubic,quintic", "--figure-format", "pdf,svg", "--out", str(tmp_path)]) == 0
+    written = sorted(p.suffix for p in tmp_path.glob("fig*"))
+    assert written == [".pdf"] * 6 + [".svg"] * 6
+    assert (tmp_path / "fig3_tracking_error.pdf").read_bytes().startswith(b"%PDF")
+    assert b"<svg" in (tmp_path / "fig3_tracking_error.svg").read_bytes()[:500]
+    assert main(["compare", "--figure-format", "eps", "--out", str(tmp_path)]) == 2
+    assert "expected png, pdf, svg" in capsys.readouterr().err

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -35,8 +36,14 @@ def _dwarfed(series: dict[str, np.ndarray]) -> bool:
     return len(peaks) > 1 and peaks[1] > 0 and peaks[0] > 3 * peaks[1]
 
 
-def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path]:
-    """Write FIGURES into `out` (each atomically); returns the paths written.
+FIGURE_FORMATS = ("png", "pdf", "svg")
+"""The file formats figures are written in (png by default; pdf and svg for papers, vector graphics)."""
+
+
+def write_figures(result: Comparison, out: Path, *, dpi: int = 120, formats: Sequence[str] = ("png",)
+                  ) -> list[Path]:
+    """Write FIGURES into `out` (each atomically), once per format of `formats` (FIGURE_FORMATS); returns the
+    paths written.
 
     Per-period signals held over the period (planned ZOH accelerations, corrective torques) are drawn as steps; when
     one planner dwarfs the others, a second column zooms on the others; the torque figure marks the saturation; the
@@ -62,10 +69,12 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120) -> list[Path
     written = []
 
     def save(fig, filename: str) -> None:  # noqa: ANN001
-        with atomic_path(out / filename) as tmp:
-            fig.savefig(tmp, dpi=dpi)
+        for kind in formats:
+            path = (out / filename).with_suffix(f".{kind}")
+            with atomic_path(path) as tmp:
+                fig.savefig(tmp, dpi=dpi, format=kind)
+            written.append(path)
         plt.close(fig)
-        written.append(out / filename)
 
     def per_joint(filename: str, series: dict[str, np.ndarray], ylabel: str, times: np.ndarray, *,
                   steps: bool = False, limit: np.ndarray | None = None) -> None:
