@@ -173,5 +173,6 @@ def test_compare_writes_figures_in_every_format_asked(tmp_path, capsys):
     assert written == [".pdf"] * 6 + [".svg"] * 6
     assert (tmp_path / "fig3_tracking_error.pdf").read_bytes().startswith(b"%PDF")
     assert b"<svg" in (tmp_path / "fig3_tracking_error.svg").read_bytes()[:500]
-    assert main(["compare", "--figure-format", "eps", "--out", str(tmp_path)]) == 2
-    assert "expected png, pdf, svg" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["compare", "--figure-format", "eps", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2 and "expected png, pdf, svg" in capsys.readouterr().err
