@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.checks import choice, positive_int
-from mjtraj.core import LoopConfig
+from mjtraj.core import LoopConfig, controller_names
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl.adapters import ScoredPolicy, check_settings, load_any
@@ -197,7 +197,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
       policies: zips from `mjtraj rl train`, "baseline:NAME", "MODULE:ATTR" / "FILE.py:ATTR", or the objects
         themselves (callables, torch modules; see mjtraj.rl.adapters). May be empty: the classical methods alone.
       controllers: control laws the planners run under; each policy runs on its own law (added if missing).
-      tuned_gains: a scenario file with tuned PID gains (`mjtraj tune-gains`), scored as TUNED_LABEL.
+      tuned_gains: a scenario file with tuned PID gains (`mjtraj tune --gains`), scored as TUNED_LABEL.
       settings: env settings (adapters.ENV_KEYS) for policies that are not zips and do not declare them.
       reps: bootstrap resamples of every interval.
       threads: PyTorch CPU threads (mjtraj.rl.train.THREADS_RULE; None: PyTorch's default), recorded.
@@ -222,11 +222,12 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
     check_settings(settings)
     planner_list = list(dict.fromkeys(["cubic", *planners]))
     laws = list(dict.fromkeys(["pid", *controllers]))
+    for law in laws:
+        choice("controllers", law, controller_names())
     loaded = [load_any(p, settings=settings) for p in policies]
     for policy in loaded:
         for family in families:
             check_held_out(policy, family, seed, scenarios)
-        choice("controller", policy.controller, tuple(dict.fromkeys([*laws, policy.controller])))
     laws = list(dict.fromkeys([*laws, *(p.controller for p in loaded)]))
     labels = _labels(loaded)
     out = Path(out)
@@ -241,9 +242,13 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
                 _check_loop(policy, sweep)
             plans.append((family, law, sweep, mine))
         if tuned_gains is not None:
-            plans.append((family, "tuned", SweepSettings(families=(family,), scenarios=scenarios, seed=seed,
-                                                         planners=("cubic",), config=str(tuned_gains),
-                                                         batch=batch), []))
+            tuned = SweepSettings(families=(family,), scenarios=scenarios, seed=seed, planners=("cubic",),
+                                  config=str(tuned_gains), batch=batch)
+            if tuned.base.loop.controller != "pid":
+                raise InvalidInputError(f"tuned_gains: {tuned_gains} runs the control law "
+                                        f"{tuned.base.loop.controller!r}; expected tuned PID gains (mjtraj tune "
+                                        f"--gains)")
+            plans.append((family, "tuned", tuned, []))
     rows: list[dict[str, Any]] = []
     units = [(plan, unit) for plan in plans for unit in plan[2].units()]
     bar = None
