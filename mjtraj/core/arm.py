@@ -7,6 +7,7 @@ changes nothing that the loop sees.
 from __future__ import annotations
 
 import os
+from importlib import resources
 from pathlib import Path
 
 import mujoco
@@ -99,11 +100,14 @@ def compile_arm(spec: mujoco.MjSpec, path: str | os.PathLike[str]) -> mujoco.MjM
         raise ModelError(f"cannot prepare model {Path(path)}: {' '.join(str(e).split())}") from e
 
 
+def assets_folder() -> Path:
+    """Where the shipped arms are (package data `mjtraj.assets`)."""
+    return Path(str(resources.files("mjtraj.assets")))
+
+
 def shipped_arms() -> tuple[str, ...]:
     """The arms shipped with mjtraj, usable by name wherever a model path is taken."""
-    from mjtraj.core.model import default_model_path
-
-    return tuple(sorted(p.stem for p in default_model_path().parent.glob("*.xml")))
+    return tuple(sorted(p.stem for p in assets_folder().glob("*.xml")))
 
 
 def arm_file(path: str | os.PathLike[str]) -> Path:
@@ -112,12 +116,10 @@ def arm_file(path: str | os.PathLike[str]) -> Path:
     Raises:
       ModelError: neither (the message lists the shipped arms).
     """
-    from mjtraj.core.model import default_model_path
-
     file = Path(path)
     if file.is_file():
         return file
-    shipped = default_model_path().parent / f"{file.name}.xml"
+    shipped = assets_folder() / f"{file.name}.xml"
     if file.name == str(path) and shipped.is_file():
         return shipped
     raise ModelError(f"model file not found: {file} (a shipped arm is named without a folder: "
