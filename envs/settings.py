@@ -110,7 +110,7 @@ class TrackSettings:
     model: mujoco.MjModel
     model_path: str | None
     """The user's MJCF file the model was prepared from; None for the shipped UR5."""
-    model_torque_limit: float | None
+    model_torque_limit: float | tuple[float, ...] | None
     """With model_path: every joint's corrective saturation given for it, N m."""
     planner: Planner
     planner_name: str
@@ -240,7 +240,7 @@ def _planner(planner: Any, paper: Scenario) -> tuple[str, Planner]:
 
 def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None, qg: npt.ArrayLike | None = None,
             Q_exec: npt.ArrayLike | None = None, R_exec: npt.ArrayLike | None = None, render_mode: str | None = None,
-            xml_file: str | os.PathLike[str] | None = None, torque_limit: float | None = None,
+            xml_file: str | os.PathLike[str] | None = None, torque_limit: float | list[float] | None = None,
             scenario: Scenario | None = None, **options: Any) -> TrackSettings:
     """Validate the env's arguments (see UR5TrackEnv; the declared ones are EnvOptions' and LoopConfig's) and fill
     in the paper scenario's controller.

@@ -139,8 +139,8 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     c.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (its scenario follows the stated "
                    "rules: mjtraj.core.arm.ARM_RULES, mjtraj.study.scenario.ARM_TASK_RULE)")
-    c.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
-                   "(default: from the model's actuator force ranges)")
+    c.add_argument("--torque-limit", type=_floats, help="with --model: the corrective saturation, N m: one "
+                   "value for every joint, or one per joint, comma-separated (default: from the model's actuators)")
     c.add_argument("--q0", type=_floats, help="start, rad, comma-separated")
     c.add_argument("--qg", type=_floats, help="goal, rad, comma-separated")
     c.add_argument("--duration", type=float, help="T, s (a whole number of dt)")
@@ -157,8 +157,8 @@ def _parser() -> argparse.ArgumentParser:
                        "other planners, by the scenario's fixed score")
     f.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     f.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
-    f.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
-                   "(default: from the model's actuator force ranges)")
+    f.add_argument("--torque-limit", type=_floats, help="with --model: the corrective saturation, N m: one "
+                   "value for every joint, or one per joint, comma-separated (default: from the model's actuators)")
     f.add_argument("--alphas", type=_floats, help="alpha values (default: 0 and 33 values from 1e-6 to 1e2)")
     f.add_argument("--splits", type=_floats, help="shares of the state weight on positions, in [0, 1] (default 0.5, "
                    "Bryson's balance)")
@@ -175,8 +175,8 @@ def _parser() -> argparse.ArgumentParser:
                        "scenario file with the tuned options and the tuning record")
     u.add_argument("--config", type=Path, help="base scenario TOML (default: the shipped paper scenario)")
     u.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
-    u.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
-                   "(default: from the model's actuator force ranges)")
+    u.add_argument("--torque-limit", type=_floats, help="with --model: the corrective saturation, N m: one "
+                   "value for every joint, or one per joint, comma-separated (default: from the model's actuators)")
     u.add_argument("--planners", type=_names, default=["optimal", "trapezoidal", "scurve"],
                    help="planners to tune (default optimal, trapezoidal, scurve; cubic and quintic have no parameters)")
     u.add_argument("--family", default="nominal", help="family whose rules draw the training scenarios (default "
@@ -221,8 +221,8 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--batch", type=int, default=250, help="scenarios per unit of work (default 250)")
     w.add_argument("--config", help="base scenario TOML: controller and planner options (default: paper.toml)")
     w.add_argument("--model", help="your MJCF arm instead of the UR5")
-    w.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
-                   "(default: from the model's actuator force ranges)")
+    w.add_argument("--torque-limit", type=_floats, help="with --model: the corrective saturation, N m: one "
+                   "value for every joint, or one per joint, comma-separated (default: from the model's actuators)")
     w.add_argument("--out", type=Path, default=Path("sweep.sqlite"), help="results: a SQLite store (.sqlite, "
                    ".sqlite3 or .db; one transaction per unit) or a CSV file (any other suffix); default "
                    "sweep.sqlite")
@@ -248,8 +248,8 @@ def _parser() -> argparse.ArgumentParser:
     r = sub.add_parser("render", help="execution videos per planner, a side-by-side clip and the Fig. 1 snapshot strip")
     r.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     r.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
-    r.add_argument("--torque-limit", type=float, help="with --model: every joint's corrective saturation, N m "
-                   "(default: from the model's actuator force ranges)")
+    r.add_argument("--torque-limit", type=_floats, help="with --model: the corrective saturation, N m: one "
+                   "value for every joint, or one per joint, comma-separated (default: from the model's actuators)")
     r.add_argument("--planners", type=_names, help="comma-separated planner names (default: all)")
     r.add_argument("--format", dest="formats", type=_names, default=["mp4"], help="mp4 and/or gif (default: mp4)")
     r.add_argument("--width", type=int, default=640, help="image width, px (default 640)")

@@ -259,3 +259,28 @@ def test_one_planners_failure_does_not_stop_the_others(capsys, tmp_path):
     assert main(["compare", "--duration", "0.1", "--planners", "optimal,scurve", "--no-figures", "--out",
                  str(tmp_path)]) == 2  # none could plan: the first reason, in one line
     assert capsys.readouterr().err.startswith("mjtraj: error: optimal: x_N = 0 cannot be reached")
+
+
+def test_per_joint_torque_limits_from_the_command_line_to_the_rows(arms, tmp_path, capsys):
+    from mjtraj.cli import main
+    from mjtraj.study.store import read_rows
+
+    model = prepare_arm(arms["light"], torque_limit=[3.0, 4.0, 2.5])
+    np.testing.assert_array_equal(model.actuator_ctrlrange[:, 1], [3.0, 4.0, 2.5])
+    with pytest.raises(Exception, match=r"^torque_limit: expected one value for every joint or one for each of the 3 "
+                                        r"joints, got 2: \[3\.0, 4\.0\]$"):
+        prepare_arm(arms["light"], torque_limit=[3.0, 4.0])
+    out = tmp_path / "s.csv"
+    assert main(["sweep", "--model", str(arms["light"]), "--torque-limit", "3,4,2.5", "--scenarios", "2",
+                 "--planners", "cubic", "--family", "mismatch", "--out", str(out), "--no-progress"]) == 0
+    rows = read_rows(out)
+    assert {r["torque_limit"] for r in rows} == {"3.0+4.0+2.5"} and {r["status"] for r in rows} == {"ok"}
+    assert SweepSettings.from_record(rows[0]).torque_limit == (3.0, 4.0, 2.5)
+    assert main(["compare", "--model", str(arms["light"]), "--torque-limit", "3,4,2.5", "--no-figures", "--out",
+                 str(tmp_path / "c")]) == 0
+    assert "|dtau| <= [3, 4, 2.5] N m" in capsys.readouterr().out
+    scenario = scenario_for_model(arms["light"], torque_limit=[3.0, 4.0, 2.5])
+    from mjtraj.study import load_scenario, scenario_text
+
+    (tmp_path / "arm.toml").write_text(scenario_text(scenario))
+    assert load_scenario(tmp_path / "arm.toml").model_torque_limit == (3.0, 4.0, 2.5)

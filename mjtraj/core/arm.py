@@ -15,20 +15,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.checks import positive
-from mjtraj.exceptions import ModelError
+from mjtraj.exceptions import InvalidInputError, ModelError
 
 ARM_RULES = (
     "every joint must be a hinge, with no tendons or equality constraints (an unnamed hinge is named jointK in "
-    "mjtraj's copy); each hinge keeps its passive properties "
-    "(damping, armature, friction loss) and range. The model's actuators are replaced by one torque motor per hinge "
-    "(gear 1, set explicitly whatever the file's default class says) whose control range is the corrective "
-    "saturation: the torque_limit given (--torque-limit), for every joint; else the torque an existing motor on "
-    "that joint can apply (gear x gain x its control range, within gear x its force range), else gear x the force "
-    "range of the actuator that drove it, else the joint's actuator force range, and never more than that range; "
-    "sensors of the replaced actuators "
-    "are removed and keyframes' ctrl set to zero; every body gets native gravity compensation (gravcomp "
-    "1, applied at the joints); contacts are disabled (the study's plant is the free arm); the integrator is RK4 "
-    "at the control period dt")
+    "mjtraj's copy); each hinge keeps its passive properties (damping, armature, friction loss) and range. The "
+    "model's actuators are replaced by one torque motor per hinge (gear 1, set explicitly whatever the file's default"
+    " class says) whose control range is the corrective saturation: the torque_limit given (--torque-limit: one value"
+    " for every joint, or one per joint); else the torque an existing motor on that joint can apply (gear x gain x "
+    "its control range, within gear x its force range), else gear x the force range of the actuator that drove it, "
+    "else the joint's actuator force range, and never more than that range; sensors of the replaced actuators are "
+    "removed and keyframes' ctrl set to zero; every body gets native gravity compensation (gravcomp 1, applied at the"
+    " joints); contacts are disabled (the study's plant is the free arm); the integrator is RK4 at the control period"
+    " dt")
 
 
 def _hinges(spec: mujoco.MjSpec, file: Path) -> list[mujoco.MjsJoint]:
@@ -48,11 +47,44 @@ def _hinges(spec: mujoco.MjSpec, file: Path) -> list[mujoco.MjsJoint]:
     return list(spec.joints)
 
 
+TorqueLimit = float | tuple[float, ...] | None
+"""A user's corrective saturation: one value (N m) for every joint, one per joint, or None (from the model)."""
+
+
+def torque_limits(torque_limit: object, n: int) -> list[float | None]:
+    """`torque_limit` (TorqueLimit, or a list) as one value or None per joint of n, each checked positive.
+
+    Raises:
+      InvalidInputError: not a positive number, nor n of them.
+    """
+    if torque_limit is None:
+        return [None] * n
+    if isinstance(torque_limit, (list, tuple, np.ndarray)):
+        values = list(torque_limit)
+        if len(values) != n:
+            raise InvalidInputError(f"torque_limit: expected one value for every joint or one for each of the {n} "
+                                    f"joints, got {len(values)}: {values!r}")
+        return [positive("torque_limit", v) for v in values]
+    return [positive("torque_limit", torque_limit)] * n  # type: ignore[arg-type]
+
+
+def normalized_limit(torque_limit: object) -> TorqueLimit:
+    """A TorqueLimit from a number, a list of numbers (one value: that value) or None, checked positive."""
+    if torque_limit is None:
+        return None
+    if isinstance(torque_limit, (list, tuple, np.ndarray)):
+        values = tuple(positive("torque_limit", v) for v in torque_limit)
+        if not values:
+            raise InvalidInputError("torque_limit: expected a value (N m) or one per joint, got none")
+        return values[0] if len(values) == 1 else values
+    return positive("torque_limit", torque_limit)  # type: ignore[arg-type]
+
+
 def _saturation(spec: mujoco.MjSpec, joint: mujoco.MjsJoint, torque_limit: float | None, file: Path) -> float:
     """The corrective saturation of `joint`, N m, by ARM_RULES: what its actuators can apply, within the joint's own
     actuator force range when it has one."""
     if torque_limit is not None:
-        return positive("torque_limit", torque_limit)
+        return torque_limit
     limit = _actuator_limit(spec, joint, file)
     if joint.actfrclimited != mujoco.mjtLimited.mjLIMITED_FALSE and np.any(joint.actfrcrange):
         limit = min(limit, float(np.min(np.abs(joint.actfrcrange))))
@@ -78,13 +110,14 @@ def _actuator_limit(spec: mujoco.MjSpec, joint: mujoco.MjsJoint, file: Path) -> 
                      f"saturation from; give torque_limit (--torque-limit, N m)")
 
 
-def prepare_arm(path: str | os.PathLike[str], *, dt: float | None = None, torque_limit: float | None = None
+def prepare_arm(path: str | os.PathLike[str], *, dt: float | None = None, torque_limit: TorqueLimit = None
                 ) -> mujoco.MjModel:
     """The plant model of the MJCF arm at `path`, prepared by ARM_RULES.
 
     Args:
       dt: control period, s (the model's own timestep if None).
-      torque_limit: corrective saturation of every joint, N m (None: from the model, by ARM_RULES).
+      torque_limit: corrective saturation, N m: one value for every joint, or one per joint (None: from the
+        model, by ARM_RULES).
 
     Raises:
       ModelError: the file is missing, does not compile, or is not an arm of actuatable hinges (names the element).
@@ -126,7 +159,7 @@ def arm_file(path: str | os.PathLike[str]) -> Path:
                      f"{', '.join(shipped_arms())})")
 
 
-def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_limit: float | None = None
+def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_limit: TorqueLimit = None
              ) -> mujoco.MjSpec:
     """The MjSpec of the arm at `path` prepared by ARM_RULES, not yet compiled (`prepare_arm` compiles it).
 
@@ -145,7 +178,8 @@ def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_li
             joint.name = next(name for k in range(j, j + len(joints) + 1)
                               if (name := f"joint{k}") not in taken)
             taken.add(joint.name)
-    limits = [_saturation(spec, joint, torque_limit, file) for joint in joints]
+    limits = [_saturation(spec, joint, given, file)
+              for joint, given in zip(joints, torque_limits(torque_limit, len(joints)), strict=True)]
     replaced = {a.name for a in spec.actuators if a.name}
     for actuator in list(spec.actuators):
         spec.delete(actuator)

@@ -23,13 +23,14 @@ def default_model_path() -> Path:
 
 
 def load_model(path: str | os.PathLike[str] | None = None, *, dt: float | None = None,
-               torque_limit: float | None = None) -> mujoco.MjModel:
+               torque_limit: float | tuple[float, ...] | None = None) -> mujoco.MjModel:
     """Load the plant model.
 
     Args:
       path: an MJCF file; None for the shipped UR5 3-DoF model.
       dt: control period in s; sets `opt.timestep` when given (the model's own 0.02 s otherwise).
-      torque_limit: a user's arm only: the corrective saturation of every joint, N m (mjtraj.core.arm.ARM_RULES).
+      torque_limit: a user's arm only: the corrective saturation, N m, one value or one per joint
+        (mjtraj.core.arm.ARM_RULES).
 
     Raises:
       ModelError: the file is missing or MuJoCo cannot compile it.

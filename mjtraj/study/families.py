@@ -174,7 +174,8 @@ def measurement_noise(scenarios: list[FamilyScenario], steps: int, n: int, sigma
     return out
 
 
-def perturbed_plant(model: mujoco.MjModel, path: str | None = None, torque_limit: float | None = None
+def perturbed_plant(model: mujoco.MjModel, path: str | None = None,
+                    torque_limit: float | tuple[float, ...] | None = None
                     ) -> mujoco.MjModel:
     """The nominal `model` with a payload body (mass set per simulation) welded at the flange (FLANGE_RULE),
     gravcomp 0.

@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from mjtraj.core.arm import normalized_limit
 from mjtraj.core.closed_loop import LoopConfig
 from mjtraj.core.controller import PIDGains
 from mjtraj.core.model import JointInfo, load_model
@@ -62,7 +63,8 @@ class Scenario:
       planner_options: planner name -> keyword options.
       scoring: how executions are scored (J_exec's weights), independent of any planner's own weights.
       model_path: the MJCF plant model; None for the shipped UR5 3-DoF model.
-      model_torque_limit: with model_path, every joint's corrective saturation, N m (None: from the model).
+      model_torque_limit: with model_path, the corrective saturation, N m: one value for every joint or one per
+        joint (None: from the model).
       source: the file it was read from ('' in memory).
       tuning: the record of the tuning that chose the planner options (`mjtraj tune`), or None.
     """
@@ -73,7 +75,7 @@ class Scenario:
     planner_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     scoring: Scoring = field(default_factory=Scoring)
     model_path: str | None = None
-    model_torque_limit: float | None = None
+    model_torque_limit: float | tuple[float, ...] | None = None
     source: str = ""
     tuning: dict[str, Any] | None = None
     memo: dict[Any, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
@@ -121,7 +123,8 @@ class Scenario:
         if self.model_path is not None:
             out["model"] = self.model_path
         if self.model_torque_limit is not None:
-            out["torque_limit"] = self.model_torque_limit
+            limit = self.model_torque_limit
+            out["torque_limit"] = list(limit) if isinstance(limit, tuple) else limit
         out["task"] = {"q0": self.task.q0.tolist(), "qg": self.task.qg.tolist(), "duration": self.task.duration,
                        "dt": self.task.dt}
         out["controller"] = {"kp": g.kp.tolist(), "ki": g.ki.tolist(), "kd": g.kd.tolist(),
@@ -229,10 +232,12 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
         if model_path is None:
             raise InvalidInputError("config: torque_limit: only with model = \"PATH\" (the shipped UR5's "
                                     "saturation is its motors' 60 N m)")
-        if isinstance(torque_limit, bool) or not isinstance(torque_limit, (int, float)) or not (
-                np.isfinite(torque_limit) and torque_limit > 0):
-            raise InvalidInputError(f"config: torque_limit: expected a positive number (N m), got {torque_limit!r}")
-        torque_limit = float(torque_limit)
+        values = torque_limit if isinstance(torque_limit, list) else [torque_limit]
+        if not values or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0)
+                             for v in values):
+            raise InvalidInputError(f"config: torque_limit: expected a positive number (N m) or a list of them (one "
+                                    f"per joint), got {torque_limit!r}")
+        torque_limit = normalized_limit(values)
     t = _section(data, "task")
     _only(t, "task", TASK_KEYS)
     task = Task.create(_numbers(t, "task", "q0"), _numbers(t, "task", "qg"), _number(t, "task", "duration"),
@@ -285,7 +290,8 @@ ARM_TASK_RULE = (
 
 
 def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any = None, duration: float = 2.0,
-                       dt: float = 0.02, torque_limit: float | None = None, workspace: bool = False) -> Scenario:
+                       dt: float = 0.02, torque_limit: float | tuple[float, ...] | list[float] | None = None,
+                       workspace: bool = False) -> Scenario:
     """The study's scenario for the MJCF arm at `path` (prepared by `mjtraj.core.arm.ARM_RULES`): the move `q0` ->
     `qg` (rad, shape (n,)), or ARM_TASK_RULE's for what is not given; `torque_limit` (N m) is every joint's
     corrective saturation (None: from the model). With `workspace` (drawn tasks: sweeps, tune, the env's random
@@ -297,6 +303,7 @@ def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any 
     from mjtraj.core.arm import home_pose, prepare_arm
     from mjtraj.core.gains import free_inertia, free_inertia_at, gain_rule, workspace_poses
 
+    torque_limit = normalized_limit(torque_limit)
     model = prepare_arm(path, dt=dt, torque_limit=torque_limit)
     start = home_pose(model) if q0 is None else np.asarray(q0, dtype=np.float64)
     if qg is None:
@@ -316,4 +323,4 @@ def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any 
     where = Path(path)  # a file by its absolute path (a scenario file written from it works from any folder); a
     return Scenario(name=name, task=task, loop=loop, scoring=Scoring(),  # shipped arm by its name
                     model_path=str(where.resolve()) if where.is_file() else str(path),
-                    model_torque_limit=None if torque_limit is None else float(torque_limit))
+                    model_torque_limit=torque_limit)

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.checks import choice, positive_int, seed_value
+from mjtraj.core.arm import normalized_limit
 from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
 from mjtraj.core.controller import PIDGains
 from mjtraj.core.options import choices, option_names
@@ -77,7 +78,8 @@ class SweepSettings:
       model_error: also measure the linear model's prediction error of optimal-type planners.
       config: the base scenario file (None: the shipped paper.toml).
       model: an MJCF arm instead (its scenario by the arm rules, `scenario_for_model`); not with `config`.
-      torque_limit: with `model`, every joint's corrective saturation, N m (None: from the model).
+      torque_limit: with `model`, the corrective saturation, N m: one value for every joint, or one per joint
+        (None: from the model).
     """
 
     families: tuple[str, ...] = ("nominal",)
@@ -92,7 +94,7 @@ class SweepSettings:
     model_error: bool = False
     config: str | None = None
     model: str | None = None
-    torque_limit: float | None = None
+    torque_limit: float | tuple[float, ...] | None = None
     base: Scenario = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -109,6 +111,7 @@ class SweepSettings:
         seed_value("seed", self.seed)
         if not (np.isfinite(self.sensor_noise) and self.sensor_noise >= 0):
             raise InvalidInputError(f"sensor_noise: expected a number >= 0 (rad), got {self.sensor_noise!r}")
+        object.__setattr__(self, "torque_limit", normalized_limit(self.torque_limit))
         if self.torque_limit is not None and self.model is None:
             raise InvalidInputError("torque_limit: only with model (a scenario file sets torque_limit beside model)")
         if self.model is not None:
@@ -146,7 +149,9 @@ class SweepSettings:
                 "sweep_batch": self.batch, "sensor_noise": self.sensor_noise, "delay": self.delay,
                 "model_error_measured": int(self.model_error),
                 "config": self.config or SHIPPED_CONFIG, "model": self.model or "",
-                "torque_limit": "" if self.torque_limit is None else self.torque_limit,
+                "torque_limit": "" if self.torque_limit is None else
+                "+".join(repr(v) for v in self.torque_limit) if isinstance(self.torque_limit, tuple) else
+                self.torque_limit,
                 "config_sha256": hashlib.sha256(base.encode()).hexdigest()[:16],
                 **{name: getattr(self.base.loop, name) for name in option_names(LoopConfig) if name not in SWEPT},
                 "dt": self.base.task.dt,
@@ -168,7 +173,8 @@ class SweepSettings:
                        batch=int(row["sweep_batch"]), sensor_noise=float(row["sensor_noise"]),
                        delay=int(row["delay"]), model_error=bool(int(row["model_error_measured"])),
                        config=None if config == SHIPPED_CONFIG else config, model=row.get("model") or None,
-                       torque_limit=float(row["torque_limit"]) if row.get("torque_limit") else None)
+                       torque_limit=normalized_limit([float(v) for v in row["torque_limit"].split("+")])
+                       if row.get("torque_limit") else None)
         except (KeyError, ValueError) as e:
             raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
 
