@@ -159,6 +159,9 @@ def _parser() -> argparse.ArgumentParser:
     f.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
     f.add_argument("--torque-limit", type=_floats, help="with --model: the corrective saturation, N m: one "
                    "value for every joint, or one per joint, comma-separated (default: from the model's actuators)")
+    f.add_argument("--q0", type=_floats, help="start, rad, comma-separated (default: the scenario's)")
+    f.add_argument("--qg", type=_floats, help="goal, rad, comma-separated (default: the scenario's)")
+    f.add_argument("--duration", type=float, help="T, s (a whole number of dt; default: the scenario's)")
     f.add_argument("--alphas", type=_floats, help="alpha values (default: 0 and 33 values from 1e-6 to 1e2)")
     f.add_argument("--splits", type=_floats, help="shares of the state weight on positions, in [0, 1] (default 0.5, "
                    "Bryson's balance)")
@@ -250,6 +253,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (docs/design.md, \"Your own arm\")")
     r.add_argument("--torque-limit", type=_floats, help="with --model: the corrective saturation, N m: one "
                    "value for every joint, or one per joint, comma-separated (default: from the model's actuators)")
+    r.add_argument("--q0", type=_floats, help="start, rad, comma-separated (default: the scenario's)")
+    r.add_argument("--qg", type=_floats, help="goal, rad, comma-separated (default: the scenario's)")
+    r.add_argument("--duration", type=float, help="T, s (a whole number of dt; default: the scenario's)")
     r.add_argument("--planners", type=_names, help="comma-separated planner names (default: all)")
     r.add_argument("--format", dest="formats", type=_names, default=["mp4"], help="mp4 and/or gif (default: mp4)")
     r.add_argument("--width", type=int, default=640, help="image width, px (default 640)")
@@ -358,13 +364,14 @@ def _json_safe(value: Any) -> Any:
     return value
 
 
-def _scenario(args: argparse.Namespace):  # noqa: ANN202
+def _scenario(args: argparse.Namespace, *, workspace: bool = False):  # noqa: ANN202
+    """The command's scenario: --config or --model, with the task and loop flags the command has applied."""
     from mjtraj.core import LoopConfig, option_names
 
     task = {k: getattr(args, k) for k in ("q0", "qg", "duration", "dt") if getattr(args, k, None) is not None}
     loop = {k: getattr(args, k) for k in option_names(LoopConfig) if getattr(args, k, None) is not None}
     if getattr(args, "model", None) is not None:
-        scenario = _base_scenario(args, **task)
+        scenario = _base_scenario(args, workspace=workspace, **task)
         return scenario.replace(loop=loop) if loop else scenario
     scenario = _base_scenario(args)
     return scenario.replace(task=task, loop=loop) if task or loop else scenario
@@ -431,7 +438,7 @@ def _frontier(args: argparse.Namespace) -> int:
         if value is not None and args.family is None:
             raise InvalidInputError(f"{flag}: only used with --family (without it the frontier is on the scenario's "
                                     f"task)")
-    scenario = _base_scenario(args, workspace=args.family is not None)  # drawn tasks: gains over the workspace
+    scenario = _scenario(args, workspace=args.family is not None)  # drawn tasks: gains over the workspace
     with _Progress("mjtraj frontier", "planner", not args.no_progress) as progress:
         result = frontier(scenario, alphas=args.alphas if args.alphas is not None else DEFAULT_ALPHAS,
                           splits=args.splits if args.splits is not None else DEFAULT_SPLITS, family=args.family,

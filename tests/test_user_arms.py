@@ -284,3 +284,17 @@ def test_per_joint_torque_limits_from_the_command_line_to_the_rows(arms, tmp_pat
 
     (tmp_path / "arm.toml").write_text(scenario_text(scenario))
     assert load_scenario(tmp_path / "arm.toml").model_torque_limit == (3.0, 4.0, 2.5)
+
+
+def test_frontier_says_why_a_point_failed_and_takes_the_task_flags(tmp_path, capsys):
+    from mjtraj.cli import main
+
+    assert main(["frontier", "--duration", "0.3", "--alphas", "1", "--splits", "0.5", "--no-figures",
+                 "--no-progress", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "  failed: optimal (alpha 1, split 0.5): infeasible: InfeasibleError: optimal: x_N = 0 cannot be " in out
+    import json
+
+    rows = json.loads((tmp_path / "frontier.json").read_text())["rows"]
+    optimal = next(r for r in rows if r["planner"] == "optimal")
+    assert optimal["failed"] == 1 and optimal["failure_reasons"][0].startswith("infeasible: InfeasibleError")

@@ -40,7 +40,7 @@ class FrontierRow:
 
     metrics: name -> value (one task) or median over the scenarios (a family); ratio: name -> its ratio to cubic
     (one task), or the median of the per-scenario ratios with its interval (a family); failed: scenarios without
-    metrics (plan failed, diverged, unstable).
+    metrics (plan failed, diverged, unstable); reasons: the distinct one-line reasons of those failures.
     """
 
     planner: str
@@ -49,13 +49,14 @@ class FrontierRow:
     metrics: dict[str, float]
     ratio: dict[str, Median]
     failed: int
+    reasons: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         return {"planner": self.planner, "alpha": self.alpha, "split": self.split, **self.metrics,
                 "ratio_to_cubic": {k: (m.value if m.count <= 1 else
                                        {"median": m.value, "low": m.low, "high": m.high, "count": m.count})
                                    for k, m in self.ratio.items()},
-                "failed": self.failed}
+                "failed": self.failed, "failure_reasons": list(self.reasons)}
 
 
 @dataclass(frozen=True)
@@ -159,4 +160,5 @@ def _row(name: str, alpha: float | None, split: float | None, mine: list[Outcome
         r = _values(mine, metric) / _values(cubic, metric)
         ratio[metric] = Median(float(r[0]), float(r[0]), float(r[0]), 1) if single else median_interval(r)
     failed = sum(o.status != "ok" for o in mine)
-    return FrontierRow(name, alpha, split, metrics, ratio, failed)
+    reasons = tuple(dict.fromkeys(f"{o.status}: {o.reason}" for o in mine if o.status != "ok"))
+    return FrontierRow(name, alpha, split, metrics, ratio, failed, reasons)

@@ -136,9 +136,12 @@ def format_frontier(result: Frontier) -> str:
         rows.append(tuple(cells))
     where = (f"the scenario's task ({s['scenario']})" if not family else
              f"{s['scenarios']} {s['task']} scenarios (seed {s['seed']}); medians, [95 % bootstrap interval]")
+    failures = [f"  failed: {r.planner}" + (f" (alpha {r.alpha:.3g}, split {r.split:g})" if r.alpha is not None
+                                             else "") + f": {reason}"
+                for r in result.rows for reason in r.reasons[:3]]
     return "\n".join([f"Weight frontier of the optimal planner: Q = alpha * Q_bryson (position/velocity split), "
                       f"R = R_bryson, on {where}; score: {s['score']}; controller: the scenario's",
-                      _grid(rows)])
+                      _grid(rows), *failures])
 
 
 LABELS = {"rms_dtau": "RMS dtau", "int_dtau": "Int. dtau", "rms_err": "RMS Err.", "peak_dtau": "Peak dtau",
