@@ -96,19 +96,21 @@ class Policy:
 
     @property
     def label(self) -> str:
-        """How results tables name its configuration: planner+PID+residual SAC (its scale in N m), or planner+SAC
-        torque; then ', mismatch-trained', ', sees PID', ', PID-advantage reward' and ', fixed scales' when it
-        trained under plant randomisation, observed the controller's state, was rewarded relative to PID alone or
-        saw fixed observation scales. Runs that differ only in their seed share a label."""
+        """How results tables name its configuration: planner+LAW+residual SAC (its scale in N m; LAW is PID, or CT
+        for computed torque), or planner+SAC torque; then ', mismatch-trained', ', sees PID' (or CT),
+        ', PID-advantage reward' and ', fixed scales' when it trained under plant randomisation, observed the
+        controller's state, was rewarded relative to PID alone or saw fixed observation scales. Runs that differ
+        only in their seed share a label."""
         env = self.env_kwargs
         algo = self.algo.upper()
+        law = {"pid": "PID", "computed_torque": "CT"}.get(env.get("controller", "pid"), env.get("controller"))
         fixed = self.record["settings"].get("observation_scaling", "running") == "fixed"
         notes = "".join([", mismatch-trained" if env.get("plant_randomization", "none") != "none" else "",
-                         ", sees PID" if env.get("observe_control", False) else "",
+                         f", sees {law}" if env.get("observe_control", False) else "",
                          ", PID-advantage reward" if env.get("reward_baseline", "none") != "none" else "",
                          ", fixed scales" if fixed else ""])
         if env["action_mode"] == "residual":
-            return f"{env['planner']}+PID+residual {algo} ({env['residual_scale']:g} N m{notes})"
+            return f"{env['planner']}+{law}+residual {algo} ({env['residual_scale']:g} N m{notes})"
         return f"{env['planner']}+{algo} torque{f' ({notes[2:]})' if notes else ''}"
 
     def act(self, obs: npt.ArrayLike) -> NDArray[np.float32]:
