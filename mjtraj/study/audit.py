@@ -548,8 +548,15 @@ def _effort_left(data: SweepData) -> list[str]:
     return lines
 
 
+METRIC_LABELS = {"rms_err": "RMS tracking error", "int_dtau": "integral of |corrective torque|",
+                 "cost": "executed cost J_exec"}
+"""Plain names of the metrics the audit's figures draw."""
+
+
 def _figures(data: SweepData, out: Path) -> list[str]:
     import matplotlib
+
+    from mjtraj.study.plots import planner_color
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -562,23 +569,27 @@ def _figures(data: SweepData, out: Path) -> list[str]:
         if not data.has(c, "optimal") or c.family in TASKS:  # one motion: no distribution to draw
             continue
         present = [p for p in data.planners if p != "optimal" and data.has(c, p)]
-        fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+        fig, axes = plt.subplots(1, 3, figsize=(12, 4.2))
         for ax, metric in zip(axes, ("rms_err", "int_dtau", "cost"), strict=True):
             ratios = []
             for p in present:
                 r = data.values(c, p, metric) / data.values(c, "optimal", metric)
                 ratios.append(r[np.isfinite(r) & (r > 0)])
-            ax.boxplot(ratios, showfliers=False)
-            ax.set_xticks(range(1, len(present) + 1), present, rotation=30, fontsize=8)
+            boxes = ax.boxplot(ratios, showfliers=False, patch_artist=True)
+            for box, p in zip(boxes["boxes"], present, strict=True):
+                box.set_facecolor(planner_color(p))
+                box.set_alpha(0.6)
+            ax.set_xticks(range(1, len(present) + 1), present, rotation=30, fontsize=9)
             ax.axhline(1.0, color="k", lw=0.8, ls="--")
             ax.set_yscale("log")
-            ax.set_title(f"{metric}: planner / optimal", fontsize=9)
+            ax.set_ylabel(f"{METRIC_LABELS[metric]}, planner / optimal (log)", fontsize=9)
+            ax.set_title(METRIC_LABELS[metric], fontsize=10)
         fig.suptitle(str(c), fontsize=9)
         fig.tight_layout()
         slug = re.sub(r"[^A-Za-z0-9]+", "_", c.weights).strip("_")
         name = f"ratios_{slug + '_' if slug else ''}{c.family}_{c.ff_accel}_{c.gravity_comp}.png"
         with atomic_path(folder / name) as tmp:
-            fig.savefig(tmp, dpi=90)
+            fig.savefig(tmp, dpi=150)
         plt.close(fig)
         written.add(name)
         lines.append(f"![{c}]({folder.name}/{name})")

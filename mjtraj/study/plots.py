@@ -36,6 +36,21 @@ def _dwarfed(series: dict[str, np.ndarray]) -> bool:
     return len(peaks) > 1 and peaks[1] > 0 and peaks[0] > 3 * peaks[1]
 
 
+PLANNER_ORDER = ("optimal", "cubic", "quintic", "trapezoidal", "scurve", "nonlinear_min_effort",
+                 "nonlinear_optimal", "optimal_start", "min_effort")
+"""Planners in the order of matplotlib's default colour cycle: one colour per planner in every figure."""
+
+
+def planner_color(name: str) -> str:
+    """The colour of planner `name` in every figure (compare, frontier, audit): C0..C9 by PLANNER_ORDER; another
+    planner (a plug-in) gets a colour from its name that does not change between figures."""
+    if name in PLANNER_ORDER:
+        return f"C{PLANNER_ORDER.index(name)}"
+    import zlib
+
+    return f"C{zlib.crc32(name.encode()) % 10}"
+
+
 FIGURE_FORMATS = ("png", "pdf", "svg")
 """The file formats figures are written in (png by default; pdf and svg for papers, vector graphics)."""
 
@@ -64,7 +79,7 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120, formats: Seq
     n = ro.e.shape[2]
     model = result.scenario.model
     joints = tuple(model.joint(j).name or f"joint {j}" for j in range(n))  # the model's own joint names
-    colors = {name: f"C{i}" for i, name in enumerate(names)}
+    colors = {name: planner_color(name) for name in names}
     variant = _variant(result)
     written = []
 
@@ -183,21 +198,24 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
     s = result.setting
     fig, ax = plt.subplots(figsize=(7.5, 5.2))
     optimal = [r for r in result.rows if r.planner == "optimal"]
+    styles = ("o-", "^--", "s:", "d-.")
+    color = planner_color("optimal")  # every split in the optimal planner's colour, told apart by line style
     for k, split in enumerate(dict.fromkeys(r.split for r in optimal)):
         curve = [r for r in optimal if r.split == split and np.isfinite(r.metrics["rms_dtau"])]
         x = [r.metrics["rms_dtau"] for r in curve]
         y = [r.metrics["rms_err"] for r in curve]
-        ax.plot(x, y, "o-", ms=3, lw=1.2, color=f"C{k}", label=f"optimal, split {split:g}")
+        ax.plot(x, y, styles[k % len(styles)], ms=3, lw=1.2, color=color, label=f"optimal, split {split:g}")
         best = min(range(len(curve)), key=lambda i: curve[i].metrics["cost"]) if curve else -1
         for i, r in enumerate(curve):
             assert r.alpha is not None
             decade = r.alpha > 0 and abs(np.log10(r.alpha) - round(np.log10(r.alpha))) < 1e-9
             if r.alpha == 0.0 or (decade and r.alpha >= 1e-3) or i == best:
                 text = f"α={r.alpha:.2g}" + (" (least J_exec)" if i == best else " (Bryson)" if r.alpha == 1 else "")
-                ax.annotate(text, (x[i], y[i]), textcoords="offset points", fontsize=7, color=f"C{k}",
+                ax.annotate(text, (x[i], y[i]), textcoords="offset points", fontsize=7, color=color,
                             xytext=(6, -10) if i == best else (-14, 8) if r.alpha == 0 else (5, 3))
-    for k, r in enumerate(row for row in result.rows if row.planner != "optimal"):
-        ax.plot(r.metrics["rms_dtau"], r.metrics["rms_err"], "s", ms=8, color=f"C{k + 5}", label=r.planner)
+    for r in (row for row in result.rows if row.planner != "optimal"):
+        ax.plot(r.metrics["rms_dtau"], r.metrics["rms_err"], "s", ms=8, color=planner_color(r.planner),
+                label=r.planner)
     for k, (label, (effort, error)) in enumerate((points or {}).items()):
         ax.plot(effort, error, "*", ms=12, color="k", alpha=1.0 - 0.3 * k, label=label)
     ax.set_xscale("log")
