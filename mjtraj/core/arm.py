@@ -57,15 +57,11 @@ def torque_limits(torque_limit: object, n: int) -> list[float | None]:
     Raises:
       InvalidInputError: not a positive number, nor n of them.
     """
-    if torque_limit is None:
-        return [None] * n
-    if isinstance(torque_limit, (list, tuple, np.ndarray)):
-        values = list(torque_limit)
-        if len(values) != n:
-            raise InvalidInputError(f"torque_limit: expected one value for every joint or one for each of the {n} "
-                                    f"joints, got {len(values)}: {values!r}")
-        return [positive("torque_limit", v) for v in values]
-    return [positive("torque_limit", torque_limit)] * n  # type: ignore[arg-type]
+    if isinstance(torque_limit, (list, tuple, np.ndarray)) and len(torque_limit) != n:
+        raise InvalidInputError(f"torque_limit: expected one value for every joint or one for each of the {n} "
+                                f"joints, got {len(torque_limit)}: {list(torque_limit)!r}")
+    limit = normalized_limit(torque_limit)
+    return list(limit) if isinstance(limit, tuple) else [limit] * n
 
 
 def normalized_limit(torque_limit: object) -> TorqueLimit:

@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 
 from mjtraj.checks import positive, positive_int, vector
 from mjtraj.core.controller import PIDGains
+from mjtraj.core.task import UNLIMITED_RANGE
 
 GAIN_RULE = (
     "joint i presents the inertia 1/(D(q)^-1)_ii with the other joints free; over 21 poses on the segment q0->qg "
@@ -35,9 +36,19 @@ def free_inertia(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, *,
     1/(D^-1)_ii is the inertia joint i presents when the other joints are free. Unlike D_ii it sees the
     strongly coupled shoulder-elbow mode, so diagonal gains sized from it keep that mode in bounds.
     """
+    return free_inertia_at(model, segment_poses(model, q0, qg, samples))
+
+
+def segment_poses(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, samples: int = 21
+                  ) -> NDArray[np.float64]:
+    """`samples` evenly spaced poses on the segment q0->qg, ends included; shape (samples, n), rad."""
     a, b = vector("q0", q0, model.nq), vector("qg", qg, model.nq)
-    poses = a + np.linspace(0.0, 1.0, positive_int("samples", samples))[:, None] * (b - a)
-    inertia = np.array([1.0 / np.diag(np.linalg.inv(mass_matrix(model, q))) for q in poses])
+    return a + np.linspace(0.0, 1.0, positive_int("samples", samples))[:, None] * (b - a)
+
+
+def free_inertia_at(model: mujoco.MjModel, poses: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Least and largest 1/(D(q)^-1)_ii over `poses` (P, n); shape (n,) each, kg m^2 (see `free_inertia`)."""
+    inertia = np.array([1.0 / np.diag(np.linalg.inv(mass_matrix(model, q))) for q in np.asarray(poses)])
     return inertia.min(axis=0), inertia.max(axis=0)
 
 
@@ -55,19 +66,12 @@ def workspace_poses(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike,
     the joint ranges; shape (samples + count, n), rad."""
     from scipy.stats import qmc
 
-    a, b = vector("q0", q0, model.nq), vector("qg", qg, model.nq)
-    line = a + np.linspace(0.0, 1.0, positive_int("samples", samples))[:, None] * (b - a)
+    line = segment_poses(model, q0, qg, samples)
     limited = model.jnt_limited.astype(bool)
-    low = np.where(limited, model.jnt_range[:, 0], -np.pi)
-    high = np.where(limited, model.jnt_range[:, 1], np.pi)
+    low = np.where(limited, model.jnt_range[:, 0], -UNLIMITED_RANGE)
+    high = np.where(limited, model.jnt_range[:, 1], UNLIMITED_RANGE)
     unit = qmc.Sobol(d=model.nq, scramble=True, seed=0).random(positive_int("count", count))
     return np.vstack([line, low + unit * (high - low)])
-
-
-def free_inertia_at(model: mujoco.MjModel, poses: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Least and largest 1/(D(q)^-1)_ii over `poses` (P, n); shape (n,) each, kg m^2 (see `free_inertia`)."""
-    inertia = np.array([1.0 / np.diag(np.linalg.inv(mass_matrix(model, q))) for q in np.asarray(poses)])
-    return inertia.min(axis=0), inertia.max(axis=0)
 
 
 def gain_rule(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, dt: float, *,

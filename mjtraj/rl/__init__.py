@@ -14,3 +14,10 @@ from __future__ import annotations
 ALGORITHMS = ("sac", "ppo", "td3")
 ACTION_MODES = ("residual", "torque")
 """The env's action modes a policy can learn in ('pid' has nothing to learn)."""
+LAW_LABELS = {"pid": "PID", "computed_torque": "CT"}
+"""How tables name a control law (planner+LAW, planner+LAW+residual ...); a plug-in law by its own name."""
+
+
+def law_label(law: str) -> str:
+    """LAW_LABELS' name of the control law `law`."""
+    return LAW_LABELS.get(law, law)

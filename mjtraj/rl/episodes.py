@@ -37,9 +37,10 @@ class PolicyActor:
               plants: Sequence[Perturbation | None] = ()) -> None:
         self._limit = np.tile(self.settings.action_scale, (loop.nsim, 1))
         if isinstance(self.policy, ScoredPolicy):
-            n = self.settings.n
-            given = list(plants) or [None] * loop.nsim
-            self._plants = [(p if p is not None else no_perturbation(n)).as_dict() for p in given]
+            if self.policy.privileged:  # the plants as the env reports them (the nominal one where none)
+                nominal = no_perturbation(self.settings.n)
+                given = list(plants) or [None] * loop.nsim
+                self._plants = [(p if p is not None else nominal).as_dict() for p in given]
             self.policy.start(np.ones(loop.nsim, dtype=bool))
 
     def act(self, loop: ClosedLoop) -> NDArray[np.float64]:

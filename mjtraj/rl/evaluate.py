@@ -26,10 +26,18 @@ from mjtraj.checks import choice, positive_int
 from mjtraj.core import LoopConfig, controller_names
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
+from mjtraj.rl import law_label
 from mjtraj.rl.adapters import ScoredPolicy, check_settings, load_any
 from mjtraj.rl.episodes import PolicyActor
 from mjtraj.rl.extra import require_sb3, rl_versions
-from mjtraj.rl.protocol_stats import FAILURE_RULE, MethodSummary, improvement, profile_figure, summarize
+from mjtraj.rl.protocol_stats import (
+    FAILURE_RULE,
+    MethodSummary,
+    improvement,
+    profile_figure,
+    ratio_of_means,
+    summarize,
+)
 from mjtraj.rl.streams import VALIDATION_STREAM, check_seed, family_entropies, shared_streams
 from mjtraj.study import (
     FAMILIES,
@@ -47,8 +55,6 @@ POLICY_COLUMNS = ("method", "policy", "policy_kind", "policy_sha256", "policy_ti
                   "policy_env")
 REFERENCE = "cubic+PID"
 """The reference method of every statistic: the cubic planner under feedforward + PID, the paper's baseline."""
-LAW_LABELS = {"pid": "PID", "computed_torque": "CT"}
-"""How a control law is named in a method (planner+LAW); a plug-in law by its own name."""
 LAW_SCENARIOS = {"pid": None, "computed_torque": "paper_computed_torque"}
 """The shipped base scenario of each built-in law (None: paper.toml); a plug-in law runs paper.toml with its
 controller replaced, written into the output folder."""
@@ -86,10 +92,6 @@ class EvalReport:
     """family -> method -> its summary."""
     compact: str = ""
     """The short table: ratio of means and probability of improvement per family."""
-
-
-def law_label(law: str) -> str:
-    return LAW_LABELS.get(law, law)
 
 
 def _labels(policies: Sequence[ScoredPolicy]) -> list[str]:
@@ -231,13 +233,14 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
     laws = list(dict.fromkeys([*laws, *(p.controller for p in loaded)]))
     labels = _labels(loaded)
     out = Path(out)
+    configs = {law: _law_config(law, out) for law in laws}
     plans = []
     for family in families:
         for law in laws:
             mine = [(p, label) for p, label in zip(loaded, labels, strict=True) if p.controller == law]
             names = tuple(dict.fromkeys([*planner_list, *(p.planner for p, _ in mine)]))
             sweep = SweepSettings(families=(family,), scenarios=scenarios, seed=seed, planners=names,
-                                  config=_law_config(law, out), batch=batch)
+                                  config=configs[law], batch=batch)
             for policy, _ in mine:
                 _check_loop(policy, sweep)
             plans.append((family, law, sweep, mine))
@@ -273,11 +276,12 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
     csv_path = out / "eval.csv"
     write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS], rows))
     groups = configurations(loaded, labels)
-    summaries, scores = summarise_rows(rows, groups, families, reps=reps)
+    costs = {family: method_costs(rows, groups, family) for family in families}
+    summaries, scores = summarise(costs, reps=reps)
     figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps)
     table = summary_table(summaries, families)
     compact = compact_table(summaries, families)
-    payload = payload_table(rows, groups) if "mismatch" in families else ""
+    payload = payload_table(rows, costs["mismatch"]) if "mismatch" in families else ""
     record = {"format": "mjtraj-benchmark-summary/1", "reference": REFERENCE, "failure_rule": FAILURE_RULE,
               "families": list(families), "scenarios": scenarios, "seed": seed, "reps": reps,
               "controllers": laws, "planners": planner_list, "tuned_gains": str(tuned_gains or ""),
@@ -316,14 +320,14 @@ def method_costs(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[s
     return vector[REFERENCE], out
 
 
-def summarise_rows(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[str]], families: Sequence[str],
-                   *, reps: int) -> tuple[dict[str, dict[str, MethodSummary]], dict[str, dict[str, Any]]]:
-    """Each family's method summaries and improvement scores (S, K) (mjtraj.rl.protocol_stats)."""
+def summarise(costs: Mapping[str, tuple[NDArray[np.float64], Mapping[str, NDArray[np.float64]]]], *, reps: int
+              ) -> tuple[dict[str, dict[str, MethodSummary]], dict[str, dict[str, Any]]]:
+    """Each family's method summaries and improvement scores (S, K) (mjtraj.rl.protocol_stats), from its
+    `method_costs`: family -> (the reference's costs, method -> costs)."""
     summaries, scores = {}, {}
-    for family in families:
-        ref, costs = method_costs(rows, groups, family)
-        summaries[family] = {m: summarize(c, ref, reps=reps) for m, c in costs.items()}
-        scores[family] = {m: improvement(c, ref) for m, c in costs.items()}
+    for family, (ref, by_method) in costs.items():
+        summaries[family] = {m: summarize(c, ref, reps=reps) for m, c in by_method.items()}
+        scores[family] = {m: improvement(c, ref) for m, c in by_method.items()}
     return summaries, scores
 
 
@@ -374,12 +378,11 @@ PAYLOAD_BINS = 5
 """Equal-width bins of the mismatch family's payload range (PAYLOAD_MASS) in the by-payload table."""
 
 
-def payload_table(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[str]]) -> str:
+def payload_table(rows: Sequence[dict[str, Any]],
+                  costs: tuple[NDArray[np.float64], Mapping[str, NDArray[np.float64]]]) -> str:
     """Markdown: on the mismatch family, each method's ratio of mean J_exec to the reference's within bins of the
-    scenario's payload (its seeds pooled; FAILURE_RULE)."""
-    from mjtraj.rl.protocol_stats import ratio_of_means
-
-    ref, costs = method_costs(rows, groups, "mismatch")
+    scenario's payload (its seeds pooled; FAILURE_RULE); `costs` the family's `method_costs`."""
+    ref, by_method = costs
     payload = {int(r["scenario"]): numeric(r["payload_kg"]) for r in rows
                if r["family"] == "mismatch" and r["method"] == REFERENCE}
     kg = np.array([payload[k] for k in sorted(payload)])
@@ -388,7 +391,7 @@ def payload_table(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[
     head = " | ".join(f"{lo:g}-{hi:g} kg ({np.sum(bins == b)})" for b, (lo, hi) in
                       enumerate(zip(edges[:-1], edges[1:], strict=True)))
     lines = [f"| method | {head} |", "|---|" + "---|" * PAYLOAD_BINS]
-    for m, c in costs.items():
+    for m, c in by_method.items():
         cells = []
         for b in range(PAYLOAD_BINS):
             inside = bins == b

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from mjtraj.envs import TrackSettings, action_space, observation_space, resolve
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path, write_text_atomic
-from mjtraj.rl import ALGORITHMS
+from mjtraj.rl import ALGORITHMS, law_label
 from mjtraj.rl.extra import require_sb3
 
 FORMAT = "mjtraj-policy/1"
@@ -103,7 +103,7 @@ class Policy:
         only in their seed share a label."""
         env = self.env_kwargs
         algo = self.algo.upper()
-        law = {"pid": "PID", "computed_torque": "CT"}.get(env.get("controller", "pid"), env.get("controller"))
+        law = law_label(env.get("controller", "pid"))
         fixed = self.record["settings"].get("observation_scaling", "running") == "fixed"
         notes = "".join([", mismatch-trained" if env.get("plant_randomization", "none") != "none" else "",
                          f", sees {law}" if env.get("observe_control", False) else "",

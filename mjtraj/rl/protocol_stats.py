@@ -141,11 +141,11 @@ def summarize(cost: NDArray[np.float64], ref: NDArray[np.float64], *, reps: int 
     """A method's summary from its costs (S seeds, K scenarios; NaN = failed) and the reference's (K,)."""
     from rliable.library import StratifiedBootstrap
 
-    cost = np.asarray(cost, dtype=np.float64)
+    cost, ref = np.asarray(cost, dtype=np.float64), np.asarray(ref, dtype=np.float64)
     S, K = cost.shape
-    refs = np.broadcast_to(np.asarray(ref, dtype=np.float64), cost.shape).copy()
+    refs = np.broadcast_to(ref, cost.shape).copy()
     scores = improvement(cost, ref)
-    x, y = -failed_as_inf(cost), -failed_as_inf(np.asarray(ref, dtype=np.float64))[None, :]
+    x, y = -failed_as_inf(cost), -failed_as_inf(ref)[None, :]  # higher is better; a failure is -inf
     with seeded_global_rng(seed):
         ratio = _interval(ratio_of_means(cost, refs), StratifiedBootstrap(cost, refs, task_bootstrap=True),
                           ratio_of_means, reps)
@@ -154,8 +154,7 @@ def summarize(cost: NDArray[np.float64], ref: NDArray[np.float64], *, reps: int 
         poi = _interval(probability_of_improvement(x, y), StratifiedBootstrap(x, ys, task_bootstrap=True),
                         probability_of_improvement, reps)
     wins = float(100 * np.mean(x > y))
-    return MethodSummary(S, K, int(np.sum(~np.isfinite(failed_as_inf(cost)))),
-                         int(np.sum(~np.isfinite(failed_as_inf(np.asarray(ref))))), ratio, mid, poi, wins)
+    return MethodSummary(S, K, int(np.sum(np.isinf(x))), int(np.sum(np.isinf(y))), ratio, mid, poi, wins)
 
 
 def profile_figure(scores: dict[str, dict[str, NDArray[np.float64]]], path: Any, *, reference: str,

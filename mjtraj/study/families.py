@@ -126,10 +126,9 @@ def arm_scales(model: mujoco.MjModel) -> tuple[float, NDArray[np.float64]]:
     factor, shape (n,)."""
     from mjtraj.core.model import JointInfo
 
-    shipped = _shipped_mass()
-    mass = float(np.sum(model.body_mass[1:]))
+    shipped, mass = _shipped_mass(), float(np.sum(model.body_mass[1:]))
     limits = JointInfo.of(model).torque_limit
-    return (1.0 if mass == shipped else mass / shipped), np.where(limits == UR5_TORQUE, 1.0, limits / UR5_TORQUE)
+    return mass / shipped, limits / UR5_TORQUE  # exactly 1 on the UR5 itself (x / x), so its draws are unchanged
 
 
 @functools.cache

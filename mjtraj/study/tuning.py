@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mjtraj.checks import positive_int
+from mjtraj.core.controller import PIDGains
 from mjtraj.core.planners import Planner, check_name, make, plan_all
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
@@ -142,14 +143,12 @@ def tune(scenario: Scenario, *, planners: Sequence[str] = ("optimal", "trapezoid
         check_name("planners", name)
     if family not in FAMILIES:
         raise InvalidInputError(f"family: unknown value {family!r}; valid: {', '.join(FAMILIES)}")
-    model = scenario.model
     if on_task:
         draws = [FamilyScenario("task", 0, scenario.task, None, 0)]
         scoring, stream, where = scenario.scoring, None, None
     else:
-        positive_int("scenarios", scenarios)
         stream = training_stream(family)
-        draws = [draw_scenario(family, seed, i, model, scenario.task.dt, stream=stream) for i in range(scenarios)]
+        draws = training_draws(scenario, family, scenarios, seed)
         scoring, where = Scoring(), family
     results = []
     options = {k: dict(v) for k, v in scenario.planner_options.items()}
@@ -187,6 +186,24 @@ def tune(scenario: Scenario, *, planners: Sequence[str] = ("optimal", "trapezoid
     return tuned, results
 
 
+def training_draws(scenario: Scenario, family: str, scenarios: int, seed: int) -> list[FamilyScenario]:
+    """The `scenarios` training scenarios of `family` under `seed`, from its training stream (`training_stream`).
+
+    Raises:
+      InvalidInputError: a scenario count below 1.
+    """
+    positive_int("scenarios", scenarios)
+    stream = training_stream(family)
+    return [draw_scenario(family, seed, i, scenario.model, scenario.task.dt, stream=stream) for i in range(scenarios)]
+
+
+def scaled_gains(scenario: Scenario, factors: dict[str, float]) -> PIDGains:
+    """The scenario's PID gains times GAIN_PARAMETERS' factors (kp_scale, ki_scale, kd_scale)."""
+    g = scenario.loop.gains
+    return dataclasses.replace(g, kp=g.kp * factors["kp_scale"], ki=g.ki * factors["ki_scale"],
+                               kd=g.kd * factors["kd_scale"])
+
+
 def tune_gains(scenario: Scenario, *, family: str = "mismatch", scenarios: int = 50, seed: int = 0,
                budget: int = 32, progress: Callable[[int, int], None] | None = None
                ) -> tuple[Scenario, PlannerTuning]:
@@ -199,27 +216,24 @@ def tune_gains(scenario: Scenario, *, family: str = "mismatch", scenarios: int =
         PID (its gains would be unused).
     """
     positive_int("budget", budget)
-    positive_int("scenarios", scenarios)
     if family not in FAMILIES:
         raise InvalidInputError(f"family: unknown value {family!r}; valid: {', '.join(FAMILIES)}")
     if scenario.loop.controller != "pid":
         raise InvalidInputError(f"gains: the scenario's control law is {scenario.loop.controller!r}, which does not "
                                 "use the PID gains; tune them on a pid scenario")
     stream = training_stream(family)
-    draws = [draw_scenario(family, seed, i, scenario.model, scenario.task.dt, stream=stream) for i in range(scenarios)]
-    g = scenario.loop.gains
+    draws = training_draws(scenario, family, scenarios, seed)
     trials = []
     cubic = make("cubic")
     for point in points(GAIN_PARAMETERS, budget, seed):
-        gains = dataclasses.replace(g, kp=g.kp * point["kp_scale"], ki=g.ki * point["ki_scale"],
-                                    kd=g.kd * point["kd_scale"])
+        gains = scaled_gains(scenario, point)
         value, failed = objective(scenario.replace(loop={"gains": gains}), cubic, draws, Scoring(), family)
         trials.append(Trial(point, value, failed))
         if progress is not None:
             progress(len(trials), budget)
     tuning = PlannerTuning("pid_gains", trials)
     best = tuning.best.parameters
-    gains = dataclasses.replace(g, kp=g.kp * best["kp_scale"], ki=g.ki * best["ki_scale"], kd=g.kd * best["kd_scale"])
+    gains = scaled_gains(scenario, best)
     record = {"mode": "held out", "what": "PID gains (factors on the stated rule's kp, ki, kd)", "family": family,
               "scenarios": scenarios, "seed": seed, "stream": f"[seed, {stream}, i]", "budget": budget,
               "optimiser": OPTIMISER, "objective": OBJECTIVE + ", cubic references",
