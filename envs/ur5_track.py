@@ -37,11 +37,14 @@ reach it before the tracking error exceeds pi, which ends the episode."""
 
 def observation_space(settings: TrackSettings) -> spaces.Box:
     """Positions within the joint ranges +- pi, errors within the range widths + pi, velocities within
-    +-VELOCITY_BOUND, the phase in [0, 1]; float64. Layout in UR5TrackEnv's docstring."""
+    +-VELOCITY_BOUND on the UR5 (unbounded on a user's arm), the phase in [0, 1]; float64. Layout in UR5TrackEnv's
+    docstring."""
     joints = JointInfo.of(settings.model)
     q_low, q_high = joints.lower - np.pi, joints.upper + np.pi
     e_max = joints.upper - joints.lower + np.pi
-    v = np.full(settings.n, VELOCITY_BOUND)
+    # VELOCITY_BOUND's argument is the UR5's; a user's arm may have light joints that reach any speed: there the
+    # velocities have no a-priori bound (half the largest float, so that the velocity errors' 2 v stays finite)
+    v = np.full(settings.n, VELOCITY_BOUND if settings.model_path is None else np.finfo(np.float64).max / 2)
     zero, one = np.zeros(1), np.ones(1)
     low = [q_low, -v, q_low, -v, -e_max, -2 * v, zero] + [q_low, -v] * settings.preview
     high = [q_high, v, q_high, v, e_max, 2 * v, one] + [q_high, v] * settings.preview

@@ -298,3 +298,18 @@ def test_frontier_says_why_a_point_failed_and_takes_the_task_flags(tmp_path, cap
     rows = json.loads((tmp_path / "frontier.json").read_text())["rows"]
     optimal = next(r for r in rows if r["planner"] == "optimal")
     assert optimal["failed"] == 1 and optimal["failure_reasons"][0].startswith("infeasible: InfeasibleError")
+
+
+def test_a_light_user_arms_fast_joints_stay_inside_its_observation_space(arms):
+    """The UR5's 200 rad/s bound does not hold for a user's light joints: full residual pushes on the light arm
+    leave the space's velocity bounds never violated (they had been, making SB3's checker fail at random)."""
+    env = UR5TrackEnv(xml_file=arms["light"], task="random", action_mode="torque")
+    space = env.observation_space
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        done = False
+        while not done:
+            obs, _, terminated, truncated, _ = env.step(np.ones(3))
+            assert space.contains(obs)
+            done = terminated or truncated
+    assert UR5TrackEnv().observation_space.high[3] == 200.0  # the UR5's bound is unchanged
