@@ -189,9 +189,10 @@ def _parser() -> argparse.ArgumentParser:
     u.add_argument("--budget", type=int, default=32, help="evaluations per planner (default 32)")
     u.add_argument("--on-task", action="store_true", help="oracle mode: tune on the scenario's own task (labelled; "
                    "not a held-out result)")
-    u.add_argument("--gains", action="store_true", help="tune the PID gains instead (factors on kp, ki, kd, "
-                   "log-uniform in [1/4, 4]; cubic references; --planners and --on-task do not apply); the file is "
-                   "rl eval's --tuned-gains baseline")
+    u.add_argument("--gains", action="store_true", help="tune the control law's parameters instead: the PID gains "
+                   "(factors on kp, ki, kd, log-uniform in [1/4, 4]) or, with --config paper_adaptive.toml, the "
+                   "adaptive law's adaptation rate (log-uniform in [1e-4, 1]); cubic references; --planners and "
+                   "--on-task do not apply; a PID file is rl eval's --tuned-gains baseline")
     u.add_argument("--no-progress", action="store_true", help="no progress bar")
     u.add_argument("--out", type=Path, default=Path("tuned.toml"), help="the tuned scenario file (default "
                    "tuned.toml)")
@@ -284,6 +285,12 @@ def _parser() -> argparse.ArgumentParser:
                    "torque on the mismatch family)")
     t.add_argument("--observe-control", dest="observe_control", action="store_true",
                    help="the policy also observes the PID integral and the next feedforward torque")
+    t.add_argument("--observe-plant", dest="observe_plant", default="none",
+                   help="none | true: the policy also observes the plant's payload, damping and friction (a "
+                   "privileged teacher, labelled so in rl eval) | estimate: the adaptive law's online estimate of "
+                   "them (deployable; --controller adaptive_computed_torque) (default none)")
+    t.add_argument("--history", type=int, default=0, help="previous observations the policy also sees, latest "
+                   "first (default 0)")
     t.add_argument("--observation-scaling", dest="observation_scaling", default="running",
                    help="running (VecNormalize's running statistics) | fixed (errors as the PID torque they make, "
                    "in units of the residual scale; positions by pi rad, velocities by pi rad/s; docs/design.md) "
@@ -296,7 +303,7 @@ def _parser() -> argparse.ArgumentParser:
                    "(default none)")
     t.add_argument("--planner", default="cubic", help="planner whose references the policy tracks (default cubic)")
     t.add_argument("--controller", default="pid", help="control law the residual acts on: pid | computed_torque "
-                   "(or a plug-in law; default pid)")
+                   "| adaptive_computed_torque (or a plug-in law; default pid)")
     t.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
     t.add_argument("--steps", type=int, default=100_000, help="environment steps (default 100000)")
     t.add_argument("--seed", type=int, default=0, help="the run's seed, 0 <= seed < 2^32 (default 0)")
@@ -325,7 +332,8 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--baselines", action="store_true", help="also score every shipped baseline (mjtraj rl baselines)")
     e.add_argument("--policy-env", dest="policy_env", action="append", default=[], metavar="KEY=VALUE",
                    help="an env setting for policies that are not zips and do not declare it (planner, controller, "
-                   "action_mode, residual_scale, observe_control, preview; default UR5Track-v1's); repeatable")
+                   "action_mode, residual_scale, observe_control, preview, observe_plant, history; default "
+                   "UR5Track-v1's); repeatable")
     e.add_argument("--family", type=_names, default=["nominal"],
                    help="families, comma-separated: nominal, aggressive, mismatch (default nominal)")
     e.add_argument("--scenarios", type=int, default=200, help="held-out scenarios per family (default 200)")
@@ -474,10 +482,12 @@ def _tune(args: argparse.Namespace) -> int:
             tuned, gains = tune_gains(base, family=args.family, scenarios=args.scenarios, seed=args.seed,
                                       budget=args.budget, progress=progress)
         write_text_atomic(args.out, dumps(tuned.as_dict(), header=(
-            f"Written by `mjtraj tune --gains` from {args.config or 'the shipped paper.toml'}: the PID gains below "
-            "were tuned by the rules recorded in [tuning]. Score them with `mjtraj rl eval --tuned-gains`.")))
+            f"Written by `mjtraj tune --gains` from {args.config or 'the shipped paper.toml'}: the control law's "
+            "parameters below were tuned by the rules recorded in [tuning]. Score PID gains with `mjtraj rl eval "
+            "--tuned-gains`.")))
         best = gains.best
-        print(f"PID gains: {', '.join(f'{k} = {v:.4g}' for k, v in best.parameters.items())}; mean J_exec "
+        what = "PID gains" if base.loop.controller == "pid" else f"{base.loop.controller} parameters"
+        print(f"{what}: {', '.join(f'{k} = {v:.4g}' for k, v in best.parameters.items())}; mean J_exec "
               f"{best.objective:.4g} over {args.scenarios} {args.family} training scenarios "
               f"({len(gains.trials)} evaluations)")
         print(f"wrote {args.out}")
@@ -713,6 +723,8 @@ def _rl(args: argparse.Namespace) -> int:
         extra: dict[str, Any] = {} if args.residual_scale is None else {"residual_scale": args.residual_scale}
         extra["overrides"] = _overrides(args.hyperparameters, args.hyperparameter)
         extra["observe_control"] = args.observe_control
+        extra["observe_plant"] = args.observe_plant
+        extra["history"] = args.history
         extra["observation_scaling"] = args.observation_scaling
         extra["plant_randomization"] = args.plant_randomization
         extra["reward_baseline"] = args.reward_baseline

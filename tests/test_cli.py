@@ -58,7 +58,8 @@ def test_compare_json_and_overrides(tmp_path, capsys):
     (["--ff", "planned", "--planners", "cubic"], "mjtraj: error: feedforward: mode 'planned' needs a planner that "
      "publishes u_plan; the 'cubic' reference has none; valid for it: inverse, none"),
     (["--config", "/nonexistent.toml"], "mjtraj: error: config: scenario file not found: /nonexistent.toml (shipped "
-                                        "scenarios, by name: paper, paper_computed_torque, paper_oracle, paper_tuned)"),
+                                        "scenarios, by name: paper, paper_adaptive, paper_computed_torque, "
+                                        "paper_oracle, paper_tuned)"),
     (["--duration", "0.1", "--planners", "optimal"], None),
 ])
 def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message):

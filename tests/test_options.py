@@ -29,7 +29,7 @@ def test_declarations_drive_names_and_choices():
     assert [f.name for f, _, kind in declared_options(LoopConfig) if kind is str] == [
         "controller", "feedforward", "ff_accel", "gravity_comp", "anti_windup"]
     assert option_names(LoopConfig) == ("controller", "feedforward", "ff_accel", "gravity_comp", "anti_windup",
-                                        "substeps")
+                                        "adaptation_rate", "substeps")
 
 
 def test_an_int_is_accepted_as_a_float_and_normalised():

@@ -30,7 +30,8 @@ def test_documented_loop_defaults_match_the_docs():
 
     defaults = {f.name: f.default for f in dataclasses.fields(LoopConfig) if f.default is not dataclasses.MISSING}
     assert defaults == {"controller": "pid", "feedforward": "inverse", "ff_accel": "sample", "gravity_comp": "native",
-                        "anti_windup": "none", "substeps": 1, "divergence_bound": pytest.approx(3.141592653589793),
+                        "anti_windup": "none", "adaptation_rate": 0.0155, "substeps": 1,
+                        "divergence_bound": pytest.approx(3.141592653589793),
                         "delay": 0}
 
 

@@ -200,7 +200,8 @@ def test_tuned_gains_are_the_best_of_their_trials():
     np.testing.assert_array_equal(tuned.loop.gains.kp, base.loop.gains.kp * factors["kp_scale"])
     np.testing.assert_array_equal(tuned.loop.gains.kd, base.loop.gains.kd * factors["kd_scale"])
     assert objective(tuned, make("cubic"), draws, Scoring(), "mismatch")[0] == best.objective
-    with pytest.raises(InvalidInputError, match=r"^gains: the scenario's control law is 'computed_torque'"):
+    with pytest.raises(InvalidInputError, match=r"^gains: expected a scenario whose control law has free "
+                       r"parameters \(pid, adaptive_computed_torque\), got 'computed_torque'$"):
         tune_gains(load_scenario("paper_computed_torque"))
 
 

@@ -29,7 +29,7 @@ def test_paper_settings(scenario):
 def test_unknown_key(tmp_path):
     with pytest.raises(InvalidInputError, match=r"^config: unknown key 'kq' in \[controller\]; valid: kp, ki, kd, "
                                                 r"controller, feedforward, ff_accel, gravity_comp, anti_windup, "
-                                                r"substeps$"):
+                                                r"adaptation_rate, substeps$"):
         load_scenario(write(tmp_path, paper_text().replace("kp = ", "kq = ")))
 
 
@@ -108,6 +108,6 @@ def test_a_binary_file_is_not_a_scenario(tmp_path):
 def test_shipped_scenarios_load_by_name():
     from mjtraj.study.scenario import shipped_scenarios
 
-    assert shipped_scenarios() == ("paper", "paper_computed_torque", "paper_oracle", "paper_tuned")
+    assert shipped_scenarios() == ("paper", "paper_adaptive", "paper_computed_torque", "paper_oracle", "paper_tuned")
     assert load_scenario("paper_tuned").tuning["mode"] == "held out"
     assert load_scenario("paper_oracle").name == "paper_oracle"

@@ -32,9 +32,11 @@ _EXPORTS = {
     "PIDGains": "mjtraj.core.controller",
     "ControlOutput": "mjtraj.core.controller",
     "control_law": "mjtraj.core.controller",
-    "controller_names": "mjtraj.core.controller",
+    "controller_names": "mjtraj.core.laws",
+    "AdaptiveComputedTorque": "mjtraj.core.adaptive",
+    "parameter_bounds": "mjtraj.core.adaptive",
     "ANTI_WINDUP": "mjtraj.core.controller",
-    "CONTROLLERS": "mjtraj.core.controller",
+    "CONTROLLERS": "mjtraj.core.laws",
     "Controller": "mjtraj.core.controller",
     "PID": "mjtraj.core.controller",
     "ComputedTorque": "mjtraj.core.controller",
@@ -72,21 +74,21 @@ _EXPORTS = {
 __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
+    from mjtraj.core.adaptive import AdaptiveComputedTorque, parameter_bounds
     from mjtraj.core.closed_loop import ClosedLoop, LoopConfig, Step
     from mjtraj.core.controller import (
         ANTI_WINDUP,
-        CONTROLLERS,
         PID,
         ComputedTorque,
         Controller,
         ControlOutput,
         PIDGains,
         control_law,
-        controller_names,
     )
     from mjtraj.core.dynamics import DynamicsProbe
     from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many
     from mjtraj.core.gains import GAIN_RULE, gain_rule
+    from mjtraj.core.laws import CONTROLLERS, controller_names
     from mjtraj.core.linearize import discretize_zoh, linearize_many
     from mjtraj.core.lqr import BoxLQRSolution, box_lqr
     from mjtraj.core.metrics import METRIC_NAMES, METRIC_UNITS, Metrics, gravity_along, metrics_arrays, reduction
@@ -102,6 +104,7 @@ if TYPE_CHECKING:
     from mjtraj.core.task import Task, random_task
 
 __all__ = [
+    "AdaptiveComputedTorque", "parameter_bounds",
     "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "CONTROLLERS", "ClosedLoop", "ComputedTorque", "CondensedQP",
     "ControlOutput", "Controller", "DynamicsProbe", "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE",
     "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics",

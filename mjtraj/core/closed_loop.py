@@ -12,9 +12,11 @@ import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
-from mjtraj.core.controller import ANTI_WINDUP, Controller, ControlOutput, PIDGains, controller_names, make_controller
+from mjtraj.core.adaptive import ADAPTATION_RATE
+from mjtraj.core.controller import ANTI_WINDUP, Controller, ControlOutput, PIDGains
 from mjtraj.core.dynamics import DynamicsProbe
 from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many, reference_accelerations
+from mjtraj.core.laws import controller_names, make_controller
 from mjtraj.core.model import JointInfo
 from mjtraj.core.options import check_options, option
 from mjtraj.core.plant import GRAVITY_COMP, BatchPlant
@@ -43,6 +45,9 @@ class LoopConfig:
                                "G(q_k) held over the period", choices=GRAVITY_COMP)
     anti_windup: str = option("none", "anti-windup: none, or clamp = stop integrating on a saturated joint",
                               choices=ANTI_WINDUP)
+    adaptation_rate: float = option(ADAPTATION_RATE, "adaptive_computed_torque's adaptation rate gamma, 1/(N m rad): "
+                                    "Gamma = gamma diag(theta_max^2) (0 freezes the estimate at the nominal model)",
+                                    minimum=0.0)
     substeps: int = option(1, "integrator steps per control period", minimum=1)
     divergence_bound: float = option(float(np.pi), "|e| above this on any joint marks an execution diverged, rad",
                                      positive=True, scenario=False)
@@ -63,7 +68,8 @@ class _LoopState:
     q_ref, qd_ref: shape (N+1, B, n); tau_ff: (N, B, n); qdd_ref: (N, B, n) for a law that reads it (by the
     ff_accel rule), else None; integral: (B, n), rad s; noise: measurement
     noise (N, B, 2n) added to [q; qd] before control, or None; held: the torque the delayed actuator applies
-    next, (B, n), or None without delay; diverged_step: (B,), -1 while running; records: name -> (N, B, n)
+    next, (B, n), or None without delay; law_state: a stateful law's state (B, state_size), else None;
+    diverged_step: (B,), -1 while running; records: name -> (N, B, n)
     for each of RECORDED (NaN where not reached); q_final, qd_final: (B, n) state after period N-1 (NaN until
     then).
     sync: the common next period while every simulation is live and in step (the fast path), else None; k:
@@ -82,6 +88,7 @@ class _LoopState:
     qd_final: NDArray[np.float64]
     noise: NDArray[np.float64] | None = None
     held: NDArray[np.float64] | None = None
+    law_state: NDArray[np.float64] | None = None
     sync: int | None = 0
     rows: NDArray[np.intp] = field(init=False)
 
@@ -148,7 +155,8 @@ class ClosedLoop:
                                  gravity_comp=config.gravity_comp, substeps=config.substeps, nthread=nthread,
                                  fields=plant_fields)
         self._state: _LoopState | None = None
-        self._law: Controller = make_controller(config, self.dt, model.nv, nsim)
+        self._law: Controller = make_controller(config, self.dt, model.nv, nsim, model)
+        self._stateful = int(getattr(self._law, "state_size", 0)) > 0
         self._dynamics = DynamicsProbe(model, size=nsim) if self._law.needs_dynamics else None
         self._limit = np.tile(self.limit, (nsim, 1))
         self._none_diverged = np.zeros(nsim, dtype=bool)
@@ -274,7 +282,8 @@ class ClosedLoop:
             if checked.shape != (N, count, 2 * n) or not np.all(np.isfinite(checked)):
                 raise InvalidInputError(f"noise: expected finite values of shape ({N}, {count}, {2 * n}), "
                                         f"got shape {checked.shape}")
-        qdd = reference_accelerations(references, self.config.ff_accel) if self._law.needs_dynamics else None
+        reads = self._law.needs_dynamics or self._stateful
+        qdd = reference_accelerations(references, self.config.ff_accel) if reads else None
         return q_ref, qd_ref, ff, checked, qdd
 
     def start(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None) -> None:
@@ -292,7 +301,8 @@ class ClosedLoop:
         self._state = _LoopState(q_ref, qd_ref, ff, qdd, np.zeros(B, dtype=np.intp), np.zeros((B, n)),
                                  np.full(B, -1, dtype=np.int64), records, np.full((B, n), np.nan),
                                  np.full((B, n), np.nan), noise=checked,
-                                 held=np.zeros((B, n)) if self.config.delay else None)
+                                 held=np.zeros((B, n)) if self.config.delay else None,
+                                 law_state=self._initial_law_state(B))
         self._plant.reset(q_ref[0], qd_ref[0])
 
     def restart(self, ids: npt.ArrayLike, references: Sequence[Reference], *,
@@ -324,6 +334,8 @@ class ClosedLoop:
             s.noise[:, where] = 0.0 if checked is None else checked
         if s.held is not None:
             s.held[where] = 0.0
+        if s.law_state is not None:
+            s.law_state[where] = self._initial_law_state(rows.size)
         s.resync()
         self._plant.reset(q_ref[0], qd_ref[0], rows)
 
@@ -346,12 +358,13 @@ class ClosedLoop:
             ed = np.subtract(s.qd_ref[k], qd, out=rec["ed"][k])
             if s.noise is None:
                 out = self._control(e, ed, q, qd, s.integral, s.tau_ff[k],
-                                    None if s.qdd_ref is None else s.qdd_ref[k], residual, override)
+                                    None if s.qdd_ref is None else s.qdd_ref[k], residual, override, s.law_state)
             else:
                 out = self._control(e - s.noise[k, :, :n], ed - s.noise[k, :, n:], q + s.noise[k, :, :n],
                                     qd + s.noise[k, :, n:], s.integral, s.tau_ff[k],
-                                    None if s.qdd_ref is None else s.qdd_ref[k], residual, override)
+                                    None if s.qdd_ref is None else s.qdd_ref[k], residual, override, s.law_state)
             s.integral = out.integral
+            s.law_state = out.state
             if s.held is not None:
                 out = out._replace(dtau=self._delayed(out.dtau, slice(None)))
             plant.step(out.dtau)
@@ -375,11 +388,13 @@ class ClosedLoop:
         seen_e, seen_ed = (e, ed) if s.noise is None else (e - s.noise[ks, s.rows, :n], ed - s.noise[ks, s.rows, n:])
         seen_q, seen_qd = (q, qd) if s.noise is None else (q + s.noise[ks, s.rows, :n], qd + s.noise[ks, s.rows, n:])
         out = self._control(seen_e, seen_ed, seen_q, seen_qd, s.integral, s.tau_ff[ks, s.rows],
-                            None if s.qdd_ref is None else s.qdd_ref[ks, s.rows], residual, override)
+                            None if s.qdd_ref is None else s.qdd_ref[ks, s.rows], residual, override, s.law_state)
         dtau = np.where(active[:, None], out.dtau, 0.0)
         if s.held is not None:
             dtau = np.where(active[:, None], self._delayed(dtau, active), 0.0)
         s.integral = np.where(active[:, None], out.integral, s.integral)
+        if s.law_state is not None and out.state is not None:
+            s.law_state = np.where(active[:, None], out.state, s.law_state)
         plant.step(dtau)
         control = ControlOutput(out.tau_ff, out.tau_fb, dtau, out.saturated & active[:, None], out.integral)
         live, kl = s.rows[active], ks[active]
@@ -398,13 +413,42 @@ class ClosedLoop:
     def _control(self, e: NDArray[np.float64], ed: NDArray[np.float64], q: NDArray[np.float64],
                  qd: NDArray[np.float64], integral: NDArray[np.float64], tau_ff: NDArray[np.float64],
                  qdd_ref: NDArray[np.float64] | None, residual: NDArray[np.float64] | None,
-                 override: NDArray[np.float64] | None) -> ControlOutput:
+                 override: NDArray[np.float64] | None, law_state: NDArray[np.float64] | None) -> ControlOutput:
         """The configured control law on what the controller sees (errors, measured state q, qd), shapes (B, n)."""
         dynamics = None
         if self._dynamics is not None and override is None:
             dynamics = self._dynamics.mass_and_bias(q, qd)
-        return self._law(e, ed, integral, tau_ff, qdd_ref, dynamics, self._limit, self.dt, residual=residual,
-                         override=override)
+        if law_state is None:
+            return self._law(e, ed, integral, tau_ff, qdd_ref, dynamics, self._limit, self.dt, residual=residual,
+                             override=override)
+        return self._law(e, ed, integral, tau_ff, qdd_ref, dynamics, self._limit, self.dt,  # type: ignore[call-arg]
+                         residual=residual, override=override, state=law_state, q=q, qd=qd)
+
+    def _initial_law_state(self, rows: int) -> NDArray[np.float64] | None:
+        """A stateful law's initial state for `rows` simulations, (rows, state_size); None for other laws."""
+        return self._law.initial_state(rows) if self._stateful else None  # type: ignore[attr-defined,no-any-return]
+
+    def set_law_state(self, state: npt.ArrayLike, ids: npt.ArrayLike | None = None) -> None:
+        """Set a stateful law's state of simulations `ids` (all if None), shape (len(ids), state_size), after their
+        (re)start: an oracle that starts the adaptive law at the true parameters.
+
+        Raises:
+          InvalidInputError: the law has no state, or `state` has the wrong shape or non-finite values.
+        """
+        s = self._running()
+        if s.law_state is None:
+            raise InvalidInputError(f"state: the control law {self.config.controller!r} has no state to set")
+        rows = s.rows if ids is None else np.asarray(ids, dtype=np.intp).reshape(-1)
+        value = np.asarray(state, dtype=np.float64)
+        if value.shape != (rows.size, s.law_state.shape[1]) or not np.all(np.isfinite(value)):
+            raise InvalidInputError(f"state: expected finite values of shape ({rows.size}, {s.law_state.shape[1]}), "
+                                    f"got shape {value.shape}")
+        s.law_state[rows] = value
+
+    def law_state(self) -> NDArray[np.float64] | None:
+        """Each simulation's state of a stateful law now, (B, state_size) (the adaptive law's estimate: payload kg,
+        damping N m s/rad and friction N m per joint); None for a law without state (read-only use)."""
+        return self._running().law_state
 
     def _delayed(self, command: NDArray[np.float64], rows: slice | NDArray[np.bool_]) -> NDArray[np.float64]:
         """The delayed actuator: apply the held torque of `rows`, hold `command` for the next period."""

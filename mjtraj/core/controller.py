@@ -3,9 +3,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, ClassVar, NamedTuple, Protocol
+from typing import ClassVar, NamedTuple, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -53,6 +52,8 @@ class ControlOutput(NamedTuple):
     """Whether the command exceeded the limit on that joint."""
     integral: NDArray[np.float64]
     """Error integral I_k after this step, rad s."""
+    state: NDArray[np.float64] | None = None
+    """A stateful law's state after this step, (B, state_size) (the adaptive law's estimate), else None."""
 
 
 def control_law(e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArray[np.float64],
@@ -95,10 +96,6 @@ def overridden(override: NDArray[np.float64], limit: NDArray[np.float64], integr
     return ControlOutput(zero, zero, dtau, dtau != override, integral)
 
 
-CONTROLLERS = ("pid", "computed_torque")
-"""The built-in control laws (`LoopConfig.controller`); plug-ins add others (`controller_names`)."""
-
-
 class Controller(Protocol):
     """A control law the one closed loop calls once per control period for a batch of B simulations.
 
@@ -107,6 +104,10 @@ class Controller(Protocol):
     `needs_dynamics`, the nominal model's D(q) (B, n, n) and h(q, qd) = C(q, qd) qd - passive forces (B, n) at the
     measured state (else None). `limit` is the saturation (B, n), N m. `residual` is added before saturation,
     `override` replaces the command (the env's modes).
+
+    A stateful law (one with a `state_size` attribute > 0 and `initial_state(rows)`) is also given its state
+    `state` (B, state_size) and the measured q, qd (B, n) as keywords, and returns its next state in
+    `ControlOutput.state`; the loop keeps the state per simulation and resets it when a simulation restarts.
     """
 
     @property
@@ -181,62 +182,3 @@ class ComputedTorque:
         command = ff + fb if residual is None else ff + fb + residual
         dtau = np.minimum(np.maximum(command, -limit), limit)
         return ControlOutput(ff, fb, dtau, dtau != command, integral)
-
-
-def _pid(config: Any, dt: float, n: int, nsim: int) -> Controller:
-    return PID(config.gains.tiled(nsim), config.anti_windup)
-
-
-def _computed_torque(config: Any, dt: float, n: int, nsim: int) -> Controller:
-    return ComputedTorque.for_period(dt, n)
-
-
-_BUILT_IN: dict[str, Callable[[Any, float, int, int], Controller]] = {"pid": _pid,
-                                                                      "computed_torque": _computed_torque}
-
-
-def _factories() -> dict[str, Callable[[Any, float, int, int], Controller]]:
-    """Built-in laws and those of installed plug-ins (entry points `mjtraj.controllers`, see `mjtraj.plugins`).
-
-    Raises:
-      PluginError: a plug-in cannot be loaded, is not callable, or takes a built-in law's name.
-    """
-    from mjtraj.exceptions import PluginError
-    from mjtraj.plugins import CONTROLLERS as GROUP
-    from mjtraj.plugins import plugins
-
-    out = dict(_BUILT_IN)
-    for name, factory in plugins(GROUP).items():
-        if name in out:
-            raise PluginError(f"plug-in controller {name!r}: the name of a built-in control law")
-        if not callable(factory):
-            raise PluginError(f"plug-in controller {name!r}: expected a factory(config, dt, n, nsim), got "
-                              f"{factory!r}")
-        out[name] = factory
-    return out
-
-
-def controller_names() -> tuple[str, ...]:
-    """The control laws a loop accepts: the built-in ones, then plug-ins'."""
-    return tuple(_factories())
-
-
-def make_controller(config: Any, dt: float, n: int, nsim: int) -> Controller:
-    """The control law `config.controller` (a LoopConfig) for `nsim` simulations of n joints at period dt (s).
-
-    Raises:
-      PluginError: a plug-in's factory failed (its message) or did not return a Controller.
-    """
-    factory = _factories()[config.controller]
-    if config.controller in _BUILT_IN:
-        return factory(config, dt, n, nsim)
-    from mjtraj.exceptions import PluginError
-
-    try:
-        law = factory(config, dt, n, nsim)
-    except Exception as e:  # noqa: BLE001 - foreign code: one line, named
-        raise PluginError(f"plug-in controller {config.controller!r}: {type(e).__name__}: {e}") from e
-    if not callable(law) or not hasattr(law, "needs_dynamics"):
-        raise PluginError(f"plug-in controller {config.controller!r}: its factory returned {law!r}, not a "
-                          f"Controller (callable, with needs_dynamics)")
-    return law

@@ -149,18 +149,19 @@ class DynamicsProbe:
 
         This is mj_inverse's qfrc_inverse minus qfrc_gravcomp, for a model without constraints.
         """
-        D, bias, passive, gravcomp = self._terms(q, qd)
+        D, bias, passive, gravcomp = self.terms(q, qd)
         return np.einsum("bij,bj->bi", D, qdd) + bias - passive - gravcomp  # type: ignore[no-any-return]
 
     def mass_and_bias(self, q: NDArray[np.float64], qd: NDArray[np.float64]
                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """D(q), shape (rows, n, n), kg m^2, and h(q, qd) = C(q, qd) qd - passive forces, shape (rows, n), N m: the
         gravity-compensated model's ID(q, qd, qdd) - G(q) = D qdd + h."""
-        D, bias, passive, gravcomp = self._terms(q, qd)
+        D, bias, passive, gravcomp = self.terms(q, qd)
         return D, bias - passive - gravcomp
 
-    def _terms(self, q: NDArray[np.float64], qd: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
-        """D(q) (rows, n, n), and qfrc_bias, qfrc_passive, qfrc_gravcomp (rows, n) at (q, qd)."""
+    def terms(self, q: NDArray[np.float64], qd: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """D(q) (rows, n, n), kg m^2, and MuJoCo's qfrc_bias (C(q, qd) qd + gravity), qfrc_passive and
+        qfrc_gravcomp (rows, n), N m, at (q, qd)."""
         D = np.zeros((q.shape[0], self.n, self.n))
         bias, passive, gravcomp = np.empty_like(q), np.empty_like(q), np.empty_like(q)
         i, j, a = self._dense

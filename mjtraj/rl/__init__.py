@@ -14,7 +14,7 @@ from __future__ import annotations
 ALGORITHMS = ("sac", "ppo", "td3")
 ACTION_MODES = ("residual", "torque")
 """The env's action modes a policy can learn in ('pid' has nothing to learn)."""
-LAW_LABELS = {"pid": "PID", "computed_torque": "CT"}
+LAW_LABELS = {"pid": "PID", "computed_torque": "CT", "adaptive_computed_torque": "adaptive CT"}
 """How tables name a control law (planner+LAW, planner+LAW+residual ...); a plug-in law by its own name."""
 
 

@@ -41,10 +41,12 @@ from mjtraj.rl.protocol_stats import (
 from mjtraj.rl.streams import VALIDATION_STREAM, check_seed, family_entropies, shared_streams
 from mjtraj.study import (
     FAMILIES,
+    ORACLE_LABEL,
     PAYLOAD_MASS,
     SWEPT,
     ActorSpec,
     SweepSettings,
+    TrueParameters,
     columns,
     csv_text,
     numeric,
@@ -55,7 +57,8 @@ POLICY_COLUMNS = ("method", "policy", "policy_kind", "policy_sha256", "policy_ti
                   "policy_env")
 REFERENCE = "cubic+PID"
 """The reference method of every statistic: the cubic planner under feedforward + PID, the paper's baseline."""
-LAW_SCENARIOS = {"pid": None, "computed_torque": "paper_computed_torque"}
+LAW_SCENARIOS = {"pid": None, "computed_torque": "paper_computed_torque",
+                 "adaptive_computed_torque": "paper_adaptive"}
 """The shipped base scenario of each built-in law (None: paper.toml); a plug-in law runs paper.toml with its
 controller replaced, written into the output folder."""
 TUNED_LABEL = "cubic+PID (tuned gains)"
@@ -262,6 +265,10 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
     for (_, law, sweep, mine), unit in units:
         actors = [ActorSpec(label, p.planner, PolicyActor(p, p.settings()), {**p.columns(), "method": label})
                   for p, label in mine]
+        if law == "adaptive_computed_torque":
+            actors.append(ActorSpec(ORACLE_LABEL, "cubic", TrueParameters(),
+                                    {**dict.fromkeys(POLICY_COLUMNS, ""), "method": ORACLE_LABEL,
+                                     "policy_privileged": 1}))
         acting = {spec.label for spec in actors}
         for row in run_unit(sweep, unit, actors=actors).rows:
             if row["planner"] in acting:
@@ -415,8 +422,10 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
               "scenario); P(improve) the probability that an episode beats the reference's (ties one half); "
               f"95 % stratified-bootstrap intervals ({record['reps']} resamples over scenarios and seeds, "
               f"rliable). Failures: {record['failure_rule']}. Methods: planner+PID (feedforward + PID), "
-              f"planner+CT (computed torque on the nominal model), {TUNED_LABEL}, and each policy configuration "
-              "(its seeds pooled; `seeds` counts them).", "", table, ""]
+              f"planner+CT (computed torque on the nominal model), planner+adaptive CT (computed torque that "
+              f"estimates a payload, damping and friction online), {TUNED_LABEL}, {ORACLE_LABEL} where the adaptive "
+              "law runs (it knows each plant's payload, damping and friction: not deployable, a floor for the "
+              "others), and each policy configuration (its seeds pooled; `seeds` counts them).", "", table, ""]
     if compact:
         lines += ["In short (J / reference, then P(improve)):", "", compact, ""]
     if payload:
@@ -427,5 +436,5 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
         what = (f"{p.record['settings']['algo'].upper()}, {p.timesteps} steps, seed {p.record['settings']['seed']}"
                 if p.record is not None else p.kind)
         lines.append(f"- {label}: `{p.source}` ({what}; acts in {json.loads(p.columns()['policy_env'])}"
-                     f"{', privileged: sees the plant' if p.privileged else ''})")
+                     f"{', privileged: sees the plant' if p.sees_plant else ''})")
     return "\n".join(lines) + "\n"

@@ -30,6 +30,9 @@ _EXPORTS = {
     "no_perturbation": "mjtraj.study.families",
     "noise_scale": "mjtraj.study.families",
     "Actor": "mjtraj.study.pipeline",
+    "ORACLE_LABEL": "mjtraj.study.oracle",
+    "TrueParameters": "mjtraj.study.oracle",
+    "true_parameters": "mjtraj.study.oracle",
     "Job": "mjtraj.study.pipeline",
     "Outcome": "mjtraj.study.pipeline",
     "execute": "mjtraj.study.pipeline",
@@ -98,6 +101,7 @@ if TYPE_CHECKING:
         perturbed_plant,
         plant_fields,
     )
+    from mjtraj.study.oracle import ORACLE_LABEL, TrueParameters, true_parameters
     from mjtraj.study.paper import PAPER_TABLE
     from mjtraj.study.pipeline import STATUSES, Actor, Job, Outcome, execute, execute_batch, one_line, plan_failure
     from mjtraj.study.report import format_report, results_csv
@@ -131,15 +135,13 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Actor", "ActorSpec", "BACKENDS", "Comparison", "Condition", "DEFAULT_PLANNERS", "EXTRA_METRICS", "FAMILIES",
-    "FAMILY_ID", "FamilyScenario", "Job", "Outcome", "PAPER_TABLE", "PAYLOAD_MASS", "PairedRatio", "Perturbation",
-    "ResultsFile", "Row", "STATUSES", "SWEPT", "Scenario", "SweepData", "SweepReport", "SweepSettings", "UnitResult",
-    "VARIANTS", "VERSION_COLUMNS", "append_rows", "columns", "compare", "comparison_record", "csv_text", "cvar",
-    "arm_scales", "default_scenario_path", "draw_family", "draw_perturbation", "draw_scenario", "execute",
-    "execute_batch",
-    "fixed_columns",
-    "format_report", "jobs_for", "load_scenario", "scenario_text",
-    "measurement_noise", "no_perturbation", "noise_scale", "numeric",
-    "one_line", "paired_ratio", "perturbed_plant", "plan_failure", "plan_scenarios", "planner_names",
-    "plant_fields", "ratio_of_means", "read_rows", "results_csv", "run_sweep", "run_unit", "scenario_for_model",
-    "scenario_from_dict", "scoring_weights", "unit_scenarios", "write_audit",
+    "FAMILY_ID", "FamilyScenario", "Job", "ORACLE_LABEL", "Outcome", "PAPER_TABLE", "PAYLOAD_MASS", "PairedRatio",
+    "Perturbation", "ResultsFile", "Row", "STATUSES", "SWEPT", "Scenario", "SweepData", "SweepReport",
+    "SweepSettings", "TrueParameters", "UnitResult", "VARIANTS", "VERSION_COLUMNS", "append_rows", "arm_scales",
+    "columns", "compare", "comparison_record", "csv_text", "cvar", "default_scenario_path", "draw_family",
+    "draw_perturbation", "draw_scenario", "execute", "execute_batch", "fixed_columns", "format_report", "jobs_for",
+    "load_scenario", "measurement_noise", "no_perturbation", "noise_scale", "numeric", "one_line", "paired_ratio",
+    "perturbed_plant", "plan_failure", "plan_scenarios", "planner_names", "plant_fields", "ratio_of_means",
+    "read_rows", "results_csv", "run_sweep", "run_unit", "scenario_for_model", "scenario_from_dict", "scenario_text",
+    "scoring_weights", "true_parameters", "unit_scenarios", "write_audit",
 ]

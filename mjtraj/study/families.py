@@ -30,6 +30,8 @@ from numpy.typing import NDArray
 
 from mjtraj.core.arm import arm_spec, compile_arm
 from mjtraj.core.model import default_model_path
+from mjtraj.core.payload import FLANGE_RULE as FLANGE_RULE
+from mjtraj.core.payload import FLANGE_SITE, PAYLOAD_RADIUS
 from mjtraj.core.task import Task, random_task
 from mjtraj.exceptions import ModelError
 
@@ -43,16 +45,11 @@ AGGRESSIVE_DURATION = (0.5, 1.0)
 """s, uniform."""
 PAYLOAD_MASS = (0.0, 5.0)
 """kg, uniform."""
-PAYLOAD_RADIUS = 0.05
-"""m; the payload's inertia is that of a solid sphere."""
 LINK_SCALE = (0.8, 1.2)
 DAMPING = (0.0, 1.0)
 """N m s/rad, uniform per joint."""
 FRICTION = (0.0, 3.0)
 """N m, uniform per joint."""
-FLANGE_SITE = "attachment_site"
-FLANGE_RULE = (f"the payload sits at the site {FLANGE_SITE!r} if the arm has one, else at the centre of mass of the "
-               f"last joint's body; the links whose mass and inertia are scaled are the bodies the joints move")
 PAYLOAD_BODY = "mjtraj_payload"
 """The payload body's name in the perturbed plant (an arm may not have a body of that name)."""
 PERTURBATION_FIELDS = ("mass_scale", "inertia_scale", "damping", "friction")

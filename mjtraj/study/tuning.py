@@ -48,6 +48,10 @@ PARAMETERS: dict[str, dict[str, tuple[str, float, float]]] = {
 GAIN_PARAMETERS: dict[str, tuple[str, float, float]] = {"kp_scale": ("log", 0.25, 4.0), "ki_scale": ("log", 0.25, 4.0),
                                                         "kd_scale": ("log", 0.25, 4.0)}
 """The PID gains' free parameters (`tune_gains`): factors on the stated rule's kp, ki and kd (every joint alike)."""
+ADAPTATION_PARAMETERS: dict[str, tuple[str, float, float]] = {"adaptation_rate": ("log", 1e-4, 1.0)}
+"""The adaptive law's free parameter (`tune_gains`): its adaptation rate gamma, 1/(N m rad)."""
+LAW_PARAMETERS = {"pid": GAIN_PARAMETERS, "adaptive_computed_torque": ADAPTATION_PARAMETERS}
+"""Each tunable control law's free parameters."""
 OPTIMISER = "scrambled Sobol sequence over the parameter box (scipy.stats.qmc.Sobol), best point kept"
 OBJECTIVE = "mean J_exec over the training scenarios (Bryson's rule per task; +inf if any failed)"
 
@@ -204,42 +208,53 @@ def scaled_gains(scenario: Scenario, factors: dict[str, float]) -> PIDGains:
                                kd=g.kd * factors["kd_scale"])
 
 
+def with_law_parameters(scenario: Scenario, point: dict[str, float]) -> Scenario:
+    """The scenario with LAW_PARAMETERS' `point` of its control law: PID gain factors or the adaptation rate."""
+    if scenario.loop.controller == "pid":
+        return scenario.replace(loop={"gains": scaled_gains(scenario, point)})
+    return scenario.replace(loop=point)
+
+
 def tune_gains(scenario: Scenario, *, family: str = "mismatch", scenarios: int = 50, seed: int = 0,
                budget: int = 32, progress: Callable[[int, int], None] | None = None
                ) -> tuple[Scenario, PlannerTuning]:
-    """Tune the PID gains of `scenario` by the module's rules, with the cubic planner's references: GAIN_PARAMETERS
-    (factors on kp, ki, kd) on a Sobol sequence of `budget` points, each scored by the mean J_exec over the
-    training scenarios of `family`; the scenario with the best gains and its record.
+    """Tune the control law's free parameters (LAW_PARAMETERS: the PID gains' factors on kp, ki, kd, or the
+    adaptive law's adaptation rate) by the module's rules, with the cubic planner's references: a Sobol sequence of
+    `budget` points, each scored by the mean J_exec over the training scenarios of `family`; the scenario with the
+    best point and its record.
 
     Raises:
-      InvalidInputError: an unknown family, a budget or scenario count below 1, or a scenario whose law is not
-        PID (its gains would be unused).
+      InvalidInputError: an unknown family, a budget or scenario count below 1, or a scenario whose law has no
+        tunable parameters (computed torque's gains follow a rule).
     """
     positive_int("budget", budget)
     if family not in FAMILIES:
         raise InvalidInputError(f"family: unknown value {family!r}; valid: {', '.join(FAMILIES)}")
-    if scenario.loop.controller != "pid":
-        raise InvalidInputError(f"gains: the scenario's control law is {scenario.loop.controller!r}, which does not "
-                                "use the PID gains; tune them on a pid scenario")
+    law = scenario.loop.controller
+    if law not in LAW_PARAMETERS:
+        raise InvalidInputError(f"gains: expected a scenario whose control law has free parameters "
+                                f"({', '.join(LAW_PARAMETERS)}), got {law!r}")
+    parameters = LAW_PARAMETERS[law]
     stream = training_stream(family)
     draws = training_draws(scenario, family, scenarios, seed)
     trials = []
     cubic = make("cubic")
-    for point in points(GAIN_PARAMETERS, budget, seed):
-        gains = scaled_gains(scenario, point)
-        value, failed = objective(scenario.replace(loop={"gains": gains}), cubic, draws, Scoring(), family)
+    for point in points(parameters, budget, seed):
+        value, failed = objective(with_law_parameters(scenario, point), cubic, draws, Scoring(), family)
         trials.append(Trial(point, value, failed))
         if progress is not None:
             progress(len(trials), budget)
-    tuning = PlannerTuning("pid_gains", trials)
+    label = "pid_gains" if law == "pid" else f"{law}_parameters"
+    tuning = PlannerTuning(label, trials)
     best = tuning.best.parameters
-    gains = scaled_gains(scenario, best)
-    record = {"mode": "held out", "what": "PID gains (factors on the stated rule's kp, ki, kd)", "family": family,
+    what = ("PID gains (factors on the stated rule's kp, ki, kd)" if law == "pid" else
+            f"{law}'s {', '.join(parameters)}")
+    record = {"mode": "held out", "what": what, "family": family,
               "scenarios": scenarios, "seed": seed, "stream": f"[seed, {stream}, i]", "budget": budget,
               "optimiser": OPTIMISER, "objective": OBJECTIVE + ", cubic references",
-              "parameters": {k: list(v) for k, v in GAIN_PARAMETERS.items()},
-              "result": {"pid_gains": {**best, "objective": tuning.best.objective, "evaluations": len(trials)}},
+              "parameters": {k: list(v) for k, v in parameters.items()},
+              "result": {label: {**best, "objective": tuning.best.objective, "evaluations": len(trials)}},
               "base": scenario.name, "versions": versions()}
-    tuned = dataclasses.replace(scenario.replace(loop={"gains": gains}), name=scenario.name + "_tuned_gains",
+    tuned = dataclasses.replace(with_law_parameters(scenario, best), name=scenario.name + "_tuned_gains",
                                 tuning=record, source="")
     return tuned, tuning
