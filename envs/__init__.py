@@ -45,6 +45,8 @@ _EXPORTS = {
     "UR5TrackVectorEnv": "mjtraj.envs.vector",
     "TrackCore": "mjtraj.envs.core",
     "observe": "mjtraj.envs.core",
+    "Observer": "mjtraj.envs.core",
+    "OBSERVE_PLANT": "mjtraj.envs.settings",
     "scale_action": "mjtraj.envs.core",
     "STEP_INFO": "mjtraj.envs.core",
     "ACTION_MODES": "mjtraj.envs.settings",
@@ -60,7 +62,7 @@ _EXPORTS = {
 __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
-    from mjtraj.envs.core import STEP_INFO, TrackCore, observe, scale_action
+    from mjtraj.envs.core import STEP_INFO, Observer, TrackCore, observe, scale_action
     from mjtraj.envs.settings import (
         ACTION_MODES,
         PLANT_RANDOMIZATIONS,
@@ -79,5 +81,5 @@ __all__ = [
     "ACTION_MODES", "BENCHMARK_DEFAULTS", "BENCHMARK_ID", "BENCHMARK_VARIANTS", "ENV_ID", "EnvOptions",
     "PLANT_RANDOMIZATIONS", "RESIDUAL_SCALE", "REWARD_BASELINES", "STEP_INFO",
     "TASKS", "TrackCore", "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
-    "observation_space", "observe", "register_envs", "resolve", "scale_action",
+    "observation_space", "observe", "Observer", "OBSERVE_PLANT", "register_envs", "resolve", "scale_action",
 ]

@@ -15,9 +15,17 @@ import numpy.typing as npt
 from mjtraj.envs.settings import TrackSettings
 from numpy.typing import NDArray
 
-from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, Task, metrics_arrays, step_cost
+from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, Task, metrics_arrays, parameter_bounds, step_cost
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.study import FamilyScenario, Perturbation, measurement_noise, no_perturbation, perturbed_plant, plant_fields
+from mjtraj.study import (
+    FamilyScenario,
+    Perturbation,
+    measurement_noise,
+    no_perturbation,
+    perturbed_plant,
+    plant_fields,
+    true_parameters,
+)
 
 STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort", "reward_baseline")
 """Keys of every step's info (arrays of shape (B, n), or (B,) for the reward terms)."""
@@ -35,6 +43,54 @@ def observe(loop: ClosedLoop, preview: int, control: bool = False) -> NDArray[np
     if control:
         parts += loop.controller_state()
     return np.concatenate(parts, axis=1)
+
+
+class Observer:
+    """Observations of `num` simulations as the env gives them: `observe`'s entries, then with observe_plant the
+    plant parameters theta / theta_max (1 + 2n: payload, damping, friction; see mjtraj.core.adaptive), then with
+    history the `history` previous such observations, the latest first (an episode's first observation fills them).
+
+    The env (after reset and every step) and the policy actor of rl eval and validation (before every period) call
+    it once per observation, so both see the same sequence.
+    """
+
+    def __init__(self, settings: TrackSettings, num: int) -> None:
+        self.settings = settings
+        self.num = num
+        self._bounds = parameter_bounds(settings.model) if settings.observe_plant != "none" else None
+        self._plants = np.zeros((num, 1 + 2 * settings.n))
+        size = settings.obs_size // (1 + settings.history)
+        self._history = np.zeros((num, settings.history, size))
+        self._last = np.zeros((num, size))
+        self._fresh = np.ones(num, dtype=bool)
+
+    def start(self, rows: NDArray[np.intp], plants: Sequence[Perturbation | None]) -> None:
+        """Simulations `rows` begin episodes on `plants` (None: nominal): their next observation is their first."""
+        self._fresh[rows] = True
+        if self._bounds is not None:
+            self._plants[rows] = true_parameters(list(plants), self.settings.n) / self._bounds
+
+    def __call__(self, loop: ClosedLoop, rows: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+        """The observations of simulations `rows` (all if None) now, shape (len(rows), obs_size); advances their
+        history by one observation."""
+        s = self.settings
+        base = observe(loop, s.preview, s.observe_control)
+        if s.observe_plant == "estimate":
+            state = loop.law_state()
+            assert state is not None and self._bounds is not None
+            base = np.concatenate([base, state / self._bounds], axis=1)
+        elif s.observe_plant == "true":
+            base = np.concatenate([base, self._plants], axis=1)
+        rows = np.arange(self.num) if rows is None else rows
+        if not s.history:
+            return base[rows]
+        fresh, old = rows[self._fresh[rows]], rows[~self._fresh[rows]]
+        self._history[old, 1:] = self._history[old, :-1]
+        self._history[old, 0] = self._last[old]
+        self._history[fresh] = base[fresh, None, :]
+        self._last[rows] = base[rows]
+        self._fresh[rows] = False
+        return np.concatenate([base[rows], self._history[rows].reshape(rows.size, -1)], axis=1)
 
 
 def _numeric_like(action: object) -> bool:
@@ -107,6 +163,7 @@ class TrackCore:
         """Each simulation's current task."""
         self._q_diag = np.zeros((num, 2 * n))
         self._r_diag = np.zeros((num, n))
+        self._observer = Observer(settings, num)
 
     def plan(self, rng: np.random.Generator, task: Task | None = None) -> Episode:
         """The next episode, drawn from `rng` in a fixed order: the task (unless given, or the env's task is fixed:
@@ -158,7 +215,8 @@ class TrackCore:
                 loop.start(references, noise=noise)
             else:
                 loop.restart(ids, references, noise=noise)
-        return self.observe()[rows]
+        self._observer.start(rows, [e.plant for e in episodes])
+        return self._observer(self.loop, rows)
 
     def start_info(self, ids: NDArray[np.intp]) -> dict[str, dict[str, NDArray[np.float64]]]:
         """What reset's info says of the episodes of simulations `ids`: "task" (q0, qg: (len(ids), n) rad;
@@ -206,8 +264,8 @@ class TrackCore:
         return self.observe(), -tracking - effort - baseline, self.loop.done, info
 
     def observe(self) -> NDArray[np.float64]:
-        """Observations of every simulation (see `observe`)."""
-        return observe(self.loop, self.settings.preview, self.settings.observe_control)
+        """Observations of every simulation (see `Observer`); advances their history."""
+        return self._observer(self.loop)
 
     def metrics(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
         """The episode Metrics of simulations `ids` (NaN for a diverged one): name -> shape (len(ids),)."""

@@ -49,6 +49,9 @@ ENV_FAMILIES = ("none", *FAMILIES)
 RENDER_MODES = ("rgb_array", "depth_array")
 PLANT_RANDOMIZATIONS = ("none", "mismatch")
 REWARD_BASELINES = ("none", "pid")
+OBSERVE_PLANT = ("none", "true", "estimate")
+"""What the observation says of the plant: nothing; its true payload, damping and friction (privileged: a teacher);
+or the adaptive law's online estimate of them (deployable; needs controller='adaptive_computed_torque')."""
 RESIDUAL_SCALE = 6.0
 """N m, the default authority of a residual action: the median per-joint RMS feedback torque of PID on the mismatch
 family (cubic references, 1000 scenarios: 6.40 N m, see docs/design.md), rounded to one significant figure. The
@@ -75,6 +78,12 @@ class EnvOptions:
     preview: int = option(0, "future reference samples in the observation", minimum=0)
     observe_control: bool = option(False, "append the PID integral and the next feedforward torque to the "
                                    "observation (both enter dtau and the reward)")
+    observe_plant: str = option("none", "none; true = append the plant's payload, damping and friction over their "
+                                "bounds (privileged: a teacher); estimate = append the adaptive law's online "
+                                "estimate of them (deployable; controller='adaptive_computed_torque')",
+                                choices=OBSERVE_PLANT)
+    history: int = option(0, "previous observations appended to each observation, the latest first (an episode's "
+                          "first observation fills them)", minimum=0)
     plant_randomization: str = option("none", "none, or mismatch: each episode's plant drawn by the sweeps' mismatch "
                                       "rules (payload, link masses and inertias, damping, friction)",
                                       choices=PLANT_RANDOMIZATIONS)
@@ -127,6 +136,10 @@ class TrackSettings:
     preview: int
     observe_control: bool
     """The observation ends with the PID integral and the next feedforward torque."""
+    observe_plant: str
+    """'none', 'true' (the plant's parameters, privileged) or 'estimate' (the adaptive law's estimate of them)."""
+    history: int
+    """Previous observations appended to each one."""
     plant_randomization: str
     """'none' or 'mismatch' (`mjtraj.study.families` rules, drawn per episode)."""
     family: str
@@ -154,8 +167,10 @@ class TrackSettings:
 
     @property
     def obs_size(self) -> int:
-        """6n + 1 + 2n preview (+ 2n with observe_control)."""
-        return 6 * self.n + 1 + 2 * self.n * self.preview + 2 * self.n * self.observe_control
+        """(6n + 1 + 2n preview (+ 2n with observe_control) (+ 1 + 2n with observe_plant)) (1 + history)."""
+        one = (6 * self.n + 1 + 2 * self.n * self.preview + 2 * self.n * self.observe_control
+               + (1 + 2 * self.n) * (self.observe_plant != "none"))
+        return one * (1 + self.history)
 
     @property
     def torque_limit(self) -> NDArray[np.float64]:
@@ -277,6 +292,9 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
         raise InvalidInputError(f"plant_randomization: with family={own.family!r} the family's rules draw the plant; "
                                 "use family='mismatch' for perturbed plants")
     loop = dataclasses.replace(paper.loop, **{k: v for k, v in options.items() if k in loop_names})
+    if own.observe_plant == "estimate" and loop.controller != "adaptive_computed_torque":
+        raise InvalidInputError(f"observe_plant: 'estimate' observes the adaptive law's estimate; expected "
+                                f"controller='adaptive_computed_torque', got {loop.controller!r}")
     planner_name, planner_obj = _planner(planner, paper)
     if render_mode is not None and render_mode not in RENDER_MODES:
         raise InvalidInputError(f"render_mode: unsupported mode {render_mode!r}; valid: None, "
@@ -305,7 +323,8 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          residual_scale=float(own.residual_scale), task_mode=own.task, fixed_task=fixed,
                          max_displacement=own.max_displacement,
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,
-                         observe_control=own.observe_control, plant_randomization=own.plant_randomization,
+                         observe_control=own.observe_control, observe_plant=own.observe_plant,
+                         history=own.history, plant_randomization=own.plant_randomization,
                          family=own.family,
                          measurement_noise=own.measurement_noise, reward_baseline=own.reward_baseline,
                          scoring=scoring,

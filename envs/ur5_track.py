@@ -51,7 +51,11 @@ def observation_space(settings: TrackSettings) -> spaces.Box:
     if settings.observe_control:  # no a-priori bound: the largest finite float (Gymnasium warns on inf)
         unbounded = np.full(2 * settings.n, np.finfo(np.float64).max)
         low, high = [*low, -unbounded], [*high, unbounded]
-    return spaces.Box(np.concatenate(low), np.concatenate(high), dtype=np.float64)  # type: ignore[arg-type]
+    if settings.observe_plant != "none":  # theta / theta_max: >= 0; a user's plant may exceed its bound
+        low, high = [*low, np.zeros(1 + 2 * settings.n)], [*high, np.full(1 + 2 * settings.n, np.finfo(np.float64).max)]
+    one_low, one_high = np.concatenate(low), np.concatenate(high)
+    reps = 1 + settings.history
+    return spaces.Box(np.tile(one_low, reps), np.tile(one_high, reps), dtype=np.float64)  # type: ignore[arg-type]
 
 
 def action_space(settings: TrackSettings) -> spaces.Box:
@@ -102,7 +106,13 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | m .. m+2       | observe_control: the PID integral of e             | -max float    | max float    | rad s |
     | m+3 .. m+5     | observe_control: tau_ff of period k+1 (then N)     | -max float    | max float    | N m   |
 
-    (m = 19 + 6 preview; max float = the largest finite float64: these two have no a-priori bound.)
+    | p .. p+6      | observe_plant: payload, damping_j, friction_j over their bounds theta_max | 0 | max float | - |
+
+    (m = 19 + 6 preview; max float = the largest finite float64: these two have no a-priori bound. p = m (+ 6
+    with observe_control); theta_max: `mjtraj.core.adaptive.BOUND_RULE`; 'true' gives the episode's plant
+    (privileged), 'estimate' the adaptive law's online estimate. With `history` h the whole observation above,
+    of size d, is followed by the h previous ones (latest first, each of size d; an episode's first observation
+    fills them): size d (1 + h).)
 
     ## Rewards
     r_k = reward_tracking + reward_effort = -(x_k^T Q_exec x_k) - (dtau_k^T R_exec dtau_k), x_k = [e_k; ed_k] the
@@ -162,11 +172,12 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | max_displacement | 1.5        | largest abs(qg - q0) per joint of task="random", rad                    |
     | duration         | 2.0        | T, s (a whole number of dt)                                             |
     | dt               | 0.02       | control period, s                                                       |
-    | controller       | "pid"      | pid (feedforward + PID) or computed_torque                              |
+    | controller       | "pid"      | pid (feedforward + PID), computed_torque or adaptive_computed_torque    |
     | feedforward      | "inverse"  | inverse, planned or none                                                |
     | ff_accel         | "sample"   | sample or step_average                                                  |
     | gravity_comp     | "native"   | native or zoh                                                           |
     | anti_windup      | "none"     | none or clamp                                                           |
+    | adaptation_rate  | 0.0155     | adaptive_computed_torque's adaptation rate, 1/(N m rad)                 |
     | substeps         | 1          | integrator steps per control period                                     |
     | divergence_bound | 3.141592653589793 | abs(e) above this on a joint ends the episode as diverged, rad   |
     | delay            | 0          | actuation delay in control periods (0 or 1)                             |
@@ -175,6 +186,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | reward_baseline  | "none"     | none, or pid: reward = advantage over PID alone on the same episode      |
     | preview          | 0          | future reference samples in the observation                             |
     | observe_control  | False      | append the PID integral and the next feedforward torque (6 values)      |
+    | observe_plant    | "none"     | none, true (the plant's parameters: privileged) or estimate (adaptive law's) |
+    | history          | 0          | previous observations appended, latest first                             |
     | Q_exec           | None       | diag of Q_exec, 6 weights (None: Bryson's rule for each task)           |
     | R_exec           | None       | diag of R_exec, 3 weights (None: Bryson's rule)                         |
     | render_mode      | None       | None, "rgb_array" or "depth_array"                                      |

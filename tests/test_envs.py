@@ -293,6 +293,7 @@ def test_docstring_arguments_table_matches_the_code():
     s = env.settings
     applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,
                "task": s.task_mode, "family": s.family, "observe_control": s.observe_control,
+               "observe_plant": s.observe_plant, "history": s.history,
                "plant_randomization": s.plant_randomization, "measurement_noise": s.measurement_noise,
                "reward_baseline": s.reward_baseline,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
@@ -363,10 +364,16 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                    r"torque_limit, "
                    r"action_mode, "
                    r"residual_scale, task, family, max_displacement, duration, dt, preview, observe_control, "
-                   r"plant_randomization, measurement_noise, reward_baseline, width, height, camera, render_quality, "
+                   r"observe_plant, history, plant_randomization, measurement_noise, reward_baseline, width, height, "
+                   r"camera, render_quality, "
                    r"controller, "
-                   r"feedforward, ff_accel, gravity_comp, anti_windup, substeps, divergence_bound, delay$"),
+                   r"feedforward, ff_accel, gravity_comp, anti_windup, adaptation_rate, substeps, divergence_bound, "
+                   r"delay$"),
     ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
+    ({"observe_plant": "estimate"}, r"^observe_plant: 'estimate' observes the adaptive law's estimate; expected "
+                                    r"controller='adaptive_computed_torque', got 'pid'$"),
+    ({"observe_plant": "all"}, r"^observe_plant: unknown value 'all'; valid: none, true, estimate$"),
+    ({"history": -1}, r"^history: expected a value >= 0, got -1$"),
     ({"residual_scale": 0}, r"^residual_scale: expected a positive number, got 0"),
     ({"residual_scale": -5.0}, r"^residual_scale: expected a positive number, got -5.0"),
     ({"dt": True}, r"^dt: expected a number, got True$"),

@@ -34,7 +34,8 @@ from mjtraj.envs import RESIDUAL_SCALE, TrackSettings, resolve
 from mjtraj.exceptions import InvalidInputError
 
 BENCHMARK_ENV: dict[str, Any] = {"planner": "cubic", "controller": "pid", "action_mode": "residual",
-                                 "residual_scale": RESIDUAL_SCALE, "observe_control": False, "preview": 0}
+                                 "residual_scale": RESIDUAL_SCALE, "observe_control": False, "preview": 0,
+                                 "observe_plant": "none", "history": 0}
 """The env settings of a policy that declares none: UR5Track-v1's."""
 ENV_KEYS = tuple(BENCHMARK_ENV)
 """The env settings a policy acts in (a zip's come from its training record)."""
@@ -83,6 +84,11 @@ class ScoredPolicy:
     def planner(self) -> str:
         return str(self.env["planner"])
 
+    @property
+    def sees_plant(self) -> bool:
+        """Privileged at evaluation: it receives the plants, or observes their true parameters (observe_plant)."""
+        return self.privileged or self.env.get("observe_plant") == "true"
+
     def start(self, starts: NDArray[np.bool_]) -> None:
         """Episodes `starts` (bool (B,)) begin: the policy's reset hook, if it has one."""
         if self.reset_hook is not None:
@@ -97,7 +103,7 @@ class ScoredPolicy:
         """What every evaluation row of this policy records about it."""
         return {"method": self.label, "policy": self.source, "policy_kind": self.kind,
                 "policy_sha256": self.sha256[:16], "policy_timesteps": self.timesteps,
-                "policy_privileged": int(self.privileged),
+                "policy_privileged": int(self.sees_plant),
                 "policy_env": json.dumps({k: self.env.get(k) for k in ENV_KEYS}, sort_keys=True)}
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.core import ClosedLoop, Reference
-from mjtraj.envs import TrackSettings, observe, scale_action
+from mjtraj.envs import Observer, TrackSettings, scale_action
 from mjtraj.rl.adapters import ScoredPolicy
 from mjtraj.study import Job, Outcome, Perturbation, execute, no_perturbation, perturbed_plant
 
@@ -32,10 +32,13 @@ class PolicyActor:
         self.action_mode = settings.action_mode
         self._limit = np.zeros((0, settings.n))
         self._plants: list[dict[str, float]] | None = None
+        self._observer = Observer(settings, 0)
 
     def begin(self, loop: ClosedLoop, references: Sequence[Reference],
               plants: Sequence[Perturbation | None] = ()) -> None:
         self._limit = np.tile(self.settings.action_scale, (loop.nsim, 1))
+        self._observer = Observer(self.settings, loop.nsim)
+        self._observer.start(np.arange(loop.nsim), list(plants) or [None] * loop.nsim)
         if isinstance(self.policy, ScoredPolicy):
             if self.policy.privileged:  # the plants as the env reports them (the nominal one where none)
                 nominal = no_perturbation(self.settings.n)
@@ -44,7 +47,7 @@ class PolicyActor:
             self.policy.start(np.ones(loop.nsim, dtype=bool))
 
     def act(self, loop: ClosedLoop) -> NDArray[np.float64]:
-        obs = observe(loop, self.settings.preview, self.settings.observe_control)
+        obs = self._observer(loop)
         if isinstance(self.policy, ScoredPolicy):
             return scale_action(self.policy.act(obs, self._plants), self._limit)
         return scale_action(self.policy(obs), self._limit)

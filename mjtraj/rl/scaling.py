@@ -16,6 +16,9 @@ errors PID leaves on a near-nominal plant (about 1e-3 rad) become noise next to 
 | phase k/N                               | 1                     | the end of the motion                         |
 | PID integral of e (observe_control)     | s / ki rad s          | PID's integral torque equals s                |
 | feedforward torque (observe_control)    | the torque limit, N m | saturation                                    |
+| plant parameters (observe_plant)        | 1 (already theta/theta_max) | the parameter's bound                   |
+
+With history, each previous observation is scaled as the current one.
 
 s is the torque of one unit of action (the residual scale, or the saturation in torque mode), per joint. The
 errors are thus observed as the torques PID makes of them, in units of the authority the policy has: what the
@@ -56,7 +59,9 @@ def fixed_scales(settings: TrackSettings) -> NDArray[np.float64]:
     parts += [angle, rate] * settings.preview
     if settings.observe_control:
         parts += [s / gains["ki"], settings.torque_limit]
-    scales = np.concatenate(parts).astype(np.float64)
+    if settings.observe_plant != "none":  # already over their bounds
+        parts += [np.ones(1 + 2 * n)]
+    scales = np.tile(np.concatenate(parts).astype(np.float64), 1 + settings.history)
     assert scales.size == settings.obs_size
     return scales
 

@@ -33,7 +33,15 @@ from gymnasium import spaces
 
 from mjtraj.checks import choice, positive, positive_int
 from mjtraj.core import LoopConfig, check_name, controller_names, option_names
-from mjtraj.envs import PLANT_RANDOMIZATIONS, RESIDUAL_SCALE, REWARD_BASELINES, TASKS, TrackSettings, resolve
+from mjtraj.envs import (
+    OBSERVE_PLANT,
+    PLANT_RANDOMIZATIONS,
+    RESIDUAL_SCALE,
+    REWARD_BASELINES,
+    TASKS,
+    TrackSettings,
+    resolve,
+)
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl import ACTION_MODES, ALGORITHMS
@@ -64,6 +72,9 @@ class TrainSettings:
       action_mode: residual (added to feedforward + PID) or torque (the whole corrective torque).
       residual_scale: N m per unit of action in residual mode (the env's default rule: RESIDUAL_SCALE).
       observe_control: the policy also observes the PID integral and the next feedforward torque.
+      observe_plant: none, true (the plant's parameters: a privileged teacher) or estimate (the adaptive law's
+        online estimate of them: deployable; needs controller adaptive_computed_torque).
+      history: previous observations the policy also sees (memory without recurrence).
       observation_scaling: running (VecNormalize's statistics) or fixed (`mjtraj.rl.scaling`'s stated scales).
       plant_randomization: none, or mismatch (each training and validation episode on a plant drawn by the
         mismatch family's rules).
@@ -87,6 +98,8 @@ class TrainSettings:
     action_mode: str = "residual"
     residual_scale: float = RESIDUAL_SCALE
     observe_control: bool = False
+    observe_plant: str = "none"
+    history: int = 0
     observation_scaling: str = "running"
     plant_randomization: str = "none"
     reward_baseline: str = "none"
@@ -108,6 +121,9 @@ class TrainSettings:
         choice("plant_randomization", self.plant_randomization, PLANT_RANDOMIZATIONS)
         choice("reward_baseline", self.reward_baseline, REWARD_BASELINES)
         choice("observation_scaling", self.observation_scaling, OBSERVATION_SCALINGS)
+        choice("observe_plant", self.observe_plant, OBSERVE_PLANT)
+        if isinstance(self.history, bool) or not isinstance(self.history, int) or self.history < 0:
+            raise InvalidInputError(f"history: expected a whole number >= 0, got {self.history!r}")
         object.__setattr__(self, "residual_scale", positive("residual_scale", self.residual_scale))
         check_name("planner", self.planner)
         choice("controller", self.controller, controller_names())
@@ -129,13 +145,15 @@ class TrainSettings:
         s = resolve(planner=self.planner, action_mode=self.action_mode, task=self.task,
                     residual_scale=self.residual_scale, observe_control=self.observe_control,
                     plant_randomization=self.plant_randomization, reward_baseline=self.reward_baseline,
-                    controller=self.controller)
+                    controller=self.controller, observe_plant=self.observe_plant, history=self.history)
         return {"planner": self.planner, "action_mode": self.action_mode, "residual_scale": s.residual_scale,
                 "task": self.task,
                 "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt,
                 **{name: getattr(s.loop, name) for name in option_names(LoopConfig)}, "preview": s.preview,
                 "observe_control": s.observe_control, "plant_randomization": s.plant_randomization,
-                "reward_baseline": s.reward_baseline}
+                "reward_baseline": s.reward_baseline,
+                **({"observe_plant": s.observe_plant} if s.observe_plant != "none" else {}),
+                **({"history": s.history} if s.history else {})}
 
     def hyperparameters(self) -> dict[str, Any]:
         """The keyword arguments given to the SB3 algorithm besides SB3's defaults (JSON-ready): the rules'
