@@ -276,7 +276,8 @@ def _parser() -> argparse.ArgumentParser:
     rl_sub = rl.add_subparsers(dest="rl_command", required=True, parser_class=_Parser)
     t = rl_sub.add_parser("train", help="train an SB3 agent on the vectorised env; checkpoints, learning curve, "
                           "run.json")
-    t.add_argument("--algo", default="sac", help="sac | ppo | td3 (default sac)")
+    t.add_argument("--algo", default="sac", help="sac | ppo | td3 | recurrent_ppo (sb3-contrib's LSTM PPO: "
+                   "memory across an episode) (default sac)")
     t.add_argument("--action-mode", dest="action_mode", default="residual",
                    help="residual (added to feedforward + PID) | torque (the whole corrective torque); default "
                    "residual")
@@ -318,6 +319,9 @@ def _parser() -> argparse.ArgumentParser:
     t.add_argument("--hyperparameters", type=Path, metavar="FILE",
                    help="a JSON object of SB3 arguments replacing the defaults (--hyperparameter wins)")
     t.add_argument("--out", type=Path, default=Path("runs/rl"), help="output folder (default runs/rl)")
+    t.add_argument("--resume", type=Path, metavar="RUN", help="continue the interrupted run in RUN from its last "
+                   "checkpoint, with the settings its run.json records (the other training flags are not read); on "
+                   "the same machine and thread count it ends with the policy an uninterrupted run would have")
     t.add_argument("--tensorboard", type=Path, metavar="DIR",
                    help="also log to TensorBoard event files in DIR (SB3's logger; needs the tensorboard package)")
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -718,7 +722,14 @@ def _rl(args: argparse.Namespace) -> int:
 
     require_sb3()
     if args.rl_command == "train":
-        from mjtraj.rl.train import TrainSettings, train
+        from mjtraj.rl.train import TrainSettings, resume_training, train
+
+        if args.resume is not None:
+            report = resume_training(args.resume, progress=not args.no_progress, tensorboard=args.tensorboard)
+            print(f"resumed {args.resume} and trained to {report.timesteps} steps; validation mean J_exec "
+                  f"{report.final['cost_mean']:.4g}")
+            print(f"wrote {report.policy}")
+            return 0
 
         extra: dict[str, Any] = {} if args.residual_scale is None else {"residual_scale": args.residual_scale}
         extra["overrides"] = _overrides(args.hyperparameters, args.hyperparameter)

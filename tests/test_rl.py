@@ -435,7 +435,8 @@ def test_ppo_trains_and_reloads(tmp_path):
 
 
 @pytest.mark.parametrize(("argv", "message"), [
-    (["rl", "train", "--algo", "dqn"], "mjtraj: error: algo: unknown value 'dqn'; valid: sac, ppo, td3\n"),
+    (["rl", "train", "--algo", "dqn"],
+     "mjtraj: error: algo: unknown value 'dqn'; valid: sac, ppo, td3, recurrent_ppo\n"),
     (["rl", "train", "--action-mode", "pid"],
      "mjtraj: error: action_mode: unknown value 'pid'; valid: residual, torque\n"),
     (["rl", "train", "--task", "explicit"], "mjtraj: error: task: unknown value 'explicit'; valid: paper, random\n"),
@@ -534,7 +535,7 @@ def test_policy_for_another_space_is_refused(trained, tmp_path):
                             r"mjtraj-policy/1\)$"),
     ('{"format": "mjtraj-policy/1", "run": {"env": {}}}', r"^policy: .*p\.json lacks zip_sha256, timesteps, "
                                                           r"normalization, run\.settings, run\.streams$"),
-    ("unknown-algo", r"^policy: unknown algorithm 'dqn' in p\.json; valid: sac, ppo, td3$"),
+    ("unknown-algo", r"^policy: unknown algorithm 'dqn' in p\.json; valid: sac, ppo, td3, recurrent_ppo$"),
 ])
 def test_broken_policy_records(trained, tmp_path, record, message):
     (tmp_path / "p.zip").write_bytes((trained / "policy.zip").read_bytes())

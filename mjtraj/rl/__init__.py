@@ -11,7 +11,11 @@ Needs the `rl` extra (Stable-Baselines3 on CPU PyTorch), imported only when a fu
 
 from __future__ import annotations
 
-ALGORITHMS = ("sac", "ppo", "td3")
+ALGORITHMS = ("sac", "ppo", "td3", "recurrent_ppo")
+"""SB3's SAC, PPO and TD3, and sb3-contrib's RecurrentPPO (an LSTM policy: memory across an episode)."""
+RECURRENT = ("recurrent_ppo",)
+ALGORITHM_NAMES = {"sac": "SAC", "ppo": "PPO", "td3": "TD3", "recurrent_ppo": "RecurrentPPO"}
+"""How labels name each algorithm."""
 ACTION_MODES = ("residual", "torque")
 """The env's action modes a policy can learn in ('pid' has nothing to learn)."""
 LAW_LABELS = {"pid": "PID", "computed_torque": "CT", "adaptive_computed_torque": "adaptive CT"}

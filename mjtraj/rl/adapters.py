@@ -190,7 +190,7 @@ def from_object(obj: Any, *, label: str | None = None, source: str | None = None
 def from_zip_policy(policy: Any, *, label: str | None = None, source: str | None = None) -> ScoredPolicy:
     """A Policy loaded from a zip (mjtraj.rl.policy): its recorded env, batched, not privileged."""
     return ScoredPolicy(label or policy.label, source or str(policy.path), "sb3-zip", dict(policy.env_kwargs),
-                        policy.act, None, False, policy.sha256, policy.timesteps, policy.record, policy.path,
+                        policy.act, policy.start, False, policy.sha256, policy.timesteps, policy.record, policy.path,
                         policy.settings())
 
 

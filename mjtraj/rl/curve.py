@@ -26,6 +26,18 @@ class CurveFile:
         path.open("x").close()  # never over another run's curve
         append_rows(path, list(COLUMNS), [dict(zip(COLUMNS, COLUMNS, strict=True))])
 
+    @classmethod
+    def resumed(cls, path: Path, rows: int) -> CurveFile:
+        """The curve of a resumed run: its header and first `rows` points kept, later ones (written after the resume
+        point, and recomputed now) dropped."""
+        from mjtraj.files import write_text_atomic
+
+        lines = path.read_text().splitlines(keepends=True)
+        write_text_atomic(path, "".join(lines[: 1 + rows]))
+        curve = cls.__new__(cls)
+        curve.path = path
+        return curve
+
     def append(self, row: dict[str, Any]) -> None:
         """One validation point (COLUMNS -> value; floats as Python floats)."""
         append_rows(self.path, list(COLUMNS), [row])

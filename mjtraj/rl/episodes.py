@@ -53,7 +53,7 @@ class PolicyActor:
         return scale_action(self.policy(obs), self._limit)
 
 
-def run_episodes(policy: Policy | None, settings: TrackSettings, references: Sequence[Reference],
+def run_episodes(policy: Policy | ScoredPolicy | None, settings: TrackSettings, references: Sequence[Reference],
                  weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
                  plants: Sequence[Perturbation] | None = None) -> list[Outcome]:
     """One episode per reference with `policy` acting (None: the controller alone), on the nominal plant or on

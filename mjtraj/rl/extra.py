@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from types import ModuleType
+from typing import Any
 
 from mjtraj.exceptions import MissingExtraError
 
@@ -18,6 +19,24 @@ def require_sb3() -> ModuleType:
     except ImportError as e:
         raise MissingExtraError(f"rl: {e.name or 'stable-baselines3'} is not installed; {INSTALL_HINT}") from e
     return stable_baselines3
+
+
+def algorithm(algo: str) -> Any:
+    """The algorithm class of `algo` (one of mjtraj.rl.ALGORITHMS): SB3's, or sb3-contrib's RecurrentPPO."""
+    if algo == "recurrent_ppo":
+        try:
+            from sb3_contrib import RecurrentPPO
+        except ImportError as e:
+            raise MissingExtraError(f"rl: {e.name or 'sb3-contrib'} is not installed; {INSTALL_HINT}") from e
+        return RecurrentPPO
+    return getattr(require_sb3(), algo.upper())
+
+
+def policy_class(algo: str) -> str:
+    """The SB3 policy name `algo` trains: an LSTM one for the recurrent algorithm, else the MLP."""
+    from mjtraj.rl import RECURRENT
+
+    return "MlpLstmPolicy" if algo in RECURRENT else "MlpPolicy"
 
 
 def rl_versions() -> dict[str, str]:

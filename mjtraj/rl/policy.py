@@ -20,8 +20,8 @@ from numpy.typing import NDArray
 from mjtraj.envs import TrackSettings, action_space, observation_space, resolve
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path, write_text_atomic
-from mjtraj.rl import ALGORITHMS, law_label
-from mjtraj.rl.extra import require_sb3
+from mjtraj.rl import ALGORITHM_NAMES, ALGORITHMS, RECURRENT, law_label
+from mjtraj.rl.extra import algorithm
 
 FORMAT = "mjtraj-policy/1"
 LEGACY_RESIDUAL_SCALE = 60.0
@@ -76,6 +76,22 @@ class Policy:
         self.sha256 = sha256
         """Of the zip at `path` ('' until saved or loaded)."""
         self._settings: TrackSettings | None = None
+        self._memory: Any = None
+        """A recurrent policy's LSTM states for the current batch (None: fresh)."""
+        self._starts = np.zeros(0, dtype=bool)
+
+    @property
+    def recurrent(self) -> bool:
+        """Whether it carries memory across an episode (RecurrentPPO): tell it where episodes start (`start`)."""
+        return self.algo in RECURRENT
+
+    def start(self, starts: npt.ArrayLike) -> None:
+        """Episodes begin in rows `starts` (bool (B,)): a recurrent policy clears their memory before its next
+        action; a B other than the last one's starts every row afresh. Others ignore it."""
+        flags = np.asarray(starts, dtype=bool).reshape(-1)
+        if flags.size != self._starts.size:
+            self._memory, self._starts = None, np.ones(flags.size, dtype=bool)
+        self._starts = self._starts | flags
 
     @property
     def algo(self) -> str:
@@ -102,13 +118,16 @@ class Policy:
         controller's state, was rewarded relative to PID alone or saw fixed observation scales. Runs that differ
         only in their seed share a label."""
         env = self.env_kwargs
-        algo = self.algo.upper()
+        algo = ALGORITHM_NAMES.get(self.algo, self.algo.upper())
         law = law_label(env.get("controller", "pid"))
         fixed = self.record["settings"].get("observation_scaling", "running") == "fixed"
         notes = "".join([", mismatch-trained" if env.get("plant_randomization", "none") != "none" else "",
                          f", sees {law}" if env.get("observe_control", False) else "",
                          ", PID-advantage reward" if env.get("reward_baseline", "none") != "none" else "",
-                         ", fixed scales" if fixed else ""])
+                         ", fixed scales" if fixed else "",
+                         {"true": ", sees the true plant (privileged)", "estimate": ", sees the adaptive estimate"}
+                         .get(env.get("observe_plant", "none"), ""),
+                         f", history {env['history']}" if env.get("history") else ""])
         if env["action_mode"] == "residual":
             return f"{env['planner']}+{law}+residual {algo} ({env['residual_scale']:g} N m{notes})"
         return f"{env['planner']}+{algo} torque{f' ({notes[2:]})' if notes else ''}"
@@ -118,7 +137,14 @@ class Policy:
         x = np.asarray(obs, dtype=np.float64)
         if x.ndim != 2 or x.shape[1] != self.normalization.mean.size:
             raise InvalidInputError(f"obs: expected shape (B, {self.normalization.mean.size}), got {x.shape}")
-        actions, _ = self.model.predict(self.normalization(x), deterministic=True)
+        if not self.recurrent:
+            actions, _ = self.model.predict(self.normalization(x), deterministic=True)
+            return np.asarray(actions, dtype=np.float32)
+        if x.shape[0] != self._starts.size:  # a new batch: every row starts
+            self._memory, self._starts = None, np.ones(x.shape[0], dtype=bool)
+        actions, self._memory = self.model.predict(self.normalization(x), state=self._memory,
+                                                   episode_start=self._starts, deterministic=True)
+        self._starts = np.zeros(x.shape[0], dtype=bool)
         return np.asarray(actions, dtype=np.float32)
 
     def save(self, path: str | Path) -> Path:
@@ -169,8 +195,7 @@ def load_policy(path: str | Path) -> Policy:
     if algo not in ALGORITHMS:
         raise InvalidInputError(f"policy: unknown algorithm {algo!r} in {meta_path.name}; valid: "
                                 f"{', '.join(ALGORITHMS)}")
-    sb3 = require_sb3()
-    model = getattr(sb3, algo.upper()).load(zip_path, device="cpu")
+    model = algorithm(algo).load(zip_path, device="cpu")
     n = body["normalization"]
     normalization = Normalization(np.array(n["mean"], dtype=np.float64), np.array(n["var"], dtype=np.float64),
                                   float(n["epsilon"]), float(n["clip"]))

@@ -1,8 +1,9 @@
 """Train an SB3 agent on the natively vectorised UR5Track-v0 and record everything about the run.
 
 Rules (stated once, recorded in run.json):
-- hyperparameters are Stable-Baselines3's defaults for the algorithm, with two additions SB3 leaves to the user:
-  PPO collects SB3's default 2048 transitions per update (n_steps = 2048 / num_envs), and TD3 explores with
+- hyperparameters are Stable-Baselines3's defaults for the algorithm (sb3-contrib's for RecurrentPPO, an LSTM
+  policy whose memory spans an episode and is cleared at each episode start), with two additions SB3 leaves to
+  the user: PPO collects SB3's default 2048 transitions per update (n_steps = 2048 / num_envs), and TD3 explores with
   Gaussian action noise of std 0.1 (the TD3 paper's; SB3 adds none). Nothing was tuned on evaluation scenarios.
   `overrides` (from `--hyperparameter NAME=VALUE` or a JSON file) replace them by name and are recorded as such;
 - rewards are normalised by SB3's VecNormalize (running statistics); observations too (clip 10), or with
@@ -22,6 +23,7 @@ import contextlib
 import copy
 import dataclasses
 import json
+import shutil
 import time
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -44,19 +46,22 @@ from mjtraj.envs import (
 )
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
-from mjtraj.rl import ACTION_MODES, ALGORITHMS
+from mjtraj.rl import ACTION_MODES, ALGORITHM_NAMES, ALGORITHMS
+from mjtraj.rl.adapters import from_zip_policy
 from mjtraj.rl.curve import CurveFile, plot_curve
 from mjtraj.rl.episodes import run_episodes
-from mjtraj.rl.extra import require_sb3, rl_versions
+from mjtraj.rl.extra import algorithm, policy_class, require_sb3, rl_versions
 from mjtraj.rl.policy import Normalization, Policy
 from mjtraj.rl.scaling import OBSERVATION_SCALINGS, fixed_normalization
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, check_seed, training_entropies
 from mjtraj.study import Outcome
 
 RUN_FORMAT = "mjtraj-rl-run/1"
-DEFAULT_NUM_ENVS = {"sac": 4, "td3": 4, "ppo": 8}
+DEFAULT_NUM_ENVS = {"sac": 4, "td3": 4, "ppo": 8, "recurrent_ppo": 8}
 CLIP_OBS = 10.0
 TD3_NOISE_STD = 0.1
+RESUMED = ("returns", "diverged", "episodes", "next_eval", "next_save", "next_resume", "curve_rows", "best")
+"""The training bookkeeping a resume point keeps (mjtraj.rl.resume)."""
 THREADS_RULE = ("PyTorch runs on 1 CPU thread unless threads says otherwise (library and command line alike): the "
                 "networks are small, so more threads only add synchronisation (12 steps/s with PyTorch's default "
                 "threads against 345 with one, on a 2-core machine), and one thread each lets runs go side by side; "
@@ -175,8 +180,7 @@ def overridable(algo: str) -> list[str]:
     """The SB3 keyword arguments of `algo` that overrides may set (its constructor's, minus NOT_OVERRIDABLE)."""
     import inspect
 
-    sb3 = require_sb3()
-    init = getattr(sb3, algo.upper()).__init__
+    init = algorithm(algo).__init__
     return [name for name in inspect.signature(init).parameters if name not in NOT_OVERRIDABLE]
 
 
@@ -238,23 +242,61 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
     validation/cost_mean, validation/cost_median, validation/rms_err_mean and validation/pid_cost_mean).
 
     Writes run.json (settings, env arguments, hyperparameters, seeds, versions, status), checkpoints/,
-    policy.zip + policy.json (the final policy), learning_curve.csv and learning_curve.png.
+    policy.zip + policy.json (the final policy), learning_curve.csv and learning_curve.png, and at every
+    checkpoint resume/ (`mjtraj.rl.resume`; removed when the run completes), from which `resume_training`
+    continues an interrupted run.
 
     Raises:
       InvalidInputError: `out` already holds a run.
       MissingExtraError: the rl extra is not installed.
     """
-    sb3 = require_sb3()
+    folder = Path(out)
+    if (folder / "run.json").exists():
+        raise InvalidInputError(f"out: {out} already holds a training run (run.json); choose another folder "
+                                f"(or continue an interrupted one with --resume {out})")
+    return _run(settings, folder, progress=progress, tensorboard=tensorboard, previous=None)
+
+
+def resume_training(out: str | Path, *, progress: bool = True, tensorboard: str | Path | None = None
+                    ) -> TrainReport:
+    """Continue the interrupted run in `out` (process killed, machine restarted) from its last resume point, with
+    the settings its run.json records; run.json's "resumed" lists where and when. On the same machine and thread
+    count it ends with the policy bits the uninterrupted run would have.
+
+    Raises:
+      InvalidInputError: `out` holds no run, a complete one, or one without a resume point yet (it stopped
+        before its first checkpoint: start it again).
+      MissingExtraError: the rl extra is not installed.
+    """
+    from mjtraj.rl.resume import RESUME_DIR
+
+    folder = Path(out)
+    path = folder / "run.json"
+    if not path.is_file():
+        raise InvalidInputError(f"resume: {out} holds no training run (run.json); expected a folder written by "
+                                f"mjtraj rl train")
+    record = json.loads(path.read_text())
+    if record.get("status") == "complete":
+        raise InvalidInputError(f"resume: the run in {out} is complete; nothing to continue")
+    if not (folder / RESUME_DIR / "state.pkl").is_file():
+        raise InvalidInputError(f"resume: the run in {out} stopped before its first checkpoint, so there is no "
+                                f"resume point; start it again in a new folder")
+    return _run(TrainSettings(**record["settings"]), folder, progress=progress, tensorboard=tensorboard,
+                previous=record)
+
+
+def _run(settings: TrainSettings, folder: Path, *, progress: bool, tensorboard: str | Path | None,
+         previous: dict[str, Any] | None) -> TrainReport:
+    """`train`, or with `previous` (the interrupted run's record) `resume_training`."""
+    require_sb3()
     import torch
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.noise import NormalActionNoise
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
+    from mjtraj.rl.resume import RESUME_DIR, load_state, restore_rngs, save_state
     from mjtraj.rl.sb3_env import SB3TrackVecEnv
 
-    folder = Path(out)
-    if (folder / "run.json").exists():
-        raise InvalidInputError(f"out: {out} already holds a training run (run.json); choose another folder")
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "checkpoints").mkdir(exist_ok=True)
     if settings.threads is not None:
@@ -264,7 +306,8 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
     fixed = fixed_normalization(env, CLIP_OBS) if settings.observation_scaling == "fixed" else None
     hyper = settings.hyperparameters()
     num_envs = int(settings.num_envs)  # type: ignore[arg-type]
-    record: dict[str, Any] = {
+    point = load_state(folder) if previous is not None else None
+    record: dict[str, Any] = previous if previous is not None else {
         "format": RUN_FORMAT, "status": "running", "settings": dataclasses.asdict(settings), "env": env_kwargs,
         "hyperparameters": {"sb3_defaults_plus": hyper, "overrides": dict(settings.overrides)},
         "normalization": {"norm_obs": fixed is None, "norm_reward": True, "clip_obs": CLIP_OBS,
@@ -274,31 +317,50 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
                                    "count": 1 if env.fixed_task is not None else settings.validation}},
         "versions": rl_versions(), "torch_threads": torch.get_num_threads(),
         "started": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+    if point is not None:
+        record.update(status="running")
+        record.pop("error", None)
+        record.setdefault("resumed", []).append({"timesteps": point.tracker["timesteps"],
+                                                 "at": datetime.now(timezone.utc).isoformat(timespec="seconds")})
     _write_json(folder / "run.json", record)
-    clock = time.perf_counter()
+    clock = time.perf_counter() - (0.0 if point is None else float(point.tracker["wall_s"]))
     started = False
     try:
         seen = None if fixed is None else spaces.Box(-CLIP_OBS, CLIP_OBS, (env.obs_size,), np.float32)
-        agent_env = SB3TrackVecEnv(num_envs, observe=fixed, observation_space=seen, **env_kwargs)
-        venv = VecNormalize(VecMonitor(agent_env), norm_obs=fixed is None, clip_obs=CLIP_OBS)
-        kwargs = copy.deepcopy(hyper)  # SB3 edits policy_kwargs in place; the record keeps what was given
-        if settings.algo == "td3":
-            n = env.n
-            kwargs["action_noise"] = NormalActionNoise(np.zeros(n), np.full(n, TD3_NOISE_STD))
-        try:
-            model = getattr(sb3, settings.algo.upper())(
-                "MlpPolicy", venv, seed=settings.seed, device="cpu", verbose=0,
-                tensorboard_log=None if tensorboard is None else str(tensorboard), **kwargs)
-        except (AssertionError, ValueError, TypeError) as e:  # SB3's own checks of its arguments
-            raise InvalidInputError(f"hyperparameter: {settings.algo} refused {dict(settings.overrides)}: "
-                                    f"{' '.join(str(e).split())}") from e
+        algo = algorithm(settings.algo)
+        if point is None:
+            agent_env = SB3TrackVecEnv(num_envs, observe=fixed, observation_space=seen, **env_kwargs)
+            monitor = VecMonitor(agent_env)
+            venv = VecNormalize(monitor, norm_obs=fixed is None, clip_obs=CLIP_OBS)
+            kwargs = copy.deepcopy(hyper)  # SB3 edits policy_kwargs in place; the record keeps what was given
+            if settings.algo == "td3":
+                n = env.n
+                kwargs["action_noise"] = NormalActionNoise(np.zeros(n), np.full(n, TD3_NOISE_STD))
+            try:
+                model = algo(policy_class(settings.algo), venv, seed=settings.seed, device="cpu", verbose=0,
+                             tensorboard_log=None if tensorboard is None else str(tensorboard), **kwargs)
+            except (AssertionError, ValueError, TypeError) as e:  # SB3's own checks of its arguments
+                raise InvalidInputError(f"hyperparameter: {settings.algo} refused {dict(settings.overrides)}: "
+                                        f"{' '.join(str(e).split())}") from e
+        else:  # the env chain as it was, then the algorithm on it, its _last_obs kept (force_reset=False)
+            agent_env = point.env
+            monitor = VecMonitor(agent_env)
+            for name, value in point.monitor.items():
+                setattr(monitor, name, value)
+            venv = VecNormalize.load(str(point.folder / "normalizer.pkl"), monitor)
+            venv.returns = point.returns
+            model = algo.load(point.folder / "model.zip", env=venv, device="cpu", force_reset=False,
+                              tensorboard_log=None if tensorboard is None else str(tensorboard))
+            if (point.folder / "replay_buffer.pkl").is_file():
+                model.load_replay_buffer(point.folder / "replay_buffer.pkl")
         started = True
         venv.gamma = model.gamma  # VecNormalize discounts rewards with the algorithm's gamma
         record["hyperparameters"]["resolved"] = _resolved(model)
         _write_json(folder / "run.json", record)
         references, weights, plants = validation_set(settings, env)
         pid = _summary(run_episodes(None, env, references, weights, plants))
-        curve = CurveFile(folder / "learning_curve.csv")
+        curve = (CurveFile(folder / "learning_curve.csv") if point is None else
+                 CurveFile.resumed(folder / "learning_curve.csv", int(point.tracker["curve_rows"])))
         policy_record = {k: record[k] for k in ("format", "settings", "env", "hyperparameters", "normalization",
                                                 "streams", "versions", "torch_threads")}
 
@@ -317,18 +379,35 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
                 self.episodes = 0
                 self.next_eval = every_eval
                 self.next_save = every_save
+                self.next_resume = every_save
+                self.curve_rows = 0
                 self.bar = None
                 self.best = float("inf")
+                if point is not None:
+                    for key in RESUMED:
+                        setattr(self, key, point.tracker[key])
                 if progress:
                     from tqdm import tqdm
 
-                    self.bar = tqdm(total=settings.steps, unit="step", desc=f"train {settings.algo}",
-                                    dynamic_ncols=True)
-                self.validate()
+                    self.bar = tqdm(total=settings.steps, initial=int(model.num_timesteps), unit="step",
+                                    desc=f"train {settings.algo}", dynamic_ncols=True)
+                if point is None:
+                    self.validate()
+
+            def _on_rollout_start(self) -> None:
+                """Between two updates: the point a resumed run continues from (module mjtraj.rl.resume)."""
+                t = int(model.num_timesteps)
+                if self.next_resume <= t < settings.steps:
+                    self.next_resume = t + every_save
+                    state = {key: getattr(self, key) for key in RESUMED}
+                    save_state(folder, model, agent_env, monitor, venv,
+                               {**state, "timesteps": t, "wall_s": time.perf_counter() - clock,
+                                "best_validation": record.get("best_validation")})
 
             def validate(self) -> dict[str, float]:
                 policy = snapshot()
-                val = _summary(run_episodes(policy.act, env, references, weights, plants))
+                scored = from_zip_policy(policy, source="validation")  # told where episodes start (recurrent)
+                val = _summary(run_episodes(scored, env, references, weights, plants))
                 if val["cost_mean"] < self.best and val["diverged"] == 0:  # NaN never wins
                     self.best = val["cost_mean"]
                     policy.save(folder / "best.zip")
@@ -338,6 +417,7 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
                         model.logger.record(f"validation/{key}", val[key])
                     model.logger.record("validation/pid_cost_mean", pid["cost_mean"])
                     model.logger.dump(int(model.num_timesteps))
+                self.curve_rows += 1
                 curve.append({"timesteps": int(model.num_timesteps), "wall_s": time.perf_counter() - clock,
                               "episodes": self.episodes,
                               "train_return_mean": float(np.mean(self.returns)) if self.returns else float("nan"),
@@ -374,12 +454,20 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
                     self.bar.close()
 
         tracker = Tracker()
-        model.learn(total_timesteps=settings.steps, callback=tracker)
+        if point is None:
+            model.learn(total_timesteps=settings.steps, callback=tracker)
+        else:
+            record.pop("best_validation", None)  # the interrupted run may have validated past the resume point
+            if point.tracker.get("best_validation") is not None:
+                record["best_validation"] = point.tracker["best_validation"]
+            restore_rngs(point.rng)
+            model.learn(total_timesteps=settings.steps - int(model.num_timesteps), callback=tracker,
+                        reset_num_timesteps=False)
         final = tracker.validate()
         policy_path = snapshot().save(folder / "policy.zip")
         plot_curve(folder / "learning_curve.csv", folder / "learning_curve.png", title=_title(settings))
     except BaseException as e:
-        if not started and isinstance(e, InvalidInputError):  # refused before training: leave nothing behind
+        if not started and isinstance(e, InvalidInputError) and previous is None:  # refused: leave nothing behind
             (folder / "run.json").unlink(missing_ok=True)
             with contextlib.suppress(OSError):
                 (folder / "checkpoints").rmdir()
@@ -392,6 +480,7 @@ def train(settings: TrainSettings, out: str | Path, *, progress: bool = True,
                   finished=datetime.now(timezone.utc).isoformat(timespec="seconds"),
                   final_validation={"policy": final, "pid": pid})
     _write_json(folder / "run.json", record)
+    shutil.rmtree(folder / RESUME_DIR, ignore_errors=True)
     return TrainReport(folder, policy_path, int(model.num_timesteps), wall, final)
 
 
@@ -399,7 +488,7 @@ def _title(settings: TrainSettings) -> str:
     scale = f" ({settings.residual_scale:g} N m)" if settings.action_mode == "residual" else ""
     plant = ", mismatch plants" if settings.plant_randomization != "none" else ""
     scaling = ", fixed observation scales" if settings.observation_scaling == "fixed" else ""
-    return (f"{settings.algo.upper()} {settings.action_mode}{scale} on {settings.planner} references, "
+    return (f"{ALGORITHM_NAMES[settings.algo]} {settings.action_mode}{scale} on {settings.planner} references, "
             f"task={settings.task}{plant}{scaling}, seed {settings.seed}")
 
 
