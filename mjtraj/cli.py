@@ -354,12 +354,18 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
     e.add_argument("--no-progress", action="store_true", help="no progress bar")
     rl_sub.add_parser("baselines", help="list the shipped trained policies (use them as --policy baseline:NAME)")
+    best = rl_sub.add_parser("best", help="choose baseline:best on validation scenarios (never evaluation ones) by "
+                             "the stated rule and write it, with every score, into the baselines' BEST.json")
+    best.add_argument("--scenarios", type=int, default=100, help="validation scenarios per family (default 100)")
+    best.add_argument("--no-progress", action="store_true", help="no progress bar")
     h = rl_sub.add_parser("ship", help="ship a run's policy as a baseline: its zip without optimiser states (the same "
                           "actions, checked), its record and run.json")
     h.add_argument("run", type=Path, help="the folder rl train wrote")
     h.add_argument("--name", required=True, help="the baseline's name (letters, digits, _ and -)")
     h.add_argument("--which", default="best", help="best (selected on validation; default) | policy (the final one)")
     h.add_argument("--into", type=Path, help="folder of baselines (default: the package's own, mjtraj/rl/baselines)")
+    h.add_argument("--student", action="store_true", help="ship a privileged teacher (--observe-plant true on the "
+                   "adaptive law) as its deployable student: the same weights observing the adaptive law's estimate")
 
     g = sub.add_parser("gains", help="derive the default PID gains and optimal weights by their stated rules")
     g.add_argument("--config", type=Path, help="scenario TOML whose task to use (default: the paper scenario)")
@@ -760,12 +766,27 @@ def _rl(args: argparse.Namespace) -> int:
             print(f"baseline:{name}  {facts['algo'].upper()} seed {facts['seed']}, {facts['timesteps']} steps, "
                   f"controller {facts['env'].get('controller', 'pid')}, plants {facts['env']['plant_randomization']}")
         return 0
+    if args.rl_command == "best":
+        from mjtraj.checks import positive_int
+        from mjtraj.rl.baselines import baseline_names, baselines_folder
+        from mjtraj.rl.best import choose_best
+
+        positive_int("scenarios", args.scenarios)
+        command = "mjtraj " + " ".join(shlex.quote(a) for a in args.argv)
+        with _Progress("mjtraj rl best", "baseline", not args.no_progress) as progress:
+            chosen = choose_best(baselines_folder(), baseline_names(), scenarios=args.scenarios, command=command,
+                                 progress=progress)
+        for name, scores in chosen["scores"].items():
+            print(f"{name}: " + ", ".join(f"{f} {r if isinstance(r, str) else format(r, '.4g')}"
+                                          for f, r in scores.items()))
+        print(f"baseline:best = {chosen['best']} ({chosen['rule']})")
+        return 0
     if args.rl_command == "ship":
         from mjtraj.checks import choice
         from mjtraj.rl.baselines import ship
 
         choice("which", args.which, ("best", "policy"))
-        print(f"wrote {ship(args.run, args.name, which=args.which, into=args.into)}")
+        print(f"wrote {ship(args.run, args.name, which=args.which, into=args.into, student=args.student)}")
         return 0
     from mjtraj.rl.evaluate import REFERENCE, evaluate
 

@@ -127,7 +127,8 @@ class Policy:
                          ", fixed scales" if fixed else "",
                          {"true": ", sees the true plant (privileged)", "estimate": ", sees the adaptive estimate"}
                          .get(env.get("observe_plant", "none"), ""),
-                         f", history {env['history']}" if env.get("history") else ""])
+                         f", history {env['history']}" if env.get("history") else "",
+                         ", the teacher's weights" if "student" in self.record else ""])
         if env["action_mode"] == "residual":
             return f"{env['planner']}+{law}+residual {algo} ({env['residual_scale']:g} N m{notes})"
         return f"{env['planner']}+{algo} torque{f' ({notes[2:]})' if notes else ''}"

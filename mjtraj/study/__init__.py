@@ -39,6 +39,7 @@ _EXPORTS = {
     "execute_batch": "mjtraj.study.pipeline",
     "plan_failure": "mjtraj.study.pipeline",
     "one_line": "mjtraj.study.pipeline",
+    "goal_checked": "mjtraj.study.pipeline",
     "STATUSES": "mjtraj.study.pipeline",
     "Row": "mjtraj.study.rows",
     "EXTRA_METRICS": "mjtraj.study.rows",
@@ -103,7 +104,17 @@ if TYPE_CHECKING:
     )
     from mjtraj.study.oracle import ORACLE_LABEL, TrueParameters, true_parameters
     from mjtraj.study.paper import PAPER_TABLE
-    from mjtraj.study.pipeline import STATUSES, Actor, Job, Outcome, execute, execute_batch, one_line, plan_failure
+    from mjtraj.study.pipeline import (
+        STATUSES,
+        Actor,
+        Job,
+        Outcome,
+        execute,
+        execute_batch,
+        goal_checked,
+        one_line,
+        plan_failure,
+    )
     from mjtraj.study.report import format_report, results_csv
     from mjtraj.study.rows import EXTRA_METRICS, Row
     from mjtraj.study.runner import SweepReport, run_sweep
@@ -139,9 +150,9 @@ __all__ = [
     "Perturbation", "ResultsFile", "Row", "STATUSES", "SWEPT", "Scenario", "SweepData", "SweepReport",
     "SweepSettings", "TrueParameters", "UnitResult", "VARIANTS", "VERSION_COLUMNS", "append_rows", "arm_scales",
     "columns", "compare", "comparison_record", "csv_text", "cvar", "default_scenario_path", "draw_family",
-    "draw_perturbation", "draw_scenario", "execute", "execute_batch", "fixed_columns", "format_report", "jobs_for",
-    "load_scenario", "measurement_noise", "no_perturbation", "noise_scale", "numeric", "one_line", "paired_ratio",
-    "perturbed_plant", "plan_failure", "plan_scenarios", "planner_names", "plant_fields", "ratio_of_means",
-    "read_rows", "results_csv", "run_sweep", "run_unit", "scenario_for_model", "scenario_from_dict", "scenario_text",
-    "scoring_weights", "true_parameters", "unit_scenarios", "write_audit",
+    "draw_perturbation", "draw_scenario", "execute", "execute_batch", "fixed_columns", "format_report",
+    "goal_checked", "jobs_for", "load_scenario", "measurement_noise", "no_perturbation", "noise_scale", "numeric",
+    "one_line", "paired_ratio", "perturbed_plant", "plan_failure", "plan_scenarios", "planner_names", "plant_fields",
+    "ratio_of_means", "read_rows", "results_csv", "run_sweep", "run_unit", "scenario_for_model", "scenario_from_dict",
+    "scenario_text", "scoring_weights", "true_parameters", "unit_scenarios", "write_audit",
 ]

@@ -33,12 +33,30 @@ def baseline_names() -> list[str]:
     return sorted(p.parent.name for p in baselines_folder().glob("*/policy.zip"))
 
 
+BEST_FILE = "BEST.json"
+"""The record of `baseline:best`'s choice (mjtraj.rl.best), beside the baselines."""
+
+
+def best_name(folder: Path | None = None) -> str:
+    """The baseline `baseline:best` names (BEST.json's choice).
+
+    Raises:
+      InvalidInputError: no choice has been made (mjtraj rl best makes it).
+    """
+    path = (folder or baselines_folder()) / BEST_FILE
+    if not path.is_file():
+        raise InvalidInputError("policy: baseline:best has not been chosen yet; run mjtraj rl best")
+    return str(json.loads(path.read_text())["best"])
+
+
 def baseline_path(name: str) -> Path:
-    """The zip of baseline `name`.
+    """The zip of baseline `name` (best: the one BEST.json names, see mjtraj.rl.best).
 
     Raises:
       InvalidInputError: no such baseline (the message lists them).
     """
+    if name == "best":
+        name = best_name()
     path = baselines_folder() / name / "policy.zip"
     if not name or "/" in name or not path.is_file():
         raise InvalidInputError(f"policy: no baseline {name!r}; shipped: {', '.join(baseline_names()) or 'none'}")
@@ -70,13 +88,23 @@ def strip_optimizers(source: Path, target: Path) -> None:
             zout.writestr(info.filename, data)
 
 
-def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | None = None) -> Path:
+STUDENT_RULE = ("a student ships a privileged teacher's weights (trained observing each plant's true payload, "
+                "damping and friction) observing instead the adaptive law's online estimate of them: RMA's recipe "
+                "(Kumar et al., 2021) with Slotine and Li's estimator, which needs only the measured motion, as the "
+                "adaptation module; deployable, as nothing privileged reaches it")
+
+
+def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | None = None,
+         student: bool = False) -> Path:
     """Ship policy `which` (best: selected on validation; policy: the final one) of the training run folder `run`
     as baseline `name`: its zip without optimiser states, its record (zip_sha256 updated, the original's kept as
-    source_zip_sha256), run.json and learning_curve.csv, into `into` (default: this package's folder).
+    source_zip_sha256), run.json and learning_curve.csv, into `into` (default: this package's folder). With
+    `student`, a teacher run (observe_plant=true on the adaptive law) ships as its deployable student
+    (STUDENT_RULE): the same weights, its record's env observing the estimate.
 
     Raises:
-      InvalidInputError: no such run or policy, or a name that is not a plain folder name.
+      InvalidInputError: no such run or policy, a name that is not a plain folder name, or `student` on a run
+        that is not a teacher on the adaptive law.
     """
     from mjtraj.rl.policy import load_policy, record_path
 
@@ -86,11 +114,19 @@ def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | 
         raise InvalidInputError(f"run: {source} or {run / 'run.json'} not found; expected a folder of rl train")
     if not name or not all(c.isalnum() or c in "_-" for c in name):
         raise InvalidInputError(f"name: expected letters, digits, _ and -, got {name!r}")
+    body = json.loads(record_path(source).read_text())
+    if student:
+        env = body["run"]["env"]
+        if env.get("observe_plant") != "true" or env.get("controller") != "adaptive_computed_torque":
+            raise InvalidInputError(f"student: {run} is not a teacher on the adaptive law (observe_plant "
+                                    f"{env.get('observe_plant', 'none')!r}, controller {env.get('controller')!r}); "
+                                    "train one with --observe-plant true --controller adaptive_computed_torque")
+        env["observe_plant"] = "estimate"
+        body["run"]["student"] = {"rule": STUDENT_RULE, "teacher": f"{run.name}/{which}.zip"}
     folder = Path(into) if into is not None else baselines_folder()
     target = folder / name
     target.mkdir(parents=True, exist_ok=True)
     strip_optimizers(source, target / "policy.zip")
-    body = json.loads(record_path(source).read_text())
     sha = hashlib.sha256((target / "policy.zip").read_bytes()).hexdigest()
     body.update(source_zip_sha256=body["zip_sha256"], zip_sha256=sha, shipped_from=f"{run.name}/{which}.zip")
     write_text_atomic(target / "policy.json", json.dumps(body, indent=1) + "\n")
