@@ -15,7 +15,17 @@ import numpy.typing as npt
 from mjtraj.envs.settings import TrackSettings
 from numpy.typing import NDArray
 
-from mjtraj.core import METRIC_NAMES, ClosedLoop, Reference, Task, metrics_arrays, parameter_bounds, step_cost
+from mjtraj.core import (
+    METRIC_NAMES,
+    RECORDED,
+    ClosedLoop,
+    Reference,
+    Rollout,
+    Task,
+    metrics_arrays,
+    parameter_bounds,
+    step_cost,
+)
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.study import (
     FamilyScenario,
@@ -268,10 +278,24 @@ class TrackCore:
         return self._observer(self.loop)
 
     def metrics(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
-        """The episode Metrics of simulations `ids` (NaN for a diverged one): name -> shape (len(ids),)."""
+        """The episode Metrics of simulations `ids` (NaN for a diverged one): name -> shape (len(ids),). An episode
+        cut short (a time limit) is scored over the periods it ran: J_exec summed over them (so it equals minus its
+        return), terminal_err at the pose it reached against the reference's sample there."""
         rollout = self.loop.rollout(ids)
         arrays = metrics_arrays(rollout, self._q_diag[ids], self._r_diag[ids])  # rms_tau_total: NaN (see pipeline)
-        return {name: np.where(rollout.diverged, np.nan, arrays[name]) for name in METRIC_NAMES}
+        out = {name: np.where(rollout.diverged, np.nan, arrays[name]) for name in METRIC_NAMES}
+        periods = self.loop.periods[ids]
+        q_ref, _ = self.loop.reference()
+        for j in np.flatnonzero((periods > 0) & (periods < self.loop.steps) & ~rollout.diverged):
+            row, k = ids[j], int(periods[j])
+            one = rollout.scenario(j)
+            q, qd = self.loop.positions[row][None].copy(), self.loop.velocities[row][None].copy()
+            cut = Rollout(**{name: getattr(one, name)[:, :k] for name in RECORDED}, q_final=q, qd_final=qd,
+                          e_final=q_ref[row][None] - q, diverged_step=one.diverged_step, dt=one.dt)
+            partial = metrics_arrays(cut, self._q_diag[row], self._r_diag[row])
+            for name in METRIC_NAMES:
+                out[name][j] = partial[name][0]
+        return out
 
     def reference_pose(self, row: int) -> NDArray[np.float64]:
         """The reference sample simulation `row` tracks next (the ghost arm), rad."""

@@ -137,7 +137,11 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     Terminated after N = duration/dt steps (the motion's horizon is part of the state through the phase), or
     earlier when the closed loop diverges (|e| above pi on a joint, or a non-finite state); the episode length
     follows duration and dt (no TimeLimit is registered). At the end `info["metrics"]` holds the episode's Metrics
-    (`mjtraj.Metrics` fields; NaN if diverged) and `info["diverged"]` says whether it diverged.
+    (`mjtraj.Metrics` fields; NaN if diverged) and `info["diverged"]` says whether it diverged. Under a time
+    limit of your own (`gym.make(..., max_episode_steps=k)`, k < N), which the env itself cannot see, read them at
+    the truncation with `env.unwrapped.episode_metrics()`: over the k periods run, J_exec summed over them (minus
+    the return), terminal_err at the pose reached. The vector env's own `max_episode_steps` puts them in the
+    truncating step's info.
 
     ## Plant randomisation
     With `plant_randomization="mismatch"` each episode runs on its own plant, drawn from the reset's generator
@@ -277,9 +281,17 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         done = bool(terminated[0])
         if done:
             self._running = False
-            out["metrics"] = {name: float(v[0]) for name, v in self._core.metrics(np.zeros(1, np.intp)).items()}
+            out["metrics"] = self.episode_metrics()
             out["diverged"] = bool(self._core.loop.diverged[0])
         return obs[0], float(reward[0]), done, False, out
+
+    def episode_metrics(self) -> dict[str, float]:
+        """The Metrics of the current (or last) episode over the periods run so far: at the end the episode's, and
+        after a truncation by a wrapper's time limit (which this env cannot see) those of the k periods run, J_exec
+        summed over them (minus the return), terminal_err at the pose reached; NaN if it diverged."""
+        if not self._core.loop.started:
+            raise InvalidInputError("episode_metrics: call reset() first")
+        return {name: float(v[0]) for name, v in self._core.metrics(np.zeros(1, np.intp)).items()}
 
     def render(self) -> NDArray[np.uint8] | NDArray[np.float32] | None:
         """rgb_array: the executed arm and, translucent, the reference pose it tracks, (height, width, 3) uint8;

@@ -46,6 +46,7 @@ def test_scores_are_ratios_to_cubic_pid_on_the_same_scenarios():
     """One baseline, two scenarios per family: each ratio is its mean J_exec over cubic+PID's, the two computed
     independently here through the evaluation path."""
     from mjtraj.envs import resolve
+
     from mjtraj.rl.adapters import load_any
 
     name = baseline_names()[0]

@@ -145,3 +145,34 @@ def test_a_deployable_policy_sees_no_privileged_input():
     assert not scored("estimate").sees_plant and scored("true").sees_plant
     student.close()
     teacher.close()
+
+
+def test_a_time_limit_truncation_carries_the_metrics_of_the_periods_run():
+    """gym.make's TimeLimit cuts the episode at k < N: episode_metrics() then gives the metrics of the k periods,
+    whose J_exec is minus the return (the reward sums the same step costs); the vector env's truncating step carries
+    them in its info."""
+    import gymnasium as gym
+
+    env = gym.make("UR5Track-v0", action_mode="residual", max_episode_steps=30)
+    env.reset(seed=0)
+    total, truncated, info = 0.0, False, {}
+    steps = 0
+    while not truncated:
+        _, reward, terminated, truncated, info = env.step(np.full(3, 0.2, np.float32))
+        total += reward
+        steps += 1
+        assert not terminated
+    assert steps == 30
+    metrics = env.unwrapped.episode_metrics()
+    assert metrics["cost"] == pytest.approx(-total, rel=1e-12)
+    assert np.isfinite(metrics["terminal_err"]) and metrics["terminal_err"] > 0
+    env.close()
+    vec = UR5TrackVectorEnv(2, action_mode="residual", max_episode_steps=30)
+    vec.reset(seed=0)
+    returns = np.zeros(2)
+    for _ in range(30):
+        _, reward, _, cut, vinfo = vec.step(np.full((2, 3), 0.2, np.float32))
+        returns += reward
+    assert cut.all()
+    np.testing.assert_allclose(vinfo["metrics"]["cost"], -returns, rtol=1e-12)
+    vec.close()

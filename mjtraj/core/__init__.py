@@ -44,6 +44,7 @@ _EXPORTS = {
     "LoopConfig": "mjtraj.core.closed_loop",
     "Step": "mjtraj.core.closed_loop",
     "Rollout": "mjtraj.core.rollout",
+    "RECORDED": "mjtraj.core.closed_loop",
     "Metrics": "mjtraj.core.metrics",
     "METRIC_NAMES": "mjtraj.core.metrics",
     "METRIC_UNITS": "mjtraj.core.metrics",
@@ -75,7 +76,7 @@ __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
     from mjtraj.core.adaptive import AdaptiveComputedTorque, parameter_bounds
-    from mjtraj.core.closed_loop import ClosedLoop, LoopConfig, Step
+    from mjtraj.core.closed_loop import RECORDED, ClosedLoop, LoopConfig, Step
     from mjtraj.core.controller import (
         ANTI_WINDUP,
         PID,
@@ -104,7 +105,7 @@ if TYPE_CHECKING:
     from mjtraj.core.task import Task, random_task
 
 __all__ = [
-    "AdaptiveComputedTorque", "parameter_bounds",
+    "AdaptiveComputedTorque", "parameter_bounds", "RECORDED",
     "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "CONTROLLERS", "ClosedLoop", "ComputedTorque", "CondensedQP",
     "ControlOutput", "Controller", "DynamicsProbe", "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE",
     "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics",
