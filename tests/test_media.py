@@ -63,8 +63,16 @@ def test_render_command_writes_playable_files(tmp_path, capsys):
             frames = iio.imread(tmp_path / f"{name}.{fmt}")
             width = 320 if name == "paper_grid" else 160  # two planners: side by side
             assert frames.shape[0] == 11 and frames.shape[1:3] == (120, width)
-    strip = iio.imread(tmp_path / "paper_snapshots.png")
-    assert strip.shape[:2] == (2 * 120, 5 * 160)
+    strip = iio.imread(tmp_path / "paper_snapshots.png")[..., :3]
+    from mjtraj.media.videos import STRIP_PANEL, label_size
+
+    caption = 2 * label_size(STRIP_PANEL[1]) + 8
+    assert strip.shape[:2] == (STRIP_PANEL[1] + caption, 2 * STRIP_PANEL[0])  # one panel per planner, one caption
+    panel = strip[:STRIP_PANEL[1], :STRIP_PANEL[0]].reshape(-1, 3).astype(int)
+    white = np.all(panel == 255, axis=1).mean()
+    assert 0.4 < white < 0.95  # a light background, the arm filling a good part of it
+    orange = (panel[:, 0] > 200) & (panel[:, 1] > 90) & (panel[:, 1] < 170) & (panel[:, 2] < 80)
+    assert orange.sum() > 50  # the reference's dashed path and marks are drawn
     assert "wrote" in capsys.readouterr().out
 
 

@@ -35,6 +35,7 @@ _EXPORTS = {
     "controller_names": "mjtraj.core.laws",
     "AdaptiveComputedTorque": "mjtraj.core.adaptive",
     "parameter_bounds": "mjtraj.core.adaptive",
+    "flange": "mjtraj.core.payload",
     "ANTI_WINDUP": "mjtraj.core.controller",
     "CONTROLLERS": "mjtraj.core.laws",
     "Controller": "mjtraj.core.controller",
@@ -95,6 +96,7 @@ if TYPE_CHECKING:
     from mjtraj.core.metrics import METRIC_NAMES, METRIC_UNITS, Metrics, gravity_along, metrics_arrays, reduction
     from mjtraj.core.model import JointInfo, default_model_path, load_model
     from mjtraj.core.options import check_options, declared_options, from_mapping, option, option_names
+    from mjtraj.core.payload import flange
     from mjtraj.core.planners import Planner, available, check_name, default_names, make, plan_all, register
     from mjtraj.core.plant import GRAVITY_COMP, BatchPlant
     from mjtraj.core.qp import CondensedQP, QPSolution, build_qp, solve_qp
@@ -105,7 +107,7 @@ if TYPE_CHECKING:
     from mjtraj.core.task import Task, random_task
 
 __all__ = [
-    "AdaptiveComputedTorque", "parameter_bounds", "RECORDED",
+    "AdaptiveComputedTorque", "parameter_bounds", "RECORDED", "flange",
     "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "CONTROLLERS", "ClosedLoop", "ComputedTorque", "CondensedQP",
     "ControlOutput", "Controller", "DynamicsProbe", "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE",
     "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics",

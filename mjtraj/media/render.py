@@ -13,6 +13,7 @@ import numpy.typing as npt
 from numpy.typing import NDArray
 
 from mjtraj.checks import choice, positive_int, vector
+from mjtraj.core import flange
 from mjtraj.exceptions import InvalidInputError, RenderError
 from mjtraj.media.gl import INSTALL_HINT, use_backend
 
@@ -28,6 +29,62 @@ reflection included, for publication frames."""
 FAST_SLICES, FAST_STACKS = 16, 8
 """Facets of round geoms in fast frames (MuJoCo's defaults: 28 and 16)."""
 _FAST_OFF = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION)
+STROBE_ALPHAS = (0.25, 1.0)
+"""Opacity of the first and the last pose of a stroboscopic frame (linear in between)."""
+EXECUTED_RGBA = (0.12, 0.35, 0.75, 1.0)
+"""The executed flange path: solid blue."""
+REFERENCE_RGBA = (0.95, 0.5, 0.1, 1.0)
+"""The reference flange path and marks: orange (the ghost's hue), dashed."""
+
+
+def framing_camera(points: NDArray[np.float64], fovy: float, aspect: float, *, pad: float = 0.0,
+                   azimuth: float = 135.0, elevation: float = -20.0) -> mujoco.MjvCamera:
+    """A free camera at `azimuth`, `elevation` (degrees) aimed at the centre of `points` (K, 3) m and as close as
+    keeps every point in view with a 15 % margin (room for a label band), at vertical field of view `fovy`
+    (degrees) and image `aspect` (width / height): each point's offset across the view (plus `pad`, m) over the
+    tangent of the half field of view, plus how far it stands out towards the camera."""
+    low, high = points.min(axis=0), points.max(axis=0)
+    centre = (low + high) / 2
+    az, el = np.radians(azimuth), np.radians(elevation)
+    forward = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    offsets = points - centre
+    tan_v = np.tan(np.radians(fovy) / 2)
+    tan_h = tan_v * aspect
+    need = ((np.abs(offsets @ right) + pad) / tan_h, (np.abs(offsets @ up) + pad) / tan_v)
+    distance = float(np.max(np.maximum(*need) - offsets @ forward))  # a point nearer the camera needs more room
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    cam.lookat[:] = centre
+    cam.distance = max(1.15 * distance, 1e-3)
+    cam.azimuth, cam.elevation = azimuth, elevation
+    return cam
+
+
+def _segment(scene: mujoco.MjvScene, a: NDArray[np.float64], b: NDArray[np.float64], width: float,
+             rgba: tuple[float, ...]) -> None:
+    """Append a capsule from a to b (m) of radius `width` to `scene`, if it has room."""
+    if scene.ngeom >= scene.maxgeom or np.allclose(a, b):
+        return
+    geom = scene.geoms[scene.ngeom]
+    mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.eye(3).ravel(),
+                        np.array(rgba, dtype=np.float32))
+    mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, width, a, b)
+    geom.segid = scene.ngeom  # segmentation reads it (mjv_initGeom leaves it unset)
+    scene.ngeom += 1
+
+
+def _sphere(scene: mujoco.MjvScene, at: NDArray[np.float64], radius: float, rgba: tuple[float, ...]) -> None:
+    """Append a sphere at `at` (m) to `scene`, if it has room."""
+    if scene.ngeom >= scene.maxgeom:
+        return
+    geom = scene.geoms[scene.ngeom]
+    mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_SPHERE, np.full(3, radius), at, np.eye(3).ravel(),
+                        np.array(rgba, dtype=np.float32))
+    geom.segid = scene.ngeom
+    scene.ngeom += 1
 
 
 _LIVE: weakref.WeakSet[ArmRenderer] = weakref.WeakSet()
@@ -134,6 +191,89 @@ class ArmRenderer:
                 scene.geoms[i].rgba[:] = GHOST_RGBA
                 scene.geoms[i].size[:] *= GHOST_SCALE
         return self._renderer.render()
+
+    def strobe(self, poses: npt.ArrayLike, executed_path: npt.ArrayLike, reference_path: npt.ArrayLike,
+               reference_marks: npt.ArrayLike, *, frame: npt.ArrayLike | None = None) -> NDArray[np.uint8]:
+        """A stroboscopic frame for a paper figure: the arm at each of `poses` (P, nq) rad in one image, the last
+        opaque and the earlier ones fading (STROBE_ALPHAS), on a white background without the floor; the executed
+        flange path `executed_path` (K, 3) m as a solid blue line, the reference's `reference_path` (K, 3) as a
+        dashed orange line over it and `reference_marks` (P, 3) as orange dots at the poses' times, so that the two
+        stay distinguishable where they coincide. The camera frames everything drawn (`framing_camera`), or the
+        points `frame` (K, 3) m: panels that share them share their scale."""
+        q = np.asarray(poses, dtype=np.float64)
+        exec_path = np.asarray(executed_path, dtype=np.float64)
+        ref_path = np.asarray(reference_path, dtype=np.float64)
+        marks = np.asarray(reference_marks, dtype=np.float64)
+        points = (np.vstack([self.body_positions(pose) for pose in q] + [exec_path, ref_path]) if frame is None
+                  else np.asarray(frame, dtype=np.float64))
+        camera = framing_camera(points, float(self.model.vis.global_.fovy), self.width / self.height)
+        option = mujoco.MjvOption()
+        option.geomgroup[:] = 1
+        self._data.qpos[:] = q[-1]
+        mujoco.mj_kinematics(self.model, self._data)
+        mujoco.mj_camlight(self.model, self._data)
+        self._renderer.update_scene(self._data, camera, option)
+        scene = self._renderer.scene
+        self._drop_planes(scene)
+        alphas = np.linspace(STROBE_ALPHAS[0], STROBE_ALPHAS[1], len(q))
+        for pose, alpha in zip(q[:-1], alphas[:-1], strict=True):
+            self._ghost.qpos[:] = pose
+            mujoco.mj_kinematics(self.model, self._ghost)
+            first = scene.ngeom
+            mujoco.mjv_addGeoms(self.model, self._ghost, option, self._perturb, mujoco.mjtCatBit.mjCAT_DYNAMIC, scene)
+            for i in range(first, scene.ngeom):
+                scene.geoms[i].rgba[3] = alpha
+        width = 0.004 * float(self.model.stat.extent)
+        for a, b in zip(exec_path[:-1], exec_path[1:], strict=True):
+            _segment(scene, a, b, width, EXECUTED_RGBA)
+        for k, (a, b) in enumerate(zip(ref_path[:-1], ref_path[1:], strict=True)):
+            if k % 2 == 0:  # dashes
+                _segment(scene, a, b, 1.6 * width, REFERENCE_RGBA)
+        for point in marks:
+            _sphere(scene, point, 3.5 * width, REFERENCE_RGBA)
+        rgb = self._renderer.render().copy()
+        self._renderer.enable_segmentation_rendering()
+        try:
+            segmentation = self._renderer.render()
+        finally:
+            self._renderer.disable_segmentation_rendering()
+        objid, objtype = segmentation[..., 0], segmentation[..., 1]
+        floor = (objtype == int(mujoco.mjtObj.mjOBJ_GEOM)) & np.isin(objid, self._planes)
+        rgb[((objid < 0) & (objtype < 0)) | floor] = 255
+        return rgb
+
+    def flange_position(self, q: npt.ArrayLike) -> NDArray[np.float64]:
+        """The flange's world position at joint positions q (rad), m, shape (3,) (FLANGE_RULE's point)."""
+        self._ghost.qpos[:] = vector("q", q, self.model.nq)
+        mujoco.mj_kinematics(self.model, self._ghost)
+        body, point = flange(self.model)
+        return self._ghost.xpos[body] + self._ghost.xmat[body].reshape(3, 3) @ point  # type: ignore[no-any-return]
+
+    def body_positions(self, q: npt.ArrayLike) -> NDArray[np.float64]:
+        """The corners of the bounding boxes of the model's geoms but planes at q (rad), in the world, shape
+        (8 K, 3), m: what a frame of the arm must show."""
+        self._ghost.qpos[:] = vector("q", q, self.model.nq)
+        mujoco.mj_kinematics(self.model, self._ghost)
+        solid = np.flatnonzero(self.model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE)
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+        out = []
+        for g in solid:
+            centre, half = self.model.geom_aabb[g, :3], self.model.geom_aabb[g, 3:]
+            local = centre + signs * half
+            out.append(self._ghost.geom_xpos[g] + local @ self._ghost.geom_xmat[g].reshape(3, 3).T)
+        return np.vstack(out)
+
+    @property
+    def _planes(self) -> NDArray[np.intp]:
+        """Ids of the model's plane geoms (the floor)."""
+        return np.flatnonzero(self.model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE)
+
+    @staticmethod
+    def _drop_planes(scene: mujoco.MjvScene) -> None:
+        """Make the scene's planes (the floor) invisible: a paper figure's white background."""
+        for i in range(scene.ngeom):
+            if scene.geoms[i].type == mujoco.mjtGeom.mjGEOM_PLANE:
+                scene.geoms[i].rgba[3] = 0.0
 
     def depth(self, q: npt.ArrayLike) -> NDArray[np.float32]:
         """The depth image of the arm at q (rad), no ghost: distances from the camera, shape (height, width), m."""

@@ -17,6 +17,9 @@ from mjtraj.study.comparison import Comparison
 VIDEO_FORMATS = ("mp4", "gif")
 SNAPSHOT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)
 """Fractions of T at which the snapshot strip shows each planner."""
+STRIP_PANEL = (480, 400)
+"""Smallest panel of the snapshot strip, px (a paper figure's; larger video frames give larger panels, up to the
+model's offscreen buffer)."""
 GIF_COLORS = 128
 """Colours of a GIF's one palette, shared by all its frames (median cut over a sample of them, no dithering): a
 shared palette lets unchanged pixels repeat, so each frame stores only the region that moved."""
@@ -41,9 +44,10 @@ def label_size(height: int) -> int:
     return max(6, round(height / LABEL_LINES_PER_HEIGHT))
 
 
-def label(image: NDArray[np.uint8], lines: Sequence[str], *, size: int | None = None) -> NDArray[np.uint8]:
-    """`image` with `lines` of text drawn top-left on a dark band; a new array. `size`: text size in px (default:
-    scaled to the image, label_size); the band and its margins scale with it."""
+def label(image: NDArray[np.uint8], lines: Sequence[str], *, size: int | None = None,
+          light: bool = False) -> NDArray[np.uint8]:
+    """`image` with `lines` of text drawn top-left on a dark band (`light`: dark text on a white one); a new array.
+    `size`: text size in px (default: scaled to the image, label_size); the band and its margins scale with it."""
     from PIL import Image, ImageDraw, ImageFont
 
     size = label_size(image.shape[0]) if size is None else size
@@ -51,9 +55,10 @@ def label(image: NDArray[np.uint8], lines: Sequence[str], *, size: int | None = 
     picture = Image.fromarray(image)
     draw = ImageDraw.Draw(picture)
     font = ImageFont.load_default(size=size)
-    draw.rectangle((0, 0, picture.width, 2 * pad + (size + pad) * len(lines)), fill=(20, 20, 24))
+    band, ink = ((255, 255, 255), (20, 20, 24)) if light else ((20, 20, 24), (240, 240, 240))
+    draw.rectangle((0, 0, picture.width, 2 * pad + (size + pad) * len(lines)), fill=band)
     for i, line in enumerate(lines):
-        draw.text((2 * pad, pad + (size + pad) * i), line, fill=(240, 240, 240), font=font)
+        draw.text((2 * pad, pad + (size + pad) * i), line, fill=ink, font=font)
     return np.asarray(picture)
 
 
@@ -129,6 +134,9 @@ def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4"
                 path = out / f"{name}_grid.{fmt}"
                 _write(path, grid, fps)
                 written.append(path)
+    size = (min(max(width, STRIP_PANEL[0]), int(plant.vis.global_.offwidth)),
+            min(max(height, STRIP_PANEL[1]), int(plant.vis.global_.offheight)))
+    with ArmRenderer(plant, width=size[0], height=size[1], camera=camera, quality=quality) as renderer:
         strip = snapshot_strip(result, renderer)
         if progress:
             progress(len(SNAPSHOT_TIMES) * len(result.planners))
@@ -154,15 +162,27 @@ def _grid(clips: Sequence[Sequence[NDArray[np.uint8]]]) -> list[NDArray[np.uint8
 
 
 def snapshot_strip(result: Comparison, renderer: ArmRenderer) -> NDArray[np.uint8]:
-    """The paper's Fig. 1: one row per planner, one column per time in SNAPSHOT_TIMES (executed + ghost)."""
-    rows = []
-    for planner in result.planners:
-        b = result.planners.index(planner)
+    """The paper's Fig. 1 in a paper's style: one stroboscopic panel per planner, side by side at one scale, on
+    white: the executed arm at the times SNAPSHOT_TIMES (earlier ones fading), its flange path (solid blue) and the
+    reference's (dashed orange, with dots at those times), which stay distinguishable where they coincide; a
+    caption line says so under the panels."""
+    panels = []
+    for b, planner in enumerate(result.planners):
         ref = result.references[planner]
-        tiles = []
-        for fraction in SNAPSHOT_TIMES:
-            k = round(fraction * ref.steps)
-            q = executed_pose(result, b, k)
-            tiles.append(label(renderer.frame(q, ref.q[k]), [f"{planner}  t = {k * ref.dt:.2f} s"]))
-        rows.append(np.hstack(tiles))
-    return np.vstack(rows)
+        ks = [round(fraction * ref.steps) for fraction in SNAPSHOT_TIMES]
+        executed = [executed_pose(result, b, k) for k in range(ref.steps + 1)]
+        panels.append((planner, [executed[k] for k in ks],
+                       np.array([renderer.flange_position(q) for q in executed]),
+                       np.array([renderer.flange_position(q) for q in ref.q]),
+                       np.array([renderer.flange_position(ref.q[k]) for k in ks])))
+    frame = np.vstack([np.vstack([renderer.body_positions(q) for q in poses] + [path, ref_path])
+                       for _, poses, path, ref_path, _ in panels])
+    images = [label(renderer.strobe(poses, path, ref_path, marks, frame=frame), [planner], light=True)
+              for planner, poses, path, ref_path, marks in panels]
+    strip = np.hstack(images)
+    times = ", ".join(f"{fraction * result.scenario.task.duration:g}" for fraction in SNAPSHOT_TIMES)
+    caption = np.full((2 * label_size(strip.shape[0]) + 8, strip.shape[1], 3), 255, dtype=np.uint8)
+    caption = label(caption, [f"{result.scenario.name}: the executed arm at t = {times} s (earlier poses fainter); "
+                              "flange path executed (solid blue) and planned (dashed orange; dots at those times)"],
+                    size=label_size(strip.shape[0]), light=True)
+    return np.vstack([strip, caption])
