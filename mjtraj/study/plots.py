@@ -180,6 +180,46 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120, formats: Seq
     return written
 
 
+def plain_log_ticks(ax: object) -> None:
+    """Log axes labelled in plain numbers (3, 4, 6 rather than 3 x 10^0): every major tick, and the minor ticks at
+    2, 3 and 5 times a power of ten."""
+    from matplotlib import ticker
+
+    def minor(value: float, _: int) -> str:
+        mantissa = value / 10 ** np.floor(np.log10(value)) if value > 0 else 0.0
+        return f"{value:g}" if round(mantissa, 6) in (2.0, 3.0, 5.0) else ""
+
+    for axis in (ax.xaxis, ax.yaxis):  # type: ignore[attr-defined]
+        axis.set_major_formatter(ticker.FuncFormatter(lambda value, _: f"{value:g}"))
+        axis.set_minor_formatter(ticker.FuncFormatter(minor))
+
+
+LABEL_OFFSETS = ((6, 4), (6, -12), (-12, 10), (8, 14), (8, -22), (-70, 4), (-70, -12), (-40, 20), (-40, -24))
+"""Offsets (points) `place_labels` tries for a label, in turn."""
+
+
+def place_labels(ax: object, labels: Sequence[tuple[int, float, float, str]], color: str) -> None:
+    """Annotate each (rank, x, y, text) of `labels` in the order given at the first of LABEL_OFFSETS where it
+    overlaps no label placed before it and stays inside the axes (with a leader line when it stands off); a
+    label with no free place is left out (the curve's other labels give its neighbourhood)."""
+    fig = ax.figure  # type: ignore[attr-defined]
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    frame = ax.get_window_extent(renderer)  # type: ignore[attr-defined]
+    placed = []
+    for _, x, y, text in labels:
+        for dx, dy in LABEL_OFFSETS:
+            far = abs(dx) > 10 or abs(dy) > 12
+            note = ax.annotate(text, (x, y), textcoords="offset points", xytext=(dx, dy), fontsize=7,  # type: ignore
+                               color=color, arrowprops={"arrowstyle": "-", "lw": 0.5, "color": color} if far else None)
+            box = note.get_window_extent(renderer)
+            inside = frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1
+            if inside and not any(box.overlaps(other) for other in placed):
+                placed.append(box.expanded(1.04, 1.15))
+                break
+            note.remove()
+
+
 def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
                     points: dict[str, tuple[float, float]] | None = None) -> Path | None:
     """Corrective effort (RMS dtau) against tracking error (RMS error), log-log: the optimal planner's curve over
@@ -196,8 +236,9 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
     from mjtraj.files import atomic_path
 
     s = result.setting
-    fig, ax = plt.subplots(figsize=(7.5, 5.2))
+    fig, ax = plt.subplots(figsize=(7.5, 5.4))
     optimal = [r for r in result.rows if r.planner == "optimal"]
+    labels: list[tuple[int, float, float, str]] = []
     styles = ("o-", "^--", "s:", "d-.")
     color = planner_color("optimal")  # every split in the optimal planner's colour, told apart by line style
     for k, split in enumerate(dict.fromkeys(r.split for r in optimal)):
@@ -211,8 +252,8 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
             decade = r.alpha > 0 and abs(np.log10(r.alpha) - round(np.log10(r.alpha))) < 1e-9
             if r.alpha == 0.0 or (decade and r.alpha >= 1e-3) or i == best:
                 text = f"α={r.alpha:.2g}" + (" (least J_exec)" if i == best else " (Bryson)" if r.alpha == 1 else "")
-                ax.annotate(text, (x[i], y[i]), textcoords="offset points", fontsize=7, color=color,
-                            xytext=(6, -10) if i == best else (-14, 8) if r.alpha == 0 else (5, 3))
+                rank = 0 if i == best else 1 if r.alpha in (0.0, 1.0) else 2
+                labels.append((rank, x[i], y[i], text))
     for r in (row for row in result.rows if row.planner != "optimal"):
         ax.plot(r.metrics["rms_dtau"], r.metrics["rms_err"], "s", ms=8, color=planner_color(r.planner),
                 label=r.planner)
@@ -220,14 +261,20 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
         ax.plot(effort, error, "*", ms=12, color="k", alpha=1.0 - 0.3 * k, label=label)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    plain_log_ticks(ax)
     ax.set_xlabel("corrective effort: RMS Δτ [N m]" + (" (median)" if s["task"] != "scenario" else ""))
     ax.set_ylabel("tracking error: RMS e [rad]" + (" (median)" if s["task"] != "scenario" else ""))
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
+    ax.set_title("Tracking error against corrective effort as the optimal planner's weight α varies", fontsize=10)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    place_labels(ax, sorted(labels), color)
     where = "the scenario's task" if s["task"] == "scenario" else f"{s['scenarios']} {s['task']} scenarios"
-    ax.set_title(f"Weight frontier on {where}; score: {s['score']}; controller: the scenario's",
-                 fontsize=9)
-    fig.tight_layout()
+    import textwrap
+
+    fig.text(0.01, 0.012, textwrap.fill(f"Q = α Q_bryson, R fixed, on {where}; score: {s['score']}; controller: the "
+                                        "scenario's (identical for every planner); squares: the other planners", 130),
+             fontsize=7, color="0.3")
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi)
     plt.close(fig)
