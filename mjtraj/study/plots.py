@@ -22,12 +22,29 @@ FIGURES = {
 
 
 def _variant(result: Comparison) -> str:
-    """The controller variant and the score, for every title."""
+    """The configuration in plain words, for every figure's caption line: the control law, its feedforward and
+    gravity compensation, the score."""
     loop = result.scenario.loop
-    law = f"FF ({loop.feedforward}, {loop.ff_accel}) + PID" if loop.controller == "pid" else \
-        f"computed torque ({loop.ff_accel})"
-    return (f"{law}, gravity {loop.gravity_comp}; score: J_exec with "
-            f"{'Bryson weights per task' if result.scenario.scoring.rule == 'bryson' else 'the scenario weights'}")
+    accel = "sampled" if loop.ff_accel == "sample" else "step-averaged"
+    feedforward = {"inverse": f"inverse-dynamics feedforward at the {accel} reference acceleration",
+                   "planned": "the planner's own feedforward", "none": "no feedforward"}.get(loop.feedforward,
+                                                                                          loop.feedforward)
+    law = {"pid": f"PID with {feedforward}", "computed_torque": "computed torque on the nominal model",
+           "adaptive_computed_torque": "adaptive computed torque"}.get(loop.controller, loop.controller)
+    gravity = ("gravity compensated in every integrator stage" if loop.gravity_comp == "native"
+               else "gravity compensation held over each period")
+    weights = "Bryson weights per task" if result.scenario.scoring.rule == "bryson" else "the scenario's weights"
+    return (f"Scenario {result.scenario.name!r}; controller, the same for every planner: {law}, {gravity}; score: "
+            f"J_exec with {weights}.")
+
+
+def _caption(fig: object, text: str) -> None:
+    """`text` as a caption line under the figure (its axes laid out above it)."""
+    import textwrap
+
+    width = int(fig.get_figwidth() * 17)  # type: ignore[attr-defined]  # characters of 7 pt text per inch
+    fig.tight_layout(rect=(0, 0.03 + 0.025 * textwrap.fill(text, width).count("\n"), 1, 1))  # type: ignore
+    fig.text(0.01, 0.008, textwrap.fill(text, width), fontsize=7, color="0.3", va="bottom")  # type: ignore
 
 
 def _dwarfed(series: dict[str, np.ndarray]) -> bool:
@@ -120,8 +137,8 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120, formats: Seq
         grid[0, 0].legend(ncol=len(names), fontsize=7, loc="upper right")
         for c in range(grid.shape[1]):
             grid[-1, c].set_xlabel("time [s]")
-        fig.suptitle(f"{FIGURES[filename]} ({variant})", fontsize=10)
-        fig.tight_layout()
+        fig.suptitle(f"{FIGURES[filename]} of each planner's execution", fontsize=10)
+        _caption(fig, variant)
         save(fig, filename)
 
     ref_t = result.references[names[0]].t
@@ -147,8 +164,8 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120, formats: Seq
             ax.legend(fontsize=8)
             if zoom:
                 ax.set_title("all planners" if c == 0 else f"zoom: without {biggest}", fontsize=9)
-        fig.suptitle(f"{FIGURES[filename]} ({variant})", fontsize=10)
-        fig.tight_layout()
+        fig.suptitle(f"{FIGURES[filename]} of each planner's execution", fontsize=10)
+        _caption(fig, variant)
         save(fig, filename)
 
     cumulative("fig5_cumulative_activity.png",
@@ -174,8 +191,8 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120, formats: Seq
         ax.set_title(label, fontsize=9)
         ax.grid(axis="y", alpha=0.3, which="both")
     axes[0].legend(fontsize=7)
-    fig.suptitle(f"{FIGURES['fig7_metrics.png']}: ours beside the paper's Table I, log scale ({variant})", fontsize=10)
-    fig.tight_layout()
+    fig.suptitle(f"{FIGURES['fig7_metrics.png']}: ours beside the paper's Table I (log scale)", fontsize=10)
+    _caption(fig, variant)
     save(fig, "fig7_metrics.png")
     return written
 
