@@ -46,7 +46,8 @@ ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
 ENV_FAMILIES = ("none", *FAMILIES)
 """The env's `family` values: none (tasks by `task`), or a sweep family whose rules draw each episode."""
-RENDER_MODES = ("rgb_array", "depth_array")
+RENDER_MODES = ("rgb_array", "depth_array", "human")
+"""The single env's; the vector env renders the first two (a window shows one env)."""
 PLANT_RANDOMIZATIONS = ("none", "mismatch")
 REWARD_BASELINES = ("none", "pid")
 OBSERVE_PLANT = ("none", "true", "estimate")

@@ -194,7 +194,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | history          | 0          | previous observations appended, latest first                             |
     | Q_exec           | None       | diag of Q_exec, 6 weights (None: Bryson's rule for each task)           |
     | R_exec           | None       | diag of R_exec, 3 weights (None: Bryson's rule)                         |
-    | render_mode      | None       | None, "rgb_array" or "depth_array"                                      |
+    | render_mode      | None       | None, "rgb_array", "depth_array" or "human" (a window; needs a display) |
     | width            | 640        | image width, px                                                         |
     | height           | 480        | image height, px                                                        |
     | camera           | "front"    | the model's (UR5: front, side, top) or free; front falls back to free  |
@@ -229,6 +229,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         self._core = TrackCore(self.settings, 1)
         self._running = False
         self._renderer: ArmRenderer | None = None
+        self._window: Any = None
+        """render_mode='human': the window (mjtraj.media.window.HumanViewer), opened at the first frame."""
 
     @property
     def loop(self) -> ClosedLoop:
@@ -256,6 +258,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
                                         "duration": float(task["duration"][0])}}
         if "plant" in info:
             out["plant"] = {name: float(v[0]) for name, v in info["plant"].items()}
+        if self.render_mode == "human":  # a window follows the episode by itself (Gymnasium's convention)
+            self.render()
         return obs[0], out
 
     def _task_of(self, options: dict[str, Any]) -> Task:
@@ -283,6 +287,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             self._running = False
             out["metrics"] = self.episode_metrics()
             out["diverged"] = bool(self._core.loop.diverged[0])
+        if self.render_mode == "human":
+            self.render()
         return obs[0], float(reward[0]), done, False, out
 
     def episode_metrics(self) -> dict[str, float]:
@@ -295,12 +301,21 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
 
     def render(self) -> NDArray[np.uint8] | NDArray[np.float32] | None:
         """rgb_array: the executed arm and, translucent, the reference pose it tracks, (height, width, 3) uint8;
-        depth_array: the executed arm's depth image, (height, width) float32, m."""
+        depth_array: the executed arm's depth image, (height, width) float32, m; human: the same scene in a window
+        (drawn at every reset and step by itself; returns None; needs a display, see mjtraj.media.window)."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' to gym.make")
             return None
         if not self._core.loop.started:
             raise InvalidInputError("render: call reset() first")
+        if self.render_mode == "human":
+            if self._window is None:
+                from mjtraj.media.window import HumanViewer
+
+                self._window = HumanViewer(self.settings.model, width=self.settings.width,
+                                           height=self.settings.height)
+            self._window.show(self._core.loop.positions[0], self._core.reference_pose(0))
+            return None
         if self._renderer is None:
             s = self.settings
             self._renderer = ArmRenderer(s.model, width=s.width, height=s.height, camera=s.camera,
@@ -312,7 +327,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     def __getstate__(self) -> dict[str, Any]:
         """Everything but the renderer (an OpenGL context): a copy makes its own at its first render()."""
         state = self.__dict__.copy()
-        state["_renderer"] = None
+        state["_renderer"] = state["_window"] = None
         return state
 
     def close(self) -> None:
@@ -320,3 +335,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         if renderer is not None:
             renderer.close()
             self._renderer = None
+        window = getattr(self, "_window", None)
+        if window is not None:
+            window.close()
+            self._window = None

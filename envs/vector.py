@@ -41,12 +41,16 @@ class UR5TrackVectorEnv(VectorEnv):
     `gym.make_vec` from the registration) truncates like gym.make's TimeLimit.
     """
 
-    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50, "autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata = {"render_modes": [m for m in RENDER_MODES if m != "human"], "render_fps": 50,
+                "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, *, max_episode_steps: int | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs: Any) -> None:
         self.settings = resolve(**kwargs)
         render_mode = self.settings.render_mode
+        if render_mode == "human":
+            raise InvalidInputError("render_mode: 'human' shows one env in a window; the vector env renders "
+                                    "'rgb_array' or 'depth_array' (one frame per sub-env)")
         self.num_envs = positive_int("num_envs", num_envs)
         self.max_episode_steps = None if max_episode_steps is None else positive_int("max_episode_steps",
                                                                                       max_episode_steps)

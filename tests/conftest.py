@@ -1,6 +1,11 @@
-"""Shared fixtures: the nominal model, the paper scenario, and its task."""
+"""Shared fixtures: the nominal model, the paper scenario, its task, and a virtual display."""
 
 from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -28,3 +33,17 @@ def task(scenario: Scenario) -> Task:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261121)
+
+
+@pytest.fixture(scope="session")
+def display():
+    """A virtual X display for the test's duration."""
+    xvfb = shutil.which("Xvfb")
+    assert xvfb is not None, "Xvfb is needed (apt-get install xvfb; .ci/run installs it)"
+    number = 90 + os.getpid() % 9
+    proc = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "640x480x24"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    time.sleep(1.0)
+    yield f":{number}"
+    proc.terminate()
+    proc.wait()
