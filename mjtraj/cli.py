@@ -248,6 +248,7 @@ def _parser() -> argparse.ArgumentParser:
                    "what is missing) instead of refusing it")
     a.add_argument("--no-tasks", action="store_true", help="skip the paper task, its reverse and the weight frontier "
                    "(computed at audit time from each file's settings)")
+    a.add_argument("--no-progress", action="store_true", help="no progress display")
 
     r = sub.add_parser("render", help="execution videos per planner, a side-by-side clip and the Fig. 1 snapshot strip")
     r.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
@@ -644,9 +645,17 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _audit(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
     from mjtraj.study.audit import write_audit
 
-    text = write_audit(args.sweeps, args.out, partial=args.partial, tasks=not args.no_tasks)
+    with tqdm(desc="mjtraj audit", unit="stage", file=sys.stderr, leave=False,
+              disable=None if not args.no_progress else True) as bar:
+        def stage(name: str) -> None:
+            bar.set_description_str(f"mjtraj audit: {name}")
+            bar.update(1)
+
+        text = write_audit(args.sweeps, args.out, partial=args.partial, tasks=not args.no_tasks, progress=stage)
     verdicts = text.split("## Verdicts", 1)[1].split("\n\nVerdict rule")[0]
     print(verdicts.strip())
     print(f"\nwrote {args.out}")

@@ -181,3 +181,10 @@ def test_a_claim_holding_on_the_paper_task_only_depends_on_it(tmp_path):
         assert verdicts(text)["3"] == expected
         assert "| paper task, ff_accel=sample, gravity_comp=native | cubic: " + (
             "+1.0 % (one motion)" if optimal < 1 else "-1.0 % (one motion)") in text
+
+
+def test_progress_names_each_stage_as_it_begins(tmp_path):
+    costs = {"nominal": {"optimal": 1.0, "cubic": 2.0, "quintic": 3.0, "trapezoidal": 3.0}}
+    stages: list[str] = []
+    write_audit([synthetic(tmp_path / "p.csv", costs)], tmp_path / "p.md", progress=stages.append, tasks=False)
+    assert stages == ["reading p.csv", "the claims", "the figures"]

@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -102,8 +102,8 @@ class SweepData:
     """A sweep's rows as per-planner arrays aligned by scenario, per condition; with `tasks`, also each file's rows
     on the paper task and its reverse (`mjtraj.study.fixed_tasks`), computed now."""
 
-    def __init__(self, paths: Sequence[str | os.PathLike[str]], *, partial: bool = False, tasks: bool = False
-                 ) -> None:
+    def __init__(self, paths: Sequence[str | os.PathLike[str]], *, partial: bool = False, tasks: bool = False,
+                 progress: Callable[[str], None] | None = None) -> None:
         rows = []
         self.missing: dict[str, str] = {}
         """File -> what `partial` left out of it."""
@@ -112,6 +112,8 @@ class SweepData:
         for path in paths:
             if not Path(path).is_file():
                 raise InvalidInputError(f"sweep: file not found: {path}")
+            if progress is not None:
+                progress(f"reading {Path(path).name}")
             mine = read_rows(path)
             complete = complete_units(mine)
             if len(complete) < len(mine):
@@ -131,6 +133,8 @@ class SweepData:
                                           f"not computed yet"
             rows += complete
             if tasks and complete:
+                if progress is not None:
+                    progress(f"the paper task and its reverse for {Path(path).name}")
                 extra, why = task_rows(complete[0])
                 rows += extra
                 if why:
@@ -232,14 +236,20 @@ def _overall(per_condition: dict[Condition, str]) -> str:
 
 
 def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], *, figures: bool = True,
-                partial: bool = False, tasks: bool = True) -> str:
+                partial: bool = False, tasks: bool = True, progress: Callable[[str], None] | None = None) -> str:
     """Write the audit of the sweep files `paths` to `out` (Markdown) and its figures beside it; return the text.
 
     An incomplete sweep file is refused unless `partial`, which audits its complete units and says what is missing.
     With `tasks`, each file's planners, controller variants and scenario file are also run on the paper task and its
     reverse (conditions of their own), and the weight frontier on the paper task is computed and drawn.
+    `progress(stage)` is called as each stage begins.
     """
-    data = SweepData(paths, partial=partial, tasks=tasks)
+    def stage(name: str) -> None:
+        if progress is not None:
+            progress(name)
+
+    data = SweepData(paths, partial=partial, tasks=tasks, progress=progress)
+    stage("the claims")
     out = Path(out)
     lines: list[str] = []
     verdicts: dict[str, dict[Condition, str]] = {str(i): {} for i in range(1, 7)}
@@ -324,12 +334,14 @@ def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[
                   "|" + "---|" * (head.count("|") - 1)] + (detail[k] or ["| (not measured) |"]) + [""]
     lines += _conclusions(data)
     if tasks:
+        stage("the weight frontier")
         lines += _frontier_section(data, out, paths, figures=figures)
     lines += _where_it_pays(data)
     lines += _min_effort(data)
     lines += ["## Per-condition summary", "", "Mean and median per planner; CVaR(90 %) of the RMS tracking error "
               "(the mean of the worst 10 % of scenarios); failures are rows whose status is not ok.", ""] + summary
     if figures:
+        stage("the figures")
         lines += _figures(data, out)
     lines += _definitions(data)
     lines += _paper_note()
