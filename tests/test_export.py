@@ -70,3 +70,47 @@ def test_torn_unfinished_or_unknown_are_refused_and_leave_nothing(sweep, tmp_pat
                                                 r"'.*s.parquet'$"):
         export(sweep, tmp_path / "s.parquet")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["torn.csv", "unfinished.csv"]
+
+
+def test_csv_export_is_the_rows_text_byte_for_byte(sweep, tmp_path):
+    """Oracle: the whole file formatted at once (csv_text of every row), what export wrote before it streamed."""
+    from mjtraj.study.store import csv_text
+
+    rows = read_rows(sweep)
+    assert export(sweep, tmp_path / "copy.csv") == len(rows)
+    assert (tmp_path / "copy.csv").read_bytes() == csv_text(list(rows[0]), rows).encode() == sweep.read_bytes()
+
+
+def _synthetic_sweep(template, path, scenarios):
+    """A complete sweep of `scenarios` scenarios per family: the template's rows of scenario 0, repeated."""
+    import csv
+
+    rows = read_rows(template)
+    batch = 250
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
+        writer.writeheader()
+        for family in ("nominal", "mismatch"):
+            first = [r for r in rows if r["family"] == family and r["scenario"] == "0"]
+            for i in range(scenarios):
+                for r in first:
+                    writer.writerow({**r, "scenario": str(i), "unit": str(i // batch), "sweep_scenarios":
+                                     str(scenarios), "sweep_batch": str(batch)})
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("suffix", [".csv", ".jsonl", ".sqlite"])
+def test_export_runs_in_bounded_memory(sweep, tmp_path, suffix):
+    """Peak memory (tracemalloc) exporting 4 times the rows grows by less than half: the rows are streamed."""
+    import tracemalloc
+
+    peaks = []
+    for scenarios in (500, 2_000):
+        source = _synthetic_sweep(sweep, tmp_path / f"big{scenarios}.csv", scenarios)
+        tracemalloc.start()
+        written = export(source, tmp_path / f"out{scenarios}{suffix}")
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+        assert written == scenarios * 4
+    assert peaks[1] < 1.5 * peaks[0], peaks

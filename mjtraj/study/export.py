@@ -15,13 +15,16 @@ import json
 import math
 import os
 import sqlite3
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path
-from mjtraj.study.audit import complete_units, expected_rows
-from mjtraj.study.store import VERSION_COLUMNS, csv_text, read_rows
+from mjtraj.study.audit import expected_rows
+from mjtraj.study.store import VERSION_COLUMNS, format_rows, iter_rows
 
 FORMATS = {".sqlite": "sqlite", ".db": "sqlite", ".jsonl": "jsonl", ".csv": "csv"}
 TEXT_COLUMNS = ("family", "planner", "ff_accel", "gravity_comp", "status", "reason", "solver", "config",
@@ -40,39 +43,118 @@ def _number(cell: str) -> float | None:
     return None if math.isnan(value) else value
 
 
+class ColumnKinds:
+    """Each column's kind ('REAL', 'INTEGER' or 'TEXT', by the module's rule), gathered one row at a time."""
+
+    def __init__(self, columns: list[str]) -> None:
+        self.columns = columns
+        self._text = {c: c in TEXT_COLUMNS for c in columns}
+        self._present = dict.fromkeys(columns, False)
+        self._whole = dict.fromkeys(columns, True)
+
+    def add(self, row: dict[str, str]) -> None:
+        """Account for one row of cells."""
+        for column in self.columns:
+            if self._text[column]:
+                continue
+            cell = row[column]
+            try:
+                value = _number(cell)
+            except ValueError:
+                self._text[column] = True
+                continue
+            if value is not None:
+                self._present[column] = True
+                if "." in cell or "e" in cell.lower():
+                    self._whole[column] = False
+
+    def kinds(self) -> dict[str, str]:
+        """column -> 'TEXT', 'INTEGER' (every present cell written whole) or 'REAL'."""
+        return {c: "TEXT" if self._text[c] else "INTEGER" if self._present[c] and self._whole[c] else "REAL"
+                for c in self.columns}
+
+
+def typed(row: dict[str, str], kinds: dict[str, str]) -> dict[str, Any]:
+    """`row` with its cells as the values of their columns' kinds (None for a missing number)."""
+    out: dict[str, Any] = {}
+    for column, kind in kinds.items():
+        cell = row[column]
+        if kind == "TEXT":
+            out[column] = cell
+        else:
+            value = _number(cell)
+            out[column] = None if value is None else int(value) if kind == "INTEGER" else value
+    return out
+
+
 def typed_rows(rows: list[dict[str, str]]) -> tuple[list[str], dict[str, str], list[dict[str, Any]]]:
     """(columns, column -> 'REAL' | 'INTEGER' | 'TEXT', the rows with typed values)."""
     columns = list(rows[0]) if rows else []
-    kinds: dict[str, str] = {}
-    for column in columns:
-        cells = [r[column] for r in rows]
-        try:
-            values = [_number(c) for c in cells]
-        except ValueError:
-            values = []
-        if column in TEXT_COLUMNS or not values:
-            kinds[column] = "TEXT"
-            continue
-        present = [c for c, v in zip(cells, values, strict=True) if v is not None]
-        whole = bool(present) and all("." not in c and "e" not in c.lower() for c in present)
-        kinds[column] = "INTEGER" if whole else "REAL"
-    out = []
-    for r in rows:
-        row: dict[str, Any] = {}
-        for column in columns:
-            cell = r[column]
-            if kinds[column] == "TEXT":
-                row[column] = cell
-            else:
-                value = _number(cell)
-                row[column] = None if value is None else int(value) if kinds[column] == "INTEGER" else value
-        out.append(row)
-    return columns, kinds, out
+    gathered = ColumnKinds(columns)
+    for row in rows:
+        gathered.add(row)
+    kinds = gathered.kinds()
+    return columns, kinds, [typed(r, kinds) for r in rows]
+
+
+CHUNK = 1_000
+"""Rows written at a time: export holds at most this many in memory, whatever the sweep's size."""
+
+
+def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[list[str], ColumnKinds | None, int]:
+    """The first pass over `sweep`: its columns, their kinds (if `kinds_needed`) and its row count, refusing a
+    sweep that is not one, or is torn or unfinished (the rule of `complete_units` and `expected_rows`, counted
+    unit by unit)."""
+    columns: list[str] = []
+    gathered: ColumnKinds | None = None
+    counts: dict[tuple[str, str], int] = {}
+    total = 0
+    first: dict[str, str] = {}
+    for row in iter_rows(sweep):
+        if not total:
+            first, columns = row, list(row)
+            missing = [c for c in SWEEP_KEYS if c not in row]
+            if missing:
+                raise InvalidInputError(f"sweep: {sweep} is not a sweep results file (missing columns "
+                                        f"{', '.join(missing)})")
+            planners = set(row["sweep_planners"].split("+"))
+            gathered = ColumnKinds(columns) if kinds_needed else None
+        total += 1
+        if row["planner"] in planners:  # rows of other controllers ride along with their unit
+            counts[(row["family"], row["unit"])] = counts.get((row["family"], row["unit"]), 0) + 1
+        if gathered is not None:
+            gathered.add(row)
+    if not total:
+        raise InvalidInputError(f"sweep: no rows in {sweep}")
+    try:
+        per_scenario = int(np.prod([len(first[k].split("+")) for k in ("sweep_planners", "sweep_ff_accel",
+                                                                       "sweep_gravity_comp")]))
+        batch, scenarios = int(first["sweep_batch"]), int(first["sweep_scenarios"])
+        torn = any(n != per_scenario * min(batch, scenarios - int(unit) * batch) for (_, unit), n in counts.items())
+    except (KeyError, ValueError) as e:
+        raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
+    if torn or total < expected_rows(first):
+        raise InvalidInputError(f"sweep: {sweep} is unfinished; finish it with the same mjtraj sweep command and "
+                                f"--resume before exporting it")
+    return columns, gathered, total
+
+
+def _chunks(sweep: str | os.PathLike[str]) -> Iterator[list[dict[str, str]]]:
+    """The rows of `sweep` in lists of at most CHUNK."""
+    chunk: list[dict[str, str]] = []
+    for row in iter_rows(sweep):
+        chunk.append(row)
+        if len(chunk) == CHUNK:
+            yield chunk
+            chunk = []
+    if chunk:
+        yield chunk
 
 
 def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
     """Write the complete sweep `sweep` (store or CSV file) to `out` (format by suffix: .sqlite or .db, .jsonl,
-    .csv); return the rows.
+    .csv); return the rows. Two passes over the sweep (checks and column kinds, then the output), CHUNK rows in
+    memory at a time: bounded memory, time proportional to the rows.
 
     Raises:
       InvalidInputError: unknown output suffix, no such sweep file, or a torn or unfinished sweep.
@@ -83,38 +165,37 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
         raise InvalidInputError(f"out: expected a file ending in {', '.join(FORMATS)}, got {str(out)!r}")
     if not Path(sweep).is_file():
         raise InvalidInputError(f"sweep: file not found: {sweep}")
-    rows = read_rows(sweep)
-    if not rows:
-        raise InvalidInputError(f"sweep: no rows in {sweep}")
-    missing = [c for c in SWEEP_KEYS if c not in rows[0]]
-    if missing:
-        raise InvalidInputError(f"sweep: {sweep} is not a sweep results file (missing columns {', '.join(missing)})")
-    if len(complete_units(rows)) < len(rows) or len(rows) < expected_rows(rows[0]):
-        raise InvalidInputError(f"sweep: {sweep} is unfinished; finish it with the same mjtraj sweep command and "
-                                f"--resume before exporting it")
     if Path(sweep).resolve() == target.resolve():
         raise InvalidInputError(f"out: {out} is the sweep itself; choose another path")
-    columns, kinds, typed = typed_rows(rows)
+    columns, gathered, total = _checked_pass(sweep, kinds_needed=kind != "csv")
     with atomic_path(target) as tmp:
         if kind == "csv":
-            tmp.write_text(csv_text(columns, rows), encoding="utf-8")
+            with open(tmp, "w", encoding="utf-8", newline="") as f:
+                f.write(format_rows(columns, [dict(zip(columns, columns, strict=True))]))
+                for chunk in _chunks(sweep):
+                    f.write(format_rows(columns, chunk))
         elif kind == "jsonl":
+            assert gathered is not None
+            kinds = gathered.kinds()
             with open(tmp, "w", encoding="utf-8") as f:
-                for row in typed:
-                    f.write(json.dumps(row, allow_nan=False) + "\n")
+                for chunk in _chunks(sweep):
+                    f.write("".join(json.dumps(typed(row, kinds), allow_nan=False) + "\n" for row in chunk))
         else:
-            _write_sqlite(tmp, columns, kinds, typed)
-    return len(typed)
+            assert gathered is not None
+            _write_sqlite(tmp, columns, gathered.kinds(), sweep)
+    return total
 
 
-def _write_sqlite(path: Path, columns: list[str], kinds: dict[str, str], rows: list[dict[str, Any]]) -> None:
+def _write_sqlite(path: Path, columns: list[str], kinds: dict[str, str], sweep: str | os.PathLike[str]) -> None:
     quoted = ", ".join(f'"{c}" {kinds[c]}' for c in columns)
     connection = sqlite3.connect(path)
     try:
         with connection:
             connection.execute(f"CREATE TABLE {TABLE} ({quoted})")
             marks = ", ".join("?" for _ in columns)
-            connection.executemany(f"INSERT INTO {TABLE} VALUES ({marks})", ([r[c] for c in columns] for r in rows))
+            for chunk in _chunks(sweep):
+                connection.executemany(f"INSERT INTO {TABLE} VALUES ({marks})",
+                                       (list(typed(row, kinds).values()) for row in chunk))  # in column order
             keys = [c for c in ("family", "scenario", "planner") if c in columns]
             if keys:
                 connection.execute(f"CREATE INDEX {TABLE}_keys ON {TABLE} ({', '.join(keys)})")

@@ -13,6 +13,7 @@ import csv
 import io
 import math
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
@@ -20,7 +21,7 @@ from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import with_path
 from mjtraj.study.cells import VERSION_COLUMNS, cell_text, setting_cells
 from mjtraj.study.locks import lock_file
-from mjtraj.study.sweep_store import is_sqlite_file, read_store_rows
+from mjtraj.study.sweep_store import is_sqlite_file, iter_store_rows
 
 
 def format_rows(columns: list[str], rows: list[dict[str, Any]]) -> str:
@@ -60,8 +61,18 @@ def read_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
       InvalidInputError: the file is not text, or a row has more or fewer cells than the header (a torn write:
         the message names the line); or a SQLite file is not a readable sweep store.
     """
+    return list(iter_rows(path))
+
+
+def iter_rows(path: str | os.PathLike[str]) -> Iterator[dict[str, str]]:
+    """`read_rows` one row at a time, in bounded memory: what a pass over millions of rows reads.
+
+    Raises:
+      InvalidInputError: as `read_rows` (a torn or damaged row when the pass reaches it).
+    """
     if is_sqlite_file(path):
-        return read_store_rows(path)
+        yield from iter_store_rows(path)
+        return
     with open(path, "rb") as raw:
         size = raw.seek(0, os.SEEK_END)
         if size:
@@ -72,14 +83,12 @@ def read_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
     try:
         with open(path, newline="", encoding="utf-8") as f:
             reader = csv.DictReader(f)
-            rows = []
             for row in reader:
                 if None in row or None in row.values():
                     raise InvalidInputError(f"sweep: {path} line {reader.line_num} has "
                                             f"{'more' if None in row else 'fewer'} cells than the header (a torn or "
                                             f"damaged file); resume the sweep to repair it")
-                rows.append(row)
-            return rows
+                yield row
     except UnicodeDecodeError as e:
         raise InvalidInputError(f"sweep: {path} is not a text results file (not UTF-8 at byte {e.start})") from e
 

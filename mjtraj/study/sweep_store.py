@@ -20,6 +20,7 @@ import errno
 import json
 import os
 import sqlite3
+from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
@@ -101,6 +102,15 @@ def read_store_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
     Raises:
       InvalidInputError: the file is not a readable sweep store.
     """
+    return list(iter_store_rows(path))
+
+
+def iter_store_rows(path: str | os.PathLike[str]) -> Iterator[dict[str, str]]:
+    """`read_store_rows` one row at a time, in bounded memory (SQLite's cursor pages through the table).
+
+    Raises:
+      InvalidInputError: the file is not a readable sweep store.
+    """
     file = Path(path)
     try:
         connection = _connect(file, readonly=True)
@@ -108,8 +118,8 @@ def read_store_rows(path: str | os.PathLike[str]) -> list[dict[str, str]]:
             columns, _ = _meta(connection, file)
             _stored_units(connection, file)
             cursor = connection.execute(f"SELECT {', '.join(map(_quote, columns))} FROM rows ORDER BY rowid")
-            return [dict(zip(columns, ("" if v is None else str(v) for v in values), strict=True))
-                    for values in cursor]
+            for values in cursor:
+                yield dict(zip(columns, ("" if v is None else str(v) for v in values), strict=True))
         finally:
             connection.close()
     except sqlite3.DatabaseError as e:
