@@ -391,3 +391,77 @@ def bench_startup(*, repeats: int = 5) -> dict[str, float]:
         compare = wall([sys.executable, "-m", "mjtraj", "compare", "--no-figures", "--out", folder])
     return {"imports_s": imports, "linalg_s": linalg, "compare_s": compare, "ratio": compare / imports,
             "ratio_linalg": compare / linalg}
+
+
+STORE_BATCH = 250
+"""Scenarios per unit of the synthetic store (the sweeps' default batch)."""
+
+
+def synthetic_store(path: str, rows: int) -> int:
+    """Write a complete nominal sweep store of about `rows` rows (4 planners x ceil(rows / 4) scenarios) at `path`
+    without simulating: every scenario carries the rows of one real scenario (computed once), its own scenario
+    number and unit, the real schema and settings. Returns the rows written."""
+    from mjtraj.study.sweep import SweepSettings, columns, fixed_columns, run_unit
+    from mjtraj.study.sweep_store import SweepStore
+
+    scenarios = max(1, -(-rows // 4))
+    settings = SweepSettings(families=("nominal",), scenarios=scenarios, batch=STORE_BATCH)
+    template = run_unit(SweepSettings(families=("nominal",), scenarios=1, batch=1), ("nominal", 0)).rows
+    fixed = fixed_columns(settings)
+    units = settings.units()
+    store = SweepStore.open(path, columns(settings), fixed, {u: settings.unit_rows(u) for u in units}, resume=False)
+    written = 0
+    try:
+        for _, unit in units:
+            first = unit * STORE_BATCH
+            batch = [{**row, **fixed, "scenario": i, "unit": unit} for i in
+                     range(first, min(first + STORE_BATCH, scenarios)) for row in template]
+            store.append(batch)
+            written += len(batch)
+    finally:
+        store.close()
+    return written
+
+
+def _peak_child(target: Callable[[], object]) -> tuple[float, float]:
+    """(wall s, peak resident memory MB) of `target` run alone in a fresh process (fork)."""
+    import multiprocessing
+    import resource
+
+    def run(pipe: Any) -> None:
+        start = time.perf_counter()
+        target()
+        pipe.send((time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
+
+    context = multiprocessing.get_context("fork")
+    parent, child = context.Pipe()
+    process = context.Process(target=run, args=(child,))
+    process.start()
+    wall, peak = parent.recv()
+    process.join()
+    return float(wall), float(peak)
+
+
+def bench_store(rows: int = 100_000) -> dict[str, Any]:
+    """A synthetic store of `rows` rows (`synthetic_store`), then `mjtraj export` to CSV and JSON Lines and
+    `mjtraj audit --no-tasks` on it, each in a fresh process: wall time, rows/s, peak resident memory and bytes per
+    row. Returns {"rows", "write_s", "stages": name -> {"wall_s", "peak_mb"}}."""
+    import os
+    import tempfile
+
+    from mjtraj.study.audit import write_audit
+    from mjtraj.study.export import export
+
+    with tempfile.TemporaryDirectory() as folder:
+        store = os.path.join(folder, "synthetic.sqlite")
+        start = time.perf_counter()
+        written = synthetic_store(store, rows)
+        write_s = time.perf_counter() - start
+        stages = {}
+        for name, target in (("export .csv", lambda: export(store, os.path.join(folder, "out.csv"))),
+                             ("export .jsonl", lambda: export(store, os.path.join(folder, "out.jsonl"))),
+                             ("audit --no-tasks", lambda: write_audit([store], os.path.join(folder, "AUDIT.md"),
+                                                                      figures=False, tasks=False))):
+            wall, peak = _peak_child(target)
+            stages[name] = {"wall_s": wall, "peak_mb": peak}
+    return {"rows": written, "write_s": write_s, "stages": stages}

@@ -198,13 +198,14 @@ def _parser() -> argparse.ArgumentParser:
                    "tuned.toml)")
 
     b = sub.add_parser("bench", help="speed ratios measured in one run")
-    b.add_argument("what", choices=("plan", "planners", "loop", "env", "startup", "sweep", "all"), nargs="?",
+    b.add_argument("what", choices=("plan", "planners", "loop", "env", "startup", "sweep", "store", "all"), nargs="?",
                    default="all",
-                   help="what to time ('all' skips the minute-long sweep)")
+                   help="what to time ('all' skips the minute-long sweep and the store)")
     b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     b.add_argument("--sizes", type=_counts, help="loop batch sizes, comma-separated whole numbers >= 1")
     b.add_argument("--scenarios", type=int, default=10_000, help="sweep: nominal scenarios (default 10000)")
     b.add_argument("--workers", type=int, help="sweep: worker processes (default: all cores)")
+    b.add_argument("--rows", type=int, default=100_000, help="store: rows of the synthetic store (default 100000)")
 
     w = sub.add_parser("sweep", help="every planner on many seeded scenarios; rows committed unit by unit to a "
                        "SQLite store (resumable)")
@@ -565,6 +566,19 @@ def _bench(args: argparse.Namespace) -> int:
         for row in bench_loop(scenario, tuple(args.sizes) if args.sizes else LOOP_SIZES):
             print(f"{row['scenarios']:>9} {row['raw_steps_per_s']:>12.0f} {row['loop_steps_per_s']:>13.0f} "
                   f"{row['ratio']:>6.2f}")
+    if args.what == "store":
+        from mjtraj.bench import bench_store
+        from mjtraj.checks import positive_int
+
+        store = bench_store(positive_int("rows", args.rows))
+        rows = store["rows"]
+        print(f"store: a synthetic nominal sweep store of {rows} rows with the real schema (written in "
+              f"{store['write_s']:.1f} s, {rows / store['write_s']:.0f} rows/s), then each stage alone in a fresh "
+              "process; targets: export <= 300 MB peak and >= 50,000 rows/s")
+        print(f"{'stage':<18} {'wall s':>8} {'rows/s':>9} {'peak MB':>8} {'kB/row':>7}")
+        for name, stage in store["stages"].items():
+            print(f"{name:<18} {stage['wall_s']:>8.1f} {rows / stage['wall_s']:>9.0f} {stage['peak_mb']:>8.0f} "
+                  f"{1024 * stage['peak_mb'] / rows:>7.2f}")
     if args.what == "sweep":
         from mjtraj.bench import bench_sweep
 

@@ -100,3 +100,18 @@ def test_the_replay_anchor_steps_the_envs_own_motions():
         raw.step()
     assert np.array_equal(raw.bind("qpos"), played.q_final) and np.array_equal(raw.bind("qvel"), played.qd_final)
     env.close()
+
+
+def test_the_synthetic_store_is_a_complete_sweep_with_the_real_schema(tmp_path):
+    """What bench store measures is what a sweep writes: export and the audit take it as a finished sweep."""
+    from mjtraj.bench import synthetic_store
+    from mjtraj.study.export import export
+    from mjtraj.study.store import read_rows
+    from mjtraj.study.sweep import SweepSettings, columns
+
+    path = tmp_path / "s.sqlite"
+    assert synthetic_store(str(path), 1010) == 1012  # 253 scenarios x 4 planners, two units
+    rows = read_rows(path)
+    assert list(rows[0]) == columns(SweepSettings(families=("nominal",), scenarios=253, batch=250))
+    assert sorted({int(r["scenario"]) for r in rows}) == list(range(253))
+    assert export(path, tmp_path / "s.csv") == 1012
