@@ -79,6 +79,11 @@ def test_csv_export_is_the_rows_text_byte_for_byte(sweep, tmp_path):
     rows = read_rows(sweep)
     assert export(sweep, tmp_path / "copy.csv") == len(rows)
     assert (tmp_path / "copy.csv").read_bytes() == csv_text(list(rows[0]), rows).encode() == sweep.read_bytes()
+    store = tmp_path / "s.sqlite"
+    run_sweep(SweepSettings(families=("nominal", "mismatch"), scenarios=3, batch=2, planners=("cubic", "optimal")),
+              store, progress=False)
+    assert export(store, tmp_path / "from_store.csv") == len(rows)
+    assert (tmp_path / "from_store.csv").read_bytes() == csv_text(list(rows[0]), read_rows(store)).encode()
 
 
 def _synthetic_sweep(template, path, scenarios):

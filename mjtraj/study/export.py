@@ -11,9 +11,11 @@ exported (a torn or unfinished file is refused, as the audit refuses it); the ou
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
+import shutil
 import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
@@ -24,7 +26,8 @@ import numpy as np
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path
 from mjtraj.study.audit import expected_rows
-from mjtraj.study.store import VERSION_COLUMNS, format_rows, iter_rows
+from mjtraj.study.store import VERSION_COLUMNS, iter_rows
+from mjtraj.study.sweep_store import is_sqlite_file
 
 FORMATS = {".sqlite": "sqlite", ".db": "sqlite", ".jsonl": "jsonl", ".csv": "csv"}
 TEXT_COLUMNS = ("family", "planner", "ff_accel", "gravity_comp", "status", "reason", "solver", "config",
@@ -169,11 +172,14 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
         raise InvalidInputError(f"out: {out} is the sweep itself; choose another path")
     columns, gathered, total = _checked_pass(sweep, kinds_needed=kind != "csv")
     with atomic_path(target) as tmp:
-        if kind == "csv":
+        if kind == "csv" and not is_sqlite_file(sweep):  # checked complete: its text is the output, byte for byte
+            shutil.copyfile(sweep, tmp)
+        elif kind == "csv":
             with open(tmp, "w", encoding="utf-8", newline="") as f:
-                f.write(format_rows(columns, [dict(zip(columns, columns, strict=True))]))
-                for chunk in _chunks(sweep):
-                    f.write(format_rows(columns, chunk))
+                writer = csv.writer(f, lineterminator="\n")
+                writer.writerow(columns)
+                for chunk in _chunks(sweep):  # a store's cells are already text (iter_store_rows)
+                    writer.writerows([row[c] for c in columns] for row in chunk)
         elif kind == "jsonl":
             assert gathered is not None
             kinds = gathered.kinds()
