@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,7 +28,7 @@ from mjtraj.study.fixed_tasks import TASKS, task_rows
 from mjtraj.study.paper import PAPER_TABLE
 from mjtraj.study.scenario import load_scenario
 from mjtraj.study.stats import PairedRatio, cvar, paired_ratio
-from mjtraj.study.store import VERSION_COLUMNS, numeric, read_rows
+from mjtraj.study.store import VERSION_COLUMNS, iter_rows, numeric
 from mjtraj.study.sweep import SHIPPED_CONFIG, SweepSettings
 
 CLASSICAL = ("cubic", "quintic", "trapezoidal")
@@ -78,99 +78,169 @@ def expected_rows(row: dict[str, str]) -> int:
         return 0
 
 
+def unit_counts(rows: Iterable[dict[str, str]]
+                ) -> tuple[dict[str, str] | None, int, dict[tuple[str, str], int], dict[tuple[str, str], int]]:
+    """One pass over a sweep's rows: its first row, how many there are, the rows of the sweep's own planners in each
+    (family, unit), and all the rows in each (rows of other controllers, rl eval's policies, ride along with their
+    unit)."""
+    first: dict[str, str] | None = None
+    total = 0
+    own: dict[tuple[str, str], int] = {}
+    every: dict[tuple[str, str], int] = {}
+    planners: set[str] = set()
+    for row in rows:
+        if first is None:
+            first = row
+            planners = set(row.get("sweep_planners", "").split("+"))
+        total += 1
+        if "unit" in row:
+            key = (row["family"], row["unit"])
+            every[key] = every.get(key, 0) + 1
+            if row.get("planner") in planners:
+                own[key] = own.get(key, 0) + 1
+    return first, total, own, every
+
+
+def whole_units(first: dict[str, str], counts: dict[tuple[str, str], int]) -> set[tuple[str, str]]:
+    """The (family, unit) keys of `counts` (rows of the sweep's own planners) that hold every row they should
+    (scenarios of the unit x planners x variants, from the settings `first` records)."""
+    try:
+        per_scenario = int(np.prod([len(first[k].split("+")) for k in ("sweep_planners", "sweep_ff_accel",
+                                                                       "sweep_gravity_comp")]))
+        batch, scenarios = int(first["sweep_batch"]), int(first["sweep_scenarios"])
+        return {key for key, n in counts.items() if n == per_scenario * min(batch, scenarios - int(key[1]) * batch)}
+    except (KeyError, ValueError) as e:
+        raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
+
+
 def complete_units(rows: list[dict[str, str]]) -> list[dict[str, str]]:
     """The rows of the units that hold every row they should (scenarios of the unit x planners x variants)."""
     if not rows or "sweep_batch" not in rows[0] or "unit" not in rows[0]:
         return rows
-    try:
-        per_scenario = int(np.prod([len(rows[0][k].split("+")) for k in ("sweep_planners", "sweep_ff_accel",
-                                                                          "sweep_gravity_comp")]))
-        batch, scenarios = int(rows[0]["sweep_batch"]), int(rows[0]["sweep_scenarios"])
-        planners = set(rows[0]["sweep_planners"].split("+"))
-        counts: dict[tuple[str, str], int] = {}
-        for r in rows:  # rows of other controllers (rl eval's policies) ride along with their unit
-            if r["planner"] in planners:
-                counts[(r["family"], r["unit"])] = counts.get((r["family"], r["unit"]), 0) + 1
-        whole = {key for key, n in counts.items()
-                 if n == per_scenario * min(batch, scenarios - int(key[1]) * batch)}
-    except (KeyError, ValueError) as e:
-        raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
+    whole = whole_units(rows[0], unit_counts(rows)[2])
     return [r for r in rows if (r["family"], r["unit"]) in whole]
+
+
+class _Kept:
+    """The rows of the file `path` in the (family, unit) keys `keep` (every row if None), read anew, row by row, at
+    each iteration."""
+
+    def __init__(self, path: str | os.PathLike[str], keep: set[tuple[str, str]] | None) -> None:
+        self.path, self.keep = path, keep
+
+    def __iter__(self) -> Iterator[dict[str, str]]:
+        for row in iter_rows(self.path):
+            if self.keep is None or (row["family"], row["unit"]) in self.keep:
+                yield row
 
 
 class SweepData:
     """A sweep's rows as per-planner arrays aligned by scenario, per condition; with `tasks`, also each file's rows
-    on the paper task and its reverse (`mjtraj.study.fixed_tasks`), computed now."""
+    on the paper task and its reverse (`mjtraj.study.fixed_tasks`), computed now.
+
+    Each file is read twice, row by row (`iter_rows`): once to count its units, once to keep the metrics the audit
+    reads; no row's text is kept, so memory grows with the metrics (about 150 bytes a row), not with the rows.
+    """
 
     def __init__(self, paths: Sequence[str | os.PathLike[str]], *, partial: bool = False, tasks: bool = False,
                  progress: Callable[[str], None] | None = None) -> None:
-        rows = []
         self.missing: dict[str, str] = {}
         """File -> what `partial` left out of it."""
         self.task_notes: dict[str, str] = {}
         """File -> why its fixed-task rows could not be computed."""
+        self.count = 0
+        """Rows audited."""
+        self.first: dict[str, str] = {}
+        """The first audited row (every row records the sweep's settings and versions)."""
+        sources: list[Iterable[dict[str, str]]] = []
         for path in paths:
             if not Path(path).is_file():
                 raise InvalidInputError(f"sweep: file not found: {path}")
             if progress is not None:
                 progress(f"reading {Path(path).name}")
-            mine = read_rows(path)
-            complete = complete_units(mine)
-            if len(complete) < len(mine):
-                expected = expected_rows(mine[0]) if mine else 0
+            first, total, own, every = unit_counts(iter_rows(path))
+            keep = None
+            if first is not None and "sweep_batch" in first and "unit" in first:
+                whole = whole_units(first, own)
+                kept = sum(n for key, n in every.items() if key in whole)
+                if kept < total:
+                    if not partial:
+                        raise InvalidInputError(
+                            f"sweep: {path} is incomplete: {kept} of its {total} rows are in complete units, "
+                            f"{expected_rows(first)} expected; finish it with the same mjtraj sweep command and "
+                            f"--resume, or pass --partial to audit the complete units only")
+                    self.missing[str(path)] = f"{total - kept} rows of incomplete units left out"
+                    keep = whole
+            if first is not None and keep is None and total < expected_rows(first):
                 if not partial:
                     raise InvalidInputError(
-                        f"sweep: {path} is incomplete: {len(complete)} of its {len(mine)} rows are in complete "
-                        f"units, {expected} expected; finish it with the same mjtraj sweep command and --resume, or "
-                        f"pass --partial to audit the complete units only")
-                self.missing[str(path)] = f"{len(mine) - len(complete)} rows of incomplete units left out"
-            elif mine and len(mine) < expected_rows(mine[0]):
-                if not partial:
-                    raise InvalidInputError(
-                        f"sweep: {path} is incomplete: {len(mine)} of {expected_rows(mine[0])} rows; finish it with "
-                        f"the same mjtraj sweep command and --resume, or pass --partial to audit what is there")
-                self.missing[str(path)] = f"{expected_rows(mine[0]) - len(mine)} of {expected_rows(mine[0])} rows " \
+                        f"sweep: {path} is incomplete: {total} of {expected_rows(first)} rows; finish it with the "
+                        f"same mjtraj sweep command and --resume, or pass --partial to audit what is there")
+                self.missing[str(path)] = f"{expected_rows(first) - total} of {expected_rows(first)} rows " \
                                           f"not computed yet"
-            rows += complete
-            if tasks and complete:
+            rows = _Kept(path, keep)
+            sources.append(rows)
+            start = next(iter(rows), None)
+            if tasks and start is not None:
                 if progress is not None:
                     progress(f"the paper task and its reverse for {Path(path).name}")
-                extra, why = task_rows(complete[0])
-                rows += extra
+                extra, why = task_rows(start)
+                sources.append(extra)
                 if why:
                     self.task_notes[str(path)] = why
-        if not rows:
+        self._read(sources, paths)
+
+    def _read(self, sources: list[Iterable[dict[str, str]]], paths: Sequence[str | os.PathLike[str]]) -> None:
+        """The second pass: every kept row's metrics into per-condition, per-planner lists, then arrays."""
+        values: dict[Condition, dict[str, dict[int, tuple[float, list[float]]]]] = {}
+        configs: list[str] = []
+        planners: list[str] = []
+        rows_seen: list[tuple[Condition, str, int, float, list[float]]] = []
+        for rows in sources:
+            for r in rows:
+                if not self.count:
+                    missing = [c for c in ("family", "scenario", "planner", "status", *NUMERIC) if c not in r]
+                    if missing:
+                        raise InvalidInputError(f"sweep: not a sweep results file (missing columns "
+                                                f"{', '.join(missing)})")
+                    self.first = r
+                self.count += 1
+                config = r.get("config", "")
+                if config not in configs:
+                    configs.append(config)
+                if r["planner"] not in planners:
+                    planners.append(r["planner"])
+                ok = r["status"] == "ok"
+                metrics = [numeric(r[m]) if ok or m == "max_displacement" else np.nan for m in NUMERIC]
+                rows_seen.append((Condition(r["family"], r["ff_accel"], r["gravity_comp"], config), r["planner"],
+                                  int(r["scenario"]), float(ok), metrics))
+        if not self.count:
             raise InvalidInputError(f"sweep: no rows in {', '.join(map(str, paths))}")
-        missing = [c for c in ("family", "scenario", "planner", "status", *NUMERIC) if c not in rows[0]]
-        if missing:
-            raise InvalidInputError(f"sweep: not a sweep results file (missing columns {', '.join(missing)})")
-        self.rows = rows
-        self.versions = {k: rows[0][k] for k in VERSION_COLUMNS}
-        self.settings = {k: v for k, v in rows[0].items() if k.startswith("sweep_") or k in ("sensor_noise", "delay")}
-        configs = list(dict.fromkeys(r.get("config", "") for r in rows))
+        self.versions = {k: self.first[k] for k in VERSION_COLUMNS}
+        self.settings = {k: v for k, v in self.first.items() if k.startswith("sweep_") or k in ("sensor_noise",
+                                                                                               "delay")}
         self.weights = [weights_label(c) for c in configs] if len(configs) > 1 else [""]
-        by_condition: dict[Condition, list[dict[str, str]]] = {}
-        for r in rows:
-            label = weights_label(r.get("config", "")) if len(configs) > 1 else ""
-            by_condition.setdefault(Condition(r["family"], r["ff_accel"], r["gravity_comp"], label), []).append(r)
+        for condition, planner, scenario, ok, metrics in rows_seen:
+            label = weights_label(condition.weights) if len(configs) > 1 else ""
+            c = dataclasses.replace(condition, weights=label)
+            values.setdefault(c, {}).setdefault(planner, {})[scenario] = (ok, metrics)
         order = {family: k for k, family in enumerate(FAMILIES + TASKS)}
-        self.conditions = sorted(by_condition, key=lambda c: (self.weights.index(c.weights),
-                                                               order.get(c.family, len(order)), c.ff_accel,
-                                                               c.gravity_comp))
-        self.planners = list(dict.fromkeys(r["planner"] for r in rows))
+        self.conditions = sorted(values, key=lambda c: (self.weights.index(c.weights),
+                                                        order.get(c.family, len(order)), c.ff_accel, c.gravity_comp))
+        self.planners = planners
         self._tables: dict[Condition, dict[str, dict[str, NDArray[np.float64]]]] = {}
         for c in self.conditions:
-            chosen = by_condition[c]
-            scenarios = sorted({int(r["scenario"]) for r in chosen})
+            scenarios = sorted({s for per in values[c].values() for s in per})
             where = {s: i for i, s in enumerate(scenarios)}
             table: dict[str, dict[str, NDArray[np.float64]]] = {}
-            for r in chosen:
-                t = table.setdefault(r["planner"], {m: np.full(len(scenarios), np.nan) for m in NUMERIC + ("ok",)})
-                i = where[int(r["scenario"])]
-                ok = r["status"] == "ok"
-                t["ok"][i] = float(ok)
-                for m in NUMERIC:
-                    t[m][i] = numeric(r[m]) if ok or m == "max_displacement" else np.nan
+            for planner, per in values[c].items():
+                t = {m: np.full(len(scenarios), np.nan) for m in NUMERIC + ("ok",)}
+                for scenario, (ok, metrics) in per.items():
+                    i = where[scenario]
+                    t["ok"][i] = ok
+                    for m, v in zip(NUMERIC, metrics, strict=True):
+                        t[m][i] = v
+                table[planner] = t
             self._tables[c] = table
 
     def values(self, condition: Condition, planner: str, metric: str) -> NDArray[np.float64]:
@@ -360,7 +430,7 @@ def _header(data: SweepData, paths: Sequence[str | os.PathLike[str]]) -> list[st
             f"Sweep: families {s.get('sweep_families')}, {s.get('sweep_scenarios')} scenarios per family, seed "
             f"{s.get('sweep_seed')}, planners {s.get('sweep_planners')}, ff_accel {s.get('sweep_ff_accel')}, "
             f"gravity_comp {s.get('sweep_gravity_comp')}, sensor noise {s.get('sensor_noise')} rad, delay "
-            f"{s.get('delay')}; {len(data.rows)} rows. Versions: "
+            f"{s.get('delay')}; {data.count} rows. Versions: "
             + ", ".join(f"{k} {v}" for k, v in data.versions.items()) + ".", "",
             "Scenario rules are in `mjtraj/study/families.py`; controller and weights rules in "
             "`mjtraj/study/sweep.py`.", ""] + (
@@ -428,7 +498,7 @@ def _frontier_section(data: SweepData, out: Path, paths: Sequence[str | os.PathL
 
     head = ["## The weight frontier on the paper task", ""]
     try:
-        settings = SweepSettings.from_record(data.rows[0])
+        settings = SweepSettings.from_record(data.first)
     except MjtrajError as e:
         return head + [f"(not computed: {e})", ""]
     ff, gc = settings.ff_accel[0], settings.gravity_comp[0]
@@ -440,7 +510,7 @@ def _frontier_section(data: SweepData, out: Path, paths: Sequence[str | os.PathL
         if c in data.conditions and data.has(c, "optimal"):
             points[f"optimal, {label or 'these weights'}"] = (float(data.values(c, "optimal", "rms_dtau")[0]),
                                                               float(data.values(c, "optimal", "rms_err")[0]))
-    config = data.rows[0].get("config", "")
+    config = data.first.get("config", "")
     lines = head + [
              "The optimal planner for Q = alpha Q_bryson (R = R_bryson fixed), alpha from 0 to 100, on the paper task "
              f"of {weights_label(config) or 'the first file'}, controller ff_accel={ff}, gravity_comp={gc}, scored "
