@@ -33,3 +33,18 @@ def test_paired_ratio_exact_cases_and_coverage():
         covered += ci.low <= 1.5 <= ci.high
     assert covered >= 34  # nominal 95 %: 38 of 40 expected
 
+
+
+def test_chunked_bootstrap_draws_what_one_draw_does(monkeypatch):
+    """The bootstrap in chunks (bounded memory) gives the intervals of one draw of every index, bit for bit."""
+    import mjtraj.study.stats as stats
+
+    rng = np.random.default_rng(5)
+    a, b = rng.lognormal(0, 1, 3001), rng.lognormal(0, 1, 3001)
+    monkeypatch.setattr(stats, "CHUNK_CELLS", 10**12)  # one draw of all 2000 x 3001 indices
+    whole = stats.paired_ratio(a, b), stats.median_interval(a)
+    monkeypatch.setattr(stats, "CHUNK_CELLS", 3001 * 7 + 5)  # 7 resamples a chunk, the last one shorter
+    chunked = stats.paired_ratio(a, b), stats.median_interval(a)
+    assert chunked == whole
+    picks = np.vstack(list(stats.resample_chunks(np.random.default_rng(1), 10, 23)))
+    np.testing.assert_array_equal(picks, np.random.default_rng(1).integers(0, 10, size=(23, 10)))

@@ -6,6 +6,7 @@ it (status ok). The bootstrap resamples scenarios with a fixed seed, so the same
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,6 +18,20 @@ from mjtraj.exceptions import InvalidInputError
 
 BOOTSTRAP_SEED = 20261121
 BOOTSTRAP_RESAMPLES = 2000
+CHUNK_CELLS = 1 << 22
+"""Resampled values drawn at a time (32 MB of indices): a bootstrap over millions of scenarios runs in bounded
+memory, drawing the same indices in the same order as one draw of them all (the same intervals, bit for bit)."""
+
+
+def resample_chunks(rng: np.random.Generator, n: int, resamples: int) -> Iterator[NDArray[np.int64]]:
+    """`resamples` bootstrap index rows over n values, shape (k, n) per chunk, at most CHUNK_CELLS indices a chunk,
+    in the order `rng.integers(0, n, size=(resamples, n))` draws them."""
+    rows = max(1, CHUNK_CELLS // max(n, 1))
+    done = 0
+    while done < resamples:
+        k = min(rows, resamples - done)
+        yield rng.integers(0, n, size=(k, n))
+        done += k
 
 
 @dataclass(frozen=True)
@@ -65,8 +80,8 @@ def paired_ratio(a: npt.ArrayLike, b: npt.ArrayLike, *, resamples: int = BOOTSTR
         nan = float("nan")
         return PairedRatio(nan, nan, nan, nan, 0)
     rng = np.random.default_rng(seed)
-    picks = rng.integers(0, x.size, size=(positive_int("resamples", resamples), x.size))
-    ratios = x[picks].mean(axis=1) / y[picks].mean(axis=1)
+    ratios = np.concatenate([x[picks].mean(axis=1) / y[picks].mean(axis=1)
+                             for picks in resample_chunks(rng, x.size, positive_int("resamples", resamples))])
     tail = 100.0 * (1.0 - level) / 2.0
     low, high = np.percentile(ratios, [tail, 100.0 - tail])
     return PairedRatio(ratio_of_means(x, y), float(low), float(high), float(np.mean(y < x)), int(x.size))
@@ -110,8 +125,8 @@ def median_interval(values: npt.ArrayLike, *, resamples: int = BOOTSTRAP_RESAMPL
         nan = float("nan")
         return Median(nan, nan, nan, 0)
     rng = np.random.default_rng(seed)
-    picks = rng.integers(0, x.size, size=(positive_int("resamples", resamples), x.size))
-    medians = np.median(x[picks], axis=1)
+    medians = np.concatenate([np.median(x[picks], axis=1)
+                              for picks in resample_chunks(rng, x.size, positive_int("resamples", resamples))])
     tail = 100.0 * (1.0 - level) / 2.0
     low, high = np.percentile(medians, [tail, 100.0 - tail])
     return Median(float(np.median(x)), float(low), float(high), int(x.size))
