@@ -288,7 +288,7 @@ class TrackCore:
         q_ref, _ = self.loop.reference()
         for j in np.flatnonzero((periods > 0) & (periods < self.loop.steps) & ~rollout.diverged):
             row, k = ids[j], int(periods[j])
-            one = rollout.scenario(j)
+            one = rollout.scenario(int(j))
             q, qd = self.loop.positions[row][None].copy(), self.loop.velocities[row][None].copy()
             cut = Rollout(**{name: getattr(one, name)[:, :k] for name in RECORDED}, q_final=q, qd_final=qd,
                           e_final=q_ref[row][None] - q, diverged_step=one.diverged_step, dt=one.dt)

@@ -7,6 +7,7 @@ import atexit
 import os
 import sys
 import weakref
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -53,7 +54,7 @@ class HumanViewer:
         self._data = mujoco.MjData(model)
         self._ghost = mujoco.MjData(model)
         try:
-            self._viewer = WindowViewer(model, self._data, width=width, height=height)
+            self._viewer: Any = WindowViewer(model, self._data, width=width, height=height)
         except Exception as e:  # GLFW raises many kinds
             raise RenderError(f"render_mode='human': cannot open a window: {type(e).__name__}: {e}") from e
         self._moving = np.flatnonzero(model.geom_bodyid > 0)

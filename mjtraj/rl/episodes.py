@@ -55,7 +55,7 @@ class PolicyActor:
 
 def run_episodes(policy: Policy | ScoredPolicy | None, settings: TrackSettings, references: Sequence[Reference],
                  weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
-                 plants: Sequence[Perturbation] | None = None) -> list[Outcome]:
+                 plants: Sequence[Perturbation | None] | None = None) -> list[Outcome]:
     """One episode per reference with `policy` acting (None: the controller alone), on the nominal plant or on
     one perturbed plant each (`plants`), scored with per-episode diagonal `weights` ((2n,), (n,)) as sweeps score
     them; an Outcome each."""

@@ -210,10 +210,10 @@ class SweepData:
                     configs.append(config)
                 if r["planner"] not in planners:
                     planners.append(r["planner"])
-                ok = r["status"] == "ok"
-                metrics = [numeric(r[m]) if ok or m == "max_displacement" else np.nan for m in NUMERIC]
+                good = r["status"] == "ok"
+                metrics = [numeric(r[m]) if good or m == "max_displacement" else np.nan for m in NUMERIC]
                 rows_seen.append((Condition(r["family"], r["ff_accel"], r["gravity_comp"], config), r["planner"],
-                                  int(r["scenario"]), float(ok), metrics))
+                                  int(r["scenario"]), float(good), metrics))
         if not self.count:
             raise InvalidInputError(f"sweep: no rows in {', '.join(map(str, paths))}")
         self.versions = {k: self.first[k] for k in VERSION_COLUMNS}

@@ -6,7 +6,9 @@ same order whichever backend computes it.
 
 from __future__ import annotations
 
+import collections
 import contextlib
+import itertools
 import multiprocessing
 import os
 import socket
@@ -63,8 +65,13 @@ def check_backend(backend: str, ray_address: str | None) -> None:
         check_ray_address(ray_address)
 
 
+AHEAD = 2
+"""Units in flight per worker: the driver submits at most AHEAD x workers units beyond the one it waits for, and
+keeps no unit once it has handed its result on, so its memory does not grow with the sweep."""
+
+
 def local_map(settings: SweepSettings, units: Sequence[tuple[str, int]], workers: int) -> Iterator[UnitResult]:
-    """Units on `workers` processes (1: this process), results in order."""
+    """Units on `workers` processes (1: this process), results in order, at most AHEAD x workers in flight."""
     if workers <= 1 or len(units) <= 1:
         for unit in units:
             yield run_unit(settings, unit)
@@ -73,15 +80,24 @@ def local_map(settings: SweepSettings, units: Sequence[tuple[str, int]], workers
 
     data = settings.as_dict()
     context = multiprocessing.get_context("spawn")  # no fork of a process that may hold MuJoCo threads
+    todo = iter(units)
+    window: collections.deque[Any] = collections.deque()
     with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_exit_with,
                              initargs=(os.getpid(),)) as pool:
-        with _one_blas_thread():  # the workers start on submission
-            futures = [pool.submit(_run, data, unit) for unit in units]
+
+        def fill() -> None:
+            with _one_blas_thread():  # workers start on submission
+                for unit in itertools.islice(todo, AHEAD * workers - len(window)):
+                    window.append(pool.submit(_run, data, unit))
+
+        fill()
         try:
-            for future in futures:
-                yield future.result()
+            while window:
+                result = window.popleft().result()
+                fill()
+                yield result
         finally:
-            for future in futures:
+            for future in window:
                 future.cancel()
 
 
@@ -146,9 +162,14 @@ def ray_map(settings: SweepSettings, units: Sequence[tuple[str, int]], address: 
     try:
         task = ray.remote(num_cpus=1)(_run)
         data = settings.as_dict()
-        pending = [task.remote(data, unit) for unit in units]
-        for ref in pending:
-            yield ray.get(ref)
+        todo = iter(units)
+        window: collections.deque[Any] = collections.deque()
+        ahead = AHEAD * max(workers, int(ray.cluster_resources().get("CPU", workers)))
+        window.extend(task.remote(data, unit) for unit in itertools.islice(todo, ahead))
+        while window:  # in order, at most `ahead` tasks in flight; a result handed on is dropped
+            result = ray.get(window.popleft())
+            window.extend(task.remote(data, unit) for unit in itertools.islice(todo, ahead - len(window)))
+            yield result
     finally:
         if started:
             ray.shutdown()

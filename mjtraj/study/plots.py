@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -223,7 +224,7 @@ def place_labels(ax: object, labels: Sequence[tuple[int, float, float, str]], co
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     frame = ax.get_window_extent(renderer)  # type: ignore[attr-defined]
-    placed = []
+    placed: list[Any] = []
     for _, x, y, text in labels:
         for dx, dy in LABEL_OFFSETS:
             far = abs(dx) > 10 or abs(dy) > 12
