@@ -310,7 +310,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             raise InvalidInputError("render: call reset() first")
         if self.render_mode == "human":
             if self._window is None:
-                from mjtraj.media.window import HumanViewer
+                from mjtraj.media import HumanViewer
 
                 self._window = HumanViewer(self.settings.model, width=self.settings.width,
                                            height=self.settings.height)

@@ -220,3 +220,19 @@ def test_gymnasiums_record_video_records_an_episode(tmp_path):
     (video,) = tmp_path.glob("*.mp4")
     frames = iio.imread(video)
     assert frames.shape[0] >= 100 and frames.shape[1:3] == (72, 96)
+
+
+def test_an_arm_without_geoms_is_framed_by_its_bodies():
+    """A URDF of inertias only has no geoms; its frame is its bodies' origins, where forward kinematics puts them."""
+    import mujoco
+
+    xml = ('<mujoco><worldbody><body name="a" pos="0 0 0.1"><joint name="j0" axis="0 0 1"/>'
+           '<inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/><body name="b" pos="0.4 0 0">'
+           '<joint name="j1" axis="0 1 0"/><inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>'
+           '</body></body></worldbody></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    with ArmRenderer(model, width=64, height=48) as renderer:
+        points = renderer.body_positions([np.pi / 2, 0.0])
+        assert np.allclose(points, [[0, 0, 0.1], [0, 0.4, 0.1]], atol=1e-12)
+        image = renderer.strobe([[0.0, 0.0], [np.pi / 2, 0.0]], points, points, points)
+    assert image.shape == (48, 64, 3)

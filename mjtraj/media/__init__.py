@@ -19,6 +19,8 @@ _EXPORTS = {
     "check_formats": "mjtraj.media.videos",
     "VIDEO_FORMATS": "mjtraj.media.videos",
     "SNAPSHOT_TIMES": "mjtraj.media.videos",
+    "HumanViewer": "mjtraj.media.window",
+    "check_display": "mjtraj.media.window",
 }
 __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
@@ -26,8 +28,10 @@ if TYPE_CHECKING:
     from mjtraj.media.gl import active_backend, default_backend, use_backend, user_backend
     from mjtraj.media.render import RENDER_QUALITIES, ArmRenderer, check_render_options
     from mjtraj.media.videos import SNAPSHOT_TIMES, VIDEO_FORMATS, check_formats, render_all
+    from mjtraj.media.window import HumanViewer, check_display
 
 __all__ = [
-    "ArmRenderer", "RENDER_QUALITIES", "SNAPSHOT_TIMES", "VIDEO_FORMATS", "active_backend", "check_formats",
-    "check_render_options", "default_backend", "render_all", "use_backend", "user_backend",
+    "ArmRenderer", "HumanViewer", "RENDER_QUALITIES", "SNAPSHOT_TIMES", "VIDEO_FORMATS", "active_backend",
+    "check_display", "check_formats", "check_render_options", "default_backend", "render_all", "use_backend",
+    "user_backend",
 ]

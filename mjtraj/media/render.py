@@ -257,11 +257,14 @@ class ArmRenderer:
 
     def body_positions(self, q: npt.ArrayLike) -> NDArray[np.float64]:
         """The corners of the bounding boxes of the model's geoms but planes at q (rad), in the world, shape
-        (8 K, 3), m: what a frame of the arm must show."""
+        (8 K, 3), m: what a frame of the arm must show; for an arm without such geoms (a URDF of inertias only)
+        the origins of its bodies, shape (B - 1, 3)."""
         self._ghost.qpos[:] = vector("q", q, self.model.nq)
         mujoco.mj_kinematics(self.model, self._ghost)
         solid = np.flatnonzero(self.model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE)
         signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+        if solid.size == 0:
+            return self._ghost.xpos[1:].copy()  # type: ignore[no-any-return]
         out = []
         for g in solid:
             centre, half = self.model.geom_aabb[g, :3], self.model.geom_aabb[g, 3:]
