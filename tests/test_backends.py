@@ -60,6 +60,66 @@ def test_ray_backend_gives_the_local_rows(tmp_path):
 
 
 
+def _stored_units(path):
+    """(family, unit) of every unit the store holds, with repeats, or [] while it does not exist yet."""
+    import sqlite3
+
+    if not path.exists():
+        return []
+    try:
+        with sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True) as connection:
+            return connection.execute("SELECT family, unit FROM units").fetchall()
+    except sqlite3.Error:  # created but not yet holding its tables
+        return []
+
+
+@pytest.mark.slow
+def test_a_ray_cluster_that_loses_a_node_mid_sweep_stores_every_unit_once(tmp_path):
+    """A two-node Ray cluster on this machine (Ray's own test cluster): the sweep goes through --ray-address, the
+    worker node is killed once the store holds its first units, and the store ends with every unit exactly once,
+    row for row the local run's."""
+    import threading
+    import time
+
+    pytest.importorskip("ray")
+    import ray
+    from ray.cluster_utils import Cluster
+
+    from mjtraj.cli import main
+    from mjtraj.study.store import read_rows
+
+    settings = SweepSettings(scenarios=60, batch=2, planners=("optimal", "cubic", "quintic"))
+    run_sweep(settings, tmp_path / "local.sqlite", workers=1, progress=False)
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    worker = cluster.add_node(num_cpus=1)
+    cluster.wait_for_nodes()
+    store = tmp_path / "ray.sqlite"
+    seen: dict[str, int] = {}
+
+    def kill_the_worker_once_units_arrive() -> None:
+        deadline = time.time() + 300
+        while time.time() < deadline and len(_stored_units(store)) < 2:
+            time.sleep(0.02)
+        seen["before"] = len(_stored_units(store))
+        cluster.remove_node(worker, allow_graceful=False)
+        seen["after"] = len(_stored_units(store))
+
+    killer = threading.Thread(target=kill_the_worker_once_units_arrive)
+    killer.start()
+    try:
+        code = main(["sweep", "--scenarios", "60", "--batch", "2", "--planners", "optimal,cubic,quintic",
+                     "--backend", "ray", "--ray-address", cluster.address, "--no-progress", "--out", str(store)])
+        killer.join()
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+    units = settings.units()
+    assert code == 0 and 2 <= seen["before"] and seen["after"] < len(units)  # the node died mid-sweep
+    stored = _stored_units(store)
+    assert sorted(stored) == sorted(units)  # every unit, exactly once
+    assert read_rows(store) == read_rows(tmp_path / "local.sqlite")
+
+
 def _children(pid):
     """Live child processes of `pid` (from /proc)."""
     import os
