@@ -86,6 +86,38 @@ def test_csv_export_is_the_rows_text_byte_for_byte(sweep, tmp_path):
     assert (tmp_path / "from_store.csv").read_bytes() == csv_text(list(rows[0]), read_rows(store)).encode()
 
 
+@pytest.mark.parametrize("cells", [
+    ("1", "2.5", "", "nan"), ("a,b", "x"), ('say "hi"', "1"), ("two\nlines", "1"), ("cr\r", ""), ("",),
+    ("", ""), (" lead", "trail "), ("'", "\t"), (), ("é", "∞"),
+])
+def test_csv_lines_are_csv_writers_lines(cells):
+    """Oracle: the csv module's writer, on cells that need quoting and cells that do not."""
+    import csv
+    import io
+
+    from mjtraj.study.export import csv_lines
+
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerow(cells)
+    assert list(csv_lines([cells, cells])) == [buffer.getvalue()] * 2
+
+
+def test_a_store_cell_that_is_not_text_reads_as_str_has_it(sweep, tmp_path):
+    """A store edited by hand (a number or NULL where the sweep wrote text) is read as before: str() of the value,
+    '' for NULL; export's CSV equals csv_text of those rows."""
+    from mjtraj.study.store import csv_text
+
+    store = tmp_path / "s.sqlite"
+    run_sweep(SweepSettings(scenarios=3, batch=2, planners=("cubic",)), store, progress=False)
+    with sqlite3.connect(store) as connection:
+        connection.execute("UPDATE rows SET rms_err = 0.25, duration = NULL WHERE scenario = '1'")
+    rows = read_rows(store)
+    edited = [r for r in rows if r["scenario"] == "1"]
+    assert edited and all(r["rms_err"] == "0.25" and r["duration"] == "" for r in edited)
+    export(store, tmp_path / "out.csv")
+    assert (tmp_path / "out.csv").read_bytes() == csv_text(list(rows[0]), rows).encode()
+
+
 def _synthetic_sweep(template, path, scenarios):
     """A complete sweep of `scenarios` scenarios per family: the template's rows of scenario 0, repeated."""
     import csv

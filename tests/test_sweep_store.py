@@ -166,3 +166,18 @@ def test_export_and_audit_read_stores(stored, tmp_path, capsys):
     assert (tmp_path / "back.csv").read_bytes() == csv.read_bytes()
     assert main(["audit", str(store), "--no-tasks", "--out", str(tmp_path / "AUDIT.md")]) == 0
     assert "nominal" in (tmp_path / "AUDIT.md").read_text()
+
+
+def test_cells_of_some_columns_are_the_rows_columns_from_a_store_and_a_csv_file(stored):
+    """iter_cells(path, only): the header and cells of those columns, in the file's order, from either format;
+    what read_rows holds for them."""
+    from mjtraj.study.store import iter_cells
+
+    csv, store = stored
+    only = {"planner", "scenario", "cost", "family", "no_such_column"}
+    for path in (csv, store):
+        cells = list(iter_cells(path, only))
+        header = [c for c in read_rows(path)[0] if c in only]
+        assert list(cells[0]) == header
+        assert cells[1:] == [tuple(r[c] for c in header) for r in read_rows(path)]
+    assert list(iter_cells(csv, only)) == list(iter_cells(store, only))

@@ -11,11 +11,14 @@ it holds.
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import operator
 import os
 import re
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,9 +30,10 @@ from mjtraj.study.families import FAMILIES
 from mjtraj.study.fixed_tasks import TASKS, task_rows
 from mjtraj.study.paper import PAPER_TABLE
 from mjtraj.study.scenario import load_scenario
-from mjtraj.study.stats import PairedRatio, cvar, paired_ratio
-from mjtraj.study.store import VERSION_COLUMNS, iter_rows, numeric
+from mjtraj.study.stats import EXACT_PAIRS, PairedRatio, cvar, paired_ratio
+from mjtraj.study.store import VERSION_COLUMNS, iter_cells, iter_rows
 from mjtraj.study.sweep import SHIPPED_CONFIG, SweepSettings
+from mjtraj.study.sweep_store import is_sqlite_file, planner_row_counts
 
 CLASSICAL = ("cubic", "quintic", "trapezoidal")
 LARGE_MOTION = 1.0
@@ -121,25 +125,82 @@ def complete_units(rows: list[dict[str, str]]) -> list[dict[str, str]]:
     return [r for r in rows if (r["family"], r["unit"]) in whole]
 
 
+def _rows_as_cells(rows: list[dict[str, str]]) -> Iterator[tuple[str, ...]]:
+    """Rows of dicts as `iter_cells` gives a file's: the header (the first row's keys), then each row's cells."""
+    if rows:
+        header = tuple(rows[0])
+        yield header
+        yield from (tuple(r[c] for c in header) for r in rows)
+
+
 class _Kept:
-    """The rows of the file `path` in the (family, unit) keys `keep` (every row if None), read anew, row by row, at
-    each iteration."""
+    """The header, then the cells of the rows of the file `path` in the (family, unit) keys `keep` (every row if
+    None), read anew, row by row, at each iteration."""
 
     def __init__(self, path: str | os.PathLike[str], keep: set[tuple[str, str]] | None) -> None:
         self.path, self.keep = path, keep
 
-    def __iter__(self) -> Iterator[dict[str, str]]:
-        for row in iter_rows(self.path):
-            if self.keep is None or (row["family"], row["unit"]) in self.keep:
-                yield row
+    def __iter__(self) -> Iterator[tuple[str, ...]]:
+        cells = iter_cells(self.path, READ_COLUMNS)
+        header = next(cells)
+        yield header
+        if self.keep is None:
+            yield from cells
+            return
+        family, unit = header.index("family"), header.index("unit")
+        yield from (values for values in cells if (values[family], values[unit]) in self.keep)
+
+    def first(self) -> dict[str, str] | None:
+        """The first kept row, every column of it, or None."""
+        cells = iter_cells(self.path)
+        header = next(cells)
+        if self.keep is not None:
+            family, unit = header.index("family"), header.index("unit")
+            cells = (values for values in cells if (values[family], values[unit]) in self.keep)
+        values = next(cells, None)
+        return None if values is None else dict(zip(header, values, strict=True))
+
+
+def _file_counts(path: str | os.PathLike[str]
+                 ) -> tuple[dict[str, str] | None, int, dict[tuple[str, str], int], dict[tuple[str, str], int]]:
+    """`unit_counts` of the file `path`; a store's counted by SQLite (no row reaches Python)."""
+    if not is_sqlite_file(path):
+        return unit_counts(iter_rows(path))
+    first = _Kept(path, None).first()
+    if first is None:
+        return None, 0, {}, {}
+    planners = first.get("sweep_planners", "").split("+")
+    total, own = planner_row_counts(path, planners)
+    every = planner_row_counts(path, None)[1] if "unit" in first else {}
+    return first, total, (dict(own) if "unit" in first else {}), dict(every)
+
+
+READ_COLUMNS = frozenset(("family", "unit", "scenario", "planner", "status", "ff_accel", "gravity_comp", "config",
+                          *NUMERIC))
+"""The columns the audit's second pass reads (the first row's settings and versions are read whole)."""
+READ_CHUNK = 10_000
+FAILED_NAN = np.array([j for j, m in enumerate(NUMERIC) if m != "max_displacement"], dtype=np.intp)
+"""The metrics (indices into NUMERIC) a failed row does not have: all but max_displacement."""
+"""Rows whose metrics are parsed into arrays at a time by the audit's second pass."""
+
+
+@dataclass
+class _Group:
+    """The rows of one (condition, planner): scenario numbers, ok flags and metrics (NUMERIC order), in file order,
+    as chunks of arrays."""
+
+    scenarios: list[NDArray[np.int64]] = dataclasses.field(default_factory=list)
+    ok: list[NDArray[np.float64]] = dataclasses.field(default_factory=list)
+    metrics: list[NDArray[np.float64]] = dataclasses.field(default_factory=list)
 
 
 class SweepData:
     """A sweep's rows as per-planner arrays aligned by scenario, per condition; with `tasks`, also each file's rows
     on the paper task and its reverse (`mjtraj.study.fixed_tasks`), computed now.
 
-    Each file is read twice, row by row (`iter_rows`): once to count its units, once to keep the metrics the audit
-    reads; no row's text is kept, so memory grows with the metrics (about 150 bytes a row), not with the rows.
+    Each file is read twice: once to count its units (by SQLite for a store), once, row by row as cells
+    (`iter_cells`), to keep the metrics the audit reads as arrays; no row's text is kept, so memory grows with the
+    metrics (about 130 bytes a row), not with the rows.
     """
 
     def __init__(self, paths: Sequence[str | os.PathLike[str]], *, partial: bool = False, tasks: bool = False,
@@ -152,13 +213,13 @@ class SweepData:
         """Rows audited."""
         self.first: dict[str, str] = {}
         """The first audited row (every row records the sweep's settings and versions)."""
-        sources: list[Iterable[dict[str, str]]] = []
+        sources: list[tuple[Iterable[tuple[str, ...]], dict[str, str] | None]] = []
         for path in paths:
             if not Path(path).is_file():
                 raise InvalidInputError(f"sweep: file not found: {path}")
             if progress is not None:
                 progress(f"reading {Path(path).name}")
-            first, total, own, every = unit_counts(iter_rows(path))
+            first, total, own, every = _file_counts(path)
             keep = None
             if first is not None and "sweep_batch" in first and "unit" in first:
                 whole = whole_units(first, own)
@@ -179,69 +240,93 @@ class SweepData:
                 self.missing[str(path)] = f"{expected_rows(first) - total} of {expected_rows(first)} rows " \
                                           f"not computed yet"
             rows = _Kept(path, keep)
-            sources.append(rows)
-            start = next(iter(rows), None)
+            start = rows.first()
+            sources.append((rows, start))
             if tasks and start is not None:
                 if progress is not None:
                     progress(f"the paper task and its reverse for {Path(path).name}")
                 extra, why = task_rows(start)
-                sources.append(extra)
+                sources.append((list(_rows_as_cells(extra)), extra[0] if extra else None))
                 if why:
                     self.task_notes[str(path)] = why
         self._read(sources, paths)
 
-    def _read(self, sources: list[Iterable[dict[str, str]]], paths: Sequence[str | os.PathLike[str]]) -> None:
-        """The second pass: every kept row's metrics into per-condition, per-planner lists, then arrays."""
-        values: dict[Condition, dict[str, dict[int, tuple[float, list[float]]]]] = {}
-        configs: list[str] = []
-        planners: list[str] = []
-        rows_seen: list[tuple[Condition, str, int, float, list[float]]] = []
-        for rows in sources:
-            for r in rows:
-                if not self.count:
-                    missing = [c for c in ("family", "scenario", "planner", "status", *NUMERIC) if c not in r]
-                    if missing:
-                        raise InvalidInputError(f"sweep: not a sweep results file (missing columns "
-                                                f"{', '.join(missing)})")
-                    self.first = r
-                self.count += 1
-                config = r.get("config", "")
-                if config not in configs:
-                    configs.append(config)
-                if r["planner"] not in planners:
-                    planners.append(r["planner"])
-                good = r["status"] == "ok"
-                metrics = [numeric(r[m]) if good or m == "max_displacement" else np.nan for m in NUMERIC]
-                rows_seen.append((Condition(r["family"], r["ff_accel"], r["gravity_comp"], config), r["planner"],
-                                  int(r["scenario"]), float(good), metrics))
+    def _read(self, sources: list[tuple[Iterable[tuple[str, ...]], dict[str, str] | None]],
+              paths: Sequence[str | os.PathLike[str]]) -> None:
+        """The second pass: every kept row's metrics into arrays per (condition, planner), READ_CHUNK rows at a time,
+        then per-condition tables aligned by scenario (a scenario stored twice keeps its last row)."""
+        groups: dict[tuple[str, str, str, str, str], _Group] = {}
+        for source, first in sources:
+            cells = iter(source)
+            header = next(cells, None)
+            if header is None:
+                continue
+            where = {c: i for i, c in enumerate(header)}
+            missing = [c for c in ("family", "scenario", "planner", "status", "ff_accel", "gravity_comp", *NUMERIC)
+                       if c not in where]
+            metric_cells = operator.itemgetter(*(where[m] for m in NUMERIC if m in where))
+            key_cells = (where.get("family"), where.get("ff_accel"), where.get("gravity_comp"), where.get("config"),
+                         where.get("planner"))
+            while chunk := list(itertools.islice(cells, READ_CHUNK)):
+                if missing:
+                    raise InvalidInputError(f"sweep: not a sweep results file (missing columns {', '.join(missing)})")
+                if not self.count and first is not None:
+                    self.first = first
+                self.count += len(chunk)
+                self._add(groups, chunk, where, key_cells, metric_cells)
         if not self.count:
             raise InvalidInputError(f"sweep: no rows in {', '.join(map(str, paths))}")
         self.versions = {k: self.first[k] for k in VERSION_COLUMNS}
         self.settings = {k: v for k, v in self.first.items() if k.startswith("sweep_") or k in ("sensor_noise",
                                                                                                "delay")}
+        configs = list(dict.fromkeys(key[3] for key in groups))
+        self.planners = list(dict.fromkeys(key[4] for key in groups))
         self.weights = [weights_label(c) for c in configs] if len(configs) > 1 else [""]
-        for condition, planner, scenario, ok, metrics in rows_seen:
-            label = weights_label(condition.weights) if len(configs) > 1 else ""
-            c = dataclasses.replace(condition, weights=label)
-            values.setdefault(c, {}).setdefault(planner, {})[scenario] = (ok, metrics)
+        merged: dict[Condition, dict[str, list[_Group]]] = {}
+        for (family, ff_accel, gravity_comp, config, planner), group in groups.items():
+            label = weights_label(config) if len(configs) > 1 else ""
+            merged.setdefault(Condition(family, ff_accel, gravity_comp, label), {}).setdefault(planner, []).append(
+                group)
         order = {family: k for k, family in enumerate(FAMILIES + TASKS)}
-        self.conditions = sorted(values, key=lambda c: (self.weights.index(c.weights),
+        self.conditions = sorted(merged, key=lambda c: (self.weights.index(c.weights),
                                                         order.get(c.family, len(order)), c.ff_accel, c.gravity_comp))
-        self.planners = planners
         self._tables: dict[Condition, dict[str, dict[str, NDArray[np.float64]]]] = {}
         for c in self.conditions:
-            scenarios = sorted({s for per in values[c].values() for s in per})
-            where = {s: i for i, s in enumerate(scenarios)}
+            per = {planner: [np.concatenate([a for g in parts for a in getattr(g, name)])
+                             for name in ("scenarios", "ok", "metrics")] for planner, parts in merged[c].items()}
+            scenarios = np.unique(np.concatenate([s for s, _, _ in per.values()]))
             table: dict[str, dict[str, NDArray[np.float64]]] = {}
-            for planner, per in values[c].items():
+            for planner, (scenario, ok, metrics) in per.items():
+                last = len(scenario) - 1 - np.unique(scenario[::-1], return_index=True)[1]  # a repeat's last row
+                at = np.searchsorted(scenarios, scenario[last])
                 t = {m: np.full(len(scenarios), np.nan) for m in NUMERIC + ("ok",)}
-                for scenario, (ok, metrics) in per.items():
-                    i = where[scenario]
-                    t["ok"][i] = ok
-                    for m, v in zip(NUMERIC, metrics, strict=True):
-                        t[m][i] = v
+                t["ok"][at] = ok[last]
+                for j, m in enumerate(NUMERIC):
+                    t[m][at] = metrics[last, j]
                 table[planner] = t
             self._tables[c] = table
+
+    @staticmethod
+    def _add(groups: dict[tuple[str, str, str, str, str], _Group], chunk: list[tuple[str, ...]],
+             where: dict[str, int], key_cells: tuple[int | None, ...], metric_cells: Callable[[Any], Any]) -> None:
+        """One chunk of rows (cells in `where`'s order) into `groups`: their metrics parsed as arrays ('' and
+        'nan' missing; NaN where the row failed, but max_displacement)."""
+        f, a, g, c, p = key_cells
+        keys = [(v[f], v[a], v[g], "" if c is None else v[c], v[p]) for v in chunk]  # type: ignore[index]
+        metrics = np.fromiter((float(cell or "nan") for v in chunk for cell in metric_cells(v)), dtype=np.float64,
+                              count=len(chunk) * len(NUMERIC)).reshape(len(chunk), len(NUMERIC))  # as `numeric`
+        good = np.array([v[where["status"]] == "ok" for v in chunk])
+        failed = np.flatnonzero(~good)
+        metrics[np.ix_(failed, FAILED_NAN)] = np.nan
+        scenario = np.array([v[where["scenario"]] for v in chunk]).astype(np.int64)
+        ids: dict[tuple[str, str, str, str, str], list[int]] = {}
+        for i, key in enumerate(keys):
+            ids.setdefault(key, []).append(i)
+        for key, rows in ids.items():
+            group = groups.setdefault(key, _Group())
+            group.scenarios.append(scenario[rows])
+            group.ok.append(good[rows].astype(np.float64))
+            group.metrics.append(metrics[rows])
 
     def values(self, condition: Condition, planner: str, metric: str) -> NDArray[np.float64]:
         """Per-scenario values (NaN where the planner failed); empty if the planner is absent."""
@@ -444,7 +529,11 @@ def _header(data: SweepData, paths: Sequence[str | os.PathLike[str]]) -> list[st
          "the sweep's own code, with this mjtraj's versions. One motion is a measurement, so their comparisons are "
          "direct, without intervals."
          + "".join(f" Not computed for {path}: {why}." for path, why in data.task_notes.items()), ""]
-        if any(c.family in TASKS for c in data.conditions) or data.task_notes else [])
+        if any(c.family in TASKS for c in data.conditions) or data.task_notes else []) + (
+        [f"Intervals over more than {EXACT_PAIRS:,} paired scenarios are the delta method's normal intervals, not "
+         "the bootstrap's (the same to within the bootstrap's own resampling error at that size, at a small "
+         "fraction of its cost).", ""]
+        if any(data.values(c, p, "ok").size > EXACT_PAIRS for c in data.conditions for p in data.planners) else [])
 
 
 def _summary_table(data: SweepData) -> list[str]:

@@ -11,13 +11,16 @@ exported (a torn or unfinished file is refused, as the audit refuses it); the ou
 
 from __future__ import annotations
 
+import collections
 import csv
+import io
+import itertools
 import json
 import math
 import os
 import shutil
 import sqlite3
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,8 +29,8 @@ import numpy as np
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path
 from mjtraj.study.audit import expected_rows
-from mjtraj.study.store import VERSION_COLUMNS, iter_rows
-from mjtraj.study.sweep_store import is_sqlite_file
+from mjtraj.study.store import VERSION_COLUMNS, iter_cells, iter_rows
+from mjtraj.study.sweep_store import is_sqlite_file, planner_row_counts
 
 FORMATS = {".sqlite": "sqlite", ".db": "sqlite", ".jsonl": "jsonl", ".csv": "csv"}
 TEXT_COLUMNS = ("family", "planner", "ff_accel", "gravity_comp", "status", "reason", "solver", "config",
@@ -55,12 +58,11 @@ class ColumnKinds:
         self._present = dict.fromkeys(columns, False)
         self._whole = dict.fromkeys(columns, True)
 
-    def add(self, row: dict[str, str]) -> None:
-        """Account for one row of cells."""
-        for column in self.columns:
+    def add(self, row: Sequence[str]) -> None:
+        """Account for one row of cells, in the columns' order."""
+        for column, cell in zip(self.columns, row, strict=True):
             if self._text[column]:
                 continue
-            cell = row[column]
             try:
                 value = _number(cell)
             except ValueError:
@@ -90,45 +92,53 @@ def typed(row: dict[str, str], kinds: dict[str, str]) -> dict[str, Any]:
     return out
 
 
-def typed_rows(rows: list[dict[str, str]]) -> tuple[list[str], dict[str, str], list[dict[str, Any]]]:
-    """(columns, column -> 'REAL' | 'INTEGER' | 'TEXT', the rows with typed values)."""
-    columns = list(rows[0]) if rows else []
-    gathered = ColumnKinds(columns)
-    for row in rows:
-        gathered.add(row)
-    kinds = gathered.kinds()
-    return columns, kinds, [typed(r, kinds) for r in rows]
-
-
 CHUNK = 1_000
 """Rows written at a time: export holds at most this many in memory, whatever the sweep's size."""
+
+
+def csv_lines(rows: Iterable[Sequence[str]]) -> Iterator[str]:
+    """Each row of text cells as the line csv.writer writes for it (QUOTE_MINIMAL, '\\n' line ends): the cells
+    joined by commas when none holds a comma, a quote or a line break (a row of numbers), else csv.writer's line."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    for row in rows:
+        line = ",".join(row)
+        if line.count(",") == len(row) - 1 and '"' not in line and "\n" not in line and "\r" not in line and line:
+            yield line + "\n"
+        else:
+            writer.writerow(row)
+            yield buffer.getvalue()
+            buffer.seek(0)
+            buffer.truncate()
 
 
 def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[list[str], ColumnKinds | None, int]:
     """The first pass over `sweep`: its columns, their kinds (if `kinds_needed`) and its row count, refusing a
     sweep that is not one, or is torn or unfinished (the rule of `complete_units` and `expected_rows`, counted
-    unit by unit)."""
-    columns: list[str] = []
-    gathered: ColumnKinds | None = None
-    counts: dict[tuple[str, str], int] = {}
-    total = 0
-    first: dict[str, str] = {}
-    for row in iter_rows(sweep):
-        if not total:
-            first, columns = row, list(row)
-            missing = [c for c in SWEEP_KEYS if c not in row]
-            if missing:
-                raise InvalidInputError(f"sweep: {sweep} is not a sweep results file (missing columns "
-                                        f"{', '.join(missing)})")
-            planners = set(row["sweep_planners"].split("+"))
-            gathered = ColumnKinds(columns) if kinds_needed else None
-        total += 1
-        if row["planner"] in planners:  # rows of other controllers ride along with their unit
-            counts[(row["family"], row["unit"])] = counts.get((row["family"], row["unit"]), 0) + 1
-        if gathered is not None:
-            gathered.add(row)
-    if not total:
+    unit by unit). Reads cells, not dicts: only the key columns are looked at unless kinds are needed."""
+    cells = iter_cells(sweep)
+    columns = list(next(cells))
+    first_values = next(cells, None)
+    if first_values is None:
         raise InvalidInputError(f"sweep: no rows in {sweep}")
+    first = dict(zip(columns, first_values, strict=True))
+    missing = [c for c in SWEEP_KEYS if c not in first]
+    if missing:
+        raise InvalidInputError(f"sweep: {sweep} is not a sweep results file (missing columns {', '.join(missing)})")
+    planners = set(first["sweep_planners"].split("+"))
+    gathered = ColumnKinds(columns) if kinds_needed else None
+    at_family, at_unit, at_planner = (columns.index(c) for c in ("family", "unit", "planner"))
+    if gathered is None and is_sqlite_file(sweep):  # a store's counts by SQLite: no row reaches Python
+        cells.close()
+        total, counts = planner_row_counts(sweep, planners)
+    else:
+        total, counts = 0, collections.Counter()
+        for values in itertools.chain([first_values], cells):
+            total += 1
+            if values[at_planner] in planners:  # rows of other controllers ride along with their unit
+                counts[(values[at_family], values[at_unit])] += 1
+            if gathered is not None:
+                gathered.add(values)
     try:
         per_scenario = int(np.prod([len(first[k].split("+")) for k in ("sweep_planners", "sweep_ff_accel",
                                                                        "sweep_gravity_comp")]))
@@ -176,10 +186,10 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
             shutil.copyfile(sweep, tmp)
         elif kind == "csv":
             with open(tmp, "w", encoding="utf-8", newline="") as f:
-                writer = csv.writer(f, lineterminator="\n")
-                writer.writerow(columns)
-                for chunk in _chunks(sweep):  # a store's cells are already text (iter_store_rows)
-                    writer.writerows([row[c] for c in columns] for row in chunk)
+                cells = iter_cells(sweep)  # the header, then each row's text cells in the header's order
+                lines = csv_lines(cells)
+                while text := "".join(itertools.islice(lines, CHUNK)):
+                    f.write(text)
         elif kind == "jsonl":
             assert gathered is not None
             kinds = gathered.kinds()

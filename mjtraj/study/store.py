@@ -13,7 +13,7 @@ import csv
 import io
 import math
 import os
-from collections.abc import Iterator
+from collections.abc import Collection, Generator, Iterator
 from pathlib import Path
 from typing import IO, Any
 
@@ -21,7 +21,7 @@ from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import with_path
 from mjtraj.study.cells import VERSION_COLUMNS, cell_text, setting_cells
 from mjtraj.study.locks import lock_file
-from mjtraj.study.sweep_store import is_sqlite_file, iter_store_rows
+from mjtraj.study.sweep_store import is_sqlite_file, iter_store_cells
 
 
 def format_rows(columns: list[str], rows: list[dict[str, Any]]) -> str:
@@ -70,8 +70,30 @@ def iter_rows(path: str | os.PathLike[str]) -> Iterator[dict[str, str]]:
     Raises:
       InvalidInputError: as `read_rows` (a torn or damaged row when the pass reaches it).
     """
+    cells = iter_cells(path)
+    columns = next(cells)
+    for values in cells:
+        yield dict(zip(columns, values, strict=True))
+
+
+def iter_cells(path: str | os.PathLike[str], only: Collection[str] | None = None
+               ) -> Generator[tuple[str, ...], None, None]:
+    """The header of a results file (CSV or store), then each row's cells in its order, one row at a time: what
+    `iter_rows` reads, without a dict per row. With `only`, the header and cells of those columns alone (in the
+    file's order; a store does not read the others): a pass over millions of rows that needs some columns.
+
+    Raises:
+      InvalidInputError: as `read_rows` (a torn or damaged row when the pass reaches it).
+    """
     if is_sqlite_file(path):
-        yield from iter_store_rows(path)
+        yield from iter_store_cells(path, only)
+        return
+    if only is not None:
+        cells = iter_cells(path)
+        names = next(cells)
+        keep = [i for i, c in enumerate(names) if c in only]
+        yield tuple(names[i] for i in keep)
+        yield from (tuple(values[i] for i in keep) for values in cells)
         return
     with open(path, "rb") as raw:
         size = raw.seek(0, os.SEEK_END)
@@ -82,13 +104,18 @@ def iter_rows(path: str | os.PathLike[str]) -> Iterator[dict[str, str]]:
                                         f"it")
     try:
         with open(path, newline="", encoding="utf-8") as f:
-            reader = csv.DictReader(f)
-            for row in reader:
-                if None in row or None in row.values():
+            reader = csv.reader(f)
+            first: list[str] | None = next(reader, None)
+            yield () if first is None else tuple(first)
+            width = 0 if first is None else len(first)
+            for values in reader:
+                if len(values) != width:
+                    if not values:  # a blank line, as csv.DictReader skips it
+                        continue
                     raise InvalidInputError(f"sweep: {path} line {reader.line_num} has "
-                                            f"{'more' if None in row else 'fewer'} cells than the header (a torn or "
-                                            f"damaged file); resume the sweep to repair it")
-                yield row
+                                            f"{'more' if len(values) > width else 'fewer'} cells than the header (a "
+                                            f"torn or damaged file); resume the sweep to repair it")
+                yield tuple(values)
     except UnicodeDecodeError as e:
         raise InvalidInputError(f"sweep: {path} is not a text results file (not UTF-8 at byte {e.start})") from e
 

@@ -15,12 +15,13 @@ versions and skips the stored units.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import errno
 import json
 import os
 import sqlite3
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from pathlib import Path
 from typing import IO, Any
 
@@ -111,19 +112,66 @@ def iter_store_rows(path: str | os.PathLike[str]) -> Iterator[dict[str, str]]:
     Raises:
       InvalidInputError: the file is not a readable sweep store.
     """
+    cells = iter_store_cells(path)
+    columns = next(cells)
+    for values in cells:
+        yield dict(zip(columns, values, strict=True))
+
+
+_TEXT = {str}
+"""The cell types of a row of text."""
+
+
+def iter_store_cells(path: str | os.PathLike[str], only: Collection[str] | None = None
+                     ) -> Iterator[tuple[str, ...]]:
+    """The store's column names (those of them in `only`, if given, in the store's order), then each row's cells
+    of those columns as text ('' for a missing one), in the order they were stored and in bounded memory:
+    `iter_store_rows` without a dict per row (and, with `only`, without reading the other columns).
+
+    Raises:
+      InvalidInputError: the file is not a readable sweep store.
+    """
     file = Path(path)
     try:
         connection = _connect(file, readonly=True)
         try:
             columns, _ = _meta(connection, file)
             _stored_units(connection, file)
-            cursor = connection.execute(f"SELECT {', '.join(map(_quote, columns))} FROM rows ORDER BY rowid")
-            for values in cursor:
-                yield dict(zip(columns, ("" if v is None else str(v) for v in values), strict=True))
+            if only is not None:
+                columns = [c for c in columns if c in only]
+            yield tuple(columns)
+            cursor = connection.execute(f"SELECT {', '.join(map(_quote, columns)) or 'NULL'} FROM rows ORDER BY rowid")
+            for values in cursor:  # a store's cells are text (cell_text); an edited one's others as str() has them
+                yield values if set(map(type, values)) == _TEXT else tuple("" if v is None else str(v) for v in values)
         finally:
             connection.close()
     except sqlite3.DatabaseError as e:
         raise InvalidInputError(f"sweep: cannot read the store {file}: {e}") from e
+
+
+def planner_row_counts(path: str | os.PathLike[str], planners: Collection[str] | None
+                       ) -> tuple[int, collections.Counter[tuple[str, str]]]:
+    """(the store's rows, the rows of each (family, unit) whose planner is one of `planners`, or all of them for
+    None), counted by SQLite without a row reaching Python; cells as `iter_store_cells` reads them.
+
+    Raises:
+      InvalidInputError: the file is not a readable sweep store.
+    """
+    file = Path(path)
+    try:
+        connection = _connect(file, readonly=True)
+        try:
+            (total,) = connection.execute("SELECT COUNT(*) FROM rows").fetchone()
+            names = [] if planners is None else sorted(planners)
+            where = "" if planners is None else f"WHERE planner IN ({', '.join('?' for _ in names)}) "
+            grouped = connection.execute(f"SELECT IFNULL(family, ''), IFNULL(unit, ''), COUNT(*) FROM rows {where}"
+                                         f"GROUP BY family, unit", names)
+            counts = collections.Counter({(str(family), str(unit)): n for family, unit, n in grouped})
+        finally:
+            connection.close()
+    except sqlite3.DatabaseError as e:
+        raise InvalidInputError(f"sweep: cannot read the store {file}: {e}") from e
+    return int(total), counts
 
 
 class SweepStore:
@@ -284,4 +332,5 @@ def _check(connection: sqlite3.Connection, file: Path, columns: list[str], cells
     return set(units)
 
 
-__all__ = ["KEY", "STORE_SUFFIXES", "SweepStore", "is_sqlite_file", "is_store_path", "read_store_rows"]
+__all__ = ["KEY", "STORE_SUFFIXES", "SweepStore", "is_sqlite_file", "is_store_path", "iter_store_cells",
+           "iter_store_rows", "planner_row_counts", "read_store_rows"]
