@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import time
 
 import numpy as np
 import pytest
@@ -37,13 +36,17 @@ def rng() -> np.random.Generator:
 
 @pytest.fixture(scope="session")
 def display():
-    """A virtual X display for the test's duration."""
+    """A virtual X display for the test's duration: Xvfb chooses a free display number and writes it once it
+    accepts clients (-displayfd), so a busy machine or a display left by another run cannot race the tests."""
     xvfb = shutil.which("Xvfb")
     assert xvfb is not None, "Xvfb is needed (apt-get install xvfb; .ci/run installs it)"
-    number = 90 + os.getpid() % 9
-    proc = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "640x480x24"], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
-    time.sleep(1.0)
+    read, write = os.pipe()
+    proc = subprocess.Popen([xvfb, "-displayfd", str(write), "-screen", "0", "640x480x24"], pass_fds=(write,),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write)
+    with os.fdopen(read) as ready:
+        number = ready.readline().strip()  # blocks until the server is ready (or has exited: '')
+    assert number.isdigit(), f"Xvfb did not start (exit code {proc.poll()})"
     yield f":{number}"
     proc.terminate()
     proc.wait()

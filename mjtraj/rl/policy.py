@@ -56,6 +56,18 @@ def record_path(path: Path) -> Path:
     return path.with_suffix(".json")
 
 
+def env_kwargs(record: dict[str, Any]) -> dict[str, Any]:
+    """The UR5Track-v0 arguments of a training run's `record` (a record from before residual_scale: the 60 N m then
+    used)."""
+    kwargs = dict(record["env"])
+    kwargs.setdefault("residual_scale", LEGACY_RESIDUAL_SCALE)
+    return kwargs
+
+
+TRAINING_STATE = ("_last_obs", "_last_original_obs", "_last_episode_starts", "ep_info_buffer", "ep_success_buffer")
+"""What an SB3 zip keeps of the training in progress; never read to act, so never unpickled on loading."""
+
+
 class Policy:
     """A trained tracking policy: `act(obs)` for a batch of UR5Track-v0 observations.
 
@@ -100,9 +112,7 @@ class Policy:
     @property
     def env_kwargs(self) -> dict[str, Any]:
         """The UR5Track-v0 arguments it trained with (a record from before residual_scale: the 60 N m then used)."""
-        kwargs = dict(self.record["env"])
-        kwargs.setdefault("residual_scale", LEGACY_RESIDUAL_SCALE)
-        return kwargs
+        return env_kwargs(self.record)
 
     def settings(self) -> TrackSettings:
         """The env settings it acts in (resolved from `env_kwargs` once)."""
@@ -196,7 +206,13 @@ def load_policy(path: str | Path) -> Policy:
     if algo not in ALGORITHMS:
         raise InvalidInputError(f"policy: unknown algorithm {algo!r} in {meta_path.name}; valid: "
                                 f"{', '.join(ALGORITHMS)}")
-    model = algorithm(algo).load(zip_path, device="cpu")
+    try:
+        model = algorithm(algo).load(zip_path, device="cpu", custom_objects=dict.fromkeys(TRAINING_STATE))
+    except ImportError:  # spaces pickled by a newer numpy (numpy._core) than this one: rebuilt from the record
+        settings = resolve(**env_kwargs(record))
+        model = algorithm(algo).load(zip_path, device="cpu", custom_objects={
+            **dict.fromkeys(TRAINING_STATE), "observation_space": observation_space(settings),
+            "action_space": action_space(settings)})  # the weights' shapes still have to fit (torch checks)
     n = body["normalization"]
     normalization = Normalization(np.array(n["mean"], dtype=np.float64), np.array(n["var"], dtype=np.float64),
                                   float(n["epsilon"]), float(n["clip"]))
