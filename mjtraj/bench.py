@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -339,10 +339,12 @@ def bench_render(sizes: tuple[tuple[int, int], ...] = ((320, 240), (640, 480)), 
 
 
 def bench_sweep(scenarios: int = 10_000, *, workers: int | None = None) -> dict[str, object]:
-    """A nominal sweep of `scenarios` x the four paper planners into a temporary file: wall time, rows and the
-    CPU seconds per stage (sample, plan, execute, metrics) summed over the workers; then the floor, raw
-    mujoco.batch stepping of as many control periods on as many threads as workers."""
+    """A nominal sweep of `scenarios` x the four paper planners into a temporary file: wall time, rows, the CPU
+    seconds per stage (sample, plan, execute, metrics) summed over the workers and the driver's peak resident memory
+    (this process's, MB; the workers are other processes unless `workers` is 1); then the floor, raw mujoco.batch
+    stepping of as many control periods on as many threads as workers."""
     import os
+    import resource
     import tempfile
 
     from mjtraj.study.runner import run_sweep
@@ -354,6 +356,7 @@ def bench_sweep(scenarios: int = 10_000, *, workers: int | None = None) -> dict[
         start = time.perf_counter()
         report = run_sweep(settings, os.path.join(folder, "sweep.sqlite"), workers=workers, progress=False)
         wall = time.perf_counter() - start
+    driver_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     periods = report.rows * settings.base.task.steps
     batch = Batch(settings.base.model, FLOOR_BATCH, nthread=count)
     start = time.perf_counter()
@@ -361,7 +364,7 @@ def bench_sweep(scenarios: int = 10_000, *, workers: int | None = None) -> dict[
         batch.step(nstep=settings.base.loop.substeps)
     floor = time.perf_counter() - start
     return {"wall": wall, "rows": report.rows, "stages": report.seconds, "workers": count, "periods": periods,
-            "floor": floor}
+            "floor": floor, "driver_mb": driver_mb}
 
 
 FLOOR_BATCH = 4096
@@ -442,10 +445,14 @@ def _peak_child(target: Callable[[], object]) -> tuple[float, float]:
     return float(wall), float(peak)
 
 
-def bench_store(rows: int = 100_000) -> dict[str, Any]:
-    """A synthetic store of `rows` rows (`synthetic_store`), then `mjtraj export` to CSV and JSON Lines and
-    `mjtraj audit --no-tasks` on it, each in a fresh process: wall time, rows/s, peak resident memory and bytes per
-    row. Returns {"rows", "write_s", "stages": name -> {"wall_s", "peak_mb"}}."""
+STORE_STAGES = ("export .csv", "export .jsonl", "audit --no-tasks")
+"""What `bench_store` can time on its synthetic store."""
+
+
+def bench_store(rows: int = 100_000, timed: Sequence[str] = STORE_STAGES) -> dict[str, Any]:
+    """A synthetic store of `rows` rows (`synthetic_store`), then those of STORE_STAGES in `timed` (`mjtraj export`
+    to CSV and JSON Lines, `mjtraj audit --no-tasks`), each in a fresh process: wall time, rows/s, peak resident
+    memory and bytes per row. Returns {"rows", "write_s", "stages": name -> {"wall_s", "peak_mb"}}."""
     import os
     import tempfile
 
@@ -462,6 +469,8 @@ def bench_store(rows: int = 100_000) -> dict[str, Any]:
                              ("export .jsonl", lambda: export(store, os.path.join(folder, "out.jsonl"))),
                              ("audit --no-tasks", lambda: write_audit([store], os.path.join(folder, "AUDIT.md"),
                                                                       figures=False, tasks=False))):
+            if name not in timed:
+                continue
             wall, peak = _peak_child(target)
             stages[name] = {"wall_s": wall, "peak_mb": peak}
     return {"rows": written, "write_s": write_s, "stages": stages}

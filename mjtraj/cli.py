@@ -41,6 +41,19 @@ def _figure_formats(text: str) -> list[str]:
     return list(dict.fromkeys(kinds))
 
 
+STORE_STAGE_NAMES = {"csv": "export .csv", "jsonl": "export .jsonl", "audit": "audit --no-tasks"}
+
+
+def _store_stages(text: str) -> list[str]:
+    """`bench store --stages`: names of mjtraj.bench.STORE_STAGES from their short names."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in STORE_STAGE_NAMES]
+    if unknown or not names:
+        raise InvalidInputError(f"stages: expected some of {', '.join(STORE_STAGE_NAMES)}, comma-separated, got "
+                                f"{text!r}")
+    return [STORE_STAGE_NAMES[n] for n in names]
+
+
 def _counts(text: str) -> list[int]:
     try:
         values = [int(x) for x in text.split(",")]
@@ -206,6 +219,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--scenarios", type=int, default=10_000, help="sweep: nominal scenarios (default 10000)")
     b.add_argument("--workers", type=int, help="sweep: worker processes (default: all cores)")
     b.add_argument("--rows", type=int, default=100_000, help="store: rows of the synthetic store (default 100000)")
+    b.add_argument("--stages", default="csv,jsonl,audit",
+                   help="store: what to time, comma-separated: csv, jsonl (export to them), audit (default all)")
 
     w = sub.add_parser("sweep", help="every planner on many seeded scenarios; rows committed unit by unit to a "
                        "SQLite store (resumable)")
@@ -570,11 +585,12 @@ def _bench(args: argparse.Namespace) -> int:
         from mjtraj.bench import bench_store
         from mjtraj.checks import positive_int
 
-        store = bench_store(positive_int("rows", args.rows))
+        store = bench_store(positive_int("rows", args.rows), _store_stages(args.stages))
         rows = store["rows"]
         print(f"store: a synthetic nominal sweep store of {rows} rows with the real schema (written in "
               f"{store['write_s']:.1f} s, {rows / store['write_s']:.0f} rows/s), then each stage alone in a fresh "
-              "process; targets: export <= 300 MB peak and >= 50,000 rows/s")
+              "process; targets: export <= 300 MB peak and >= 50,000 rows/s; audit of 4,000,000 rows <= 4 GB peak and "
+              "<= 5 min")
         print(f"{'stage':<18} {'wall s':>8} {'rows/s':>9} {'peak MB':>8} {'kB/row':>7}")
         for name, stage in store["stages"].items():
             print(f"{name:<18} {stage['wall_s']:>8.1f} {rows / stage['wall_s']:>9.0f} {stage['peak_mb']:>8.0f} "
@@ -593,6 +609,8 @@ def _bench(args: argparse.Namespace) -> int:
             print(f"  {stage:<8} {seconds:>7.1f} s {100 * seconds / total:>5.1f} %")
         print(f"floor: raw mujoco.batch stepping of the same {sweep['periods']} control periods on {sweep['workers']} "
               f"threads: {sweep['floor']:.1f} s; sweep / floor = {sweep['wall'] / sweep['floor']:.2f}")
+        print(f"the driver's peak resident memory (this process; target <= 500 MB whatever the scenarios): "
+              f"{sweep['driver_mb']:.0f} MB")
     if args.what in ("startup", "all"):
         from mjtraj.bench import bench_startup
 

@@ -115,3 +115,13 @@ def test_the_synthetic_store_is_a_complete_sweep_with_the_real_schema(tmp_path):
     assert list(rows[0]) == columns(SweepSettings(families=("nominal",), scenarios=253, batch=250))
     assert sorted({int(r["scenario"]) for r in rows}) == list(range(253))
     assert export(path, tmp_path / "s.csv") == 1012
+
+
+def test_bench_store_times_the_stages_asked_for(capsys):
+    from mjtraj.bench import bench_store
+
+    store = bench_store(400, ["audit --no-tasks"])
+    assert store["rows"] == 400 and list(store["stages"]) == ["audit --no-tasks"]
+    assert store["stages"]["audit --no-tasks"]["wall_s"] > 0 and store["stages"]["audit --no-tasks"]["peak_mb"] > 0
+    assert main(["bench", "store", "--rows", "400", "--stages", "csv,xml"]) == 2
+    assert capsys.readouterr().err.strip().endswith("got 'csv,xml'")

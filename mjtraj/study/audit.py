@@ -164,15 +164,11 @@ class _Kept:
 def _file_counts(path: str | os.PathLike[str]
                  ) -> tuple[dict[str, str] | None, int, dict[tuple[str, str], int], dict[tuple[str, str], int]]:
     """`unit_counts` of the file `path`; a store's counted by SQLite (no row reaches Python)."""
-    if not is_sqlite_file(path):
+    first = _Kept(path, None).first() if is_sqlite_file(path) else None
+    if first is None or "unit" not in first:  # a CSV file, or a store without units: counted row by row
         return unit_counts(iter_rows(path))
-    first = _Kept(path, None).first()
-    if first is None:
-        return None, 0, {}, {}
-    planners = first.get("sweep_planners", "").split("+")
-    total, own = planner_row_counts(path, planners)
-    every = planner_row_counts(path, None)[1] if "unit" in first else {}
-    return first, total, (dict(own) if "unit" in first else {}), dict(every)
+    total, own = planner_row_counts(path, first.get("sweep_planners", "").split("+"))
+    return first, total, dict(own), dict(planner_row_counts(path, None)[1])
 
 
 READ_COLUMNS = frozenset(("family", "unit", "scenario", "planner", "status", "ff_accel", "gravity_comp", "config",
