@@ -118,6 +118,19 @@ def iter_store_rows(path: str | os.PathLike[str]) -> Iterator[dict[str, str]]:
         yield dict(zip(columns, values, strict=True))
 
 
+@contextlib.contextmanager
+def _reading(file: Path) -> Iterator[sqlite3.Connection]:
+    """A read-only connection to the store `file`, closed at the end; SQLite's errors as InvalidInputError."""
+    try:
+        connection = _connect(file, readonly=True)
+        try:
+            yield connection
+        finally:
+            connection.close()
+    except sqlite3.DatabaseError as e:
+        raise InvalidInputError(f"sweep: cannot read the store {file}: {e}") from e
+
+
 _TEXT = {str}
 """The cell types of a row of text."""
 
@@ -132,21 +145,15 @@ def iter_store_cells(path: str | os.PathLike[str], only: Collection[str] | None 
       InvalidInputError: the file is not a readable sweep store.
     """
     file = Path(path)
-    try:
-        connection = _connect(file, readonly=True)
-        try:
-            columns, _ = _meta(connection, file)
-            _stored_units(connection, file)
-            if only is not None:
-                columns = [c for c in columns if c in only]
-            yield tuple(columns)
-            cursor = connection.execute(f"SELECT {', '.join(map(_quote, columns)) or 'NULL'} FROM rows ORDER BY rowid")
-            for values in cursor:  # a store's cells are text (cell_text); an edited one's others as str() has them
-                yield values if set(map(type, values)) == _TEXT else tuple("" if v is None else str(v) for v in values)
-        finally:
-            connection.close()
-    except sqlite3.DatabaseError as e:
-        raise InvalidInputError(f"sweep: cannot read the store {file}: {e}") from e
+    with _reading(file) as connection:
+        columns, _ = _meta(connection, file)
+        _stored_units(connection, file)
+        if only is not None:
+            columns = [c for c in columns if c in only]
+        yield tuple(columns)
+        cursor = connection.execute(f"SELECT {', '.join(map(_quote, columns)) or 'NULL'} FROM rows ORDER BY rowid")
+        for values in cursor:  # a store's cells are text (cell_text); an edited one's others as str() has them
+            yield values if set(map(type, values)) == _TEXT else tuple("" if v is None else str(v) for v in values)
 
 
 def planner_row_counts(path: str | os.PathLike[str], planners: Collection[str] | None
@@ -157,20 +164,13 @@ def planner_row_counts(path: str | os.PathLike[str], planners: Collection[str] |
     Raises:
       InvalidInputError: the file is not a readable sweep store.
     """
-    file = Path(path)
-    try:
-        connection = _connect(file, readonly=True)
-        try:
-            (total,) = connection.execute("SELECT COUNT(*) FROM rows").fetchone()
-            names = [] if planners is None else sorted(planners)
-            where = "" if planners is None else f"WHERE planner IN ({', '.join('?' for _ in names)}) "
-            grouped = connection.execute(f"SELECT IFNULL(family, ''), IFNULL(unit, ''), COUNT(*) FROM rows {where}"
-                                         f"GROUP BY family, unit", names)
-            counts = collections.Counter({(str(family), str(unit)): n for family, unit, n in grouped})
-        finally:
-            connection.close()
-    except sqlite3.DatabaseError as e:
-        raise InvalidInputError(f"sweep: cannot read the store {file}: {e}") from e
+    with _reading(Path(path)) as connection:
+        (total,) = connection.execute("SELECT COUNT(*) FROM rows").fetchone()
+        names = [] if planners is None else sorted(planners)
+        where = "" if planners is None else f"WHERE planner IN ({', '.join('?' for _ in names)}) "
+        grouped = connection.execute(f"SELECT IFNULL(family, ''), IFNULL(unit, ''), COUNT(*) FROM rows {where}"
+                                     f"GROUP BY family, unit", names)
+        counts = collections.Counter({(str(family), str(unit)): n for family, unit, n in grouped})
     return int(total), counts
 
 
