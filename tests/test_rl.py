@@ -707,3 +707,31 @@ def test_tensorboard_logs_the_validation_curve(tmp_path):
     curve = read_rows(out / "learning_curve.csv")
     assert [e.step for e in logged] == [int(r["timesteps"]) for r in curve]
     np.testing.assert_allclose([e.value for e in logged], [numeric(r["val_cost_mean"]) for r in curve], rtol=1e-6)
+
+
+@pytest.mark.parametrize("which", [0, -1])  # a recurrent policy on running statistics; a SAC on fixed scales
+def test_a_policy_whose_spaces_this_numpy_cannot_unpickle_loads_from_its_record(monkeypatch, which):
+    """Under numpy 1.x the spaces a numpy-2 SB3 zip pickled raise ImportError (numpy._core): load_policy rebuilds
+    them from the run's record (the spaces the model was built with) and the policy acts exactly as the normal
+    load's."""
+    import mjtraj.rl.policy as policy_module
+    from mjtraj.rl.baselines import baseline_names, baseline_path
+
+    path = baseline_path(baseline_names()[which])
+    normal = policy_module.load_policy(path)
+    real = policy_module.algorithm
+
+    class Picky:
+        def __init__(self, algo):
+            self.cls = real(algo)
+
+        def load(self, path, **kwargs):
+            if "observation_space" not in kwargs.get("custom_objects", {}):
+                raise ModuleNotFoundError("No module named 'numpy._core'")
+            return self.cls.load(path, **kwargs)
+
+    monkeypatch.setattr(policy_module, "algorithm", Picky)
+    rebuilt = policy_module.load_policy(path)
+    obs = np.random.default_rng(0).normal(size=(5, normal.model.observation_space.shape[0]))
+    np.testing.assert_array_equal(rebuilt.act(obs), normal.act(obs))
+    assert rebuilt.model.observation_space == normal.model.observation_space

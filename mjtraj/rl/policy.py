@@ -64,6 +64,17 @@ def env_kwargs(record: dict[str, Any]) -> dict[str, Any]:
     return kwargs
 
 
+def trained_observation_space(record: dict[str, Any], clip: float) -> Any:
+    """The observation space a run's model was built with: the env's under running statistics (VecNormalize keeps
+    it), the fixed scales' clipped box, float32, otherwise (mjtraj.rl.train)."""
+    from gymnasium import spaces
+
+    settings = resolve(**env_kwargs(record))
+    if record["settings"].get("observation_scaling", "running") != "fixed":
+        return observation_space(settings)
+    return spaces.Box(-clip, clip, observation_space(settings).shape, np.float32)
+
+
 TRAINING_STATE = ("_last_obs", "_last_original_obs", "_last_episode_starts", "ep_info_buffer", "ep_success_buffer")
 """What an SB3 zip keeps of the training in progress; never read to act, so never unpickled on loading."""
 
@@ -206,14 +217,14 @@ def load_policy(path: str | Path) -> Policy:
     if algo not in ALGORITHMS:
         raise InvalidInputError(f"policy: unknown algorithm {algo!r} in {meta_path.name}; valid: "
                                 f"{', '.join(ALGORITHMS)}")
+    n = body["normalization"]
     try:
         model = algorithm(algo).load(zip_path, device="cpu", custom_objects=dict.fromkeys(TRAINING_STATE))
     except ImportError:  # spaces pickled by a newer numpy (numpy._core) than this one: rebuilt from the record
         settings = resolve(**env_kwargs(record))
         model = algorithm(algo).load(zip_path, device="cpu", custom_objects={
-            **dict.fromkeys(TRAINING_STATE), "observation_space": observation_space(settings),
+            **dict.fromkeys(TRAINING_STATE), "observation_space": trained_observation_space(record, float(n["clip"])),
             "action_space": action_space(settings)})  # the weights' shapes still have to fit (torch checks)
-    n = body["normalization"]
     normalization = Normalization(np.array(n["mean"], dtype=np.float64), np.array(n["var"], dtype=np.float64),
                                   float(n["epsilon"]), float(n["clip"]))
     policy = Policy(model, record, normalization, int(body["timesteps"]), zip_path, sha)
