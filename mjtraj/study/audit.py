@@ -260,7 +260,7 @@ class SweepData:
             where = {c: i for i, c in enumerate(header)}
             missing = [c for c in ("family", "scenario", "planner", "status", "ff_accel", "gravity_comp", *NUMERIC)
                        if c not in where]
-            metric_cells = operator.itemgetter(*(where[m] for m in NUMERIC if m in where))
+            metric_cells = operator.itemgetter(*(where.get(m, 0) for m in NUMERIC))  # used once none is missing
             key_cells = (where.get("family"), where.get("ff_accel"), where.get("gravity_comp"), where.get("config"),
                          where.get("planner"))
             while chunk := list(itertools.islice(cells, READ_CHUNK)):
