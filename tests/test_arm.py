@@ -215,6 +215,7 @@ def test_a_continuous_joint_is_drawn_within_plus_minus_pi(tmp_path):
     env.close()
 
 
+@pytest.mark.slow
 def test_a_sweep_and_its_audit_on_a_user_arm(tmp_path, capsys):
     from mjtraj.study.store import read_rows
 

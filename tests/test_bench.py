@@ -30,6 +30,7 @@ def test_printed_table_carries_the_measured_ratios(capsys):
         assert float(ratio) == pytest.approx(float(loop) / float(raw), abs=0.006)
 
 
+@pytest.mark.slow
 def test_startup_ratio_is_compare_over_imports():
     from mjtraj.bench import bench_startup
 
@@ -63,6 +64,7 @@ def test_three_independent_qp_solvers_agree_with_mjtraj_on_the_optimal_planners_
         assert row["seconds"] > 0 and row["max_diff"] < 1e-6, row
 
 
+@pytest.mark.slow
 def test_render_ratio_is_fast_ur5_over_reacher_in_one_run():
     from mjtraj.bench import bench_render
 

@@ -168,6 +168,7 @@ def test_version_and_a_bare_command_print_what_a_user_needs(capsys):
     assert out.startswith("usage: mjtraj") and "compare" in out and "rl" in out
 
 
+@pytest.mark.slow
 def test_compare_writes_figures_in_every_format_asked(tmp_path, capsys):
     assert main(["compare", "--planners", "cubic,quintic", "--figure-format", "pdf,svg", "--out", str(tmp_path)]) == 0
     written = sorted(p.suffix for p in tmp_path.glob("fig*"))
