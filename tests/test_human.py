@@ -53,3 +53,39 @@ def test_without_a_display_the_error_says_what_to_do(monkeypatch):
 def test_the_vector_env_refuses_a_window():
     with pytest.raises(InvalidInputError, match=r"^render_mode: 'human' shows one env in a window"):
         UR5TrackVectorEnv(2, render_mode="human")
+
+
+GHOST = """
+import numpy as np, mujoco
+from mjtraj.core import load_model
+from mjtraj.media import HumanViewer
+from mjtraj.media.render import GHOST_RGBA
+model = load_model()
+viewer = HumanViewer(model, width=160, height=120)
+viewer.show([0.0, -1.57, 0.0])
+alone = viewer._viewer.scn.ngeom
+viewer.show([0.0, -1.57, 0.0], [1.0, -0.6, 1.0])
+scene = viewer._viewer.scn
+ghost = mujoco.MjData(model)
+ghost.qpos[:] = [1.0, -0.6, 1.0]
+mujoco.mj_kinematics(model, ghost)
+moving = np.flatnonzero(model.geom_bodyid > 0)
+added = [scene.geoms[i] for i in range(alone, scene.ngeom)]
+assert len(added) == len(moving), (alone, scene.ngeom, len(moving))
+for geom, g in zip(added, moving):
+    assert np.allclose(geom.pos, ghost.geom_xpos[g]) and np.allclose(geom.mat.ravel(), ghost.geom_xmat[g])
+    assert np.allclose(geom.rgba, GHOST_RGBA) and geom.type == model.geom_type[g]
+viewer.close()
+print("ghost")
+"""
+
+
+def test_the_window_draws_the_ghost_where_the_reference_is(display):
+    """The ghost's geoms enter the window's scene through mjv_initGeom, one per moving geom, at the reference pose's
+    geom positions and orientations, in the ghost colour (Gymnasium before 1.2 wrote markers in MuJoCo < 3.2's
+    layout and crashed a newer MuJoCo)."""
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    env["DISPLAY"] = display
+    done = subprocess.run([sys.executable, "-c", GHOST], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.strip() == "ghost"

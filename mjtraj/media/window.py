@@ -57,8 +57,21 @@ class HumanViewer:
             self._viewer: Any = WindowViewer(model, self._data, width=width, height=height)
         except Exception as e:  # GLFW raises many kinds
             raise RenderError(f"render_mode='human': cannot open a window: {type(e).__name__}: {e}") from e
+        # the ghost's geoms go into the scene through MuJoCo's mjv_initGeom: Gymnasium before 1.2 writes its markers
+        # field by field in the layout of MuJoCo < 3.2, which corrupts the scene of a newer MuJoCo
+        self._viewer._add_marker_to_scene = self._add_ghost_geom
         self._moving = np.flatnonzero(model.geom_bodyid > 0)
         _LIVE.add(self)
+
+    def _add_ghost_geom(self, marker: dict[str, Any]) -> None:
+        """One marker of `show` (type, size, pos, mat, rgba) as a geom of the window's scene."""
+        scene = self._viewer.scn
+        if scene.ngeom >= scene.maxgeom:
+            raise RenderError(f"render_mode='human': the scene is full ({scene.maxgeom} geoms)")
+        mujoco.mjv_initGeom(scene.geoms[scene.ngeom], int(marker["type"]), np.asarray(marker["size"], np.float64),
+                            np.asarray(marker["pos"], np.float64), np.asarray(marker["mat"], np.float64).ravel(),
+                            np.asarray(marker["rgba"], np.float32))
+        scene.ngeom += 1
 
     def show(self, q: npt.ArrayLike, q_ref: npt.ArrayLike | None = None) -> None:
         """Draw the arm at q (rad) and the ghost at q_ref (if given) in the window."""
@@ -73,6 +86,7 @@ class HumanViewer:
                                         size=GHOST_SCALE * _visual_size(int(self.model.geom_type[g]),
                                                                         self.model.geom_size[g]),
                                         rgba=np.array(GHOST_RGBA, dtype=np.float32))
+        self._viewer.make_context_current()  # an off-screen renderer may have made its own current since
         self._viewer.render()
 
     def close(self) -> None:
