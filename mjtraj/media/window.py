@@ -59,7 +59,7 @@ class HumanViewer:
             raise RenderError(f"render_mode='human': cannot open a window: {type(e).__name__}: {e}") from e
         # the ghost's geoms go into the scene through MuJoCo's mjv_initGeom: Gymnasium before 1.2 writes its markers
         # field by field in the layout of MuJoCo < 3.2, which corrupts the scene of a newer MuJoCo
-        self._viewer._add_marker_to_scene = self._add_ghost_geom
+        self._viewer._add_marker_to_scene = self._add_ghost_geom  # type: ignore[method-assign]
         self._moving = np.flatnonzero(model.geom_bodyid > 0)
         _LIVE.add(self)
 
