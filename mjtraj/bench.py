@@ -113,12 +113,22 @@ def bench_qp(scenario: Scenario, *, repeats: int = 21) -> list[dict[str, Any]]:
 
 
 NEW_PLANNERS = ("scurve", "nonlinear_min_effort", "nonlinear_optimal")
+NONLINEAR_SOLVERS = ("sqp", "slsqp")
+"""The nonlinear planners' solvers that `bench_new_planners` times side by side ('auto' is the first of them that
+converges)."""
 
 
 def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int = 21) -> dict[str, Any]:
-    """Time per plan of the fair study's planners on the scenario's task: scurve (median of `repeats`) against one
-    closed-loop execution of its plan (the cost it should stay below), each nonlinear planner once; and
-    nonlinear_min_effort over the first `scenarios` nominal scenarios (median and largest; seconds per plan)."""
+    """Time per plan of the fair study's planners on the scenario's task, in one process: the linear optimal plan
+    (median of `repeats`), scurve (median of `repeats`) against one closed-loop execution of its plan, and each
+    nonlinear planner with each of NONLINEAR_SOLVERS once (seconds, iterations, objective; a solver that does not
+    converge is reported by its error). Then each nonlinear planner over the first `scenarios` nominal scenarios
+    with its default solver and each of NONLINEAR_SOLVERS: per solver the plans that failed, the median and largest
+    seconds per plan, the plans SLSQP made ('auto' turns to it when the SQP does not converge), the largest
+    relative objective difference to SLSQP alone's, and the plans worse than it by more than 1e-4."""
+    from mjtraj.core.planners import make
+    from mjtraj.core.planners.nonlinear import NonlinearOptimal
+    from mjtraj.exceptions import MjtrajError
     from mjtraj.study.families import draw_scenario
 
     model, task = scenario.model, scenario.task
@@ -132,16 +142,46 @@ def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int 
             loop.step()
 
     execute()
-    out: dict[str, Any] = {"scurve_s": _median_time(lambda: scurve.plan(task, model), repeats),
+    linear = make("optimal")
+    out: dict[str, Any] = {"linear_s": _median_time(lambda: linear.plan(task, model), repeats),
+                           "scurve_s": _median_time(lambda: scurve.plan(task, model), repeats),
                            "loop_s": _median_time(execute, repeats), "steps": task.steps}
     for name in NEW_PLANNERS[1:]:
-        plan = scenario.planner(name).plan(task, model)
-        out[name] = {"seconds": plan.info["plan_time"], "iterations": plan.info["iterations"]}
-    bound = scenario.planner("nonlinear_min_effort")
-    times = [bound.plan(draw_scenario("nominal", 0, i, model, task.dt).task, model).info["plan_time"]
-             for i in range(scenarios)]
-    out["family"] = {"scenarios": scenarios, "median_s": float(np.median(times)), "max_s": float(np.max(times))}
+        for solver in NONLINEAR_SOLVERS:
+            try:
+                info = make(name, solver=solver).plan(task, model).info
+                out[f"{name} {solver}"] = {key: info[key] for key in ("plan_time", "iterations", "objective")}
+            except MjtrajError as e:
+                out[f"{name} {solver}"] = {"error": str(e)}
+    tasks = [draw_scenario("nominal", 0, i, model, task.dt).task for i in range(scenarios)]
+    for name in NEW_PLANNERS[1:]:
+        planner = make(name)
+        assert isinstance(planner, NonlinearOptimal)
+        default = planner.solver
+        runs = {solver: [_plan_or_error(make(name, solver=solver), t, model) for t in tasks]
+                for solver in dict.fromkeys((default, *NONLINEAR_SOLVERS))}
+        oracle = [info["objective"] if info else np.nan for info in runs["slsqp"]]
+        rows = {}
+        for solver, infos in runs.items():
+            done = [(info, best) for info, best in zip(infos, oracle, strict=True) if info]
+            gaps = np.array([(info["objective"] - best) / best for info, best in done])
+            times = [info["plan_time"] for info, _ in done]
+            rows[solver] = {"failed": len(infos) - len(done), "median_s": float(np.median(times)),
+                            "max_s": float(np.max(times)), "max_gap": float(np.nanmax(gaps)),
+                            "worse": int(np.sum(gaps > 1e-4)),
+                            "by_slsqp": sum(info["solver"] == "slsqp" for info, _ in done)}
+        out[f"{name} family"] = {"scenarios": scenarios, "default": default, "solvers": rows}
     return out
+
+
+def _plan_or_error(planner: Any, task: Any, model: Any) -> dict[str, Any] | None:
+    """The plan's info, or None where planning raised (for the nonlinear SQP alone: it did not converge)."""
+    from mjtraj.exceptions import MjtrajError
+
+    try:
+        return dict(planner.plan(task, model).info)
+    except MjtrajError:
+        return None
 
 
 def bench_loop(scenario: Scenario, sizes: tuple[int, ...] = LOOP_SIZES, *, nthread: int = 0,
@@ -445,13 +485,13 @@ def _peak_child(target: Callable[[], object]) -> tuple[float, float]:
     return float(wall), float(peak)
 
 
-STORE_STAGES = ("export .csv", "export .jsonl", "audit --no-tasks")
+STORE_STAGES = ("export .csv", "export .jsonl", "export .sqlite", "audit --no-tasks")
 """What `bench_store` can time on its synthetic store."""
 
 
 def bench_store(rows: int = 100_000, timed: Sequence[str] = STORE_STAGES) -> dict[str, Any]:
     """A synthetic store of `rows` rows (`synthetic_store`), then those of STORE_STAGES in `timed` (`mjtraj export`
-    to CSV and JSON Lines, `mjtraj audit --no-tasks`), each in a fresh process: wall time, rows/s, peak resident
+    to CSV, JSON Lines and SQLite, `mjtraj audit --no-tasks`), each in a fresh process: wall time, rows/s, peak resident
     memory and bytes per row. Returns {"rows", "write_s", "stages": name -> {"wall_s", "peak_mb"}}."""
     import os
     import tempfile
@@ -467,6 +507,7 @@ def bench_store(rows: int = 100_000, timed: Sequence[str] = STORE_STAGES) -> dic
         stages = {}
         for name, target in (("export .csv", lambda: export(store, os.path.join(folder, "out.csv"))),
                              ("export .jsonl", lambda: export(store, os.path.join(folder, "out.jsonl"))),
+                             ("export .sqlite", lambda: export(store, os.path.join(folder, "out.sqlite"))),
                              ("audit --no-tasks", lambda: write_audit([store], os.path.join(folder, "AUDIT.md"),
                                                                       figures=False, tasks=False))):
             if name not in timed:

@@ -41,7 +41,8 @@ def _figure_formats(text: str) -> list[str]:
     return list(dict.fromkeys(kinds))
 
 
-STORE_STAGE_NAMES = {"csv": "export .csv", "jsonl": "export .jsonl", "audit": "audit --no-tasks"}
+STORE_STAGE_NAMES = {"csv": "export .csv", "jsonl": "export .jsonl", "sqlite": "export .sqlite",
+                     "audit": "audit --no-tasks"}
 
 
 def _store_stages(text: str) -> list[str]:
@@ -217,10 +218,13 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     b.add_argument("--sizes", type=_counts, help="loop batch sizes, comma-separated whole numbers >= 1")
     b.add_argument("--scenarios", type=int, default=10_000, help="sweep: nominal scenarios (default 10000)")
+    b.add_argument("--planner-scenarios", type=int, default=12,
+                   help="planners: nominal scenarios each nonlinear planner plans with both solvers (default 12)")
     b.add_argument("--workers", type=int, help="sweep: worker processes (default: all cores)")
     b.add_argument("--rows", type=int, default=100_000, help="store: rows of the synthetic store (default 100000)")
-    b.add_argument("--stages", default="csv,jsonl,audit",
-                   help="store: what to time, comma-separated: csv, jsonl (export to them), audit (default all)")
+    b.add_argument("--stages", default="csv,jsonl,sqlite,audit",
+                   help="store: what to time, comma-separated: csv, jsonl, sqlite (export to them), audit "
+                   "(default all)")
 
     w = sub.add_parser("sweep", help="every planner on many seeded scenarios; rows committed unit by unit to a "
                        "SQLite store (resumable)")
@@ -563,18 +567,37 @@ def _bench(args: argparse.Namespace) -> int:
                   f"{row['max_diff']:>23.1e}")
     if args.what in ("planners", "all"):
         from mjtraj.bench import bench_new_planners
+        from mjtraj.checks import positive_int
 
-        new = bench_new_planners(scenario)
-        print(f"the fair study's planners on the scenario's task (N = {new['steps']}), one core; targets: scurve below "
-              "the closed loop that executes it, nonlinear at most 1 s per plan")
-        print(f"{'planner':<22} {'s per plan':>10} {'iterations':>10}")
-        print(f"{'scurve':<22} {new['scurve_s']:>10.5f} {'':>10}   (one closed-loop execution: "
-              f"{new['loop_s']:.5f} s; ratio {new['scurve_s'] / new['loop_s']:.2f})")
+        new = bench_new_planners(scenario, scenarios=12 if args.what == "all" else
+                                 positive_int("planner_scenarios", args.planner_scenarios))
+        linear = new["linear_s"]
+        print(f"the fair study's planners on the scenario's task (N = {new['steps']}), one core, one process; the "
+              f"linear optimal plan takes {1e3 * linear:.2f} ms; targets: scurve below the closed loop that executes "
+              f"it, each nonlinear planner at most 100 times the linear plan")
+        print(f"{'planner':<22} {'solver':<6} {'s per plan':>10} {'x linear':>9} {'iterations':>10} {'objective':>12}")
+        print(f"{'scurve':<22} {'':<6} {new['scurve_s']:>10.5f} {new['scurve_s'] / linear:>9.2f} {'':>10} {'':>12}"
+              f"   (one closed-loop execution: {new['loop_s']:.5f} s; ratio {new['scurve_s'] / new['loop_s']:.2f})")
         for name in ("nonlinear_min_effort", "nonlinear_optimal"):
-            print(f"{name:<22} {new[name]['seconds']:>10.2f} {new[name]['iterations']:>10}")
-        family = new["family"]
-        print(f"nonlinear_min_effort over {family['scenarios']} nominal scenarios: median {family['median_s']:.2f} s, "
-              f"largest {family['max_s']:.2f} s per plan")
+            for solver in ("sqp", "slsqp"):
+                row = new[f"{name} {solver}"]
+                if "error" in row:
+                    print(f"{name:<22} {solver:<6} failed: {row['error']}")
+                    continue
+                print(f"{name:<22} {solver:<6} {row['plan_time']:>10.3f} {row['plan_time'] / linear:>9.0f} "
+                      f"{row['iterations']:>10} {row['objective']:>12.6g}")
+        family = new["nonlinear_min_effort family"]
+        print(f"each nonlinear planner over {family['scenarios']} nominal scenarios, by solver ('auto': the SQP, "
+              f"then SLSQP where it did not converge); gaps relative to SLSQP alone's objective")
+        print(f"{'planner':<22} {'solver':<6} {'failed':>6} {'median s':>9} {'max s':>7} {'by SLSQP':>8} "
+              f"{'max gap':>9} {'worse':>5}")
+        for name in ("nonlinear_min_effort", "nonlinear_optimal"):
+            family = new[f"{name} family"]
+            for solver, row in family["solvers"].items():
+                label = f"{solver}*" if solver == family["default"] else solver
+                print(f"{name:<22} {label:<6} {row['failed']:>6} {row['median_s']:>9.3f} {row['max_s']:>7.2f} "
+                      f"{row['by_slsqp']:>8} {row['max_gap']:>+9.1e} {row['worse']:>5}")
+        print("* the planner's default solver")
     if args.what in ("loop", "all"):
         print("closed loop (FF + PID + plant) vs raw mujoco.batch stepping, same run")
         print(f"{'scenarios':>9} {'raw steps/s':>12} {'loop steps/s':>13} {'ratio':>6}")

@@ -42,17 +42,28 @@ def test_startup_ratio_is_compare_over_imports():
 
 @pytest.mark.slow
 def test_new_planners_table_prints_what_it_measured(capsys):
-    assert main(["bench", "planners"]) == 0
+    assert main(["bench", "planners", "--planner-scenarios", "2"]) == 0
     out = capsys.readouterr().out
-    scurve = re.search(r"^scurve\s+([0-9.]+)\s+\(one closed-loop execution: ([0-9.]+) s; ratio ([0-9.]+)\)$", out,
-                       re.MULTILINE)
+    linear = float(re.search(r"the linear optimal plan takes ([0-9.]+) ms", out)[1]) / 1e3
+    scurve = re.search(r"^scurve\s+([0-9.]+)\s+([0-9.]+)\s+\(one closed-loop execution: ([0-9.]+) s; ratio "
+                       r"([0-9.]+)\)$", out, re.MULTILINE)
     assert scurve is not None
-    assert float(scurve[3]) == pytest.approx(float(scurve[1]) / float(scurve[2]), abs=0.006)
+    assert float(scurve[4]) == pytest.approx(float(scurve[1]) / float(scurve[3]), abs=0.006)
     for name in ("nonlinear_min_effort", "nonlinear_optimal"):
-        seconds, iterations = re.search(rf"^{name}\s+([0-9.]+)\s+([0-9]+)$", out, re.MULTILINE).groups()
-        assert float(seconds) > 0 and int(iterations) >= 1
-    family = re.search(r"over 12 nominal scenarios: median ([0-9.]+) s, largest ([0-9.]+) s per plan", out)
-    assert float(family[1]) <= float(family[2])
+        for solver in ("sqp", "slsqp"):
+            row = re.search(rf"^{name}\s+{solver}\s+([0-9.]+)\s+([0-9]+)\s+([0-9]+)\s+([0-9.e+-]+)$", out, re.MULTILINE)
+            seconds, times, iterations, objective = float(row[1]), int(row[2]), int(row[3]), float(row[4])
+            assert times == pytest.approx(seconds / linear, rel=0.02, abs=1) and iterations >= 1 and objective > 0
+    assert "over 2 nominal scenarios" in out
+    families = re.findall(r"^(nonlinear_\w+)\s+(auto|sqp|slsqp)(\*?)\s+(\d+)\s+([0-9.]+)\s+([0-9.]+)\s+(\d+)\s+"
+                          r"([+-][0-9.]+e[+-]\d+)\s+(\d+)$", out, re.MULTILINE)
+    assert {(name, solver, star) for name, solver, star, *_ in families} == {
+        ("nonlinear_min_effort", "slsqp", "*"), ("nonlinear_min_effort", "sqp", ""),
+        ("nonlinear_optimal", "auto", "*"), ("nonlinear_optimal", "sqp", ""), ("nonlinear_optimal", "slsqp", "")}
+    for _, solver, _, failed, median, largest, by_slsqp, gap, worse in families:
+        assert float(median) <= float(largest)
+        if solver == "slsqp":  # the reference of the gaps, and every plan its own
+            assert (int(failed), int(by_slsqp), float(gap), int(worse)) == (0, 2, 0.0, 0)
 
 
 def test_three_independent_qp_solvers_agree_with_mjtraj_on_the_optimal_planners_qp(scenario):

@@ -151,3 +151,42 @@ def test_export_runs_in_bounded_memory(sweep, tmp_path, suffix):
         tracemalloc.stop()
         assert written == scenarios * 4
     assert peaks[1] < 1.5 * peaks[0], peaks
+
+
+TURNS_TEXT = "UPDATE rows SET duration = 'fast' WHERE family = 'mismatch' AND scenario = '2'"
+TURNS_WHOLE = "UPDATE rows SET payload_kg = '3' WHERE family = 'mismatch'"
+
+
+@pytest.mark.parametrize("edit", [None, TURNS_TEXT, TURNS_WHOLE])
+def test_a_store_read_once_gives_the_two_pass_output(tmp_path, monkeypatch, edit):
+    """A store's typed exports are written as its rows are read; where a later row changes a column's kind (a
+    number column turning to text, a column first missing then whole) they are written again. Oracle: the same
+    rows exported from a CSV file, which is read twice (kinds first), byte for byte."""
+    from mjtraj.study import export as export_module
+
+    monkeypatch.setattr(export_module, "CHUNK", 3)  # several chunks, the change in a later one
+    writes = []
+    write_jsonl = export_module._write_jsonl
+    monkeypatch.setattr(export_module, "_write_jsonl", lambda *a: writes.append(a[2]) or write_jsonl(*a))
+    store = tmp_path / "s.sqlite"
+    run_sweep(SweepSettings(families=("nominal", "mismatch"), scenarios=3, batch=2, planners=("cubic",)), store,
+              progress=False)
+    if edit:
+        with sqlite3.connect(store) as connection:
+            connection.execute(edit)
+    export(store, tmp_path / "rows.csv")
+    for suffix in (".jsonl", ".sqlite"):
+        export(store, tmp_path / f"mine{suffix}")
+        export(tmp_path / "rows.csv", tmp_path / f"oracle{suffix}")
+    assert (tmp_path / "mine.jsonl").read_bytes() == (tmp_path / "oracle.jsonl").read_bytes()
+    # the store's JSON Lines written once as read (None: kinds as read), again with every row's kinds after a
+    # change; then the CSV file's, with its kinds from its first pass
+    assert writes[0] is None and len(writes) == (2 if edit is None else 3) and None not in writes[1:]
+    dumps = []
+    for name in ("mine", "oracle"):
+        with sqlite3.connect(tmp_path / f"{name}.sqlite") as connection:
+            dumps.append(list(connection.iterdump()))
+    assert dumps[0] == dumps[1]
+    kinds = {r[1]: r[2] for r in sqlite3.connect(tmp_path / "mine.sqlite").execute(f"PRAGMA table_info({TABLE})")}
+    assert (kinds["duration"], kinds["payload_kg"]) == {None: ("REAL", "REAL"), TURNS_TEXT: ("TEXT", "REAL"),
+                                                        TURNS_WHOLE: ("REAL", "INTEGER")}[edit]

@@ -9,9 +9,10 @@ import pytest
 
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners import default_names, make
-from mjtraj.core.planners.nonlinear import _Metric, _Shooting
+from mjtraj.core.planners.nonlinear import _Metric
+from mjtraj.core.planners.shooting import PathLimits, Shooting
 from mjtraj.core.task import Task
-from mjtraj.exceptions import InfeasibleError, InvalidInputError
+from mjtraj.exceptions import InfeasibleError, InvalidInputError, SolverError
 
 Q0 = np.array([0.0, -np.pi / 2, 0.0])
 DIRECTION = np.array([1.0, 0.5, -1.0])
@@ -97,7 +98,7 @@ def test_first_order_optimality_of_the_effort_bound(model, effort):
     assert ref.info["path_rows"] == 0
     n = task.n
     R = np.diag(1.0 / JointInfo.of(model).torque_limit ** 2)
-    problem = _Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]),
+    problem = Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]),
                         np.zeros((2 * n, 2 * n)), R, task.steps, 1e-6)
     u = ref.u_plan.ravel()
     gradient = problem.gradient(u)
@@ -134,6 +135,8 @@ def test_an_unreachable_goal_names_the_binding_constraint(model):
     ({"max_iter": 0}, r"^max_iter: expected a whole number >= 1, got 0$"),
     ({"curvature_scale": -1.0}, r"^curvature_scale: expected a positive number, got -1.0$"),
     ({"torque_bound": -1.0}, r"^torque_bound: expected positive values, got -1.0$"),
+    ({"solver": "newton"}, r"^solver: unknown value 'newton'; valid: auto, sqp, slsqp$"),
+    ({"sqp_max_iter": 0}, r"^sqp_max_iter: expected a whole number >= 1, got 0$"),
 ])
 def test_bad_options_are_one_line_errors(options, message):
     with pytest.raises(InvalidInputError, match=message):
@@ -147,7 +150,7 @@ def test_the_change_of_variables_is_exact_and_starts_at_the_gauss_newton_hessian
     rng = np.random.default_rng(3)
     n, N = task.n, task.steps
     Q, R = np.diag(rng.uniform(0.5, 2.0, 2 * n)), np.diag(rng.uniform(0.5, 2.0, n))
-    problem = _Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]), Q, R,
+    problem = Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]), Q, R,
                         N, 1e-7)
     u = rng.normal(0.0, 1.0, N * n)
     metric = _Metric.at(problem, u, 7.0)
@@ -163,7 +166,6 @@ def test_a_failed_solve_is_retried_with_shorter_first_steps(model, monkeypatch):
     """The first optimisation fails (as SLSQP does when an iterate's rollout diverges): the plan comes from the retry
     at RETRY_FACTOR times the curvature scale and says so; when both fail the error carries both reasons."""
     from mjtraj.core.planners import nonlinear
-    from mjtraj.exceptions import SolverError
 
     task = short_task(model, 0.3)
     scales = []
@@ -193,13 +195,108 @@ def test_a_diverging_rollout_is_an_error_not_a_reset_state(model, tmp_path, monk
     monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT in the working directory
     task = short_task(model, 0.3)
     n = task.n
-    from mjtraj.exceptions import SolverError
 
     def rollout(speed):
         x0 = np.concatenate([task.q0, np.full(n, speed)])
-        problem = _Shooting(model, x0, x0, np.eye(2 * n), np.eye(n), task.steps, 1e-7)
+        problem = Shooting(model, x0, x0, np.eye(2 * n), np.eye(n), task.steps, 1e-7)
         return problem.rollout(np.zeros((task.steps, n)))
 
     with pytest.raises(SolverError, match=r"^the rollout of an iterate diverged \(MuJoCo reset the simulation\)$"):
         rollout(1e20)  # MuJoCo would reset it to the model's rest pose and go on
     assert np.all(np.isfinite(rollout(1.0)))  # a sane rollout goes through
+
+
+def test_the_gauss_newton_hessian_is_its_sum_over_the_samples(model):
+    """Shooting.gauss_newton (a backward recursion) equals R (block diagonal) + sum_k S_k^T Q S_k by plain loops, for
+    a full symmetric Q."""
+    task = short_task(model, 0.3)
+    rng = np.random.default_rng(5)
+    n, N = task.n, task.steps
+    root = rng.normal(size=(2 * n, 2 * n))
+    Q, R = root @ root.T, np.diag(rng.uniform(0.5, 2.0, n))
+    problem = Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]), Q, R,
+                       N, 1e-7)
+    u = rng.normal(0.0, 1.0, N * n)
+    S = problem.evaluate(u)[3]
+    expected = np.kron(np.eye(N), R) + sum(S[k].T @ Q @ S[k] for k in range(1, N + 1))
+    np.testing.assert_allclose(problem.gauss_newton(u), expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
+
+
+def test_the_path_rows_jacobian_is_their_derivative(model):
+    """PathLimits.jacobian against central differences of the rows along random directions (through the rollout)."""
+    task = short_task(model, 0.3)
+    rng = np.random.default_rng(6)
+    n, N = task.n, task.steps
+    joints = JointInfo.of(model)
+    limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
+    problem = Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]),
+                       np.eye(2 * n), np.eye(n), N, 1e-7)
+    u = rng.normal(0.0, 2.0, N * n)
+    rows = np.sort(rng.choice(6 * N * n, 60, replace=False))
+    J = limits.jacobian(problem.evaluate(u)[3], rows)
+
+    def h(v):
+        return limits.values(*problem.states(v))[rows]
+
+    for direction in rng.normal(size=(3, N * n)):
+        eps = 1e-5
+        numeric = (h(u + eps * direction) - h(u - eps * direction)) / (2 * eps)
+        np.testing.assert_allclose(J @ direction, numeric, rtol=1e-4, atol=1e-6 * np.abs(numeric).max())
+
+
+def test_the_qp_of_an_sqp_step_is_osqps_solution():
+    """The step's QP (DAQP on the Cholesky-transformed problem) against OSQP on a random QP with equalities, rows and
+    bounds, several of them active."""
+    import osqp
+    import scipy.sparse as sparse
+
+    from mjtraj.core.planners.sqp import _qp
+
+    rng = np.random.default_rng(7)
+    size = 30
+    root = rng.normal(size=(size, size))
+    H, g = root @ root.T + np.eye(size), rng.normal(size=size) * 10
+    C, c = rng.normal(size=(3, size)), rng.normal(size=3)
+    G, h = rng.normal(size=(8, size)), rng.uniform(0.0, 0.5, 8)
+    low, high = -np.full(size, 0.3), np.full(size, 0.3)
+    d, multipliers = _qp(H, g, C, c, G, h, low, high, soft=False)
+    solver = osqp.OSQP()
+    solver.setup(sparse.csc_matrix(H), g, sparse.csc_matrix(np.vstack([C, G, np.eye(size)])),
+                 np.concatenate([-c, -h, low]), np.concatenate([-c, np.full(8, np.inf), high]), eps_abs=1e-10,
+                 eps_rel=1e-10, polishing=True, max_iter=100_000, verbose=False)
+    theirs = solver.solve(raise_error=True).x
+    assert np.sum(np.isclose(np.abs(d), 0.3)) >= 3  # the bounds bind
+    np.testing.assert_allclose(d, theirs, atol=1e-7)
+    np.testing.assert_allclose(C @ d, -c, atol=1e-10)
+    assert np.all(G @ d >= -h - 1e-10) and multipliers.shape == (11,)
+
+
+def test_the_sqp_plan_is_slsqps_optimum(model, effort):
+    """nonlinear_optimal plans with the Gauss-Newton SQP by default and reaches SLSQP's optimum (SLSQP alone as the
+    oracle); the plan holds every constraint."""
+    task, _ = effort
+    mine = make("nonlinear_optimal").plan(task, model)
+    theirs = make("nonlinear_optimal", solver="slsqp").plan(task, model)
+    assert (mine.info["solver"], theirs.info["solver"]) == ("sqp", "slsqp")
+    assert mine.info["objective"] == pytest.approx(theirs.info["objective"], rel=1e-7)
+    np.testing.assert_allclose(mine.u_plan, theirs.u_plan, atol=1e-4 * np.abs(theirs.u_plan).max())
+    check_plan(model, task, mine)
+
+
+@pytest.mark.slow
+def test_the_sqp_plan_along_the_speed_limit_is_slsqps_optimum(model, plans):
+    """The same where the speed limit binds (path rows active): no worse than SLSQP's optimum."""
+    task, _, mine = plans
+    theirs = make("nonlinear_optimal", solver="slsqp").plan(task, model)
+    assert mine.info["solver"] == "sqp"
+    assert mine.info["objective"] <= theirs.info["objective"] * (1 + 1e-7)
+
+
+def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort):
+    task, _ = effort
+    plan = make("nonlinear_optimal", sqp_max_iter=1).plan(task, model)
+    assert plan.info["solver"] == "slsqp"
+    check_plan(model, task, plan)
+    with pytest.raises(SolverError, match=r"^nonlinear_optimal: the Gauss-Newton SQP stopped: no convergence in 1 "
+                                          r"iterations$"):
+        make("nonlinear_optimal", solver="sqp", sqp_max_iter=1).plan(task, model)

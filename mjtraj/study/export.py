@@ -15,12 +15,12 @@ import collections
 import csv
 import io
 import itertools
-import json
 import math
 import os
 import shutil
 import sqlite3
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from json.encoder import encode_basestring_ascii  # type: ignore[attr-defined]
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +29,7 @@ import numpy as np
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path
 from mjtraj.study.audit import expected_rows
-from mjtraj.study.store import VERSION_COLUMNS, iter_cells, iter_rows
+from mjtraj.study.store import VERSION_COLUMNS, iter_cells
 from mjtraj.study.sweep_store import is_sqlite_file, planner_row_counts
 
 FORMATS = {".sqlite": "sqlite", ".db": "sqlite", ".jsonl": "jsonl", ".csv": "csv"}
@@ -50,7 +50,7 @@ def _number(cell: str) -> float | None:
 
 
 class ColumnKinds:
-    """Each column's kind ('REAL', 'INTEGER' or 'TEXT', by the module's rule), gathered one row at a time."""
+    """Each column's kind ('REAL', 'INTEGER' or 'TEXT', by the module's rule), gathered a chunk of rows at a time."""
 
     def __init__(self, columns: list[str]) -> None:
         self.columns = columns
@@ -58,19 +58,24 @@ class ColumnKinds:
         self._present = dict.fromkeys(columns, False)
         self._whole = dict.fromkeys(columns, True)
 
-    def add(self, row: Sequence[str]) -> None:
-        """Account for one row of cells, in the columns' order."""
-        for column, cell in zip(self.columns, row, strict=True):
+    def add(self, rows: Sequence[Sequence[str]]) -> None:
+        """Account for rows of cells, each in the columns' order. Column by column over its distinct cells: a cell
+        that float() refuses makes the column text; '.', 'e' or 'E' in a number makes it not whole (no spelling of
+        nan or infinity holds one, so the missing cells need not be told apart here)."""
+        for column, cells in zip(self.columns, zip(*rows, strict=True), strict=True) if rows else ():
             if self._text[column]:
                 continue
+            distinct = set(cells)
+            distinct.difference_update(MISSING)
             try:
-                value = _number(cell)
+                values = list(map(float, distinct))
             except ValueError:
                 self._text[column] = True
                 continue
-            if value is not None:
+            if not all(map(math.isnan, values)):
                 self._present[column] = True
-                if "." in cell or "e" in cell.lower():
+                text = "".join(distinct)
+                if "." in text or "e" in text or "E" in text:
                     self._whole[column] = False
 
     def kinds(self) -> dict[str, str]:
@@ -79,17 +84,76 @@ class ColumnKinds:
                 for c in self.columns}
 
 
-def typed(row: dict[str, str], kinds: dict[str, str]) -> dict[str, Any]:
-    """`row` with its cells as the values of their columns' kinds (None for a missing number)."""
-    out: dict[str, Any] = {}
-    for column, kind in kinds.items():
-        cell = row[column]
+MISSING = ("", "nan")
+"""Cells that are missing values (as is any that float() reads as nan)."""
+
+
+def _converter(kind: str) -> Callable[[str], Any]:
+    """The value of a cell of a column of `kind` (None for a missing number)."""
+    if kind == "TEXT":
+        return str
+    whole = kind == "INTEGER"
+
+    def value(cell: str) -> int | float | None:
+        number = _number(cell)
+        return None if number is None else int(number) if whole else number
+    return value
+
+
+def typed_columns(rows: Sequence[Sequence[str]], kinds: Sequence[str]) -> list[list[Any]]:
+    """The rows' cells, column by column, as the values of their columns' `kinds` (None for a missing number);
+    each distinct cell of a column is converted once."""
+    out = []
+    for kind, cells in zip(kinds, zip(*rows, strict=True), strict=True):
         if kind == "TEXT":
-            out[column] = cell
-        else:
-            value = _number(cell)
-            out[column] = None if value is None else int(value) if kind == "INTEGER" else value
+            out.append(list(cells))
+            continue
+        convert = _converter(kind)
+        values = {cell: convert(cell) for cell in set(cells)}
+        out.append(list(map(values.__getitem__, cells)))
     return out
+
+
+def _json_text(kind: str) -> Callable[[str], str]:
+    """The JSON text of a cell of a column of `kind`, as json.dumps(..., allow_nan=False) writes its typed value.
+
+    Raises (the returned function):
+      ValueError: an infinity, which JSON cannot hold.
+    """
+    if kind == "TEXT":
+        return encode_basestring_ascii
+    convert = _converter(kind)
+
+    def text(cell: str) -> str:
+        value = convert(cell)
+        if value is None:
+            return "null"
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ValueError(f"{cell!r} is not a finite number")
+        return repr(value)
+    return text
+
+
+def jsonl_text(columns: Sequence[str], kinds: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    """The rows as JSON Lines: for each row the line `json.dumps(dict(zip(columns, typed values)), allow_nan=False)`
+    writes (then a line end), built column by column from each distinct cell's JSON text.
+
+    Raises:
+      InvalidInputError: a number that JSON cannot hold (an infinity), naming its column.
+    """
+    if not rows:
+        return ""
+    pieces: list[Iterable[str]] = []
+    for i, (column, kind, cells) in enumerate(zip(columns, kinds, zip(*rows, strict=True), strict=True)):
+        key = ("{" if i == 0 else ", ") + encode_basestring_ascii(column) + ": "
+        text = _json_text(kind)
+        try:
+            parts = {cell: key + text(cell) for cell in set(cells)}
+        except ValueError as e:
+            raise InvalidInputError(f"sweep: column {column!r} holds a number JSON cannot hold ({e})") from None
+        pieces.append(map(parts.__getitem__, cells))
+    pieces.append(itertools.repeat("}\n"))
+    return "".join(map("".join, zip(*pieces, strict=False)))  # the line ends repeat without end
 
 
 CHUNK = 1_000
@@ -128,17 +192,20 @@ def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[li
     planners = set(first["sweep_planners"].split("+"))
     gathered = ColumnKinds(columns) if kinds_needed else None
     at_family, at_unit, at_planner = (columns.index(c) for c in ("family", "unit", "planner"))
-    if gathered is None and is_sqlite_file(sweep):  # a store's counts by SQLite: no row reaches Python
-        cells.close()
+    rows = itertools.chain([first_values], cells)
+    if is_sqlite_file(sweep):  # a store's counts by SQLite: no row reaches Python for them
         total, counts = planner_row_counts(sweep, planners)
+        if gathered is not None:
+            for chunk in _batched(rows):
+                gathered.add(chunk)
+        cells.close()
     else:
         total, counts = 0, collections.Counter()
-        for values in itertools.chain([first_values], cells):
-            total += 1
-            if values[at_planner] in planners:  # rows of other controllers ride along with their unit
-                counts[(values[at_family], values[at_unit])] += 1
+        for chunk in _batched(rows):
+            total += len(chunk)  # rows of other controllers ride along with their unit
+            counts.update((values[at_family], values[at_unit]) for values in chunk if values[at_planner] in planners)
             if gathered is not None:
-                gathered.add(values)
+                gathered.add(chunk)
     try:
         per_scenario = int(np.prod([len(first[k].split("+")) for k in ("sweep_planners", "sweep_ff_accel",
                                                                        "sweep_gravity_comp")]))
@@ -152,22 +219,28 @@ def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[li
     return columns, gathered, total
 
 
-def _chunks(sweep: str | os.PathLike[str]) -> Iterator[list[dict[str, str]]]:
-    """The rows of `sweep` in lists of at most CHUNK."""
-    chunk: list[dict[str, str]] = []
-    for row in iter_rows(sweep):
-        chunk.append(row)
-        if len(chunk) == CHUNK:
-            yield chunk
-            chunk = []
-    if chunk:
+def _batched(rows: Iterator[tuple[str, ...]]) -> Iterator[list[tuple[str, ...]]]:
+    """`rows` in lists of at most CHUNK."""
+    while chunk := list(itertools.islice(rows, CHUNK)):
         yield chunk
+
+
+def _cell_chunks(sweep: str | os.PathLike[str]) -> Iterator[list[tuple[str, ...]]]:
+    """The rows of `sweep` as cells in the header's order, in lists of at most CHUNK."""
+    cells = iter_cells(sweep)
+    next(cells)
+    yield from _batched(cells)
 
 
 def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
     """Write the complete sweep `sweep` (store or CSV file) to `out` (format by suffix: .sqlite or .db, .jsonl,
-    .csv); return the rows. Two passes over the sweep (checks and column kinds, then the output), CHUNK rows in
-    memory at a time: bounded memory, time proportional to the rows.
+    .csv); return the rows. CHUNK rows in memory at a time: bounded memory, time proportional to the rows.
+
+    A CSV file is read twice (checks and column kinds, then the output). A store is checked by SQLite and read
+    once where it can be: the typed formats are written under the kinds of the rows read so far, which is the
+    output of two passes as long as no later row changes a column's kind (a column whose first cells are all
+    missing and whose later ones are whole numbers, a number column that turns to text); when one does, the
+    output is written again under the kinds of every row.
 
     Raises:
       InvalidInputError: unknown output suffix, no such sweep file, or a torn or unfinished sweep.
@@ -180,9 +253,10 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
         raise InvalidInputError(f"sweep: file not found: {sweep}")
     if Path(sweep).resolve() == target.resolve():
         raise InvalidInputError(f"out: {out} is the sweep itself; choose another path")
-    columns, gathered, total = _checked_pass(sweep, kinds_needed=kind != "csv")
+    store = is_sqlite_file(sweep)
+    columns, gathered, total = _checked_pass(sweep, kinds_needed=kind != "csv" and not store)
     with atomic_path(target) as tmp:
-        if kind == "csv" and not is_sqlite_file(sweep):  # checked complete: its text is the output, byte for byte
+        if kind == "csv" and not store:  # checked complete: its text is the output, byte for byte
             shutil.copyfile(sweep, tmp)
         elif kind == "csv":
             with open(tmp, "w", encoding="utf-8", newline="") as f:
@@ -190,30 +264,70 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
                 lines = csv_lines(cells)
                 while text := "".join(itertools.islice(lines, CHUNK)):
                     f.write(text)
-        elif kind == "jsonl":
-            assert gathered is not None
-            kinds = gathered.kinds()
-            with open(tmp, "w", encoding="utf-8") as f:
-                for chunk in _chunks(sweep):
-                    f.write("".join(json.dumps(typed(row, kinds), allow_nan=False) + "\n" for row in chunk))
         else:
-            assert gathered is not None
-            _write_sqlite(tmp, columns, gathered.kinds(), sweep)
+            write = _write_jsonl if kind == "jsonl" else _write_sqlite
+            if gathered is None and not write(tmp, columns, None, sweep):
+                gathered = ColumnKinds(columns)  # a later row changed a kind: every row's kinds, then again
+                for chunk in _cell_chunks(sweep):
+                    gathered.add(chunk)
+            if gathered is not None:
+                write(tmp, columns, gathered.kinds(), sweep)
     return total
 
 
-def _write_sqlite(path: Path, columns: list[str], kinds: dict[str, str], sweep: str | os.PathLike[str]) -> None:
-    quoted = ", ".join(f'"{c}" {kinds[c]}' for c in columns)
+def _kinds_as_read(columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str]
+                   ) -> Iterator[tuple[list[tuple[str, ...]], list[str]]]:
+    """Each chunk of `sweep` with the kinds to write it under: `kinds` if given, else those of the rows read so
+    far; stops (the caller's output is then incomplete) at the first chunk that changes them."""
+    gathered = ColumnKinds(columns)
+    first: dict[str, str] | None = None
+    for chunk in _cell_chunks(sweep):
+        if kinds is None:
+            gathered.add(chunk)
+            now = gathered.kinds()
+            first = now if first is None else first
+            if now != first:
+                raise _KindsChanged
+        yield chunk, list((kinds or first or {}).values())
+
+
+class _KindsChanged(Exception):
+    """A row read later changed a column's kind: what was written under the earlier kinds is not the output."""
+
+
+def _write_jsonl(path: Path, columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str]
+                 ) -> bool:
+    """Write `sweep` as JSON Lines under `kinds` (None: as read, see `_kinds_as_read`); False if the kinds as read
+    changed (the file is then incomplete)."""
+    with open(path, "w", encoding="utf-8") as f:
+        try:
+            for chunk, chunk_kinds in _kinds_as_read(columns, kinds, sweep):
+                f.write(jsonl_text(columns, chunk_kinds, chunk))
+        except _KindsChanged:
+            return False
+    return True
+
+
+def _write_sqlite(path: Path, columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str]
+                  ) -> bool:
+    """Write `sweep` as a typed SQLite table under `kinds` (None: as read, see `_kinds_as_read`); False if the kinds
+    as read changed (nothing is then written)."""
+    path.unlink(missing_ok=True)
     connection = sqlite3.connect(path)
     try:
         with connection:
-            connection.execute(f"CREATE TABLE {TABLE} ({quoted})")
             marks = ", ".join("?" for _ in columns)
-            for chunk in _chunks(sweep):
+            for chunk, chunk_kinds in _kinds_as_read(columns, kinds, sweep):
+                if connection.total_changes == 0:
+                    quoted = ", ".join(f'"{c}" {k}' for c, k in zip(columns, chunk_kinds, strict=True))
+                    connection.execute(f"CREATE TABLE {TABLE} ({quoted})")
                 connection.executemany(f"INSERT INTO {TABLE} VALUES ({marks})",
-                                       (list(typed(row, kinds).values()) for row in chunk))  # in column order
+                                       zip(*typed_columns(chunk, chunk_kinds), strict=True))
             keys = [c for c in ("family", "scenario", "planner") if c in columns]
             if keys:
                 connection.execute(f"CREATE INDEX {TABLE}_keys ON {TABLE} ({', '.join(keys)})")
+    except _KindsChanged:
+        return False
     finally:
         connection.close()
+    return True

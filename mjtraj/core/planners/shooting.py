@@ -1,0 +1,185 @@
+"""The nonlinear planners' problem in single-shooting form: the torques U are the variables, the states their exact
+rollout on the nominal MuJoCo model (its own integrator and timestep, one step per control period).
+
+`Shooting` rolls out, differentiates each step by forward differences (all N (3n) perturbed steps in one
+mujoco.batch call; MuJoCo's mjd_transitionFD does not support RK4), propagates the forward sensitivities
+S_k = dx_k/dU, and gives the objective, its gradient and its Gauss-Newton Hessian. `PathLimits` holds the path
+constraints (joint ranges, speed limit, torque bound) as rows h >= 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+from mujoco.batch import Batch
+from numpy.typing import NDArray
+
+from mjtraj.exceptions import SolverError
+
+UNSTABLE = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+"""MuJoCo's warnings of a simulation it had to reset."""
+SCREEN = 0.6
+"""A path-constraint row enters a solve once its value is beyond this fraction of its limit (speed, torque) or of
+the way from the range's middle to its end (positions)."""
+
+
+@dataclass
+class Shooting:
+    """One task's single-shooting problem on `model`: the rollout, its sensitivities, objective and constraints.
+
+    Variables u: the torques U (N, n) flattened, N m. States X (N+1, 2n) = [q; qd] of the rollout from x0. The
+    objective is 1/2 sum_{k=1..N} (x_k - xg)^T Q (x_k - xg) + 1/2 sum_{k=0..N-1} u_k^T R u_k.
+    """
+
+    model: mujoco.MjModel
+    x0: NDArray[np.float64]
+    xg: NDArray[np.float64]
+    Q: NDArray[np.float64]
+    R: NDArray[np.float64]
+    steps: int
+    eps: float
+    _cache: dict[str, Any] = field(default_factory=dict)
+    _states: dict[bytes, NDArray[np.float64]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.n = self.model.nv
+        self.data = mujoco.MjData(self.model)
+        self.batch = Batch(self.model, self.steps * 3 * self.n, nthread=1)
+        self._bind = (self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl"))
+
+    def rollout(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
+        """States x_0..x_N of the model under U (N, n) from x0; shape (N+1, 2n).
+
+        Raises:
+          SolverError: MuJoCo had to reset the simulation (the rollout diverged).
+        """
+        n, d = self.n, self.data
+        X = np.empty((U.shape[0] + 1, 2 * n))
+        X[0] = self.x0
+        mujoco.mj_resetData(self.model, d)
+        d.qpos[:], d.qvel[:] = self.x0[:n], self.x0[n:]
+        for k, u in enumerate(U):
+            d.ctrl[:] = u
+            mujoco.mj_step(self.model, d)
+            X[k + 1, :n], X[k + 1, n:] = d.qpos, d.qvel
+        if any(d.warning[w].number for w in UNSTABLE):
+            raise SolverError("the rollout of an iterate diverged (MuJoCo reset the simulation)")
+        return X
+
+    def states(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(U, X) at u without derivatives (a line search's trial point); the last point is cached."""
+        key = u.tobytes()
+        if self._cache.get("key") == key:
+            U, X, _, _ = self._cache["value"]
+            return U, X
+        if key not in self._states:
+            self._states.clear()
+            self._states[key] = self.rollout(u.reshape(self.steps, self.n))
+        return u.reshape(self.steps, self.n), self._states[key]
+
+    def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """A_k (N, 2n, 2n) and B_k (N, 2n, n) of one control period at each (x_k, u_k), forward differences from the
+        rollout's own steps X[k+1]."""
+        n, N, eps = self.n, self.steps, self.eps
+        point = np.concatenate([X[:-1], U], axis=1)
+        z = (point[:, None, :] + eps * np.eye(3 * n)[None]).reshape(-1, 3 * n)
+        qpos, qvel, ctrl = self._bind
+        self.batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+        qpos[:], qvel[:], ctrl[:] = z[:, :n], z[:, n:2 * n], z[:, 2 * n:]
+        self.batch.step(None, 1)
+        after = np.concatenate([qpos, qvel], axis=1).reshape(N, 3 * n, 2 * n)
+        jac = (after - X[1:, None, :]).transpose(0, 2, 1) / eps
+        return jac[:, :, :2 * n], jac[:, :, 2 * n:]
+
+    def evaluate(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                                        NDArray[np.float64]]:
+        """(U, X, A, S) at u, where S (N+1, 2n, N n) holds dx_k/du; the last point is cached."""
+        key = u.tobytes()
+        if self._cache.get("key") != key:
+            n, N = self.n, self.steps
+            U, X = self.states(u)
+            A, B = self.jacobians(X, U)
+            S = np.zeros((N + 1, 2 * n, N * n))
+            for k in range(N):
+                np.matmul(A[k], S[k], out=S[k + 1])
+                S[k + 1, :, k * n:(k + 1) * n] += B[k]
+            self._cache.update(key=key, value=(U, X, A, S))
+        return self._cache["value"]  # type: ignore[no-any-return]
+
+    def objective(self, u: NDArray[np.float64]) -> float:
+        U, X = self.states(u)
+        d = X[1:] - self.xg
+        return 0.5 * float(np.sum((d @ self.Q) * d) + np.sum((U @ self.R) * U))
+
+    def gradient(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
+        U, X, _, S = self.evaluate(u)
+        d = X[1:] - self.xg
+        return (U @ self.R).ravel() + (d @ self.Q.T).ravel() @ S[1:].reshape(-1, S.shape[2])
+
+    def gauss_newton(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The objective's Gauss-Newton Hessian R (block diagonal) + sum_{k=1..N} S_k^T Q S_k at u, shape (N n, N n).
+
+        Stage by stage: with P_N = Q and P_k = Q + A_k^T P_{k+1} A_k (the Q-weighted sum of the state's futures), its
+        block (i, j), i <= j, is S_{j+1}[:, block i]^T P_{j+1} B_j, so the upper triangle's block column j is
+        S_{j+1}^T (P_{j+1} B_j) (S_{j+1} is zero right of block j): N small products, not an (N 2n, N n) square.
+        """
+        _, _, A, S = self.evaluate(u)
+        n, N = self.n, self.steps
+        H = np.kron(np.eye(N), self.R).astype(np.float64)
+        if not self.Q.any():
+            return H
+        Q = 0.5 * (self.Q + self.Q.T)
+        P = np.empty((N + 1, 2 * n, 2 * n))
+        P[N] = Q
+        for k in range(N - 1, 0, -1):
+            P[k] = Q + A[k].T @ P[k + 1] @ A[k]
+        B = np.stack([S[j + 1, :, j * n:(j + 1) * n] for j in range(N)])  # S_{j+1}'s block j is B_j
+        columns = np.matmul(S[1:].transpose(0, 2, 1), P[1:] @ B)  # (N, N n, n): the upper triangle's block columns
+        upper = columns.transpose(1, 0, 2).reshape(N * n, N * n)
+        diagonal = np.kron(np.eye(N, dtype=bool), np.ones((n, n), dtype=bool))
+        return H + np.where(diagonal, upper, upper + upper.T)  # type: ignore[no-any-return]
+
+
+@dataclass(frozen=True)
+class PathLimits:
+    """Every path constraint as rows h(U, X) >= 0 in natural units."""
+
+    u_max: NDArray[np.float64]
+    q_low: NDArray[np.float64]
+    q_high: NDArray[np.float64]
+    v_max: NDArray[np.float64]
+
+    def values(self, U: NDArray[np.float64], X: NDArray[np.float64]) -> NDArray[np.float64]:
+        """h, shape (6 N n,): q_high - q, q - q_low, v_max - qd, v_max + qd (k = 1..N), u_max - u, u_max + u."""
+        n = U.shape[1]
+        q, qd = X[1:, :n], X[1:, n:]
+        return np.concatenate([(self.q_high - q).ravel(), (q - self.q_low).ravel(), (self.v_max - qd).ravel(),
+                               (self.v_max + qd).ravel(), (self.u_max - U).ravel(), (self.u_max + U).ravel()])
+
+    def scale(self, steps: int) -> NDArray[np.float64]:
+        """Each row's natural size, shape (6 N n,): half the range width, the speed limit, the torque bound."""
+        half = np.tile(0.5 * (self.q_high - self.q_low), steps)
+        return np.concatenate([half, half, np.tile(self.v_max, 2 * steps), np.tile(self.u_max, 2 * steps)])
+
+    def near(self, U: NDArray[np.float64], X: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Rows within reach of their limit (see SCREEN)."""
+        return self.values(U, X) < (1.0 - SCREEN) * self.scale(U.shape[0])
+
+    def jacobian(self, S: NDArray[np.float64], rows: NDArray[np.intp]) -> NDArray[np.float64]:
+        """dh/du of `rows`, shape (len(rows), N n), from the sensitivities S (N+1, 2n, N n)."""
+        n = S.shape[1] // 2
+        size = S.shape[2]
+        steps = S.shape[0] - 1
+        group, rest = np.divmod(np.asarray(rows, dtype=np.intp), steps * n)
+        k, joint = np.divmod(rest, n)
+        out = np.zeros((len(rows), size))
+        state = group < 4  # ranges and speeds: +-(the sensitivity of q or qd at sample k + 1)
+        sign = np.where(group % 2 == 0, -1.0, 1.0)
+        component = np.where(group < 2, joint, n + joint)
+        out[state] = sign[state, None] * S[k[state] + 1, component[state]]
+        out[~state, rest[~state]] = sign[~state]  # torques: -+1 on u_k itself
+        return out
