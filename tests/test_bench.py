@@ -61,7 +61,7 @@ def test_new_planners_table_prints_what_it_measured(capsys):
         ("nonlinear_min_effort", "slsqp", "*"), ("nonlinear_min_effort", "sqp", ""),
         ("nonlinear_optimal", "auto", "*"), ("nonlinear_optimal", "sqp", ""), ("nonlinear_optimal", "slsqp", "")}
     for _, solver, _, failed, median, largest, by_slsqp, gap, worse in families:
-        assert float(median) <= float(largest)
+        assert float(median) <= float(largest) + 0.005  # printed to 3 and 2 decimals
         if solver == "slsqp":  # the reference of the gaps, and every plan its own
             assert (int(failed), int(by_slsqp), float(gap), int(worse)) == (0, 2, 0.0, 0)
 

@@ -190,3 +190,23 @@ def test_a_store_read_once_gives_the_two_pass_output(tmp_path, monkeypatch, edit
     kinds = {r[1]: r[2] for r in sqlite3.connect(tmp_path / "mine.sqlite").execute(f"PRAGMA table_info({TABLE})")}
     assert (kinds["duration"], kinds["payload_kg"]) == {None: ("REAL", "REAL"), TURNS_TEXT: ("TEXT", "REAL"),
                                                         TURNS_WHOLE: ("REAL", "INTEGER")}[edit]
+
+
+def test_an_infinity_is_refused_by_json_lines_and_other_nans_are_missing(tmp_path):
+    """'NaN' (any spelling float() reads as nan) is a missing value, null in JSON; an infinity is a number SQLite
+    stores and JSON cannot hold: JSON Lines export refuses it naming the column, and leaves no file."""
+    store = tmp_path / "s.sqlite"
+    run_sweep(SweepSettings(scenarios=3, batch=2, planners=("cubic",)), store, progress=False)
+    with sqlite3.connect(store) as connection:
+        connection.execute("UPDATE rows SET cost = 'NaN' WHERE scenario = '1'")
+    export(store, tmp_path / "ok.jsonl")
+    lines = [json.loads(line) for line in (tmp_path / "ok.jsonl").read_text().splitlines()]
+    assert [row["cost"] is None for row in lines] == [row["scenario"] == 1 for row in lines]
+    with sqlite3.connect(store) as connection:
+        connection.execute("UPDATE rows SET rms_err = 'inf' WHERE scenario = '2'")
+    with pytest.raises(InvalidInputError, match=r"^sweep: column 'rms_err' holds a number JSON cannot hold \("):
+        export(store, tmp_path / "bad.jsonl")
+    assert not (tmp_path / "bad.jsonl").exists()
+    export(store, tmp_path / "ok.sqlite")
+    stored = sqlite3.connect(tmp_path / "ok.sqlite").execute(f"SELECT rms_err FROM {TABLE} WHERE scenario = 2")
+    assert {value for (value,) in stored} == {math.inf}

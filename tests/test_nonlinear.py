@@ -300,3 +300,51 @@ def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort):
     with pytest.raises(SolverError, match=r"^nonlinear_optimal: the Gauss-Newton SQP stopped: no convergence in 1 "
                                           r"iterations$"):
         make("nonlinear_optimal", solver="sqp", sqp_max_iter=1).plan(task, model)
+
+
+@pytest.mark.slow
+def test_the_gauss_newton_sqp_stops_at_a_saddle_of_the_paper_tasks_effort_bound(model):
+    """Why the effort bound stays on SLSQP: on the paper task the Gauss-Newton SQP alone converges to a KKT point
+    (the Lagrangian's gradient vanishes with the QP's multipliers) that is no minimum: the Lagrangian's Hessian, by
+    forward differences of its gradient, has a negative eigenvalue on the null space of the active constraints.
+    SLSQP's plan costs a third less."""
+    import scipy.linalg
+
+    from mjtraj.core.planners.optimal import planner_weights
+    from mjtraj.core.planners.sqp import _qp
+    from mjtraj.study.scenario import load_scenario
+
+    task = load_scenario(None).task
+    mine = make("nonlinear_min_effort", solver="sqp").plan(task, model)
+    theirs = make("nonlinear_min_effort").plan(task, model)
+    assert theirs.info["objective"] < 0.7 * mine.info["objective"]
+    joints = JointInfo.of(model)
+    n, N = task.n, task.steps
+    Q, R = planner_weights(task, joints.torque_limit, None, None, 0.0, 0.5)
+    problem = Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]), Q, R,
+                       N, 1e-7)
+    limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
+    u = mine.u_plan.ravel()
+    U, X, _, S = problem.evaluate(u)
+    scale = limits.scale(N)[:4 * N * n]
+    h = limits.values(U, X)[:4 * N * n]
+    rows = np.flatnonzero(h < 0.4 * scale)
+    u_max = np.tile(joints.torque_limit, N)
+    _, multipliers = _qp(problem.gauss_newton(u), problem.gradient(u), S[-1], X[-1] - problem.xg,
+                         limits.jacobian(S, rows) / scale[rows, None], h[rows] / scale[rows], -u_max - u, u_max - u,
+                         soft=False)
+    assert not np.any(np.isclose(np.abs(u), u_max))  # no torque on its bound: the rows hold every active constraint
+
+    def lagrangian_gradient(v):
+        S_v = problem.evaluate(v)[3]
+        rows_jacobian = np.vstack([S_v[-1], limits.jacobian(S_v, rows) / scale[rows, None]])
+        return problem.gradient(v) + rows_jacobian.T @ multipliers
+
+    g0 = lagrangian_gradient(u)
+    assert np.abs(g0).max() < 1e-5 * np.abs(problem.gradient(u)).max()  # a KKT point
+    eps = 1e-5
+    H = np.column_stack([(lagrangian_gradient(u + eps * e) - g0) / eps for e in np.eye(N * n)])
+    active = np.vstack([S[-1], limits.jacobian(S, rows[np.abs(multipliers[2 * n:]) > 1e-10])])
+    Z = scipy.linalg.null_space(active)
+    lowest = np.linalg.eigvalsh(Z.T @ (0.5 * (H + H.T)) @ Z)[0]
+    assert lowest < -0.1 * np.diag(R).min(), lowest  # negative curvature of R's order: a saddle

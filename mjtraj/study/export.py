@@ -19,7 +19,8 @@ import math
 import os
 import shutil
 import sqlite3
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
 from json.encoder import encode_basestring_ascii  # type: ignore[attr-defined]
 from pathlib import Path
 from typing import Any
@@ -41,14 +42,6 @@ TABLE = "rows"
 """The SQLite table that holds the rows (indexed by family, scenario and planner)."""
 
 
-def _number(cell: str) -> float | None:
-    """The cell as a float, None for a missing value; raises ValueError for text."""
-    if cell in ("", "nan"):
-        return None
-    value = float(cell)
-    return None if math.isnan(value) else value
-
-
 class ColumnKinds:
     """Each column's kind ('REAL', 'INTEGER' or 'TEXT', by the module's rule), gathered a chunk of rows at a time."""
 
@@ -58,25 +51,23 @@ class ColumnKinds:
         self._present = dict.fromkeys(columns, False)
         self._whole = dict.fromkeys(columns, True)
 
-    def add(self, rows: Sequence[Sequence[str]]) -> None:
-        """Account for rows of cells, each in the columns' order. Column by column over its distinct cells: a cell
-        that float() refuses makes the column text; '.', 'e' or 'E' in a number makes it not whole (no spelling of
-        nan or infinity holds one, so the missing cells need not be told apart here)."""
+    def add(self, rows: Sequence[Sequence[str]]) -> list[Numbers | None]:
+        """Account for rows of cells, each in the columns' order, and return each column's `Numbers` (None for a
+        text column). Column by column over its distinct cells: a cell that float() refuses makes the column text;
+        '.', 'e' or 'E' in a number makes it not whole (no spelling of nan or infinity holds one, so the missing
+        cells need not be told apart here)."""
+        out: list[Numbers | None] = []
         for column, cells in zip(self.columns, zip(*rows, strict=True), strict=True) if rows else ():
-            if self._text[column]:
-                continue
-            distinct = set(cells)
-            distinct.difference_update(MISSING)
-            try:
-                values = list(map(float, distinct))
-            except ValueError:
+            numbers = None if self._text[column] else Numbers.of(cells)
+            out.append(numbers)
+            if numbers is None:
                 self._text[column] = True
-                continue
-            if not all(map(math.isnan, values)):
+            elif numbers.present:
                 self._present[column] = True
-                text = "".join(distinct)
+                text = "".join(numbers.cells)
                 if "." in text or "e" in text or "E" in text:
                     self._whole[column] = False
+        return out
 
     def kinds(self) -> dict[str, str]:
         """column -> 'TEXT', 'INTEGER' (every present cell written whole) or 'REAL'."""
@@ -84,73 +75,98 @@ class ColumnKinds:
                 for c in self.columns}
 
 
-MISSING = ("", "nan")
+MISSING = frozenset(("", "nan"))
 """Cells that are missing values (as is any that float() reads as nan)."""
 
 
-def _converter(kind: str) -> Callable[[str], Any]:
-    """The value of a cell of a column of `kind` (None for a missing number)."""
-    if kind == "TEXT":
-        return str
-    whole = kind == "INTEGER"
+@dataclass(frozen=True)
+class Numbers:
+    """The distinct cells of a column's chunk that are not MISSING, and their values (float(); nan among them for
+    other spellings of it), in the same order; `present`: whether one is not nan."""
 
-    def value(cell: str) -> int | float | None:
-        number = _number(cell)
-        return None if number is None else int(number) if whole else number
-    return value
+    cells: tuple[str, ...]
+    values: tuple[float, ...]
+    present: bool
+
+    @classmethod
+    def of(cls, cells: Iterable[str]) -> Numbers | None:
+        """The Numbers of `cells`, or None if float() refuses one (a text column)."""
+        distinct = tuple(set(cells) - MISSING)
+        try:
+            values = tuple(map(float, distinct))
+        except ValueError:
+            return None
+        return cls(distinct, values, not all(map(math.isnan, values)))
+
+    def texts(self, kind: str) -> Iterator[str | None]:
+        """Each cell's value as JSON text in a column of `kind` ('INTEGER' or 'REAL'), None for a missing one.
+
+        Raises:
+          ValueError: an infinity, which JSON cannot hold.
+        """
+        if all(map(math.isfinite, self.values)):  # the common case, without a Python call per cell
+            return map(int.__repr__, map(int, self.values)) if kind == "INTEGER" else map(float.__repr__,
+                                                                                          self.values)
+        return (None if math.isnan(v) else _finite_text(v, kind) for v in self.values)
+
+    def typed(self, kind: str) -> Iterator[int | float | None]:
+        """Each cell's value in a column of `kind` ('INTEGER' or 'REAL'), None for a missing one."""
+        whole = kind == "INTEGER"
+        return (None if math.isnan(v) else int(v) if whole else v for v in self.values)
 
 
-def typed_columns(rows: Sequence[Sequence[str]], kinds: Sequence[str]) -> list[list[Any]]:
+def _finite_text(value: float, kind: str) -> str:
+    if not math.isfinite(value):
+        raise ValueError(f"{value!r} is not a finite number")
+    return repr(int(value)) if kind == "INTEGER" else repr(value)
+
+
+def typed_columns(rows: Sequence[Sequence[str]], kinds: Sequence[str],
+                  numbers: Sequence[Numbers | None] | None = None) -> list[list[Any]]:
     """The rows' cells, column by column, as the values of their columns' `kinds` (None for a missing number);
-    each distinct cell of a column is converted once."""
+    each distinct cell of a column is converted once (`numbers`: each column's, if already read)."""
     out = []
-    for kind, cells in zip(kinds, zip(*rows, strict=True), strict=True):
+    for i, (kind, cells) in enumerate(zip(kinds, zip(*rows, strict=True), strict=True)):
         if kind == "TEXT":
             out.append(list(cells))
             continue
-        convert = _converter(kind)
-        values = {cell: convert(cell) for cell in set(cells)}
+        read = numbers[i] if numbers is not None else Numbers.of(cells)
+        if read is None:
+            raise InvalidInputError(f"sweep: a cell of a {kind} column is not a number")
+        values: dict[str, Any] = dict.fromkeys(MISSING)
+        values.update(zip(read.cells, read.typed(kind), strict=True))
         out.append(list(map(values.__getitem__, cells)))
     return out
 
 
-def _json_text(kind: str) -> Callable[[str], str]:
-    """The JSON text of a cell of a column of `kind`, as json.dumps(..., allow_nan=False) writes its typed value.
-
-    Raises (the returned function):
-      ValueError: an infinity, which JSON cannot hold.
-    """
-    if kind == "TEXT":
-        return encode_basestring_ascii
-    convert = _converter(kind)
-
-    def text(cell: str) -> str:
-        value = convert(cell)
-        if value is None:
-            return "null"
-        if isinstance(value, float) and not math.isfinite(value):
-            raise ValueError(f"{cell!r} is not a finite number")
-        return repr(value)
-    return text
-
-
-def jsonl_text(columns: Sequence[str], kinds: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+def jsonl_text(columns: Sequence[str], kinds: Sequence[str], rows: Sequence[Sequence[str]],
+               numbers: Sequence[Numbers | None] | None = None) -> str:
     """The rows as JSON Lines: for each row the line `json.dumps(dict(zip(columns, typed values)), allow_nan=False)`
-    writes (then a line end), built column by column from each distinct cell's JSON text.
+    writes (then a line end), built column by column from each distinct cell's JSON text (`numbers`: each
+    column's, if already read).
 
     Raises:
-      InvalidInputError: a number that JSON cannot hold (an infinity), naming its column.
+      InvalidInputError: a number that JSON cannot hold (an infinity), naming its column, or a cell of a number
+        column that is not a number.
     """
     if not rows:
         return ""
     pieces: list[Iterable[str]] = []
     for i, (column, kind, cells) in enumerate(zip(columns, kinds, zip(*rows, strict=True), strict=True)):
         key = ("{" if i == 0 else ", ") + encode_basestring_ascii(column) + ": "
-        text = _json_text(kind)
-        try:
-            parts = {cell: key + text(cell) for cell in set(cells)}
-        except ValueError as e:
-            raise InvalidInputError(f"sweep: column {column!r} holds a number JSON cannot hold ({e})") from None
+        if kind == "TEXT":
+            distinct = set(cells)
+            parts = dict(zip(distinct, map(key.__add__, map(encode_basestring_ascii, distinct)), strict=True))
+        else:
+            read = numbers[i] if numbers is not None else Numbers.of(cells)
+            if read is None:
+                raise InvalidInputError(f"sweep: column {column!r} is a number column with a cell that is not")
+            parts = dict.fromkeys(MISSING, key + "null")
+            try:
+                parts.update((cell, key + ("null" if text is None else text))
+                             for cell, text in zip(read.cells, read.texts(kind), strict=True))
+            except ValueError as e:
+                raise InvalidInputError(f"sweep: column {column!r} holds a number JSON cannot hold ({e})") from None
         pieces.append(map(parts.__getitem__, cells))
     pieces.append(itertools.repeat("}\n"))
     return "".join(map("".join, zip(*pieces, strict=False)))  # the line ends repeat without end
@@ -276,19 +292,21 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
 
 
 def _kinds_as_read(columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str]
-                   ) -> Iterator[tuple[list[tuple[str, ...]], list[str]]]:
-    """Each chunk of `sweep` with the kinds to write it under: `kinds` if given, else those of the rows read so
-    far; stops (the caller's output is then incomplete) at the first chunk that changes them."""
+                   ) -> Iterator[tuple[list[tuple[str, ...]], list[str], list[Numbers | None] | None]]:
+    """Each chunk of `sweep` with the kinds to write it under and its columns' Numbers if read: `kinds` if given,
+    else those of the rows read so far; stops (the caller's output is then incomplete) at the first chunk that
+    changes them."""
     gathered = ColumnKinds(columns)
     first: dict[str, str] | None = None
     for chunk in _cell_chunks(sweep):
+        numbers = None
         if kinds is None:
-            gathered.add(chunk)
+            numbers = gathered.add(chunk)
             now = gathered.kinds()
             first = now if first is None else first
             if now != first:
                 raise _KindsChanged
-        yield chunk, list((kinds or first or {}).values())
+        yield chunk, list((kinds or first or {}).values()), numbers
 
 
 class _KindsChanged(Exception):
@@ -301,8 +319,8 @@ def _write_jsonl(path: Path, columns: list[str], kinds: dict[str, str] | None, s
     changed (the file is then incomplete)."""
     with open(path, "w", encoding="utf-8") as f:
         try:
-            for chunk, chunk_kinds in _kinds_as_read(columns, kinds, sweep):
-                f.write(jsonl_text(columns, chunk_kinds, chunk))
+            for chunk, chunk_kinds, numbers in _kinds_as_read(columns, kinds, sweep):
+                f.write(jsonl_text(columns, chunk_kinds, chunk, numbers))
         except _KindsChanged:
             return False
     return True
@@ -317,12 +335,12 @@ def _write_sqlite(path: Path, columns: list[str], kinds: dict[str, str] | None, 
     try:
         with connection:
             marks = ", ".join("?" for _ in columns)
-            for chunk, chunk_kinds in _kinds_as_read(columns, kinds, sweep):
+            for chunk, chunk_kinds, numbers in _kinds_as_read(columns, kinds, sweep):
                 if connection.total_changes == 0:
                     quoted = ", ".join(f'"{c}" {k}' for c, k in zip(columns, chunk_kinds, strict=True))
                     connection.execute(f"CREATE TABLE {TABLE} ({quoted})")
                 connection.executemany(f"INSERT INTO {TABLE} VALUES ({marks})",
-                                       zip(*typed_columns(chunk, chunk_kinds), strict=True))
+                                       zip(*typed_columns(chunk, chunk_kinds, numbers), strict=True))
             keys = [c for c in ("family", "scenario", "planner") if c in columns]
             if keys:
                 connection.execute(f"CREATE INDEX {TABLE}_keys ON {TABLE} ({', '.join(keys)})")

@@ -92,9 +92,10 @@ class _Metric:
 SOLVERS = ("auto", "sqp", "slsqp")
 """The nonlinear planners' solvers (see NonlinearOptimal.solver). The Gauss-Newton SQP ignores the dynamics' second
 derivatives; with the paper's state weight Q they are small against Q and it converges in about 8 iterations to
-SLSQP's optimum, but with Q = 0 (the effort bound) they are of the order of R (the reduced Hessian has negative
-eigenvalues of R's size) and it can converge slowly or to another, worse local minimum (the paper task: 0.0985
-against SLSQP's 0.0613): the effort bound stays on SLSQP."""
+SLSQP's optimum, but with Q = 0 (the effort bound), weighted by the terminal condition's multipliers, they are of
+the order of R, and it can converge slowly, or stop at a KKT point that is no minimum: on the paper task it stops
+at 0.0985 (SLSQP: 0.0613), a saddle where the reduced Hessian has a negative eigenvalue (tested). The effort bound
+stays on SLSQP."""
 SQP_CURVATURE_SCALE = 10.0
 """The Gauss-Newton SQP's first model is this multiple of the Gauss-Newton Hessian ..."""
 SQP_SHRINK = 4.0
