@@ -6,28 +6,30 @@ plant itself), x_N = x_g = [qg; 0], |u_k| <= u_max, and at every sample k = 1..N
 |qd_k| <= the speed limit. `nonlinear_min_effort` is the case Q = 0: the least corrective effort with which the
 nominal arm can make the move, the effort bound of the study.
 
-Method: sequential quadratic programming in single-shooting form (scipy's SLSQP). The variables are the N n
-torques; every iterate is rolled out exactly on the model, so every plan is realisable. The transition's Jacobians
-A_k, B_k come from forward finite differences of mj_step about the rollout's own steps, all N (3n) perturbed steps in
-one mujoco.batch call (MuJoCo's mjd_transitionFD does not support RK4); forward sensitivities dx_k/dU give the
-constraints' Jacobians and the objective's gradient. SLSQP keeps a quasi-Newton model of the Lagrangian's curvature,
-which the dynamics' second derivatives make necessary (a Gauss-Newton SQP on this problem converged only linearly).
-That model starts at the identity, so the solve runs in variables v = L^T u in which the identity is a multiple of
-the Gauss-Newton Hessian (see `_Metric`): without this SLSQP spent one iteration per variable learning the
-objective's scale (on the paper task `nonlinear_optimal` took 499 iterations; 207 with it). The path constraints
-(ranges, speed, torque) are screened: only rows within reach of their limit enter the QP, and the problem is solved
-again with more rows whenever a row left out is violated; the returned plan is checked against every constraint.
-The start is the linear optimal planner's plan for the same weights when its rollout keeps every path constraint,
-else the linear minimum-effort plan (Q = 0: the zero-order-held slow move). Objective and constraints are scaled to
-order one at the start. The problem is not convex: the plan is a local minimum, reached from that start. A solve
-that fails (SLSQP's own failure, a constraint left violated, an iterate whose rollout diverged) is tried once more
-with RETRY_FACTOR times the curvature scale. SLSQP's path is sensitive to the last bits of its inputs, so the plan is
-the same bit for bit only under the same BLAS thread count (the `mjtraj` command and sweep workers use one).
+Method: sequential quadratic programming in single-shooting form (`mjtraj.core.planners.shooting`). The variables
+are the N n torques; every iterate is rolled out exactly on the model, so every plan is realisable. The transition's
+Jacobians A_k, B_k come from forward finite differences of mj_step about the rollout's own steps, all N (3n)
+perturbed steps in one mujoco.batch call (MuJoCo's mjd_transitionFD does not support RK4); forward sensitivities
+dx_k/dU give the constraints' Jacobians and the objective's gradient. The path constraints (ranges, speed, torque)
+are screened: only rows within reach of their limit enter a solve; the returned plan is checked against every
+constraint. The start is the linear optimal planner's plan for the same weights when its rollout keeps every path
+constraint, else the linear minimum-effort plan (Q = 0: the zero-order-held slow move). The problem is not convex:
+the plan is a local minimum, reached from that start. Two solvers (see SOLVERS):
 
-Why single shooting: it keeps the plan exactly on the model's dynamics at every iterate, and its few hundred
-variables are within SLSQP's reach. A plan at N = 100 takes about a second (`mjtraj bench planners` prints it). Both
-planners are registered on request: they are bounds for the audit, not planners for the inner loop, and never run
-unless named.
+- the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights, a sixth of a second
+  at N = 100; `nonlinear_optimal`'s default ('auto', SLSQP where it does not converge);
+- scipy's SLSQP, which keeps a quasi-Newton model of the Lagrangian's curvature, the dynamics' second derivatives
+  included: the effort bound's solver. That model starts at the identity, so the solve runs in variables v = L^T u
+  in which the identity is a multiple of the Gauss-Newton Hessian (see `_Metric`): without this SLSQP spent one
+  iteration per variable learning the objective's scale (on the paper task `nonlinear_optimal` took 499
+  iterations; 207 with it). Rows left out that an iterate violates enter a new solve. Objective and constraints are
+  scaled to order one at the start. A solve that fails (SLSQP's own failure, a constraint left violated, an iterate
+  whose rollout diverged) is tried once more with RETRY_FACTOR times the curvature scale. SLSQP's path is sensitive
+  to the last bits of its inputs, so the plan is the same bit for bit only under the same BLAS thread count (the
+  `mjtraj` command and sweep workers use one). A bound plan at N = 100 takes about a second.
+
+Both planners are registered on request (`mjtraj bench planners` prints their times): they are bounds for the audit,
+not planners for the inner loop, and never run unless named.
 """
 
 from __future__ import annotations
@@ -73,9 +75,7 @@ class _Metric:
     @classmethod
     def at(cls, problem: Shooting, u: NDArray[np.float64], scale: float) -> _Metric:
         """The metric of `problem` at u (N n,), the objective multiplied by `scale`."""
-        S = problem.evaluate(u)[3][1:]
-        QS = np.matmul(problem.Q, S).reshape(-1, S.shape[2])
-        H = np.kron(np.eye(problem.steps), problem.R) + S.reshape(-1, S.shape[2]).T @ QS
+        H = problem.gauss_newton(u)
         return cls(np.linalg.cholesky(scale * 0.5 * (H + H.T)))
 
     def to_v(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
