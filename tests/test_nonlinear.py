@@ -292,7 +292,11 @@ def test_the_sqp_plan_along_the_speed_limit_is_slsqps_optimum(model, plans):
     assert mine.info["objective"] <= theirs.info["objective"] * (1 + 1e-7)
 
 
-def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort):
+def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort, monkeypatch):
+    """'auto' plans with SLSQP where the SQP stops unconverged; 'sqp' fails then in one line, and where SLSQP fails
+    too, the error carries both reasons."""
+    from mjtraj.core.planners import nonlinear
+
     task, _ = effort
     plan = make("nonlinear_optimal", sqp_max_iter=1).plan(task, model)
     assert plan.info["solver"] == "slsqp"
@@ -300,6 +304,15 @@ def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort):
     with pytest.raises(SolverError, match=r"^nonlinear_optimal: the Gauss-Newton SQP stopped: no convergence in 1 "
                                           r"iterations$"):
         make("nonlinear_optimal", solver="sqp", sqp_max_iter=1).plan(task, model)
+
+    def fails(self, problem, limits, u, scale):
+        raise SolverError(f"{self.name}: SLSQP failed at {scale:g}")
+
+    monkeypatch.setattr(nonlinear.NonlinearOptimal, "_optimise", fails)
+    with pytest.raises(SolverError, match=r"^nonlinear_optimal: SLSQP failed at 900 \(also with curvature_scale 30: "
+                                          r"nonlinear_optimal: SLSQP failed at 30\) \(before SLSQP, the Gauss-Newton "
+                                          r"SQP stopped: no convergence in 1 iterations\)$"):
+        make("nonlinear_optimal", sqp_max_iter=1).plan(task, model)
 
 
 @pytest.mark.slow

@@ -193,20 +193,28 @@ class NonlinearOptimal(Planner):
                                        result.rows, 0, time.perf_counter() - clock)
             if self.solver == "sqp":
                 raise SolverError(f"{self.name}: the Gauss-Newton SQP stopped: {failure}")
-        try:
-            u, rounds, iterations, rows = self._optimise(problem, limits, start, self.curvature_scale)
-            retried = 0
-        except (InfeasibleError, SolverError) as first:
             try:
-                u, rounds, iterations, rows = self._optimise(problem, limits, start,
-                                                             RETRY_FACTOR * self.curvature_scale)
-            except (InfeasibleError, SolverError) as second:
-                raise type(second)(f"{second} (also with curvature_scale {self.curvature_scale:g}: {first})") \
-                    from None
-            retried = 1
+                u, rounds, iterations, rows, retried = self._slsqp(problem, limits, start)
+            except (InfeasibleError, SolverError) as e:
+                raise type(e)(f"{e} (before SLSQP, the Gauss-Newton SQP stopped: {failure})") from None
+        else:
+            u, rounds, iterations, rows, retried = self._slsqp(problem, limits, start)
         U, X, _, _ = problem.evaluate(u)
         return self._reference(task, U, X, problem.objective(u), "slsqp", iterations, rounds, rows, retried,
                                time.perf_counter() - clock)
+
+    def _slsqp(self, problem: Shooting, limits: PathLimits, start: NDArray[np.float64]
+               ) -> tuple[NDArray[np.float64], int, int, int, int]:
+        """SLSQP from `start`, once more with RETRY_FACTOR times the curvature scale if it fails: (u, rounds,
+        iterations, path rows, retried)."""
+        try:
+            return (*self._optimise(problem, limits, start, self.curvature_scale), 0)
+        except (InfeasibleError, SolverError) as first:
+            try:
+                return (*self._optimise(problem, limits, start, RETRY_FACTOR * self.curvature_scale), 1)
+            except (InfeasibleError, SolverError) as second:
+                raise type(second)(f"{second} (also with curvature_scale {self.curvature_scale:g}: {first})") \
+                    from None
 
     @staticmethod
     def _unmet(problem: Shooting, limits: PathLimits, u: NDArray[np.float64]) -> str | None:
