@@ -169,7 +169,8 @@ def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int 
             rows[solver] = {"failed": len(infos) - len(done), "median_s": float(np.median(times)),
                             "max_s": float(np.max(times)), "max_gap": float(np.nanmax(gaps)),
                             "worse": int(np.sum(gaps > 1e-4)),
-                            "by_slsqp": sum(info["solver"] == "slsqp" for info, _ in done)}
+                            "by_slsqp": sum(info["solver"] == "slsqp" for info, _ in done),
+                            "tracked": sum(info["start"] == "tracked" for info, _ in done)}
         out[f"{name} family"] = {"scenarios": scenarios, "default": default, "solvers": rows}
     return out
 

@@ -259,6 +259,7 @@ def _parser() -> argparse.ArgumentParser:
     x = sub.add_parser("export", help="a complete sweep (store or CSV) as a typed SQLite table, JSON Lines or CSV")
     x.add_argument("sweep", type=Path, help="the sweep: its SQLite store or CSV file")
     x.add_argument("--out", type=Path, required=True, help="output: FILE.sqlite (or .db), FILE.jsonl or FILE.csv")
+    x.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     a = sub.add_parser("audit", help="check the paper's claims against sweep files; writes AUDIT.md and figures")
     a.add_argument("sweeps", nargs="+", type=Path, help="sweep results: SQLite stores or CSV files")
@@ -289,6 +290,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--every", type=int, default=1, help="keep one control period in EVERY (default 1)")
     r.add_argument("--out", type=Path, default=Path("results/videos"), help="output folder (default: "
                    "results/videos/)")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     sub.add_parser("doctor", help="which OpenGL backends render here, and the library versions")
 
@@ -588,15 +590,16 @@ def _bench(args: argparse.Namespace) -> int:
                       f"{row['iterations']:>10} {row['objective']:>12.6g}")
         family = new["nonlinear_min_effort family"]
         print(f"each nonlinear planner over {family['scenarios']} nominal scenarios, by solver ('auto': the SQP, "
-              f"then SLSQP where it did not converge); gaps relative to SLSQP alone's objective")
+              f"then SLSQP where it did not converge; each solver from the linear start, then the tracked one); gaps "
+              f"relative to SLSQP alone's objective")
         print(f"{'planner':<22} {'solver':<6} {'failed':>6} {'median s':>9} {'max s':>7} {'by SLSQP':>8} "
-              f"{'max gap':>9} {'worse':>5}")
+              f"{'tracked':>7} {'max gap':>9} {'worse':>5}")
         for name in ("nonlinear_min_effort", "nonlinear_optimal"):
             family = new[f"{name} family"]
             for solver, row in family["solvers"].items():
                 label = f"{solver}*" if solver == family["default"] else solver
                 print(f"{name:<22} {label:<6} {row['failed']:>6} {row['median_s']:>9.3f} {row['max_s']:>7.2f} "
-                      f"{row['by_slsqp']:>8} {row['max_gap']:>+9.1e} {row['worse']:>5}")
+                      f"{row['by_slsqp']:>8} {row['tracked']:>7} {row['max_gap']:>+9.1e} {row['worse']:>5}")
         print("* the planner's default solver")
     if args.what in ("loop", "all"):
         print("closed loop (FF + PID + plant) vs raw mujoco.batch stepping, same run")
@@ -694,7 +697,8 @@ def _sweep(args: argparse.Namespace) -> int:
 def _export(args: argparse.Namespace) -> int:
     from mjtraj.study.export import export
 
-    rows = export(args.sweep, args.out)
+    with _Progress("mjtraj export", "row", not args.no_progress) as progress:
+        rows = export(args.sweep, args.out, progress=progress)
     print(f"wrote {rows} rows of {args.sweep} to {args.out}")
     return 0
 
@@ -733,7 +737,8 @@ def _render(args: argparse.Namespace) -> int:
     planners = tuple(args.planners or default_planners())
     result = compare(scenario, planners)
     total = len(planners) * (scenario.task.steps // every + 1) + len(SNAPSHOT_TIMES) * len(planners)
-    with tqdm(total=total, desc="mjtraj render", unit="frame", file=sys.stderr, disable=None) as bar:
+    with tqdm(total=total, desc="mjtraj render", unit="frame", file=sys.stderr,
+              disable=None if not args.no_progress else True) as bar:
         paths = render_all(result, args.out, formats=args.formats, width=args.width, height=args.height,
                            camera=args.camera, quality=args.quality, every=every, progress=bar.update)
     for path in paths:

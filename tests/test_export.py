@@ -192,6 +192,31 @@ def test_a_store_read_once_gives_the_two_pass_output(tmp_path, monkeypatch, edit
                                                         TURNS_WHOLE: ("REAL", "INTEGER")}[edit]
 
 
+@pytest.mark.parametrize("suffix", [".csv", ".jsonl", ".sqlite"])
+def test_progress_counts_the_rows_written_up_to_the_sweeps_rows(tmp_path, monkeypatch, suffix):
+    """export's progress(done, total): total is the sweep's row count, done grows chunk by chunk to it, and starts
+    again from zero only when a store's typed output is rewritten (a later row changed a column's kind)."""
+    from mjtraj.study import export as export_module
+
+    monkeypatch.setattr(export_module, "CHUNK", 3)
+    store = tmp_path / "s.sqlite"
+    run_sweep(SweepSettings(families=("nominal", "mismatch"), scenarios=3, batch=2, planners=("cubic",)), store,
+              progress=False)
+    with sqlite3.connect(store) as connection:
+        connection.execute(TURNS_TEXT)
+        rows = connection.execute("SELECT COUNT(*) FROM rows").fetchone()[0]
+    export(store, tmp_path / "rows.csv")
+    for source in (store, tmp_path / "rows.csv"):
+        calls: list[tuple[int, int]] = []
+        assert export(source, tmp_path / f"out{suffix}", progress=lambda *a, calls=calls: calls.append(a)) == rows
+        assert {total for _, total in calls} == {rows} and calls[-1][0] == rows
+        done = [d for d, _ in calls]
+        restarts = sum(b < a for a, b in zip(done, done[1:], strict=False))
+        rewritten = suffix != ".csv" and source == store  # the edit turns a column to text in a later chunk
+        assert restarts == int(rewritten), done
+        assert len(calls) > rows // 3 or source.suffix == ".csv" == suffix  # a CSV copied as it is: one report
+
+
 def test_an_infinity_is_refused_by_json_lines_and_other_nans_are_missing(tmp_path):
     """'NaN' (any spelling float() reads as nan) is a missing value, null in JSON; an infinity is a number SQLite
     stores and JSON cannot hold: JSON Lines export refuses it naming the column, and leaves no file."""

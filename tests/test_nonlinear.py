@@ -3,6 +3,8 @@ the small-move limit, the effort bound below every other plan, and one-line erro
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 import pytest
@@ -164,7 +166,8 @@ def test_the_change_of_variables_is_exact_and_starts_at_the_gauss_newton_hessian
 
 def test_a_failed_solve_is_retried_with_shorter_first_steps(model, monkeypatch):
     """The first optimisation fails (as SLSQP does when an iterate's rollout diverges): the plan comes from the retry
-    at RETRY_FACTOR times the curvature scale and says so; when both fail the error carries both reasons."""
+    at RETRY_FACTOR times the curvature scale and says so; when it and the try from the tracked start fail too, the
+    error carries the three reasons."""
     from mjtraj.core.planners import nonlinear
 
     task = short_task(model, 0.3)
@@ -187,6 +190,7 @@ def test_a_failed_solve_is_retried_with_shorter_first_steps(model, monkeypatch):
 
     monkeypatch.setattr(nonlinear.NonlinearOptimal, "_solve", both_fail)
     with pytest.raises(SolverError, match=r"^nonlinear_min_effort: failed at 60 \(also with curvature_scale 2: "
+                                          r"nonlinear_min_effort: failed at 2\) \(from the tracked start: "
                                           r"nonlinear_min_effort: failed at 2\)$"):
         make("nonlinear_min_effort", curvature_scale=2.0).plan(task, model)
 
@@ -293,15 +297,16 @@ def test_the_sqp_plan_along_the_speed_limit_is_slsqps_optimum(model, plans):
 
 
 def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort, monkeypatch):
-    """'auto' plans with SLSQP where the SQP stops unconverged; 'sqp' fails then in one line, and where SLSQP fails
-    too, the error carries both reasons."""
+    """'auto' plans with SLSQP where the SQP stops unconverged from both starts; 'sqp' fails then in one line, and
+    where SLSQP fails too, the error carries every reason."""
     from mjtraj.core.planners import nonlinear
 
     task, _ = effort
     plan = make("nonlinear_optimal", sqp_max_iter=1).plan(task, model)
     assert plan.info["solver"] == "slsqp"
     check_plan(model, task, plan)
-    with pytest.raises(SolverError, match=r"^nonlinear_optimal: the Gauss-Newton SQP stopped: no convergence in 1 "
+    with pytest.raises(SolverError, match=r"^nonlinear_optimal: the Gauss-Newton SQP stopped from the linear start: no "
+                                          r"convergence in 1 iterations; from the tracked start: no convergence in 1 "
                                           r"iterations$"):
         make("nonlinear_optimal", solver="sqp", sqp_max_iter=1).plan(task, model)
 
@@ -310,8 +315,10 @@ def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort, monke
 
     monkeypatch.setattr(nonlinear.NonlinearOptimal, "_optimise", fails)
     with pytest.raises(SolverError, match=r"^nonlinear_optimal: SLSQP failed at 900 \(also with curvature_scale 30: "
+                                          r"nonlinear_optimal: SLSQP failed at 30\) \(from the tracked start: "
                                           r"nonlinear_optimal: SLSQP failed at 30\) \(before SLSQP, the Gauss-Newton "
-                                          r"SQP stopped: no convergence in 1 iterations\)$"):
+                                          r"SQP stopped from the linear start: no convergence in 1 iterations; from "
+                                          r"the tracked start: no convergence in 1 iterations\)$"):
         make("nonlinear_optimal", sqp_max_iter=1).plan(task, model)
 
 
@@ -361,3 +368,117 @@ def test_the_gauss_newton_sqp_stops_at_a_saddle_of_the_paper_tasks_effort_bound(
     Z = scipy.linalg.null_space(active)
     lowest = np.linalg.eigvalsh(Z.T @ (0.5 * (H + H.T)) @ Z)[0]
     assert lowest < -0.1 * np.diag(R).min(), lowest  # negative curvature of R's order: a saddle
+
+
+def test_tracking_gains_reach_the_discrete_riccati_gain_over_a_long_horizon():
+    """Oracle: scipy's solver of the discrete algebraic Riccati equation. Far from the horizon's end the
+    finite-horizon gains of a time-invariant system are the infinite-horizon gain."""
+    import scipy.linalg
+
+    from mjtraj.core.planners.nonlinear import tracking_gains
+
+    rng = np.random.default_rng(3)
+    A = np.eye(4) + 0.05 * rng.normal(size=(4, 4))
+    B = 0.1 * rng.normal(size=(4, 2))
+    Q, R = np.diag(rng.uniform(1, 10, 4)), np.diag(rng.uniform(0.1, 1, 2))
+    K = tracking_gains(np.repeat(A[None], 400, axis=0), np.repeat(B[None], 400, axis=0), Q, R)
+    P = scipy.linalg.solve_discrete_are(A, B, Q, R)
+    np.testing.assert_allclose(K[0], np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A), rtol=1e-7)  # scipy: 1e-8
+    P_last = Q  # the last gain sees only x_N's weight
+    np.testing.assert_allclose(K[-1], np.linalg.solve(R + B.T @ P_last @ B, B.T @ P_last @ A), rtol=1e-12)
+
+
+def test_the_tracked_torques_are_the_feedback_law_and_replay_its_motion(model):
+    """Shooting.tracked: u_k = clip(U_k + K_k (X_ref_k - x_k)) on the model's own steps, recomputed here by an
+    independent loop, bit for bit; the returned torques replayed open loop give that motion; K = 0 is clip(U)."""
+    task = short_task(model, 0.3)
+    n, N = task.n, task.steps
+    x0 = np.concatenate([task.q0, np.zeros(n)])
+    problem = Shooting(model, x0, x0, np.eye(2 * n), np.eye(n), N, 1e-7)
+    rng = np.random.default_rng(0)
+    U = rng.normal(scale=20.0, size=(N, n))
+    X_ref = x0 + rng.normal(scale=0.05, size=(N + 1, 2 * n))
+    K = rng.uniform(0.0, 200.0, size=(N, n, 2 * n))
+    u_max = np.full(n, 30.0)
+    mine = problem.tracked(U, X_ref, K, u_max)
+    data = mujoco.MjData(model)
+    data.qpos[:] = task.q0
+    theirs = []
+    for k in range(N):
+        u = np.clip(U[k] + K[k] @ (X_ref[k] - np.concatenate([data.qpos, data.qvel])), -u_max, u_max)
+        theirs.append(u)
+        data.ctrl[:] = u
+        mujoco.mj_step(model, data)
+    np.testing.assert_array_equal(mine, np.array(theirs))
+    assert np.abs(mine).max() == 30.0  # the bound binds somewhere
+    np.testing.assert_array_equal(problem.rollout(mine)[-1], np.concatenate([data.qpos, data.qvel]))
+    np.testing.assert_array_equal(problem.tracked(U, X_ref, np.zeros_like(K), u_max), np.clip(U, -u_max, u_max))
+
+
+@pytest.fixture(scope="module")
+def drifting(model):
+    """Nominal scenario 605 of seed 0: the linear plan's open-loop torques drive joint 1 into its end on the
+    nonlinear arm, where the rollout's sensitivities vanish."""
+    from mjtraj.study.families import draw_scenario
+
+    return draw_scenario("nominal", 0, 605, model, 0.02).task
+
+
+def test_a_start_drifting_into_a_joints_end_is_planned_from_the_tracked_start(model, drifting):
+    """From the linear start the Gauss-Newton SQP finds no step (the linearised terminal condition cannot be met);
+    from the tracked start it converges, and the plan holds every constraint."""
+    from mjtraj.core.planners.sqp import gauss_newton_sqp
+
+    planner = make("nonlinear_optimal")
+    joints = JointInfo.of(model)
+    n = drifting.n
+    limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
+    x0, xg = (np.concatenate([q, np.zeros(n)]) for q in (drifting.q0, drifting.qg))
+    from mjtraj.core.planners.optimal import planner_weights
+
+    Q, R = planner_weights(drifting, joints.torque_limit, None, None, 1.0, 0.5)
+    problem = Shooting(model, x0, xg, Q, R, drifting.steps, 1e-7)
+    start, _ = planner._start(drifting, model, problem, limits)
+    U, X = problem.states(start)
+    assert X[:, 1].min() < joints.lower[1] + 1e-3  # into joint 1's lower end
+    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
+
+    stuck = gauss_newton_sqp(problem, limits, start, curvature_scale=SQP_CURVATURE_SCALE, shrink=SQP_SHRINK,
+                             max_iter=40)
+    assert not stuck.converged and stuck.message == "the linearised constraints admit no step"
+    plan = planner.plan(drifting, model)
+    assert (plan.info["solver"], plan.info["start"]) == ("sqp", "tracked")
+    check_plan(model, drifting, plan)
+
+
+@pytest.mark.slow
+def test_slsqp_from_the_tracked_start_reaches_the_sqps_plan(model, drifting):
+    """The oracle for the drifting task: SLSQP (its linear start fails, then it starts from the tracked one) reaches
+    the Gauss-Newton SQP's objective."""
+    mine = make("nonlinear_optimal").plan(drifting, model)
+    theirs = make("nonlinear_optimal", solver="slsqp").plan(drifting, model)
+    assert theirs.info["start"] == "tracked" and theirs.info["retried"] == 2
+    assert mine.info["objective"] == pytest.approx(theirs.info["objective"], rel=1e-7)
+    check_plan(model, drifting, theirs)
+
+
+def test_a_torque_on_its_upper_bound_has_its_effect_in_the_transition_jacobian(model):
+    """MuJoCo clamps ctrl to its range, so a forward difference of a torque at +u_max sees no effect; the Jacobian
+    differences it backwards. Oracle: the same model with the ctrl range opened, where nothing clamps, at the same
+    point: B_k agrees to the differences' accuracy at +u_max, -u_max and inside."""
+    task = short_task(model, 0.3)
+    n, N = task.n, task.steps
+    x0 = np.concatenate([task.q0, np.zeros(n)])
+    high = model.actuator_ctrlrange[:, 1]
+    U = np.zeros((N, n))
+    U[::3] = high  # on the upper bound
+    U[1::3] = -high  # on the lower one
+    open_model = copy.copy(model)
+    open_model.actuator_ctrlrange[:] = [-1e3, 1e3]
+    mine, theirs = (Shooting(m, x0, x0, np.eye(2 * n), np.eye(n), N, 1e-7) for m in (model, open_model))
+    X = mine.rollout(U)
+    np.testing.assert_array_equal(X, theirs.rollout(U))  # the bound itself is not clamped
+    _, B = mine.jacobians(X, U)
+    _, B_open = theirs.jacobians(X, U)
+    np.testing.assert_allclose(B, B_open, rtol=0, atol=1e-6 * np.abs(B_open).max())
+    assert np.abs(B[0]).max() > 0.1 * np.abs(B_open[0]).max()  # not the forward difference's zero column

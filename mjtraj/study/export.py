@@ -19,7 +19,7 @@ import math
 import os
 import shutil
 import sqlite3
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from json.encoder import encode_basestring_ascii  # type: ignore[attr-defined]
 from pathlib import Path
@@ -248,9 +248,11 @@ def _cell_chunks(sweep: str | os.PathLike[str]) -> Iterator[list[tuple[str, ...]
     yield from _batched(cells)
 
 
-def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
+def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str],
+           progress: Callable[[int, int], None] | None = None) -> int:
     """Write the complete sweep `sweep` (store or CSV file) to `out` (format by suffix: .sqlite or .db, .jsonl,
     .csv); return the rows. CHUNK rows in memory at a time: bounded memory, time proportional to the rows.
+    `progress(rows written, rows)` is called after each chunk written (again from 0 if the output is rewritten).
 
     A CSV file is read twice (checks and column kinds, then the output). A store is checked by SQLite and read
     once where it can be: the typed formats are written under the kinds of the rows read so far, which is the
@@ -271,6 +273,7 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
         raise InvalidInputError(f"out: {out} is the sweep itself; choose another path")
     store = is_sqlite_file(sweep)
     columns, gathered, total = _checked_pass(sweep, kinds_needed=kind != "csv" and not store)
+    written = _Written(total, progress)
     with atomic_path(target) as tmp:
         if kind == "csv" and not store:  # checked complete: its text is the output, byte for byte
             shutil.copyfile(sweep, tmp)
@@ -280,15 +283,34 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str]) -> int:
                 lines = csv_lines(cells)
                 while text := "".join(itertools.islice(lines, CHUNK)):
                     f.write(text)
+                    written.add(CHUNK)
         else:
             write = _write_jsonl if kind == "jsonl" else _write_sqlite
-            if gathered is None and not write(tmp, columns, None, sweep):
+            if gathered is None and not write(tmp, columns, None, sweep, written):
                 gathered = ColumnKinds(columns)  # a later row changed a kind: every row's kinds, then again
                 for chunk in _cell_chunks(sweep):
                     gathered.add(chunk)
             if gathered is not None:
-                write(tmp, columns, gathered.kinds(), sweep)
+                write(tmp, columns, gathered.kinds(), sweep, written.restart())
+    written.add(total)
     return total
+
+
+class _Written:
+    """The rows written so far, reported to `progress(done, total)` (None: to no one)."""
+
+    def __init__(self, total: int, progress: Callable[[int, int], None] | None) -> None:
+        self.total, self.progress, self.done = total, progress, 0
+
+    def add(self, rows: int) -> None:
+        self.done = min(self.done + rows, self.total)
+        if self.progress is not None:
+            self.progress(self.done, self.total)
+
+    def restart(self) -> _Written:
+        self.done = 0
+        self.add(0)
+        return self
 
 
 def _kinds_as_read(columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str]
@@ -313,21 +335,22 @@ class _KindsChanged(Exception):
     """A row read later changed a column's kind: what was written under the earlier kinds is not the output."""
 
 
-def _write_jsonl(path: Path, columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str]
-                 ) -> bool:
+def _write_jsonl(path: Path, columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str],
+                 written: _Written) -> bool:
     """Write `sweep` as JSON Lines under `kinds` (None: as read, see `_kinds_as_read`); False if the kinds as read
     changed (the file is then incomplete)."""
     with open(path, "w", encoding="utf-8") as f:
         try:
             for chunk, chunk_kinds, numbers in _kinds_as_read(columns, kinds, sweep):
                 f.write(jsonl_text(columns, chunk_kinds, chunk, numbers))
+                written.add(len(chunk))
         except _KindsChanged:
             return False
     return True
 
 
-def _write_sqlite(path: Path, columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str]
-                  ) -> bool:
+def _write_sqlite(path: Path, columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str],
+                  written: _Written) -> bool:
     """Write `sweep` as a typed SQLite table under `kinds` (None: as read, see `_kinds_as_read`); False if the kinds
     as read changed (nothing is then written)."""
     path.unlink(missing_ok=True)
@@ -341,6 +364,7 @@ def _write_sqlite(path: Path, columns: list[str], kinds: dict[str, str] | None, 
                     connection.execute(f"CREATE TABLE {TABLE} ({quoted})")
                 connection.executemany(f"INSERT INTO {TABLE} VALUES ({marks})",
                                        zip(*typed_columns(chunk, chunk_kinds, numbers), strict=True))
+                written.add(len(chunk))
             keys = [c for c in ("family", "scenario", "planner") if c in columns]
             if keys:
                 connection.execute(f"CREATE INDEX {TABLE}_keys ON {TABLE} ({', '.join(keys)})")

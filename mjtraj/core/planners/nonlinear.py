@@ -13,8 +13,11 @@ perturbed steps in one mujoco.batch call (MuJoCo's mjd_transitionFD does not sup
 dx_k/dU give the constraints' Jacobians and the objective's gradient. The path constraints (ranges, speed, torque)
 are screened: only rows within reach of their limit enter a solve; the returned plan is checked against every
 constraint. The start is the linear optimal planner's plan for the same weights when its rollout keeps every path
-constraint, else the linear minimum-effort plan (Q = 0: the zero-order-held slow move). The problem is not convex:
-the plan is a local minimum, reached from that start. Two solvers (see SOLVERS):
+constraint, else the linear minimum-effort plan (Q = 0: the zero-order-held slow move). Where a solver fails from
+it, it starts once more from the tracked start: the torques with which the model follows that linear plan's states
+under LQR feedback (on some tasks the open-loop torques drift into a joint's end, where the linearised terminal
+condition cannot be met). The problem is not convex: the plan is a local minimum, reached from its start (the plan's
+info says which). Two solvers (see SOLVERS):
 
 - the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights, a sixth of a second
   at N = 100; `nonlinear_optimal`'s default ('auto', SLSQP where it does not converge);
@@ -35,6 +38,7 @@ not planners for the inner loop, and never run unless named.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -44,6 +48,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from mjtraj.checks import choice, positive, positive_int
+from mjtraj.core.linearize import discretize_zoh, linearize_many
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners.base import Planner, register
 from mjtraj.core.planners.optimal import Optimal, check_weight_options, planner_weights
@@ -106,8 +111,49 @@ time, over scales 1, 3, 10 and 30 with factor 4, factors 2 and 8 at scale 10, an
 factors 2 and 4. No setting reached another optimum than SLSQP's on that set."""
 SQP_MAX_ITER = 40
 """The Gauss-Newton SQP's iterations before 'auto' turns to SLSQP."""
+TRACKING_ERROR = (0.01, 0.1)
+"""The tracked start's feedback is LQR along the linear plan with Bryson's weights for these largest tracking errors
+(rad, rad/s) and the torque bound (see `NonlinearOptimal._tracked_start`)."""
 CONSTRAINT_NAMES = ("the joint range (upper end)", "the joint range (lower end)", "the joint speed limit",
                     "the joint speed limit", "the torque bound", "the torque bound")
+
+
+START_NAMES = ("linear", "tracked")
+"""The solvers' starts, in the order tried (see `NonlinearOptimal._start` and `_tracked_start`)."""
+
+
+class _Starts:
+    """The starts of one plan by name: the linear one given, the tracked one computed when first asked for."""
+
+    def __init__(self, linear: NDArray[np.float64], tracked: Callable[[], NDArray[np.float64]]) -> None:
+        self._made: dict[str, NDArray[np.float64]] = {"linear": linear}
+        self._tracked = tracked
+
+    def get(self, name: str) -> NDArray[np.float64]:
+        """The start `name` (N n,).
+
+        Raises:
+          SolverError: the tracked rollout diverged.
+        """
+        if name not in self._made:
+            self._made[name] = self._tracked()
+        return self._made[name]
+
+
+def tracking_gains(Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.float64], R: NDArray[np.float64]
+                   ) -> NDArray[np.float64]:
+    """Finite-horizon LQR gains K_k (N, n, 2n) of x_{k+1} = Ad_k x_k + Bd_k u_k (Ad (N, 2n, 2n), Bd (N, 2n, n)) for
+    sum_{k=1..N} x_k^T Q x_k + sum_{k=0..N-1} u_k^T R u_k, u_k = -K_k x_k: the backward Riccati recursion from P_N = Q.
+    """
+    steps, nx, nu = Bd.shape
+    K = np.empty((steps, nu, nx))
+    P = Q
+    for k in range(steps - 1, -1, -1):
+        BP = Bd[k].T @ P
+        K[k] = np.linalg.solve(R + BP @ Bd[k], BP @ Ad[k])
+        P = Q + Ad[k].T @ P @ (Ad[k] - Bd[k] @ K[k])
+        P = 0.5 * (P + P.T)
+    return K
 
 
 @register("nonlinear_optimal", on_request=True)
@@ -126,10 +172,10 @@ class NonlinearOptimal(Planner):
       fd_eps: forward-difference step of the transition Jacobians.
       curvature_scale: SLSQP's quasi-Newton model starts at this multiple of the Gauss-Newton Hessian (see
         CURVATURE_SCALE).
-      solver: 'auto' = the Gauss-Newton SQP (`mjtraj.core.planners.sqp`) for at most sqp_max_iter iterations, then
-        SLSQP from the same start if it has not converged; 'sqp' = the Gauss-Newton SQP alone (an error if it does
-        not converge); 'slsqp' = SLSQP alone. 'auto' by default here, 'slsqp' for nonlinear_min_effort (see
-        SOLVERS).
+      solver: 'auto' = the Gauss-Newton SQP (`mjtraj.core.planners.sqp`) for at most sqp_max_iter iterations from
+        each start, then SLSQP if it has not converged; 'sqp' = the Gauss-Newton SQP alone (an error if it does
+        not converge from either start); 'slsqp' = SLSQP alone. 'auto' by default here, 'slsqp' for
+        nonlinear_min_effort (see SOLVERS).
       sqp_max_iter: the Gauss-Newton SQP's iterations.
     """
 
@@ -182,39 +228,52 @@ class NonlinearOptimal(Planner):
         x0 = np.concatenate([task.q0, np.zeros(n)])
         xg = np.concatenate([task.qg, np.zeros(n)])
         problem = Shooting(model, x0, xg, Q, R, task.steps, self.fd_eps)
-        start = self._start(task, model, problem, limits)
+        start, linear_plan = self._start(task, model, problem, limits)
+        starts = _Starts(start, lambda: self._tracked_start(task, linear_plan, problem, limits))
         if self.solver != "slsqp":
-            result = gauss_newton_sqp(problem, limits, start, curvature_scale=SQP_CURVATURE_SCALE,
-                                      shrink=SQP_SHRINK, max_iter=self.sqp_max_iter)
-            failure = result.message if not result.converged else self._unmet(problem, limits, result.u)
-            if failure is None:
-                U, X = problem.states(result.u)
-                return self._reference(task, U, X, problem.objective(result.u), "sqp", result.iterations, 1,
-                                       result.rows, 0, time.perf_counter() - clock)
+            failures = []
+            for name in START_NAMES:
+                try:
+                    result = gauss_newton_sqp(problem, limits, starts.get(name), curvature_scale=SQP_CURVATURE_SCALE,
+                                              shrink=SQP_SHRINK, max_iter=self.sqp_max_iter)
+                except SolverError as e:
+                    failures.append(f"from the {name} start: {e}")
+                    continue
+                failure = result.message if not result.converged else self._unmet(problem, limits, result.u)
+                if failure is None:
+                    U, X = problem.states(result.u)
+                    return self._reference(task, U, X, problem.objective(result.u), "sqp", name, result.iterations,
+                                           1, result.rows, 0, time.perf_counter() - clock)
+                failures.append(f"from the {name} start: {failure}")
+            failure = "; ".join(failures)
             if self.solver == "sqp":
-                raise SolverError(f"{self.name}: the Gauss-Newton SQP stopped: {failure}")
+                raise SolverError(f"{self.name}: the Gauss-Newton SQP stopped {failure}")
             try:
-                u, rounds, iterations, rows, retried = self._slsqp(problem, limits, start)
+                u, name, rounds, iterations, rows, retried = self._slsqp(problem, limits, starts)
             except (InfeasibleError, SolverError) as e:
-                raise type(e)(f"{e} (before SLSQP, the Gauss-Newton SQP stopped: {failure})") from None
+                raise type(e)(f"{e} (before SLSQP, the Gauss-Newton SQP stopped {failure})") from None
         else:
-            u, rounds, iterations, rows, retried = self._slsqp(problem, limits, start)
+            u, name, rounds, iterations, rows, retried = self._slsqp(problem, limits, starts)
         U, X, _, _ = problem.evaluate(u)
-        return self._reference(task, U, X, problem.objective(u), "slsqp", iterations, rounds, rows, retried,
+        return self._reference(task, U, X, problem.objective(u), "slsqp", name, iterations, rounds, rows, retried,
                                time.perf_counter() - clock)
 
-    def _slsqp(self, problem: Shooting, limits: PathLimits, start: NDArray[np.float64]
-               ) -> tuple[NDArray[np.float64], int, int, int, int]:
-        """SLSQP from `start`, once more with RETRY_FACTOR times the curvature scale if it fails: (u, rounds,
-        iterations, path rows, retried)."""
-        try:
-            return (*self._optimise(problem, limits, start, self.curvature_scale), 0)
-        except (InfeasibleError, SolverError) as first:
+    def _slsqp(self, problem: Shooting, limits: PathLimits, starts: _Starts
+               ) -> tuple[NDArray[np.float64], str, int, int, int, int]:
+        """SLSQP from the linear start, once more with RETRY_FACTOR times the curvature scale if it fails, then from
+        the tracked start: (u, the start's name, rounds, iterations, path rows, retries before it)."""
+        tries = (("linear", 1.0), ("linear", RETRY_FACTOR), ("tracked", 1.0))
+        failures: list[InfeasibleError | SolverError] = []
+        for retried, (name, factor) in enumerate(tries):
             try:
-                return (*self._optimise(problem, limits, start, RETRY_FACTOR * self.curvature_scale), 1)
-            except (InfeasibleError, SolverError) as second:
-                raise type(second)(f"{second} (also with curvature_scale {self.curvature_scale:g}: {first})") \
-                    from None
+                u, rounds, iterations, rows = self._optimise(problem, limits, starts.get(name),
+                                                             factor * self.curvature_scale)
+                return u, name, rounds, iterations, rows, retried
+            except (InfeasibleError, SolverError) as e:
+                failures.append(e)
+        first, second, tracked = failures
+        raise type(second)(f"{second} (also with curvature_scale {self.curvature_scale:g}: {first}) (from the tracked "
+                           f"start: {tracked})") from None
 
     @staticmethod
     def _unmet(problem: Shooting, limits: PathLimits, u: NDArray[np.float64]) -> str | None:
@@ -268,9 +327,11 @@ class NonlinearOptimal(Planner):
             raise SolverError(f"{self.name}: SLSQP stopped: {result.message} (status {result.status})")
         return u, rounds, iterations, int(rows.size)
 
-    def _start(self, task: Task, model: mujoco.MjModel, problem: Shooting, limits: PathLimits) -> NDArray[np.float64]:
-        """The first iterate: the linear optimal plan with these weights if its rollout keeps every path constraint,
-        else the linear minimum-effort plan (Q = 0, the zero-order-held slow move), flattened (N n,)."""
+    def _start(self, task: Task, model: mujoco.MjModel, problem: Shooting, limits: PathLimits
+               ) -> tuple[NDArray[np.float64], Reference]:
+        """The first iterate and the linear plan it comes from: the linear optimal plan with these weights if its
+        rollout keeps every path constraint, else the linear minimum-effort plan (Q = 0, the zero-order-held slow
+        move); its torques clipped to the bound, flattened (N n,)."""
         candidates = [self.linear()]
         if self.alpha != 0.0 or self.state_weight is not None:
             candidates.append(Optimal(input_weight=self.input_weight, alpha=0.0, torque_bound=self.torque_bound))
@@ -284,7 +345,28 @@ class NonlinearOptimal(Planner):
             U, X = problem.states(u)
             if np.all(limits.values(U, X) >= 0.0):
                 break
-        return u
+        return u, plan
+
+    def _tracked_start(self, task: Task, plan: Reference, problem: Shooting, limits: PathLimits
+                       ) -> NDArray[np.float64]:
+        """The second start, for a solve that failed from the first: the torques with which the nominal model tracks
+        the linear `plan`'s states under time-varying LQR feedback about them (`tracking_gains` on the model
+        linearised along the plan, TRACKING_ERROR), clipped to the bound; (N n,). The linear plan's open-loop
+        torques drift away on the nonlinear arm (on some tasks into a joint's end, where the rollout's
+        sensitivities vanish and the linearised terminal condition cannot be met); tracked, the rollout stays
+        near the plan's path and ends near the goal.
+
+        Raises:
+          SolverError: the tracked rollout diverged.
+        """
+        assert plan.u_plan is not None
+        A, B = linearize_many(problem.model, plan.q[:-1], plan.qd[:-1], plan.u_plan)
+        Ad, Bd = discretize_zoh(A, B, task.dt)
+        position, speed = TRACKING_ERROR
+        Q = np.diag(np.concatenate([np.full(task.n, position ** -2.0), np.full(task.n, speed ** -2.0)]))
+        K = tracking_gains(Ad, Bd, Q, np.diag(limits.u_max ** -2.0))
+        X_ref = np.concatenate([plan.q, plan.qd], axis=1)
+        return problem.tracked(plan.u_plan, X_ref, K, limits.u_max).ravel()
 
     def _solve(self, problem: Shooting, limits: PathLimits, rows: NDArray[np.intp], u: NDArray[np.float64],
                f_scale: float, t_scale: NDArray[np.float64], scale: float) -> scipy.optimize.OptimizeResult:
@@ -328,7 +410,7 @@ class NonlinearOptimal(Planner):
         return f"{CONSTRAINT_NAMES[group]} of joint {joint} at sample {sample}"
 
     def _reference(self, task: Task, U: NDArray[np.float64], X: NDArray[np.float64], objective: float, solver: str,
-                   iterations: int, rounds: int, rows: int, retried: int, wall: float) -> Reference:
+                   start: str, iterations: int, rounds: int, rows: int, retried: int, wall: float) -> Reference:
         """The rollout X (N+1, 2n) under U (N, n) as a Reference: qdd is the ZOH acceleration per step."""
         n = task.n
         terminal = float(np.max(np.abs(X[-1] - np.concatenate([task.qg, np.zeros(n)]))))
@@ -337,8 +419,8 @@ class NonlinearOptimal(Planner):
         qdd[:-1] = np.diff(qd, axis=0) / task.dt
         q[-1] = task.qg  # within 1e-8 (checked): the samples end exactly on the goal, at rest
         qd[-1] = 0.0
-        info = {"objective": objective, "solver": solver, "iterations": iterations, "rounds": rounds, "path_rows": rows,
-                "retried": retried, "terminal_residual": terminal, "plan_time": wall}
+        info = {"objective": objective, "solver": solver, "start": start, "iterations": iterations, "rounds": rounds,
+                "path_rows": rows, "retried": retried, "terminal_residual": terminal, "plan_time": wall}
         return Reference(planner=self.name, t=task.times, q=q, qd=qd, qdd=qdd, u_plan=U.copy(), info=info)
 
 

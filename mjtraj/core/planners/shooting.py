@@ -49,6 +49,10 @@ class Shooting:
         self.data = mujoco.MjData(self.model)
         self.batch = Batch(self.model, self.steps * 3 * self.n, nthread=1)
         self._bind = (self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl"))
+        limited = self.model.actuator_ctrllimited.astype(bool)
+        self._ctrl_high = np.where(limited, self.model.actuator_ctrlrange[:, 1], np.inf)
+        """Each control's upper end (inf where unlimited): MuJoCo clamps ctrl there, so a torque on it is
+        differenced backwards (a forward difference would see no effect)."""
 
     def rollout(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
         """States x_0..x_N of the model under U (N, n) from x0; shape (N+1, 2n).
@@ -69,6 +73,28 @@ class Shooting:
             raise SolverError("the rollout of an iterate diverged (MuJoCo reset the simulation)")
         return X
 
+    def tracked(self, U: NDArray[np.float64], X_ref: NDArray[np.float64], K: NDArray[np.float64],
+                u_max: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The torques (N, n) with which the model tracks the states X_ref (N+1, 2n) from x0 under the feedback
+        u_k = clip(U_k + K_k (X_ref_k - x_k), -u_max, u_max), K (N, n, 2n); rolled out step by step, so that their
+        open-loop rollout (`rollout`) is the tracked motion, bit for bit.
+
+        Raises:
+          SolverError: MuJoCo had to reset the simulation (the tracked motion diverged).
+        """
+        n, d = self.n, self.data
+        out = np.empty_like(U)
+        mujoco.mj_resetData(self.model, d)
+        d.qpos[:], d.qvel[:] = self.x0[:n], self.x0[n:]
+        for k in range(U.shape[0]):
+            error = X_ref[k] - np.concatenate([d.qpos, d.qvel])
+            out[k] = np.clip(U[k] + K[k] @ error, -u_max, u_max)
+            d.ctrl[:] = out[k]
+            mujoco.mj_step(self.model, d)
+        if any(d.warning[w].number for w in UNSTABLE):
+            raise SolverError("the tracked rollout diverged (MuJoCo reset the simulation)")
+        return out
+
     def states(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(U, X) at u without derivatives (a line search's trial point); the last point is cached."""
         key = u.tobytes()
@@ -83,16 +109,19 @@ class Shooting:
     def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """A_k (N, 2n, 2n) and B_k (N, 2n, n) of one control period at each (x_k, u_k), forward differences from the
-        rollout's own steps X[k+1]."""
-        n, N, eps = self.n, self.steps, self.eps
+        rollout's own steps X[k+1]; backward for a torque within eps of its control's upper end, which MuJoCo
+        clamps (a forward difference there sees no effect, and a plan's torques sit on their bound)."""
+        n, N = self.n, self.steps
         point = np.concatenate([X[:-1], U], axis=1)
-        z = (point[:, None, :] + eps * np.eye(3 * n)[None]).reshape(-1, 3 * n)
+        steps = np.full((N, 3 * n), self.eps)
+        steps[:, 2 * n:] = np.where(U + self.eps > self._ctrl_high, -self.eps, self.eps)
+        z = (point[:, None, :] + steps[:, :, None] * np.eye(3 * n)[None]).reshape(-1, 3 * n)
         qpos, qvel, ctrl = self._bind
         self.batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
         qpos[:], qvel[:], ctrl[:] = z[:, :n], z[:, n:2 * n], z[:, 2 * n:]
         self.batch.step(None, 1)
         after = np.concatenate([qpos, qvel], axis=1).reshape(N, 3 * n, 2 * n)
-        jac = (after - X[1:, None, :]).transpose(0, 2, 1) / eps
+        jac = ((after - X[1:, None, :]) / steps[:, :, None]).transpose(0, 2, 1)
         return jac[:, :, :2 * n], jac[:, :, 2 * n:]
 
     def evaluate(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
