@@ -192,21 +192,29 @@ def test_a_store_read_once_gives_the_two_pass_output(tmp_path, monkeypatch, edit
                                                         TURNS_WHOLE: ("REAL", "INTEGER")}[edit]
 
 
-@pytest.mark.parametrize("suffix", [".csv", ".jsonl", ".sqlite"])
-def test_progress_counts_the_rows_written_up_to_the_sweeps_rows(tmp_path, monkeypatch, suffix):
-    """export's progress(done, total): total is the sweep's row count, done grows chunk by chunk to it, and starts
-    again from zero only when a store's typed output is rewritten (a later row changed a column's kind)."""
-    from mjtraj.study import export as export_module
-
-    monkeypatch.setattr(export_module, "CHUNK", 3)
-    store = tmp_path / "s.sqlite"
+@pytest.fixture(scope="module")
+def turned(tmp_path_factory):
+    """A store whose last row turns a number column to text, its row count, and its rows as a CSV file."""
+    folder = tmp_path_factory.mktemp("turned")
+    store = folder / "s.sqlite"
     run_sweep(SweepSettings(families=("nominal", "mismatch"), scenarios=3, batch=2, planners=("cubic",)), store,
               progress=False)
     with sqlite3.connect(store) as connection:
         connection.execute(TURNS_TEXT)
         rows = connection.execute("SELECT COUNT(*) FROM rows").fetchone()[0]
-    export(store, tmp_path / "rows.csv")
-    for source in (store, tmp_path / "rows.csv"):
+    export(store, folder / "rows.csv")
+    return store, rows, folder / "rows.csv"
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".jsonl", ".sqlite"])
+def test_progress_counts_the_rows_written_up_to_the_sweeps_rows(tmp_path, monkeypatch, turned, suffix):
+    """export's progress(done, total): total is the sweep's row count, done grows chunk by chunk to it, and starts
+    again from zero only when a store's typed output is rewritten (a later row changed a column's kind)."""
+    from mjtraj.study import export as export_module
+
+    monkeypatch.setattr(export_module, "CHUNK", 3)
+    store, rows, text = turned
+    for source in (store, text):
         calls: list[tuple[int, int]] = []
         assert export(source, tmp_path / f"out{suffix}", progress=lambda *a, calls=calls: calls.append(a)) == rows
         assert {total for _, total in calls} == {rows} and calls[-1][0] == rows

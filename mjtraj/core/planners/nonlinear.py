@@ -8,16 +8,17 @@ nominal arm can make the move, the effort bound of the study.
 
 Method: sequential quadratic programming in single-shooting form (`mjtraj.core.planners.shooting`). The variables
 are the N n torques; every iterate is rolled out exactly on the model, so every plan is realisable. The transition's
-Jacobians A_k, B_k come from forward finite differences of mj_step about the rollout's own steps, all N (3n)
-perturbed steps in one mujoco.batch call (MuJoCo's mjd_transitionFD does not support RK4); forward sensitivities
-dx_k/dU give the constraints' Jacobians and the objective's gradient. The path constraints (ranges, speed, torque)
-are screened: only rows within reach of their limit enter a solve; the returned plan is checked against every
-constraint. The start is the linear optimal planner's plan for the same weights when its rollout keeps every path
-constraint, else the linear minimum-effort plan (Q = 0: the zero-order-held slow move). Where a solver fails from
-it, it starts once more from the tracked start: the torques with which the model follows that linear plan's states
-under LQR feedback (on some tasks the open-loop torques drift into a joint's end, where the linearised terminal
-condition cannot be met). The problem is not convex: the plan is a local minimum, reached from its start (the plan's
-info says which). Two solvers (see SOLVERS):
+Jacobians A_k, B_k come from forward finite differences of mj_step about the rollout's own steps (backward for a
+torque on its control's upper end, where MuJoCo clamps), all N (3n) perturbed steps in one mujoco.batch call
+(MuJoCo's mjd_transitionFD does not support RK4); forward sensitivities dx_k/dU give the constraints' Jacobians and
+the objective's gradient. The path constraints (ranges, speed, torque) are screened: only rows within reach of their
+limit enter a solve; the returned plan is checked against every constraint. The start is the linear optimal
+planner's plan for the same weights when its rollout keeps every path constraint, else the linear minimum-effort
+plan (Q = 0: the zero-order-held slow move). Where a solver fails from it, it starts once more from the tracked
+start: the torques with which the model follows that linear plan's states under LQR feedback (on some tasks the
+open-loop torques drift into a joint's end, where the linearised terminal condition cannot be met). The problem is
+not convex: the plan is a local minimum, reached from its start (the plan's info says which). Two solvers (see
+SOLVERS):
 
 - the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights, a sixth of a second
   at N = 100; `nonlinear_optimal`'s default ('auto', SLSQP where it does not converge);
