@@ -49,10 +49,10 @@ class Shooting:
         self.data = mujoco.MjData(self.model)
         self.batch = Batch(self.model, self.steps * 3 * self.n, nthread=1)
         self._bind = (self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl"))
+        # each control's upper end (inf where unlimited): MuJoCo clamps ctrl there, so `jacobians` differences a
+        # torque on it backwards (a forward difference would see no effect)
         limited = self.model.actuator_ctrllimited.astype(bool)
         self._ctrl_high = np.where(limited, self.model.actuator_ctrlrange[:, 1], np.inf)
-        """Each control's upper end (inf where unlimited): MuJoCo clamps ctrl there, so a torque on it is
-        differenced backwards (a forward difference would see no effect)."""
 
     def rollout(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
         """States x_0..x_N of the model under U (N, n) from x0; shape (N+1, 2n).
