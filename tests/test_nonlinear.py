@@ -427,6 +427,8 @@ def drifting(model):
 def test_a_start_drifting_into_a_joints_end_is_planned_from_the_tracked_start(model, drifting):
     """From the linear start the Gauss-Newton SQP finds no step (the linearised terminal condition cannot be met);
     from the tracked start it converges, and the plan holds every constraint."""
+    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
+    from mjtraj.core.planners.optimal import planner_weights
     from mjtraj.core.planners.sqp import gauss_newton_sqp
 
     planner = make("nonlinear_optimal")
@@ -434,15 +436,11 @@ def test_a_start_drifting_into_a_joints_end_is_planned_from_the_tracked_start(mo
     n = drifting.n
     limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
     x0, xg = (np.concatenate([q, np.zeros(n)]) for q in (drifting.q0, drifting.qg))
-    from mjtraj.core.planners.optimal import planner_weights
-
     Q, R = planner_weights(drifting, joints.torque_limit, None, None, 1.0, 0.5)
     problem = Shooting(model, x0, xg, Q, R, drifting.steps, 1e-7)
     start, _ = planner._start(drifting, model, problem, limits)
-    U, X = problem.states(start)
+    _, X = problem.states(start)
     assert X[:, 1].min() < joints.lower[1] + 1e-3  # into joint 1's lower end
-    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
-
     stuck = gauss_newton_sqp(problem, limits, start, curvature_scale=SQP_CURVATURE_SCALE, shrink=SQP_SHRINK,
                              max_iter=40)
     assert not stuck.converged and stuck.message == "the linearised constraints admit no step"
