@@ -9,6 +9,7 @@ constraints (joint ranges, speed limit, torque bound) as rows h >= 0.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -60,18 +61,7 @@ class Shooting:
         Raises:
           SolverError: MuJoCo had to reset the simulation (the rollout diverged).
         """
-        n, d = self.n, self.data
-        X = np.empty((U.shape[0] + 1, 2 * n))
-        X[0] = self.x0
-        mujoco.mj_resetData(self.model, d)
-        d.qpos[:], d.qvel[:] = self.x0[:n], self.x0[n:]
-        for k, u in enumerate(U):
-            d.ctrl[:] = u
-            mujoco.mj_step(self.model, d)
-            X[k + 1, :n], X[k + 1, n:] = d.qpos, d.qvel
-        if any(d.warning[w].number for w in UNSTABLE):
-            raise SolverError("the rollout of an iterate diverged (MuJoCo reset the simulation)")
-        return X
+        return self._simulate(U.shape[0], lambda k, x: U[k], "the rollout of an iterate")[1]
 
     def tracked(self, U: NDArray[np.float64], X_ref: NDArray[np.float64], K: NDArray[np.float64],
                 u_max: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -82,18 +72,31 @@ class Shooting:
         Raises:
           SolverError: MuJoCo had to reset the simulation (the tracked motion diverged).
         """
+        return self._simulate(U.shape[0], lambda k, x: np.clip(U[k] + K[k] @ (X_ref[k] - x), -u_max, u_max),
+                              "the tracked rollout")[0]
+
+    def _simulate(self, steps: int, control: Callable[[int, NDArray[np.float64]], NDArray[np.float64]], what: str
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Step the model from x0 for `steps` control periods with u_k = control(k, x_k): (U (steps, n), X (steps+1,
+        2n)).
+
+        Raises:
+          SolverError: MuJoCo had to reset the simulation (`what` diverged).
+        """
         n, d = self.n, self.data
-        out = np.empty_like(U)
+        U = np.empty((steps, n))
+        X = np.empty((steps + 1, 2 * n))
+        X[0] = self.x0
         mujoco.mj_resetData(self.model, d)
         d.qpos[:], d.qvel[:] = self.x0[:n], self.x0[n:]
-        for k in range(U.shape[0]):
-            error = X_ref[k] - np.concatenate([d.qpos, d.qvel])
-            out[k] = np.clip(U[k] + K[k] @ error, -u_max, u_max)
-            d.ctrl[:] = out[k]
+        for k in range(steps):
+            U[k] = control(k, X[k])
+            d.ctrl[:] = U[k]
             mujoco.mj_step(self.model, d)
+            X[k + 1, :n], X[k + 1, n:] = d.qpos, d.qvel
         if any(d.warning[w].number for w in UNSTABLE):
-            raise SolverError("the tracked rollout diverged (MuJoCo reset the simulation)")
-        return out
+            raise SolverError(f"{what} diverged (MuJoCo reset the simulation)")
+        return U, X
 
     def states(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(U, X) at u without derivatives (a line search's trial point); the last point is cached."""
