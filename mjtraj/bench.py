@@ -145,7 +145,8 @@ def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int 
     linear = make("optimal")
     out: dict[str, Any] = {"linear_s": _median_time(lambda: linear.plan(task, model), repeats),
                            "scurve_s": _median_time(lambda: scurve.plan(task, model), repeats),
-                           "loop_s": _median_time(execute, repeats), "steps": task.steps}
+                           "loop_s": _median_time(execute, repeats), "steps": task.steps,
+                           "threads": Batch(model, 3 * task.n * task.steps, nthread=0).nthread}  # as Shooting's
     for name in NEW_PLANNERS[1:]:
         for solver in NONLINEAR_SOLVERS:
             try:
@@ -468,9 +469,12 @@ def synthetic_store(path: str, rows: int) -> int:
 
 
 def _peak_child(target: Callable[[], object]) -> tuple[float, float]:
-    """(wall s, peak resident memory MB) of `target` run alone in a fresh process (fork)."""
+    """(wall s, peak resident memory MB) of `target` run alone in a fresh process (fork). The memory is that of
+    the process and every process it starts (an export's workers), summed: sampled every TREE_SAMPLE_S where
+    Linux's /proc lists a process's children, never below the process's own peak."""
     import multiprocessing
     import resource
+    import threading
 
     def run(pipe: Any) -> None:
         start = time.perf_counter()
@@ -481,9 +485,40 @@ def _peak_child(target: Callable[[], object]) -> tuple[float, float]:
     parent, child = context.Pipe()
     process = context.Process(target=run, args=(child,))
     process.start()
+    assert process.pid is not None
+    sampled = [0.0]
+    done = threading.Event()
+
+    def sample(pid: int = process.pid) -> None:
+        while not done.wait(TREE_SAMPLE_S):
+            sampled[0] = max(sampled[0], _tree_rss_mb(pid))
+
+    watcher = threading.Thread(target=sample, daemon=True)
+    watcher.start()
     wall, peak = parent.recv()
+    done.set()
+    watcher.join()
     process.join()
-    return float(wall), float(peak)
+    return float(wall), max(float(peak), sampled[0])
+
+
+TREE_SAMPLE_S = 0.05
+"""How often `_peak_child` sums the resident memory of a process and its descendants."""
+
+
+def _tree_rss_mb(pid: int) -> float:
+    """The resident memory (MB) of process `pid` and its descendants now, from /proc (0 where it is not there)."""
+    total, todo = 0.0, [pid]
+    while todo:
+        now = todo.pop()
+        try:
+            with open(f"/proc/{now}/status") as f:
+                total += next((int(line.split()[1]) for line in f if line.startswith("VmRSS:")), 0) / 1024
+            with open(f"/proc/{now}/task/{now}/children") as f:
+                todo.extend(int(child) for child in f.read().split())
+        except (OSError, ValueError):
+            continue
+    return total
 
 
 STORE_STAGES = ("export .csv", "export .jsonl", "export .sqlite", "audit --no-tasks")

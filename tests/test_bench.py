@@ -55,13 +55,15 @@ def test_new_planners_table_prints_what_it_measured(capsys):
             seconds, times, iterations, objective = float(row[1]), int(row[2]), int(row[3]), float(row[4])
             assert times == pytest.approx(seconds / linear, rel=0.02, abs=1) and iterations >= 1 and objective > 0
     assert "over 2 nominal scenarios" in out
-    families = re.findall(r"^(nonlinear_\w+)\s+(auto|sqp|slsqp)(\*?)\s+(\d+)\s+([0-9.]+)\s+([0-9.]+)\s+(\d+)\s+"
-                          r"(\d+)\s+([+-][0-9.]+e[+-]\d+)\s+(\d+)$", out, re.MULTILINE)
+    assert re.search(r"batched differences on [1-9][0-9]* threads", out)
+    families = re.findall(r"^(nonlinear_\w+)\s+(auto|sqp|slsqp)(\*?)\s+(\d+)\s+([0-9.]+)\s+(\d+)\s+([0-9.]+)\s+"
+                          r"(\d+)\s+(\d+)\s+([+-][0-9.]+e[+-]\d+)\s+(\d+)$", out, re.MULTILINE)
     assert {(name, solver, star) for name, solver, star, *_ in families} == {
         ("nonlinear_min_effort", "slsqp", "*"), ("nonlinear_min_effort", "sqp", ""),
         ("nonlinear_optimal", "auto", "*"), ("nonlinear_optimal", "sqp", ""), ("nonlinear_optimal", "slsqp", "")}
-    for _, solver, _, failed, median, largest, by_slsqp, tracked, gap, worse in families:
+    for _, solver, _, failed, median, times, largest, by_slsqp, tracked, gap, worse in families:
         assert float(median) <= float(largest) + 0.005  # printed to 3 and 2 decimals
+        assert int(times) == pytest.approx(float(median) / linear, rel=0.02, abs=1)
         assert int(tracked) <= 2 - int(failed)
         if solver == "slsqp":  # the reference of the gaps, and every plan its own
             assert (int(failed), int(by_slsqp), float(gap), int(worse)) == (0, 2, 0.0, 0)

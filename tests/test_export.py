@@ -157,6 +157,16 @@ TURNS_TEXT = "UPDATE rows SET duration = 'fast' WHERE family = 'mismatch' AND sc
 TURNS_WHOLE = "UPDATE rows SET payload_kg = '3' WHERE family = 'mismatch'"
 
 
+def _edited_store(store, edit):
+    """A small two-family store at `store`, then the SQL `edit` (None: none) run on it."""
+    run_sweep(SweepSettings(families=("nominal", "mismatch"), scenarios=3, batch=2, planners=("cubic",)), store,
+              progress=False)
+    if edit:
+        with sqlite3.connect(store) as connection:
+            connection.execute(edit)
+    return store
+
+
 @pytest.mark.parametrize("edit", [None, TURNS_TEXT, TURNS_WHOLE])
 def test_a_store_read_once_gives_the_two_pass_output(tmp_path, monkeypatch, edit):
     """A store's typed exports are written as its rows are read; where a later row changes a column's kind (a
@@ -166,14 +176,10 @@ def test_a_store_read_once_gives_the_two_pass_output(tmp_path, monkeypatch, edit
 
     monkeypatch.setattr(export_module, "CHUNK", 3)  # several chunks, the change in a later one
     writes = []
-    write_jsonl = export_module._write_jsonl
-    monkeypatch.setattr(export_module, "_write_jsonl", lambda *a: writes.append(a[2]) or write_jsonl(*a))
-    store = tmp_path / "s.sqlite"
-    run_sweep(SweepSettings(families=("nominal", "mismatch"), scenarios=3, batch=2, planners=("cubic",)), store,
-              progress=False)
-    if edit:
-        with sqlite3.connect(store) as connection:
-            connection.execute(edit)
+    part_steps = export_module._part_steps
+    monkeypatch.setattr(export_module, "_part_steps",
+                        lambda *a: (writes.append(a[5]) if a[3] == "jsonl" else None) or part_steps(*a))
+    store = _edited_store(tmp_path / "s.sqlite", edit)
     export(store, tmp_path / "rows.csv")
     for suffix in (".jsonl", ".sqlite"):
         export(store, tmp_path / f"mine{suffix}")
@@ -190,6 +196,46 @@ def test_a_store_read_once_gives_the_two_pass_output(tmp_path, monkeypatch, edit
     kinds = {r[1]: r[2] for r in sqlite3.connect(tmp_path / "mine.sqlite").execute(f"PRAGMA table_info({TABLE})")}
     assert (kinds["duration"], kinds["payload_kg"]) == {None: ("REAL", "REAL"), TURNS_TEXT: ("TEXT", "REAL"),
                                                         TURNS_WHOLE: ("REAL", "INTEGER")}[edit]
+
+
+TURNS_ONE_PART = "UPDATE rows SET payload_kg = '3' WHERE NOT (family = 'nominal' AND scenario = '1')"
+"""Whole payloads everywhere but in the second row: in parts of a row each, that part alone is read as REAL."""
+
+
+@pytest.mark.parametrize("edit", [None, TURNS_TEXT, TURNS_WHOLE, TURNS_ONE_PART])
+def test_an_export_on_several_processes_is_the_one_process_export(tmp_path, edit):
+    """A store exported in parts on 2 and 3 processes, appended in order, is the export on one: CSV and JSON Lines
+    byte for byte, SQLite dump for dump, also where a row of a later part changes a column's kind (every part
+    written under other kinds as read is written again: from the first one, or that part alone); progress ends
+    at every row."""
+    store = _edited_store(tmp_path / "s.sqlite", edit)
+    rows = sqlite3.connect(store).execute("SELECT COUNT(*) FROM rows").fetchone()[0]
+    for suffix in (".csv", ".jsonl", ".sqlite"):
+        outputs = []
+        for workers in (1, 2, 3):
+            calls: list[tuple[int, int]] = []
+            out = tmp_path / f"w{workers}{suffix}"
+            assert export(store, out, progress=lambda *a, calls=calls: calls.append(a), workers=workers) == rows
+            assert calls[-1] == (rows, rows)
+            if suffix == ".sqlite":
+                with sqlite3.connect(out) as connection:
+                    outputs.append(list(connection.iterdump()))
+            else:
+                outputs.append(out.read_bytes())
+            assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no part left behind
+        assert outputs[1] == outputs[0] and outputs[2] == outputs[0], suffix
+
+
+def test_export_workers_follow_the_rows_and_refuse_a_bad_count(sweep, tmp_path):
+    from mjtraj.study.export import MAX_WORKERS, PART_ROWS, export_workers
+
+    assert export_workers(None, PART_ROWS - 1) == 1
+    assert 1 <= export_workers(None, 100 * PART_ROWS) <= MAX_WORKERS
+    assert export_workers(3, 2) == 2 and export_workers(2, 10) == 2
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(InvalidInputError, match=rf"^workers: expected a whole number >= 1, got {bad!r}$"):
+            export(sweep, tmp_path / "x.jsonl", workers=bad)
+    assert not (tmp_path / "x.jsonl").exists()
 
 
 @pytest.fixture(scope="module")
@@ -237,9 +283,10 @@ def test_an_infinity_is_refused_by_json_lines_and_other_nans_are_missing(tmp_pat
     assert [row["cost"] is None for row in lines] == [row["scenario"] == 1 for row in lines]
     with sqlite3.connect(store) as connection:
         connection.execute("UPDATE rows SET rms_err = 'inf' WHERE scenario = '2'")
-    with pytest.raises(InvalidInputError, match=r"^sweep: column 'rms_err' holds a number JSON cannot hold \("):
-        export(store, tmp_path / "bad.jsonl")
-    assert not (tmp_path / "bad.jsonl").exists()
+    for workers in (1, 2):  # in a part on a process of its own too: the same error, nothing left behind
+        with pytest.raises(InvalidInputError, match=r"^sweep: column 'rms_err' holds a number JSON cannot hold \("):
+            export(store, tmp_path / "bad.jsonl", workers=workers)
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith((".", "bad"))]
     export(store, tmp_path / "ok.sqlite")
     stored = sqlite3.connect(tmp_path / "ok.sqlite").execute(f"SELECT rms_err FROM {TABLE} WHERE scenario = 2")
     assert {value for (value,) in stored} == {math.inf}

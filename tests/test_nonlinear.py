@@ -480,3 +480,48 @@ def test_a_torque_on_its_upper_bound_has_its_effect_in_the_transition_jacobian(m
     _, B_open = theirs.jacobians(X, U)
     np.testing.assert_allclose(B, B_open, rtol=0, atol=1e-6 * np.abs(B_open).max())
     assert np.abs(B[0]).max() > 0.1 * np.abs(B_open[0]).max()  # not the forward difference's zero column
+
+
+def test_the_transition_jacobian_is_one_fresh_simulation_per_difference_bit_for_bit(model):
+    """Shooting.jacobians steps every perturbed point in one batch on every CPU, restores the batch's reset rows by a
+    copy, and steps a copy of the model without collision detection (no geom of the arm can touch another). Oracle:
+    a fresh MjData of the model itself per perturbed point, stepped once; equal bit for bit, on a motion that rides
+    a joint's end (the constraint solver at work), at a second point too (nothing carried over)."""
+    n, N = 3, 25
+    x0 = np.array([0.0, -np.pi / 2, model.jnt_range[2, 0] + 0.05, 0.0, 0.0, -1.0])  # the elbow near its lower end
+    problem = Shooting(model, x0, x0, np.eye(2 * n), np.eye(n), N, 1e-6)
+    rng = np.random.default_rng(3)
+    limited = 0
+    for scale in (60.0, 10.0):
+        U = np.clip(rng.normal(scale=scale, size=(N, n)), -60.0, 59.9)
+        X = problem.rollout(U)
+        A, B = problem.jacobians(X, U)
+        data = mujoco.MjData(model)
+        for k in range(N):
+            limited += X[k, 2] < model.jnt_range[2, 0] + 1e-3
+            for j in range(3 * n):
+                mujoco.mj_resetData(model, data)
+                point = np.concatenate([X[k], U[k]])
+                point[j] += 1e-6
+                data.qpos[:], data.qvel[:], data.ctrl[:] = point[:n], point[n:2 * n], point[2 * n:]
+                mujoco.mj_step(model, data)
+                column = (np.concatenate([data.qpos, data.qvel]) - X[k + 1]) / 1e-6
+                np.testing.assert_array_equal(column, A[k][:, j] if j < 2 * n else B[k][:, j - 2 * n])
+    assert limited > 0
+    assert problem._stepped.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+    assert not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT  # the caller's model untouched
+
+
+def test_a_model_whose_geoms_can_touch_keeps_its_collision_detection():
+    """Where two geoms can collide, the shooting problem steps the model itself, contacts and all."""
+    from mjtraj.core.planners.shooting import _collision_free
+
+    model = mujoco.MjModel.from_xml_string("""
+    <mujoco><worldbody><geom type="plane" size="1 1 0.1"/>
+      <body pos="0 0 0.2"><joint name="j" type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.05"/></body></worldbody>
+      <actuator><motor joint="j" ctrlrange="-1 1"/></actuator></mujoco>""")
+    assert _collision_free(model) is model
+    model.geom_conaffinity[:] = 0
+    free = _collision_free(model)
+    assert free is not model and free.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT

@@ -12,26 +12,26 @@ exported (a torn or unfinished file is refused, as the audit refuses it); the ou
 from __future__ import annotations
 
 import collections
+import contextlib
 import csv
 import io
 import itertools
 import math
+import multiprocessing
 import os
 import shutil
 import sqlite3
-from collections.abc import Callable, Iterable, Iterator, Sequence
+import tempfile
+from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from json.encoder import encode_basestring_ascii  # type: ignore[attr-defined]
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path
-from mjtraj.study.audit import expected_rows
 from mjtraj.study.store import VERSION_COLUMNS, iter_cells
-from mjtraj.study.sweep_store import is_sqlite_file, planner_row_counts
+from mjtraj.study.sweep_store import is_sqlite_file, iter_store_cells, planner_row_counts, rowid_bounds, store_rows
 
 FORMATS = {".sqlite": "sqlite", ".db": "sqlite", ".jsonl": "jsonl", ".csv": "csv"}
 TEXT_COLUMNS = ("family", "planner", "ff_accel", "gravity_comp", "status", "reason", "solver", "config",
@@ -68,6 +68,13 @@ class ColumnKinds:
                 if "." in text or "e" in text or "E" in text:
                     self._whole[column] = False
         return out
+
+    def merge(self, other: ColumnKinds) -> None:
+        """Account for the rows `other` accounted for (the kinds do not depend on the rows' order)."""
+        for c in self.columns:
+            self._text[c] = self._text[c] or other._text[c]
+            self._present[c] = self._present[c] or other._present[c]
+            self._whole[c] = self._whole[c] and other._whole[c]
 
     def kinds(self) -> dict[str, str]:
         """column -> 'TEXT', 'INTEGER' (every present cell written whole) or 'REAL'."""
@@ -196,6 +203,8 @@ def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[li
     """The first pass over `sweep`: its columns, their kinds (if `kinds_needed`) and its row count, refusing a
     sweep that is not one, or is torn or unfinished (the rule of `complete_units` and `expected_rows`, counted
     unit by unit). Reads cells, not dicts: only the key columns are looked at unless kinds are needed."""
+    from mjtraj.study.audit import expected_rows  # here: an export's worker processes need not load the audit
+
     cells = iter_cells(sweep)
     columns = list(next(cells))
     first_values = next(cells, None)
@@ -223,8 +232,8 @@ def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[li
             if gathered is not None:
                 gathered.add(chunk)
     try:
-        per_scenario = int(np.prod([len(first[k].split("+")) for k in ("sweep_planners", "sweep_ff_accel",
-                                                                       "sweep_gravity_comp")]))
+        per_scenario = math.prod(len(first[k].split("+")) for k in ("sweep_planners", "sweep_ff_accel",
+                                                                    "sweep_gravity_comp"))
         batch, scenarios = int(first["sweep_batch"]), int(first["sweep_scenarios"])
         torn = any(n != per_scenario * min(batch, scenarios - int(unit) * batch) for (_, unit), n in counts.items())
     except (KeyError, ValueError) as e:
@@ -241,27 +250,53 @@ def _batched(rows: Iterator[tuple[str, ...]]) -> Iterator[list[tuple[str, ...]]]
         yield chunk
 
 
-def _cell_chunks(sweep: str | os.PathLike[str]) -> Iterator[list[tuple[str, ...]]]:
-    """The rows of `sweep` as cells in the header's order, in lists of at most CHUNK."""
-    cells = iter_cells(sweep)
+def _cell_chunks(sweep: str | os.PathLike[str], rowids: tuple[int | None, int | None] | None = None
+                 ) -> Iterator[list[tuple[str, ...]]]:
+    """The rows of `sweep` (of its rowids [low, high) if given: a part of a store) as cells in the header's order,
+    in lists of at most CHUNK."""
+    cells = iter_store_cells(sweep, rowids=rowids) if rowids is not None else iter_cells(sweep)
     next(cells)
     yield from _batched(cells)
 
 
-def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str],
-           progress: Callable[[int, int], None] | None = None) -> int:
-    """Write the complete sweep `sweep` (store or CSV file) to `out` (format by suffix: .sqlite or .db, .jsonl,
-    .csv); return the rows. CHUNK rows in memory at a time: bounded memory, time proportional to the rows.
-    `progress(rows written, rows)` is called after each chunk written (again from 0 if the output is rewritten).
+PART_ROWS = 100_000
+"""A store's export runs on several processes when each can take at least this many rows ..."""
+MAX_WORKERS = 4
+"""... on at most this many by default (one per CPU), each holding CHUNK rows at a time: about 70 MB each."""
 
-    A CSV file is read twice (checks and column kinds, then the output). A store is checked by SQLite and read
-    once where it can be: the typed formats are written under the kinds of the rows read so far, which is the
-    output of two passes as long as no later row changes a column's kind (a column whose first cells are all
-    missing and whose later ones are whole numbers, a number column that turns to text); when one does, the
-    output is written again under the kinds of every row.
+
+def export_workers(workers: int | None, rows: int) -> int:
+    """The processes that export `rows` rows of a store: `workers` if given, else one per CPU this process may
+    use, at most MAX_WORKERS and one per PART_ROWS rows; never more than the rows.
 
     Raises:
-      InvalidInputError: unknown output suffix, no such sweep file, or a torn or unfinished sweep.
+      InvalidInputError: `workers` below 1.
+    """
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise InvalidInputError(f"workers: expected a whole number >= 1, got {workers!r}")
+    if workers is None:
+        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        workers = min(cpus, MAX_WORKERS, rows // PART_ROWS)
+    return max(1, min(workers, rows))
+
+
+def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str],
+           progress: Callable[[int, int], None] | None = None, workers: int | None = None) -> int:
+    """Write the complete sweep `sweep` (store or CSV file) to `out` (format by suffix: .sqlite or .db, .jsonl,
+    .csv); return the rows. CHUNK rows in memory at a time per process: bounded memory, time proportional to the
+    rows. `progress(rows written, rows)` is called as chunks are written (again from the rows kept if some output
+    is rewritten).
+
+    A CSV file is read twice (checks and column kinds, then the output). A store is checked by SQLite and read
+    once where it can be, in consecutive parts of its rows on `workers` processes (`export_workers`; parts
+    written side by side, then joined in order: the same output as one process): each part is written under the
+    kinds of its rows read so far, which is the output of two passes as long as no later row of the store changes
+    a column's kind (a column whose first cells are all missing and whose later ones are whole numbers, a number
+    column that turns to text); the parts written under other kinds than every row's are written again.
+
+    Raises:
+      InvalidInputError: unknown output suffix, no such sweep file, `workers` below 1, a torn or unfinished
+        sweep, or a number JSON cannot hold.
     """
     target = Path(out)
     kind = FORMATS.get(target.suffix.lower())
@@ -271,27 +306,18 @@ def export(sweep: str | os.PathLike[str], out: str | os.PathLike[str],
         raise InvalidInputError(f"sweep: file not found: {sweep}")
     if Path(sweep).resolve() == target.resolve():
         raise InvalidInputError(f"out: {out} is the sweep itself; choose another path")
+    export_workers(workers, 1)  # a bad count refused before the sweep is read
     store = is_sqlite_file(sweep)
-    columns, gathered, total = _checked_pass(sweep, kinds_needed=kind != "csv" and not store)
-    written = _Written(total, progress)
+    count = export_workers(workers, store_rows(sweep)) if store else 1
     with atomic_path(target) as tmp:
+        if count > 1:
+            return _write_in_parts(str(sweep), tmp, kind, count, progress)
+        columns, gathered, total = _checked_pass(sweep, kinds_needed=kind != "csv" and not store)
+        written = _Written(total, progress)
         if kind == "csv" and not store:  # checked complete: its text is the output, byte for byte
             shutil.copyfile(sweep, tmp)
-        elif kind == "csv":
-            with open(tmp, "w", encoding="utf-8", newline="") as f:
-                cells = iter_cells(sweep)  # the header, then each row's text cells in the header's order
-                lines = csv_lines(cells)
-                while text := "".join(itertools.islice(lines, CHUNK)):
-                    f.write(text)
-                    written.add(CHUNK)
         else:
-            write = _write_jsonl if kind == "jsonl" else _write_sqlite
-            if gathered is None and not write(tmp, columns, None, sweep, written):
-                gathered = ColumnKinds(columns)  # a later row changed a kind: every row's kinds, then again
-                for chunk in _cell_chunks(sweep):
-                    gathered.add(chunk)
-            if gathered is not None:
-                write(tmp, columns, gathered.kinds(), sweep, written.restart())
+            _write_one_part(str(sweep), tmp, kind, columns, None if gathered is None else gathered.kinds(), written)
     written.add(total)
     return total
 
@@ -307,69 +333,282 @@ class _Written:
         if self.progress is not None:
             self.progress(self.done, self.total)
 
-    def restart(self) -> _Written:
+    def restart(self, kept: int = 0) -> _Written:
+        """Count again from the `kept` rows (those of the output that is not rewritten)."""
         self.done = 0
-        self.add(0)
+        self.add(kept)
         return self
 
 
-def _kinds_as_read(columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str]
-                   ) -> Iterator[tuple[list[tuple[str, ...]], list[str], list[Numbers | None] | None]]:
-    """Each chunk of `sweep` with the kinds to write it under and its columns' Numbers if read: `kinds` if given,
-    else those of the rows read so far; stops (the caller's output is then incomplete) at the first chunk that
-    changes them."""
-    gathered = ColumnKinds(columns)
-    first: dict[str, str] | None = None
-    for chunk in _cell_chunks(sweep):
-        numbers = None
-        if kinds is None:
-            numbers = gathered.add(chunk)
-            now = gathered.kinds()
-            first = now if first is None else first
-            if now != first:
-                raise _KindsChanged
-        yield chunk, list((kinds or first or {}).values()), numbers
+@dataclass(frozen=True)
+class _Part:
+    """A part written by `_part_steps`: whether it holds every row of its range (False: a later row changed the
+    kinds as read, and writing stopped there), its rows, the kinds it was written under, and those of its rows
+    (None for CSV, which has no kinds)."""
+
+    complete: bool
+    rows: int
+    kinds: dict[str, str] | None
+    gathered: ColumnKinds | None
 
 
-class _KindsChanged(Exception):
-    """A row read later changed a column's kind: what was written under the earlier kinds is not the output."""
+def _part_steps(sweep: str, rowids: tuple[int | None, int | None] | None, path: Path, kind: str,
+                columns: list[str], kinds: dict[str, str] | None) -> Generator[int, None, _Part]:
+    """Write the rows of `sweep` (its rowids [low, high) if given) to `path` as `kind` (CSV lines after what the
+    file holds, JSON Lines, or the SQLite table without its index) under `kinds` (None: those of the rows read so
+    far; where a later row changes them writing stops, and the rest is read for its kinds alone). Yields the rows
+    of each chunk written; returns the `_Part`."""
+    gathered = None if kind == "csv" else ColumnKinds(columns)
+    under, complete, rows = kinds, True, 0
+    with _PartFile(path, kind, columns) as output:
+        for chunk in _cell_chunks(sweep, rowids):
+            rows += len(chunk)
+            numbers = None
+            if gathered is not None:
+                numbers = gathered.add(chunk)
+                if kinds is None:
+                    now = gathered.kinds()
+                    under = under or now
+                    complete = complete and now == under
+            if complete:
+                output.write(chunk, under, numbers)
+                yield len(chunk)
+    return _Part(complete, rows, under, gathered)
 
 
-def _write_jsonl(path: Path, columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str],
-                 written: _Written) -> bool:
-    """Write `sweep` as JSON Lines under `kinds` (None: as read, see `_kinds_as_read`); False if the kinds as read
-    changed (the file is then incomplete)."""
-    with open(path, "w", encoding="utf-8") as f:
+class _PartFile:
+    """A part's output while it is written: CSV lines (appended), JSON Lines, or a SQLite table."""
+
+    def __init__(self, path: Path, kind: str, columns: list[str]) -> None:
+        self.path, self.kind, self.columns = path, kind, columns
+        self._text: Any = None
+        self._connection: sqlite3.Connection | None = None
+
+    def __enter__(self) -> _PartFile:
+        if self.kind == "sqlite":
+            self.path.unlink(missing_ok=True)
+            self._connection = sqlite3.connect(self.path)
+            self._connection.execute("PRAGMA journal_mode=OFF")  # a new file, put in place whole (atomic_path)
+        else:
+            self._text = open(self.path, "a" if self.kind == "csv" else "w", encoding="utf-8", newline="")
+        return self
+
+    def write(self, chunk: list[tuple[str, ...]], kinds: dict[str, str] | None,
+              numbers: list[Numbers | None] | None) -> None:
+        if self.kind == "csv":
+            self._text.write("".join(csv_lines(chunk)))
+        elif self.kind == "jsonl":
+            assert kinds is not None
+            self._text.write(jsonl_text(self.columns, list(kinds.values()), chunk, numbers))
+        else:
+            assert kinds is not None and self._connection is not None
+            if self._connection.total_changes == 0:
+                self._connection.execute(f"CREATE TABLE {TABLE} ({_declared(kinds)})")
+            self._connection.executemany(f"INSERT INTO {TABLE} VALUES ({', '.join('?' for _ in self.columns)})",
+                                         zip(*typed_columns(chunk, list(kinds.values()), numbers), strict=True))
+
+    def __exit__(self, *exc: object) -> None:
+        if self._connection is not None:
+            if exc[0] is None:
+                self._connection.commit()
+            self._connection.close()
+        if self._text is not None:
+            self._text.close()
+
+
+def _declared(kinds: dict[str, str]) -> str:
+    """The table's column declarations."""
+    return ", ".join(f'"{c}" {k}' for c, k in kinds.items())
+
+
+def _drain(steps: Generator[int, None, _Part], report: Callable[[int], None]) -> _Part:
+    """Run a part's steps, reporting each chunk's rows; its `_Part`."""
+    while True:
         try:
-            for chunk, chunk_kinds, numbers in _kinds_as_read(columns, kinds, sweep):
-                f.write(jsonl_text(columns, chunk_kinds, chunk, numbers))
-                written.add(len(chunk))
-        except _KindsChanged:
-            return False
-    return True
+            report(next(steps))
+        except StopIteration as stop:
+            return stop.value  # type: ignore[no-any-return]
 
 
-def _write_sqlite(path: Path, columns: list[str], kinds: dict[str, str] | None, sweep: str | os.PathLike[str],
-                  written: _Written) -> bool:
-    """Write `sweep` as a typed SQLite table under `kinds` (None: as read, see `_kinds_as_read`); False if the kinds
-    as read changed (nothing is then written)."""
-    path.unlink(missing_ok=True)
-    connection = sqlite3.connect(path)
-    try:
-        with connection:
-            marks = ", ".join("?" for _ in columns)
-            for chunk, chunk_kinds, numbers in _kinds_as_read(columns, kinds, sweep):
-                if connection.total_changes == 0:
-                    quoted = ", ".join(f'"{c}" {k}' for c, k in zip(columns, chunk_kinds, strict=True))
-                    connection.execute(f"CREATE TABLE {TABLE} ({quoted})")
-                connection.executemany(f"INSERT INTO {TABLE} VALUES ({marks})",
-                                       zip(*typed_columns(chunk, chunk_kinds, numbers), strict=True))
-                written.add(len(chunk))
-            keys = [c for c in ("family", "scenario", "planner") if c in columns]
-            if keys:
+_counter: Any = None
+"""In a worker process: the shared count of rows written (multiprocessing.Value), set by `_count_into`."""
+
+
+def _count_into(counter: Any) -> None:
+    global _counter
+    _counter = counter
+
+
+def _add_to_counter(rows: int) -> None:
+    with _counter.get_lock():
+        _counter.value += rows
+
+
+def _part_in_worker(*args: Any) -> _Part:
+    """`_part_steps` in a worker process, its rows counted into the shared counter."""
+    return _drain(_part_steps(*args), _add_to_counter)
+
+
+def _write_one_part(sweep: str, tmp: Path, kind: str, columns: list[str], kinds: dict[str, str] | None,
+                    written: _Written) -> None:
+    """Write `sweep` to `tmp` as `kind` in this process: under `kinds` if given, else as read, and again under
+    every row's kinds if a later row changed them."""
+    if kind == "csv":
+        _write_header(tmp, columns)
+    part = _drain(_part_steps(sweep, None, tmp, kind, columns, kinds), written.add)
+    assert part.gathered is not None or kind == "csv"
+    if part.gathered is not None and (not part.complete or part.kinds != part.gathered.kinds()):
+        written.restart()
+        _drain(_part_steps(sweep, None, tmp, kind, columns, part.gathered.kinds()), written.add)
+    if kind == "sqlite":
+        _index(tmp, columns)
+
+
+def _write_header(tmp: Path, columns: list[str]) -> None:
+    with open(tmp, "w", encoding="utf-8", newline="") as f:
+        f.write("".join(csv_lines([tuple(columns)])))
+
+
+PARTS_PER_WORKER = 4
+"""A store exported on several processes is cut into this many parts per process, so that the parts written are
+appended to the output while the others are still being written."""
+
+
+def _write_in_parts(sweep: str, tmp: Path, kind: str, workers: int, progress: Callable[[int, int], None] | None
+                    ) -> int:
+    """Write the store `sweep` to `tmp` as `kind` on `workers` spawned processes, PARTS_PER_WORKER consecutive
+    parts each (the first part into `tmp` itself, each other into a file of its own, appended to `tmp` in order
+    as soon as it and those before it are written under the first part's kinds), while this process checks the
+    store (`_checked_pass`). Parts written under other kinds than every row's are written again. Returns the rows.
+
+    Raises:
+      InvalidInputError: as `export`, from this process's checks or from a part's writer.
+    """
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    cells = iter_store_cells(sweep, rowids=(None, None))  # the store's columns (its meta checked)
+    columns = list(next(cells))
+    cells.close()
+    bounds = rowid_bounds(sweep, workers * PARTS_PER_WORKER)
+    context = multiprocessing.get_context("spawn")  # no fork of a process that may hold MuJoCo threads
+    counter = context.Value("q", 0)
+    with contextlib.ExitStack() as stack:
+        folder = Path(stack.enter_context(tempfile.TemporaryDirectory(dir=tmp.parent, prefix=f".{tmp.stem}.")))
+        paths = [tmp, *(folder / f"part{i}{tmp.suffix}" for i in range(1, len(bounds)))]
+        pool = stack.enter_context(ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                                       initializer=_count_into, initargs=(counter,)))
+        stack.callback(pool.shutdown, cancel_futures=True)  # after an error, no part starts
+        if kind == "csv":
+            _write_header(tmp, columns)
+        futures = {i: pool.submit(_part_in_worker, sweep, bounds[i], paths[i], kind, columns, None)
+                   for i in range(len(bounds))}
+        _, _, total = _checked_pass(sweep, kinds_needed=False)  # while the parts are written
+        written = _Written(total, progress)
+        joiner = stack.enter_context(_Joiner(tmp, kind))
+        done: dict[int, _Part] = {}
+
+        def collect(good: Callable[[_Part], bool], since: int) -> None:
+            """Wait for the parts in `futures`, appending each to `tmp` in order once it and those before it are
+            `good`; their rows written are the shared count's growth from `since`."""
+            base = written.done
+            pending = {future: i for i, future in futures.items()}
+            while pending:
+                finished, _ = wait(pending, timeout=PROGRESS_SECONDS, return_when=FIRST_COMPLETED)
+                written.add(base + counter.value - since - written.done)
+                for future in finished:
+                    done[pending.pop(future)] = future.result()  # a part's error is raised here
+                while joiner.parts < len(bounds) and all(i in done and good(done[i]) for i in range(joiner.parts + 1)):
+                    joiner.append(paths[joiner.parts])
+
+        collect(lambda part: part.complete and part.kinds == done[0].kinds, 0)
+        if kind != "csv":
+            every = ColumnKinds(columns)
+            for part in done.values():
+                assert part.gathered is not None
+                every.merge(part.gathered)
+            final = every.kinds()
+
+            def good(part: _Part) -> bool:
+                return part.complete and part.kinds == final
+
+            appended = joiner.parts
+            if not good(done[0]):
+                joiner.restart()  # what was appended is under other kinds: again from the first part
+            again = [i for i in range(len(bounds)) if not good(done[i]) or (i < appended and not good(done[0]))]
+            if again:
+                written.restart(sum(done[i].rows for i in range(len(bounds)) if i not in again))
+                since = counter.value  # every part has ended: the count stands still
+                futures = {i: pool.submit(_part_in_worker, sweep, bounds[i], paths[i], kind, columns, final)
+                           for i in again}
+                collect(good, since)
+    if kind == "sqlite":
+        _index(tmp, columns)
+    written.add(total)
+    return total
+
+
+class _Joiner:
+    """Appends parts to the output `tmp`, which holds the first part: text as it is, SQLite rows by SQLite;
+    `parts` counts the parts it holds; each part's file is deleted once appended."""
+
+    def __init__(self, tmp: Path, kind: str) -> None:
+        self.tmp, self.kind, self.parts = tmp, kind, 1
+        self._connection: sqlite3.Connection | None = None
+
+    def __enter__(self) -> _Joiner:
+        return self
+
+    def append(self, path: Path) -> None:
+        if self.kind == "sqlite":
+            if self._connection is None:
+                self._connection = sqlite3.connect(self.tmp)
+            self._connection.execute("ATTACH DATABASE ? AS part", (str(path),))
+            with self._connection:
+                self._connection.execute(f"INSERT INTO main.{TABLE} SELECT * FROM part.{TABLE} ORDER BY rowid")
+            self._connection.execute("DETACH DATABASE part")
+        else:
+            with open(self.tmp, "ab") as out, open(path, "rb") as part:
+                _copy(part, out)
+        path.unlink()
+        self.parts += 1
+
+    def restart(self) -> None:
+        """Hold the first part alone again (it is to be written again)."""
+        self.__exit__()
+        self.parts = 1
+
+    def __exit__(self, *exc: object) -> None:
+        if self._connection is not None:
+            self._connection.close()
+            self._connection = None
+
+
+def _copy(source: Any, target: Any) -> None:
+    """Append the file `source` to `target` (both binary), in the kernel where it can (os.copy_file_range)."""
+    target.flush()
+    if hasattr(os, "copy_file_range"):
+        try:
+            while os.copy_file_range(source.fileno(), target.fileno(), COPY_BYTES):
+                pass
+            return
+        except OSError:  # a file system without it: copied through Python, from where it stopped
+            target.seek(0, os.SEEK_END)
+    shutil.copyfileobj(source, target, COPY_BYTES)
+
+
+PROGRESS_SECONDS = 0.25
+"""How often an export on several processes reports its progress."""
+COPY_BYTES = 1 << 24
+"""The most bytes a text part is appended by at a time."""
+
+
+def _index(path: Path, columns: list[str]) -> None:
+    """Index the exported table by family, scenario and planner (those of them it has)."""
+    keys = [c for c in ("family", "scenario", "planner") if c in columns]
+    if keys:
+        connection = sqlite3.connect(path)
+        try:
+            with connection:
                 connection.execute(f"CREATE INDEX {TABLE}_keys ON {TABLE} ({', '.join(keys)})")
-    except _KindsChanged:
-        return False
-    finally:
-        connection.close()
-    return True
+        finally:
+            connection.close()

@@ -21,7 +21,7 @@ import errno
 import json
 import os
 import sqlite3
-from collections.abc import Collection, Iterator
+from collections.abc import Collection, Generator, Iterator
 from pathlib import Path
 from typing import IO, Any
 
@@ -135,11 +135,14 @@ _TEXT = {str}
 """The cell types of a row of text."""
 
 
-def iter_store_cells(path: str | os.PathLike[str], only: Collection[str] | None = None
-                     ) -> Iterator[tuple[str, ...]]:
+def iter_store_cells(path: str | os.PathLike[str], only: Collection[str] | None = None,
+                     rowids: tuple[int | None, int | None] | None = None
+                     ) -> Generator[tuple[str, ...], None, None]:
     """The store's column names (those of them in `only`, if given, in the store's order), then each row's cells
     of those columns as text ('' for a missing one), in the order they were stored and in bounded memory:
-    `iter_store_rows` without a dict per row (and, with `only`, without reading the other columns).
+    `iter_store_rows` without a dict per row (and, with `only`, without reading the other columns). With `rowids`
+    (low, high), the rows whose rowid is in [low, high) (None: unbounded), a part of a store read whole before:
+    its units are not checked again.
 
     Raises:
       InvalidInputError: the file is not a readable sweep store.
@@ -147,13 +150,48 @@ def iter_store_cells(path: str | os.PathLike[str], only: Collection[str] | None 
     file = Path(path)
     with _reading(file) as connection:
         columns, _ = _meta(connection, file)
-        _stored_units(connection, file)
+        if rowids is None:
+            _stored_units(connection, file)
         if only is not None:
             columns = [c for c in columns if c in only]
         yield tuple(columns)
-        cursor = connection.execute(f"SELECT {', '.join(map(_quote, columns)) or 'NULL'} FROM rows ORDER BY rowid")
+        low, high = rowids or (None, None)
+        where = " AND ".join([*(["rowid >= :low"] if low is not None else []),
+                              *(["rowid < :high"] if high is not None else [])])
+        cursor = connection.execute(f"SELECT {', '.join(map(_quote, columns)) or 'NULL'} FROM rows "
+                                    f"{'WHERE ' + where if where else ''} ORDER BY rowid", {"low": low, "high": high})
         for values in cursor:  # a store's cells are text (cell_text); an edited one's others as str() has them
             yield values if set(map(type, values)) == _TEXT else tuple("" if v is None else str(v) for v in values)
+
+
+def store_rows(path: str | os.PathLike[str]) -> int:
+    """The rows of the store at `path`, counted by SQLite.
+
+    Raises:
+      InvalidInputError: the file is not a readable sweep store.
+    """
+    file = Path(path)
+    with _reading(file) as connection:
+        _meta(connection, file)
+        (total,) = connection.execute("SELECT COUNT(*) FROM rows").fetchone()
+    return int(total)
+
+
+def rowid_bounds(path: str | os.PathLike[str], parts: int) -> list[tuple[int | None, int | None]]:
+    """The store's rows in `parts` consecutive ranges of rowids [low, high) of as equal sizes as can be (None:
+    unbounded), in order: `iter_store_cells(path, rowids=...)` of each, one after another, reads every row once.
+    Fewer ranges where the store has fewer rows than `parts`: none is empty.
+
+    Raises:
+      InvalidInputError: the file is not a readable sweep store.
+    """
+    with _reading(Path(path)) as connection:
+        (total,) = connection.execute("SELECT COUNT(*) FROM rows").fetchone()
+        parts = max(1, min(parts, total))
+        cuts = [connection.execute("SELECT rowid FROM rows ORDER BY rowid LIMIT 1 OFFSET ?", (i * total // parts,)
+                                   ).fetchone()[0] for i in range(1, parts)]
+    ends: list[int | None] = [None, *cuts, None]
+    return list(zip(ends[:-1], ends[1:], strict=True))
 
 
 def planner_row_counts(path: str | os.PathLike[str], planners: Collection[str] | None

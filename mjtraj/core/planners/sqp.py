@@ -74,8 +74,12 @@ def _qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], 
     the identity: DAQP's own factorisation of a dense H of 300 rows took 5 ms of the 5.5, this takes 2.5 in all."""
     import daqp  # here, not at import: only the nonlinear planners need it
 
-    L = scipy.linalg.cholesky(H, lower=True)
-    back = scipy.linalg.solve_triangular(L, np.eye(len(g)), lower=True).T  # L^-T: d = L^-T z
+    factor, info = scipy.linalg.lapack.dpotrf(H, lower=1, clean=1)  # H = L L^T
+    if info == 0:
+        factor, info = scipy.linalg.lapack.dtrtri(factor, lower=1)  # L^-1
+    if info != 0:
+        raise SolverError(f"the QP's Hessian is not positive definite (LAPACK info {info})")
+    back = factor.T  # L^-T: d = L^-T z
     rows = len(h)
     A = np.vstack([back, C @ back, G @ back])
     upper = np.concatenate([high, -c, np.full(rows, np.inf)])
