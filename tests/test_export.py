@@ -290,3 +290,30 @@ def test_an_infinity_is_refused_by_json_lines_and_other_nans_are_missing(tmp_pat
     export(store, tmp_path / "ok.sqlite")
     stored = sqlite3.connect(tmp_path / "ok.sqlite").execute(f"SELECT rms_err FROM {TABLE} WHERE scenario = 2")
     assert {value for (value,) in stored} == {math.inf}
+
+
+@pytest.mark.parametrize("kernel_bytes", [None, 1000])
+def test_a_part_is_appended_whole_by_the_kernel_or_from_where_it_stopped(tmp_path, monkeypatch, kernel_bytes):
+    """_copy appends a part with os.copy_file_range, and where the file system refuses it (at once, or after some
+    bytes), copies the rest through Python from where the kernel stopped: the output is head + part, byte for byte."""
+    import os
+
+    from mjtraj.study.export import _copy
+
+    part = bytes(range(256)) * 10_000
+    (tmp_path / "part").write_bytes(part)
+    (tmp_path / "out").write_bytes(b"head|")
+    if kernel_bytes is not None:
+        real, calls = os.copy_file_range, []
+
+        def refusing(source, target, count):
+            if calls:
+                raise OSError(18, "Invalid cross-device link")
+            calls.append(count)
+            return real(source, target, kernel_bytes)
+
+        monkeypatch.setattr(os, "copy_file_range", refusing)
+    with open(tmp_path / "out", "r+b") as out, open(tmp_path / "part", "rb") as source:
+        out.seek(0, os.SEEK_END)
+        _copy(source, out)
+    assert (tmp_path / "out").read_bytes() == b"head|" + part

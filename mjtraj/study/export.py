@@ -567,7 +567,8 @@ class _Joiner:
                 self._connection.execute(f"INSERT INTO main.{TABLE} SELECT * FROM part.{TABLE} ORDER BY rowid")
             self._connection.execute("DETACH DATABASE part")
         else:
-            with open(self.tmp, "ab") as out, open(path, "rb") as part:
+            with open(self.tmp, "r+b") as out, open(path, "rb") as part:  # not "ab": copy_file_range refuses O_APPEND
+                out.seek(0, os.SEEK_END)
                 _copy(part, out)
         path.unlink()
         self.parts += 1
@@ -584,7 +585,8 @@ class _Joiner:
 
 
 def _copy(source: Any, target: Any) -> None:
-    """Append the file `source` to `target` (both binary), in the kernel where it can (os.copy_file_range)."""
+    """Copy the file `source` from its position to `target` at its position (both binary, neither opened to
+    append), in the kernel where it can (os.copy_file_range)."""
     target.flush()
     if hasattr(os, "copy_file_range"):
         try:
@@ -592,7 +594,8 @@ def _copy(source: Any, target: Any) -> None:
                 pass
             return
         except OSError:  # a file system without it: copied through Python, from where it stopped
-            target.seek(0, os.SEEK_END)
+            source.seek(os.lseek(source.fileno(), 0, os.SEEK_CUR))
+            target.seek(os.lseek(target.fileno(), 0, os.SEEK_CUR))
     shutil.copyfileobj(source, target, COPY_BYTES)
 
 
