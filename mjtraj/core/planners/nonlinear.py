@@ -20,7 +20,7 @@ open-loop torques drift into a joint's end, where the linearised terminal condit
 not convex: the plan is a local minimum, reached from its start (the plan's info says which). Two solvers (see
 SOLVERS):
 
-- the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights, a sixth of a second
+- the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights, a tenth of a second
   at N = 100; `nonlinear_optimal`'s default ('auto', SLSQP where it does not converge);
 - scipy's SLSQP, which keeps a quasi-Newton model of the Lagrangian's curvature, the dynamics' second derivatives
   included: the effort bound's solver. That model starts at the identity, so the solve runs in variables v = L^T u
