@@ -236,3 +236,29 @@ def test_an_arm_without_geoms_is_framed_by_its_bodies():
         assert np.allclose(points, [[0, 0, 0.1], [0, 0.4, 0.1]], atol=1e-12)
         image = renderer.strobe([[0.0, 0.0], [np.pi / 2, 0.0]], points, points, points)
     assert image.shape == (48, 64, 3)
+
+
+def test_the_strobe_paths_are_drawn_whatever_the_scene_memory_held(model):
+    """The flange paths and marks are decor geoms appended after the model's. mjv_initGeom leaves their object type,
+    object id, category and transparency as the scene's memory had them, and a fresh scene's memory is whatever the
+    allocator hands out: left like that, a slot that held (-1, -1) there was painted as background (a CI run lost
+    every orange pixel so). With every unused slot set to such values first, the strobe equals a clean scene's."""
+    poses = [[0.0, -1.2, 1.0], [0.6, -1.0, 0.6]]
+    ref = np.array([[0.3, 0.1, 0.6], [0.35, 0.2, 0.55], [0.4, 0.3, 0.5], [0.42, 0.35, 0.45]])
+    executed = ref + 0.01
+
+    def strobe(renderer, poison):
+        scene = renderer._renderer.scene
+        for i in range(scene.maxgeom) if poison else ():
+            geom = scene.geoms[i]
+            geom.objtype, geom.objid, geom.category, geom.segid, geom.transparent = -1, -1, 0, -1, 1
+        return renderer.strobe(poses, executed, ref, ref[[0, -1]], frame=np.vstack([ref, executed]))
+
+    with ArmRenderer(model, width=160, height=120) as renderer:
+        clean = strobe(renderer, poison=False)
+    with ArmRenderer(model, width=160, height=120) as renderer:
+        poisoned = strobe(renderer, poison=True)
+    orange = lambda f: ((f[..., 0] > 200) & (f[..., 1] > 90) & (f[..., 1] < 170) & (f[..., 2] < 80)).sum()  # noqa
+    blue = lambda f: ((f[..., 2].astype(int) - f[..., 0] > 80) & (f[..., 2] > 120)).sum()  # noqa: E731
+    assert orange(clean) > 20 and blue(clean) > 5, (orange(clean), blue(clean))
+    np.testing.assert_array_equal(poisoned, clean)

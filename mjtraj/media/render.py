@@ -66,28 +66,39 @@ def framing_camera(points: NDArray[np.float64], fovy: float, aspect: float, *, p
     return cam
 
 
+def decor_geom(scene: mujoco.MjvScene, kind: int, size: npt.ArrayLike, pos: npt.ArrayLike, mat: npt.ArrayLike,
+               rgba: npt.ArrayLike) -> mujoco.MjvGeom | None:
+    """Append a decor geom of type `kind` (mjtGeom) to `scene` and return it, or None if the scene is full. size,
+    pos (m) and mat (3x3, row-major) as in mjv_initGeom. mjv_initGeom leaves the object type and id, the category,
+    the segmentation id and the transparency flag as the scene's memory held them (an allocator's leftovers in a
+    fresh scene, where a segmentation could read the geom as background): they are set here."""
+    if scene.ngeom >= scene.maxgeom:
+        return None
+    geom = scene.geoms[scene.ngeom]
+    colour = np.asarray(rgba, dtype=np.float32)
+    mujoco.mjv_initGeom(geom, int(kind), np.asarray(size, dtype=np.float64), np.asarray(pos, dtype=np.float64),
+                        np.asarray(mat, dtype=np.float64).ravel(), colour)
+    geom.objtype, geom.objid = int(mujoco.mjtObj.mjOBJ_UNKNOWN), -1
+    geom.category = int(mujoco.mjtCatBit.mjCAT_DECOR)
+    geom.segid = scene.ngeom
+    geom.transparent = int(colour[3] < 1)
+    scene.ngeom += 1
+    return geom
+
+
 def _segment(scene: mujoco.MjvScene, a: NDArray[np.float64], b: NDArray[np.float64], width: float,
              rgba: tuple[float, ...]) -> None:
     """Append a capsule from a to b (m) of radius `width` to `scene`, if it has room."""
-    if scene.ngeom >= scene.maxgeom or np.allclose(a, b):
+    if np.allclose(a, b):
         return
-    geom = scene.geoms[scene.ngeom]
-    mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.eye(3).ravel(),
-                        np.array(rgba, dtype=np.float32))
-    mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, width, a, b)
-    geom.segid = scene.ngeom  # segmentation reads it (mjv_initGeom leaves it unset)
-    scene.ngeom += 1
+    geom = decor_geom(scene, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.eye(3), rgba)
+    if geom is not None:
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, width, a, b)
 
 
 def _sphere(scene: mujoco.MjvScene, at: NDArray[np.float64], radius: float, rgba: tuple[float, ...]) -> None:
     """Append a sphere at `at` (m) to `scene`, if it has room."""
-    if scene.ngeom >= scene.maxgeom:
-        return
-    geom = scene.geoms[scene.ngeom]
-    mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_SPHERE, np.full(3, radius), at, np.eye(3).ravel(),
-                        np.array(rgba, dtype=np.float32))
-    geom.segid = scene.ngeom
-    scene.ngeom += 1
+    decor_geom(scene, mujoco.mjtGeom.mjGEOM_SPHERE, np.full(3, radius), at, np.eye(3), rgba)
 
 
 _LIVE: weakref.WeakSet[ArmRenderer] = weakref.WeakSet()

@@ -16,7 +16,7 @@ import numpy.typing as npt
 from mjtraj.checks import vector
 from mjtraj.exceptions import RenderError
 from mjtraj.media.gl import user_backend
-from mjtraj.media.render import GHOST_RGBA, GHOST_SCALE
+from mjtraj.media.render import GHOST_RGBA, GHOST_SCALE, decor_geom
 
 _LIVE: weakref.WeakSet[HumanViewer] = weakref.WeakSet()
 """Windows not closed yet: closed at interpreter exit (mjtraj.media.render's exit hook closes them too)."""
@@ -66,12 +66,9 @@ class HumanViewer:
     def _add_ghost_geom(self, marker: dict[str, Any]) -> None:
         """One marker of `show` (type, size, pos, mat, rgba) as a geom of the window's scene."""
         scene = self._viewer.scn
-        if scene.ngeom >= scene.maxgeom:
+        if decor_geom(scene, int(marker["type"]), marker["size"], marker["pos"], marker["mat"],
+                      marker["rgba"]) is None:
             raise RenderError(f"render_mode='human': the scene is full ({scene.maxgeom} geoms)")
-        mujoco.mjv_initGeom(scene.geoms[scene.ngeom], int(marker["type"]), np.asarray(marker["size"], np.float64),
-                            np.asarray(marker["pos"], np.float64), np.asarray(marker["mat"], np.float64).ravel(),
-                            np.asarray(marker["rgba"], np.float32))
-        scene.ngeom += 1
 
     def show(self, q: npt.ArrayLike, q_ref: npt.ArrayLike | None = None) -> None:
         """Draw the arm at q (rad) and the ghost at q_ref (if given) in the window."""
