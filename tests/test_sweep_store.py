@@ -181,3 +181,61 @@ def test_cells_of_some_columns_are_the_rows_columns_from_a_store_and_a_csv_file(
         assert list(cells[0]) == header
         assert cells[1:] == [tuple(r[c] for c in header) for r in read_rows(path)]
     assert list(iter_cells(csv, only)) == list(iter_cells(store, only))
+
+
+def test_the_rowid_ranges_cover_every_row_once_in_order_also_with_gaps(tmp_path):
+    """rowid_bounds splits the rowid span evenly (no row read); reading the ranges one after another gives the
+    store's rows in order, each once, with no range empty: on a store as written (equal ranges) and on one with
+    a run of rows deleted (the emptied range merged into the next)."""
+    from mjtraj.bench import synthetic_store
+    from mjtraj.study.sweep_store import iter_store_cells, rowid_bounds
+
+    path = tmp_path / "s.sqlite"
+    synthetic_store(str(path), 1000)
+
+    def parts(ranges):
+        out = []
+        for rowids in ranges:
+            cells = iter_store_cells(path, rowids=rowids)
+            next(cells)
+            out.append(list(cells))
+        return out
+
+    whole = parts([(None, None)])[0]
+    split = parts(rowid_bounds(path, 7))
+    assert [len(p) for p in split] == [142, 143, 143, 143, 143, 143, 143] and sum(split, []) == whole
+    assert len(rowid_bounds(path, 5000)) == 1000  # never more ranges than rows
+    with sqlite3.connect(path) as connection:
+        connection.execute("DELETE FROM rows WHERE rowid > 150 AND rowid <= 600")
+    with sqlite3.connect(path) as connection:
+        left = [r for (r,) in connection.execute("SELECT rowid FROM rows ORDER BY rowid")]
+    split = parts(rowid_bounds(path, 7))
+    assert [len(p) for p in split] == [142, 8, 114, 143, 143] and sum(split, []) == [whole[r - 1] for r in left]
+
+
+def test_one_scan_counts_the_rows_of_each_unit_as_python_counts_them(stored, tmp_path):
+    """unit_row_counts against counting the rows in Python: the planners' rows and every row of each unit; an
+    edited store (a row deleted, a unit's entry deleted) is refused as iter_store_cells refuses it."""
+    import collections
+    import shutil
+
+    from mjtraj.study.sweep_store import iter_store_rows, unit_row_counts
+
+    _, store = stored
+    rows = list(iter_store_rows(store))
+    for planners in (None, {"cubic"}, {"cubic", "optimal", "nothing"}):
+        total, own, every = unit_row_counts(store, planners)
+        assert total == len(rows)
+        assert every == collections.Counter((r["family"], r["unit"]) for r in rows)
+        assert own == collections.Counter((r["family"], r["unit"]) for r in rows
+                                          if planners is None or r["planner"] in planners)
+    for edit, message in (("DELETE FROM rows WHERE rowid = 2", r"unit nominal 0 has 5 rows, its entry says 6"),
+                          ("DELETE FROM units WHERE unit = 1", r"rows of unit nominal 1 are stored without the unit")):
+        edited = tmp_path / f"{len(message)}.sqlite"
+        shutil.copyfile(store, edited)
+        with sqlite3.connect(edited) as connection:
+            connection.execute(edit)
+        with pytest.raises(InvalidInputError, match=message):
+            unit_row_counts(edited, None)
+        with pytest.raises(InvalidInputError, match=message):
+            list(iter_store_rows(edited))

@@ -31,9 +31,9 @@ from mjtraj.study.fixed_tasks import TASKS, task_rows
 from mjtraj.study.paper import PAPER_TABLE
 from mjtraj.study.scenario import load_scenario
 from mjtraj.study.stats import EXACT_PAIRS, PairedRatio, cvar, paired_ratio
-from mjtraj.study.store import VERSION_COLUMNS, iter_cells, iter_rows
+from mjtraj.study.store import VERSION_COLUMNS, expected_rows, iter_cells, iter_rows
 from mjtraj.study.sweep import SHIPPED_CONFIG, SweepSettings
-from mjtraj.study.sweep_store import is_sqlite_file, planner_row_counts
+from mjtraj.study.sweep_store import is_sqlite_file, iter_store_cells, unit_row_counts
 
 CLASSICAL = ("cubic", "quintic", "trapezoidal")
 LARGE_MOTION = 1.0
@@ -70,16 +70,6 @@ def weights_label(config: str) -> str:
     except MjtrajError:
         tuning = {}
     return f"{config} (ORACLE: tuned on its own task)" if str(tuning.get("mode", "")).startswith("oracle") else config
-
-
-def expected_rows(row: dict[str, str]) -> int:
-    """The rows a whole sweep writes, from the settings every row records (0 if they are not recorded)."""
-    try:
-        counts = [len(row[k].split("+")) for k in ("sweep_families", "sweep_planners", "sweep_ff_accel",
-                                                     "sweep_gravity_comp")]
-        return int(row["sweep_scenarios"]) * int(np.prod(counts))
-    except (KeyError, ValueError):
-        return 0
 
 
 def unit_counts(rows: Iterable[dict[str, str]]
@@ -163,12 +153,24 @@ class _Kept:
 
 def _file_counts(path: str | os.PathLike[str]
                  ) -> tuple[dict[str, str] | None, int, dict[tuple[str, str], int], dict[tuple[str, str], int]]:
-    """`unit_counts` of the file `path`; a store's counted by SQLite (no row reaches Python)."""
-    first = _Kept(path, None).first() if is_sqlite_file(path) else None
+    """`unit_counts` of the file `path`; a store's counted by SQLite in one scan (no row reaches Python)."""
+    first = _first_stored_row(path) if is_sqlite_file(path) else None
     if first is None or "unit" not in first:  # a CSV file, or a store without units: counted row by row
         return unit_counts(iter_rows(path))
-    total, own = planner_row_counts(path, first.get("sweep_planners", "").split("+"))
-    return first, total, dict(own), dict(planner_row_counts(path, None)[1])
+    total, own, every = unit_row_counts(path, first.get("sweep_planners", "").split("+"))  # the units checked
+    return first, total, dict(own), dict(every)
+
+
+def _first_stored_row(path: str | os.PathLike[str]) -> dict[str, str] | None:
+    """The first row of the store `path`, every column of it, or None; its units are checked by whoever counts
+    them (`unit_row_counts`)."""
+    cells = iter_store_cells(path, rowids=(None, None))
+    try:
+        header = next(cells)
+        values = next(cells, None)
+    finally:
+        cells.close()
+    return None if values is None else dict(zip(header, values, strict=True))
 
 
 READ_COLUMNS = frozenset(("family", "unit", "scenario", "planner", "status", "ff_accel", "gravity_comp", "config",

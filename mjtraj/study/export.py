@@ -30,8 +30,8 @@ from typing import Any
 
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path
-from mjtraj.study.store import VERSION_COLUMNS, iter_cells
-from mjtraj.study.sweep_store import is_sqlite_file, iter_store_cells, planner_row_counts, rowid_bounds, store_rows
+from mjtraj.study.store import VERSION_COLUMNS, expected_rows, iter_cells
+from mjtraj.study.sweep_store import is_sqlite_file, iter_store_cells, rowid_bounds, store_rows, unit_row_counts
 
 FORMATS = {".sqlite": "sqlite", ".db": "sqlite", ".jsonl": "jsonl", ".csv": "csv"}
 TEXT_COLUMNS = ("family", "planner", "ff_accel", "gravity_comp", "status", "reason", "solver", "config",
@@ -203,9 +203,8 @@ def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[li
     """The first pass over `sweep`: its columns, their kinds (if `kinds_needed`) and its row count, refusing a
     sweep that is not one, or is torn or unfinished (the rule of `complete_units` and `expected_rows`, counted
     unit by unit). Reads cells, not dicts: only the key columns are looked at unless kinds are needed."""
-    from mjtraj.study.audit import expected_rows  # here: an export's worker processes need not load the audit
-
-    cells = iter_cells(sweep)
+    store = is_sqlite_file(sweep)
+    cells = iter_store_cells(sweep, rowids=(None, None)) if store else iter_cells(sweep)  # units: checked below
     columns = list(next(cells))
     first_values = next(cells, None)
     if first_values is None:
@@ -218,8 +217,8 @@ def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[li
     gathered = ColumnKinds(columns) if kinds_needed else None
     at_family, at_unit, at_planner = (columns.index(c) for c in ("family", "unit", "planner"))
     rows = itertools.chain([first_values], cells)
-    if is_sqlite_file(sweep):  # a store's counts by SQLite: no row reaches Python for them
-        total, counts = planner_row_counts(sweep, planners)
+    if store:  # counted by SQLite in one scan, its units checked: no row reaches Python for them
+        total, counts, _ = unit_row_counts(sweep, planners)
         if gathered is not None:
             for chunk in _batched(rows):
                 gathered.add(chunk)
@@ -563,8 +562,8 @@ class _Joiner:
             if self._connection is None:
                 self._connection = sqlite3.connect(self.tmp)
             self._connection.execute("ATTACH DATABASE ? AS part", (str(path),))
-            with self._connection:
-                self._connection.execute(f"INSERT INTO main.{TABLE} SELECT * FROM part.{TABLE} ORDER BY rowid")
+            with self._connection:  # a bare copy of an identical table: SQLite moves its records in rowid order
+                self._connection.execute(f"INSERT INTO main.{TABLE} SELECT * FROM part.{TABLE}")  # (no decoding)
             self._connection.execute("DETACH DATABASE part")
         else:
             with open(self.tmp, "r+b") as out, open(path, "rb") as part:  # not "ab": copy_file_range refuses O_APPEND

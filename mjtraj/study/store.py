@@ -24,6 +24,16 @@ from mjtraj.study.locks import lock_file
 from mjtraj.study.sweep_store import is_sqlite_file, iter_store_cells
 
 
+def expected_rows(row: dict[str, str]) -> int:
+    """The rows a whole sweep writes, from the settings every row records (0 if they are not recorded)."""
+    try:
+        counts = [len(row[k].split("+")) for k in ("sweep_families", "sweep_planners", "sweep_ff_accel",
+                                                     "sweep_gravity_comp")]
+        return int(row["sweep_scenarios"]) * math.prod(counts)
+    except (KeyError, ValueError):
+        return 0
+
+
 def format_rows(columns: list[str], rows: list[dict[str, Any]]) -> str:
     """CSV text of `rows` (no header)."""
     buffer = io.StringIO()

@@ -21,7 +21,7 @@ import errno
 import json
 import os
 import sqlite3
-from collections.abc import Collection, Generator, Iterator
+from collections.abc import Collection, Generator, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -81,17 +81,26 @@ def _meta(connection: sqlite3.Connection, file: Path) -> tuple[list[str], dict[s
 
 
 def _stored_units(connection: sqlite3.Connection, file: Path) -> dict[tuple[str, int], int]:
-    """(family, unit) -> rows of every stored unit, checked against the rows themselves (InvalidInputError if a
-    unit's rows are not all there, or rows lack their unit: the store was edited)."""
-    counted = {(f, int(u)): n for f, u, n in connection.execute(
-        "SELECT family, CAST(unit AS INTEGER), COUNT(*) FROM rows GROUP BY family, CAST(unit AS INTEGER)")}
+    """(family, unit) -> rows of every stored unit, checked against the rows themselves (`_check_units`)."""
+    return _check_units(connection, file, connection.execute(
+        "SELECT family, unit, CAST(unit AS INTEGER), 0, COUNT(*) FROM rows GROUP BY family, unit").fetchall())
+
+
+def _check_units(connection: sqlite3.Connection, file: Path, grouped: Iterable[Sequence[Any]]
+                 ) -> dict[tuple[str, int], int]:
+    """(family, unit) -> rows of every stored unit, given the rows grouped by family and unit as (family, unit,
+    unit as an integer, any, rows); InvalidInputError if a unit's rows are not all there, or rows lack their unit
+    (the store was edited)."""
+    counted: collections.Counter[tuple[str, Any]] = collections.Counter()
+    for family, _, unit, _, n in grouped:
+        counted[family, unit] += n
     units = {(f, int(u)): int(n) for f, u, n in connection.execute("SELECT family, unit, rows FROM units")}
     for (family, unit), rows in units.items():
         if counted.get((family, unit)) != rows:
             raise InvalidInputError(f"sweep: {file}: unit {family} {unit} has {counted.get((family, unit), 0)} "
                                     f"rows, its entry says {rows}; the store was edited; start a new store")
     if set(counted) - set(units):
-        family, unit = sorted(set(counted) - set(units))[0]
+        family, unit = sorted(set(counted) - set(units), key=str)[0]
         raise InvalidInputError(f"sweep: {file}: rows of unit {family} {unit} are stored without the unit; the "
                                 f"store was edited; start a new store")
     return units
@@ -178,38 +187,56 @@ def store_rows(path: str | os.PathLike[str]) -> int:
 
 
 def rowid_bounds(path: str | os.PathLike[str], parts: int) -> list[tuple[int | None, int | None]]:
-    """The store's rows in `parts` consecutive ranges of rowids [low, high) of as equal sizes as can be (None:
-    unbounded), in order: `iter_store_cells(path, rowids=...)` of each, one after another, reads every row once.
-    Fewer ranges where the store has fewer rows than `parts`: none is empty.
+    """The store's rows in at most `parts` consecutive ranges of rowids [low, high) that split the span of its
+    rowids evenly (None: unbounded), in order: `iter_store_cells(path, rowids=...)` of each, one after another,
+    reads every row once. A store's rowids run without gaps (its rows are only ever appended), so the ranges hold
+    as many rows each; a range that holds none (an edited store) is merged into the next. Found from the rowid
+    index alone: no row is read.
 
     Raises:
       InvalidInputError: the file is not a readable sweep store.
     """
     with _reading(Path(path)) as connection:
-        (total,) = connection.execute("SELECT COUNT(*) FROM rows").fetchone()
-        parts = max(1, min(parts, total))
-        cuts = [connection.execute("SELECT rowid FROM rows ORDER BY rowid LIMIT 1 OFFSET ?", (i * total // parts,)
-                                   ).fetchone()[0] for i in range(1, parts)]
+        low, high = connection.execute("SELECT MIN(rowid), MAX(rowid) FROM rows").fetchone()
+        if low is None:
+            return [(None, None)]
+        parts = max(1, min(parts, high - low + 1))
+        cuts, start = [], low
+        for cut in (low + i * (high - low + 1) // parts for i in range(1, parts)):
+            if connection.execute("SELECT EXISTS (SELECT 1 FROM rows WHERE rowid >= ? AND rowid < ?)",
+                                  (start, cut)).fetchone()[0]:
+                cuts.append(cut)
+                start = cut
     ends: list[int | None] = [None, *cuts, None]
     return list(zip(ends[:-1], ends[1:], strict=True))
 
 
-def planner_row_counts(path: str | os.PathLike[str], planners: Collection[str] | None
-                       ) -> tuple[int, collections.Counter[tuple[str, str]]]:
-    """(the store's rows, the rows of each (family, unit) whose planner is one of `planners`, or all of them for
-    None), counted by SQLite without a row reaching Python; cells as `iter_store_cells` reads them.
+def unit_row_counts(path: str | os.PathLike[str], planners: Collection[str] | None
+                    ) -> tuple[int, collections.Counter[tuple[str, str]], collections.Counter[tuple[str, str]]]:
+    """(the store's rows, the rows of each (family, unit) whose planner is one of `planners` (all of them for
+    None), every row of each (family, unit)), cells as `iter_store_cells` reads them, counted by SQLite in one scan
+    of the table without a row reaching Python; the units checked against the rows as `iter_store_cells` checks
+    them.
 
     Raises:
-      InvalidInputError: the file is not a readable sweep store.
+      InvalidInputError: the file is not a readable sweep store, or it was edited.
     """
-    with _reading(Path(path)) as connection:
-        (total,) = connection.execute("SELECT COUNT(*) FROM rows").fetchone()
-        names = [] if planners is None else sorted(planners)
-        where = "" if planners is None else f"WHERE planner IN ({', '.join('?' for _ in names)}) "
-        grouped = connection.execute(f"SELECT IFNULL(family, ''), IFNULL(unit, ''), COUNT(*) FROM rows {where}"
-                                     f"GROUP BY family, unit", names)
-        counts = collections.Counter({(str(family), str(unit)): n for family, unit, n in grouped})
-    return int(total), counts
+    file = Path(path)
+    names = [] if planners is None else sorted(planners)
+    own = "COUNT(*)" if planners is None else f"SUM(planner IN ({', '.join('?' for _ in names)}))"
+    with _reading(file) as connection:
+        _meta(connection, file)
+        grouped = connection.execute(f"SELECT family, unit, CAST(unit AS INTEGER), {own}, COUNT(*) FROM rows "
+                                     f"GROUP BY family, unit", names).fetchall()
+        _check_units(connection, file, grouped)
+    mine: collections.Counter[tuple[str, str]] = collections.Counter()
+    every: collections.Counter[tuple[str, str]] = collections.Counter()
+    for family, unit, _, n_own, n in grouped:
+        key = ("" if family is None else str(family), "" if unit is None else str(unit))
+        if n_own:
+            mine[key] += n_own
+        every[key] += n
+    return sum(every.values()), mine, every
 
 
 class SweepStore:
@@ -371,4 +398,4 @@ def _check(connection: sqlite3.Connection, file: Path, columns: list[str], cells
 
 
 __all__ = ["KEY", "STORE_SUFFIXES", "SweepStore", "is_sqlite_file", "is_store_path", "iter_store_cells",
-           "iter_store_rows", "planner_row_counts", "read_store_rows"]
+           "iter_store_rows", "read_store_rows", "rowid_bounds", "store_rows", "unit_row_counts"]
