@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from importlib import metadata
 
-__version__ = "0.3.0"
+__version__ = "0.4.0.dev0"
 
 LIBRARIES = ("mujoco", "numpy", "scipy", "osqp", "gymnasium")
 """The distributions whose versions every result records, after mjtraj's own."""
