@@ -190,8 +190,8 @@ def rowid_bounds(path: str | os.PathLike[str], parts: int) -> list[tuple[int | N
     """The store's rows in at most `parts` consecutive ranges of rowids [low, high) that split the span of its
     rowids evenly (None: unbounded), in order: `iter_store_cells(path, rowids=...)` of each, one after another,
     reads every row once. A store's rowids run without gaps (its rows are only ever appended), so the ranges hold
-    as many rows each; a range that holds none (an edited store) is merged into the next. Found from the rowid
-    index alone: no row is read.
+    as many rows each; a range that holds none (an edited store) is merged into the next. Found from the rowids
+    alone: no row is read.
 
     Raises:
       InvalidInputError: the file is not a readable sweep store.
