@@ -200,10 +200,12 @@ def csv_lines(rows: Iterable[Sequence[str]]) -> Iterator[str]:
 
 
 def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[list[str], ColumnKinds | None, int]:
-    """The first pass over `sweep`: its columns, their kinds (if `kinds_needed`) and its row count, refusing a
-    sweep that is not one, or is torn or unfinished (the rule of `complete_units` and `expected_rows`, counted
-    unit by unit). Reads cells, not dicts: only the key columns are looked at unless kinds are needed."""
+    """The first pass over `sweep`: its columns, their kinds (if `kinds_needed`: a CSV file's only, since a store's
+    parts gather theirs as they are written) and its row count, refusing a sweep that is not one, or is torn or
+    unfinished (the rule of `complete_units` and `expected_rows`, counted unit by unit). Reads cells, not dicts:
+    only the key columns are looked at unless kinds are needed."""
     store = is_sqlite_file(sweep)
+    assert not (store and kinds_needed), "a store's kinds are gathered by its parts"
     cells = iter_store_cells(sweep, rowids=(None, None)) if store else iter_cells(sweep)  # units: checked below
     columns = list(next(cells))
     first_values = next(cells, None)
@@ -216,16 +218,12 @@ def _checked_pass(sweep: str | os.PathLike[str], kinds_needed: bool) -> tuple[li
     planners = set(first["sweep_planners"].split("+"))
     gathered = ColumnKinds(columns) if kinds_needed else None
     at_family, at_unit, at_planner = (columns.index(c) for c in ("family", "unit", "planner"))
-    rows = itertools.chain([first_values], cells)
     if store:  # counted by SQLite in one scan, its units checked: no row reaches Python for them
         total, counts, _ = unit_row_counts(sweep, planners)
-        if gathered is not None:
-            for chunk in _batched(rows):
-                gathered.add(chunk)
         cells.close()
     else:
         total, counts = 0, collections.Counter()
-        for chunk in _batched(rows):
+        for chunk in _batched(itertools.chain([first_values], cells)):
             total += len(chunk)  # rows of other controllers ride along with their unit
             counts.update((values[at_family], values[at_unit]) for values in chunk if values[at_planner] in planners)
             if gathered is not None:

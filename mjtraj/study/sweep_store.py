@@ -21,7 +21,7 @@ import errno
 import json
 import os
 import sqlite3
-from collections.abc import Collection, Generator, Iterable, Iterator, Sequence
+from collections.abc import Collection, Generator, Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
@@ -83,16 +83,16 @@ def _meta(connection: sqlite3.Connection, file: Path) -> tuple[list[str], dict[s
 def _stored_units(connection: sqlite3.Connection, file: Path) -> dict[tuple[str, int], int]:
     """(family, unit) -> rows of every stored unit, checked against the rows themselves (`_check_units`)."""
     return _check_units(connection, file, connection.execute(
-        "SELECT family, unit, CAST(unit AS INTEGER), 0, COUNT(*) FROM rows GROUP BY family, unit").fetchall())
+        "SELECT family, CAST(unit AS INTEGER), COUNT(*) FROM rows GROUP BY family, unit"))
 
 
-def _check_units(connection: sqlite3.Connection, file: Path, grouped: Iterable[Sequence[Any]]
+def _check_units(connection: sqlite3.Connection, file: Path, counts: Iterable[tuple[Any, Any, int]]
                  ) -> dict[tuple[str, int], int]:
-    """(family, unit) -> rows of every stored unit, given the rows grouped by family and unit as (family, unit,
-    unit as an integer, any, rows); InvalidInputError if a unit's rows are not all there, or rows lack their unit
-    (the store was edited)."""
+    """(family, unit) -> rows of every stored unit, given the rows counted as (family, unit as an integer, rows)
+    (several counts of one unit add up); InvalidInputError if a unit's rows are not all there, or rows lack their
+    unit (the store was edited)."""
     counted: collections.Counter[tuple[str, Any]] = collections.Counter()
-    for family, _, unit, _, n in grouped:
+    for family, unit, n in counts:
         counted[family, unit] += n
     units = {(f, int(u)): int(n) for f, u, n in connection.execute("SELECT family, unit, rows FROM units")}
     for (family, unit), rows in units.items():
@@ -228,7 +228,7 @@ def unit_row_counts(path: str | os.PathLike[str], planners: Collection[str] | No
         _meta(connection, file)
         grouped = connection.execute(f"SELECT family, unit, CAST(unit AS INTEGER), {own}, COUNT(*) FROM rows "
                                      f"GROUP BY family, unit", names).fetchall()
-        _check_units(connection, file, grouped)
+        _check_units(connection, file, ((family, unit, n) for family, _, unit, _, n in grouped))
     mine: collections.Counter[tuple[str, str]] = collections.Counter()
     every: collections.Counter[tuple[str, str]] = collections.Counter()
     for family, unit, _, n_own, n in grouped:
