@@ -593,8 +593,9 @@ def _bench(args: argparse.Namespace) -> int:
                       f"{row['iterations']:>10} {row['objective']:>12.6g}")
         family = new["nonlinear_min_effort family"]
         print(f"each nonlinear planner over {family['scenarios']} nominal scenarios, by solver ('auto': the SQP, "
-              f"then SLSQP where it did not converge; each solver from the linear start, then the tracked one); gaps "
-              f"relative to SLSQP alone's objective")
+              f"then SLSQP where it did not converge; each solver from the linear start, then the tracked one, "
+              f"except nonlinear_min_effort's SQP: from both, the lower plan kept); gaps relative to SLSQP alone's "
+              f"objective")
         print(f"{'planner':<22} {'solver':<6} {'failed':>6} {'median s':>9} {'x linear':>8} {'max s':>7} "
               f"{'by SLSQP':>8} {'tracked':>7} {'max gap':>9} {'worse':>5}")
         for name in ("nonlinear_min_effort", "nonlinear_optimal"):

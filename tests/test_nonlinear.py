@@ -139,6 +139,7 @@ def test_an_unreachable_goal_names_the_binding_constraint(model):
     ({"torque_bound": -1.0}, r"^torque_bound: expected positive values, got -1.0$"),
     ({"solver": "newton"}, r"^solver: unknown value 'newton'; valid: auto, sqp, slsqp$"),
     ({"sqp_max_iter": 0}, r"^sqp_max_iter: expected a whole number >= 1, got 0$"),
+    ({"keep": "best"}, r"^keep: unknown value 'best'; valid: first, lowest$"),
 ])
 def test_bad_options_are_one_line_errors(options, message):
     with pytest.raises(InvalidInputError, match=message):
@@ -181,7 +182,7 @@ def test_a_failed_solve_is_retried_with_shorter_first_steps(model, monkeypatch):
         return solve(self, problem, limits, rows, u, f_scale, t_scale, scale)
 
     monkeypatch.setattr(nonlinear.NonlinearOptimal, "_solve", first_fails)
-    plan = make("nonlinear_min_effort", curvature_scale=2.0).plan(task, model)
+    plan = make("nonlinear_min_effort", solver="slsqp", curvature_scale=2.0).plan(task, model)
     assert plan.info["retried"] == 1 and scales[0] == 2.0 and set(scales[1:]) == {2.0 * nonlinear.RETRY_FACTOR}
     check_plan(model, task, plan)
 
@@ -192,7 +193,37 @@ def test_a_failed_solve_is_retried_with_shorter_first_steps(model, monkeypatch):
     with pytest.raises(SolverError, match=r"^nonlinear_min_effort: failed at 60 \(also with curvature_scale 2: "
                                           r"nonlinear_min_effort: failed at 2\) \(from the tracked start: "
                                           r"nonlinear_min_effort: failed at 2\)$"):
-        make("nonlinear_min_effort", curvature_scale=2.0).plan(task, model)
+        make("nonlinear_min_effort", solver="slsqp", curvature_scale=2.0).plan(task, model)
+
+
+def test_lowest_keeps_the_least_of_the_starts_plans_and_first_the_first(model, monkeypatch):
+    """keep='lowest' (nonlinear_min_effort's default) runs the SQP from both starts, in START_NAMES order, and keeps
+    the plan of least objective; 'first' stops at the first start from which it converges. Oracle: each run's
+    result, recorded by a wrapper, and its objective recomputed."""
+    from mjtraj.core.planners import nonlinear
+
+    task = short_task(model, 0.8)
+    runs = []
+    sqp = nonlinear.gauss_newton_sqp
+
+    def recorded(problem, limits, u, **options):
+        result = sqp(problem, limits, u, **options)
+        runs.append((problem.objective(result.u), result))
+        return result
+
+    monkeypatch.setattr(nonlinear, "gauss_newton_sqp", recorded)
+    plan = make("nonlinear_min_effort").plan(task, model)
+    assert len(runs) == 2 and all(result.converged for _, result in runs)
+    best = min(range(2), key=lambda i: runs[i][0])
+    assert (plan.info["solver"], plan.info["sqp_converged"]) == ("sqp", 2)
+    assert plan.info["start"] == nonlinear.START_NAMES[best]
+    assert plan.info["objective"] == runs[best][0] and plan.info["iterations"] == runs[best][1].iterations
+    np.testing.assert_array_equal(plan.u_plan.ravel(), runs[best][1].u)
+    runs.clear()
+    first = make("nonlinear_min_effort", keep="first").plan(task, model)
+    assert len(runs) == 1 and (first.info["start"], first.info["sqp_converged"]) == ("linear", 1)
+    np.testing.assert_array_equal(first.u_plan.ravel(), runs[0][1].u)
+    check_plan(model, task, plan)
 
 
 def test_a_diverging_rollout_is_an_error_not_a_reset_state(model, tmp_path, monkeypatch):
@@ -296,6 +327,25 @@ def test_the_sqp_plan_along_the_speed_limit_is_slsqps_optimum(model, plans):
     assert mine.info["objective"] <= theirs.info["objective"] * (1 + 1e-7)
 
 
+@pytest.mark.slow
+def test_the_effort_bound_is_slsqps_optimum_or_lower_on_the_paper_task_and_50_nominal_tasks(model):
+    """The issue's bar for the bound's solver, with SLSQP alone as the oracle: on the paper task and nominal
+    scenarios 0-49 of seed 0 the default plan's objective is within 1e-4 of SLSQP's or below it, and the plan holds
+    every constraint."""
+    from mjtraj.study.families import draw_scenario
+    from mjtraj.study.scenario import load_scenario
+
+    tasks = [load_scenario(None).task] + [draw_scenario("nominal", 0, i, model, 0.02).task for i in range(50)]
+    solvers = []
+    for task in tasks:
+        mine = make("nonlinear_min_effort").plan(task, model)
+        theirs = make("nonlinear_min_effort", solver="slsqp").plan(task, model)
+        assert mine.info["objective"] <= theirs.info["objective"] * (1 + 1e-4), (task, mine.info, theirs.info)
+        check_plan(model, task, mine)
+        solvers.append(mine.info["solver"])
+    assert solvers.count("sqp") >= 45  # the SQP plans nearly all of them: SLSQP is the fallback
+
+
 def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort, monkeypatch):
     """'auto' plans with SLSQP where the SQP stops unconverged from both starts; 'sqp' fails then in one line, and
     where SLSQP fails too, the error carries every reason."""
@@ -322,52 +372,95 @@ def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort, monke
         make("nonlinear_optimal", sqp_max_iter=1).plan(task, model)
 
 
+def stage_hessians(problem, X, U, costates, eps=1e-4):
+    """W_k = d2/dz2 (lambda_{k+1}^T F(z_k)) at z_k = [x_k; u_k], shape (N, 3n, 3n), F one step of the model: second
+    differences of the steps from z_k, z_k + eps e_i and z_k + eps (e_i + e_j) (i <= j), all in one batch."""
+    from mujoco.batch import Batch
+
+    N, n = U.shape
+    m = 3 * n
+    upper_i, upper_j = np.triu_indices(m)
+    directions = np.concatenate([np.eye(m), np.eye(m)[upper_i] + np.eye(m)[upper_j]])
+    points = (np.concatenate([X[:-1], U], axis=1)[:, None, :] + eps * directions[None]).reshape(-1, m)
+    batch = Batch(problem.model, len(points), nthread=1)
+    batch.reset(list(range(len(points))))
+    qpos, qvel, ctrl = batch.bind("qpos"), batch.bind("qvel"), batch.bind("ctrl")
+    qpos[:], qvel[:], ctrl[:] = points[:, :n], points[:, n:2 * n], points[:, 2 * n:]
+    batch.step(None, 1)
+    after = np.concatenate([qpos, qvel], axis=1).reshape(N, len(directions), 2 * n)
+    value = np.einsum("kpi,ki->kp", after, costates[1:])
+    base = np.einsum("ki,ki->k", X[1:], costates[1:])
+    single = value[:, :m]
+    W = np.empty((N, m, m))
+    W[:, upper_i, upper_j] = W[:, upper_j, upper_i] = (
+        (value[:, m:] - single[:, upper_i] - single[:, upper_j] + base[:, None]) / eps ** 2)
+    return W
+
+
 @pytest.mark.slow
-def test_the_gauss_newton_sqp_stops_at_a_saddle_of_the_paper_tasks_effort_bound(model):
-    """Why the effort bound stays on SLSQP: on the paper task the Gauss-Newton SQP alone converges to a KKT point
-    (the Lagrangian's gradient vanishes with the QP's multipliers) that is no minimum: the Lagrangian's Hessian, by
-    forward differences of its gradient, has a negative eigenvalue on the null space of the active constraints.
-    SLSQP's plan costs a third less."""
+def test_the_gauss_newton_sqp_from_the_linear_start_stops_at_another_local_minimum_of_the_paper_task(model):
+    """Why nonlinear_min_effort keeps the lowest of its starts' plans: on the paper task the Gauss-Newton SQP from the
+    linear start converges to a strict local minimum costing 61 % more than the one it reaches from the tracked
+    start (SLSQP's). Second-order sufficiency at it: the KKT conditions hold with least-squares multipliers, every
+    active constraint's multiplier has its sign, and the Lagrangian's Hessian is positive definite on their null
+    space. The Hessian is the Gauss-Newton term plus sum_k M_k^T W_k M_k (M_k = dz_k/du, W_k the costate-weighted
+    second derivative of one step, by second differences); the oracle for it is the Lagrangian's curvature along
+    null-space directions by second differences of whole rollouts."""
     import scipy.linalg
 
     from mjtraj.core.planners.optimal import planner_weights
-    from mjtraj.core.planners.sqp import _qp
     from mjtraj.study.scenario import load_scenario
 
     task = load_scenario(None).task
-    mine = make("nonlinear_min_effort", solver="sqp").plan(task, model)
-    theirs = make("nonlinear_min_effort").plan(task, model)
-    assert theirs.info["objective"] < 0.7 * mine.info["objective"]
+    linear = make("nonlinear_min_effort", keep="first").plan(task, model)
+    lowest = make("nonlinear_min_effort").plan(task, model)
+    slsqp = make("nonlinear_min_effort", solver="slsqp").plan(task, model)
+    assert (linear.info["start"], lowest.info["start"], lowest.info["sqp_converged"]) == ("linear", "tracked", 2)
+    assert lowest.info["objective"] == pytest.approx(slsqp.info["objective"], rel=1e-6)
+    assert linear.info["objective"] > 1.5 * lowest.info["objective"]
     joints = JointInfo.of(model)
     n, N = task.n, task.steps
     Q, R = planner_weights(task, joints.torque_limit, None, None, 0.0, 0.5)
     problem = Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]), Q, R,
                        N, 1e-7)
     limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
-    u = mine.u_plan.ravel()
-    U, X, _, S = problem.evaluate(u)
-    scale = limits.scale(N)[:4 * N * n]
-    h = limits.values(U, X)[:4 * N * n]
-    rows = np.flatnonzero(h < 0.4 * scale)
-    u_max = np.tile(joints.torque_limit, N)
-    _, multipliers = _qp(problem.gauss_newton(u), problem.gradient(u), S[-1], X[-1] - problem.xg,
-                         limits.jacobian(S, rows) / scale[rows, None], h[rows] / scale[rows], -u_max - u, u_max - u,
-                         soft=False)
-    assert not np.any(np.isclose(np.abs(u), u_max))  # no torque on its bound: the rows hold every active constraint
+    u = linear.u_plan.ravel()
+    U, X, A, S = problem.evaluate(u)
+    active = np.flatnonzero(limits.values(U, X) <= 1e-7 * limits.scale(N))
+    assert active.size and np.all(active < 4 * N * n)  # speed limits, no torque on its bound
+    jacobian = limits.jacobian(S, active)
+    gradient = problem.gradient(u)
+    solved, *_ = np.linalg.lstsq(np.vstack([S[-1], -jacobian]).T, -gradient, rcond=None)
+    terminal, path = solved[:2 * n], solved[2 * n:]  # L = f + terminal^T (x_N - x_g) - path^T h
+    assert np.linalg.norm(gradient + S[-1].T @ terminal - jacobian.T @ path) < 1e-5 * np.linalg.norm(gradient)
+    assert np.all(path > 1e-3 * path.max())  # strictly complementary
+    group, rest = np.divmod(active, N * n)
+    k, joint = np.divmod(rest, n)
+    direct = np.zeros((N + 1, 2 * n))  # dL/dx_k through x_k itself
+    direct[N] = terminal
+    np.add.at(direct, (k + 1, np.where(group < 2, joint, n + joint)), path * np.where(group % 2 == 0, 1.0, -1.0))
+    costates = direct.copy()
+    for step in range(N - 1, 0, -1):
+        costates[step] += A[step].T @ costates[step + 1]
+    W = stage_hessians(problem, X, U, costates)
+    M = np.zeros((N, 3 * n, N * n))
+    M[:, :2 * n] = S[:-1]
+    M.reshape(N, 3 * n, N, n)[np.arange(N), 2 * n:, np.arange(N), :] = np.eye(n)
+    H = problem.gauss_newton(u) + M.reshape(-1, N * n).T @ (W @ M).reshape(-1, N * n)
+    H = 0.5 * (H + H.T)
+    Z = scipy.linalg.null_space(np.vstack([S[-1], jacobian]))
+    curvature, vectors = np.linalg.eigh(Z.T @ H @ Z)
 
-    def lagrangian_gradient(v):
-        S_v = problem.evaluate(v)[3]
-        rows_jacobian = np.vstack([S_v[-1], limits.jacobian(S_v, rows) / scale[rows, None]])
-        return problem.gradient(v) + rows_jacobian.T @ multipliers
+    def lagrangian(v):
+        U_v, X_v = problem.states(v)
+        return problem.objective(v) + terminal @ (X_v[-1] - problem.xg) - path @ limits.values(U_v, X_v)[active]
 
-    g0 = lagrangian_gradient(u)
-    assert np.abs(g0).max() < 1e-5 * np.abs(problem.gradient(u)).max()  # a KKT point
-    eps = 1e-5
-    H = np.column_stack([(lagrangian_gradient(u + eps * e) - g0) / eps for e in np.eye(N * n)])
-    active = np.vstack([S[-1], limits.jacobian(S, rows[np.abs(multipliers[2 * n:]) > 1e-10])])
-    Z = scipy.linalg.null_space(active)
-    lowest = np.linalg.eigvalsh(Z.T @ (0.5 * (H + H.T)) @ Z)[0]
-    assert lowest < -0.1 * np.diag(R).min(), lowest  # negative curvature of R's order: a saddle
+    rng = np.random.default_rng(5)
+    for direction in [Z @ vectors[:, 0], Z @ vectors[:, -1], Z @ rng.normal(size=Z.shape[1])]:
+        direction /= np.linalg.norm(direction)
+        oracle = (lagrangian(u + 1e-3 * direction) - 2 * lagrangian(u) + lagrangian(u - 1e-3 * direction)) / 1e-6
+        assert direction @ H @ direction == pytest.approx(oracle, rel=1e-3)
+    assert curvature[0] > 0.3 * np.diag(R).min(), curvature[0]  # positive definite: a strict local minimum
 
 
 def test_tracking_gains_reach_the_discrete_riccati_gain_over_a_long_horizon():
