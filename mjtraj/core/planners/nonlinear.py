@@ -14,11 +14,11 @@ torque on its control's upper end, where MuJoCo clamps), all N (3n) perturbed st
 the objective's gradient. The path constraints (ranges, speed, torque) are screened: only rows within reach of their
 limit enter a solve; the returned plan is checked against every constraint. The start is the linear optimal
 planner's plan for the same weights when its rollout keeps every path constraint, else the linear minimum-effort
-plan (Q = 0: the zero-order-held slow move). Where a solver fails from it, it starts once more from the tracked
-start: the torques with which the model follows that linear plan's states under LQR feedback (on some tasks the
-open-loop torques drift into a joint's end, where the linearised terminal condition cannot be met). The problem is
-not convex: the plan is a local minimum, reached from its start (the plan's info says which). Two solvers (see
-SOLVERS):
+plan (Q = 0: the zero-order-held slow move). Where a solver fails from it (with keep='lowest', always), it starts
+once more from the tracked start: the torques with which the model follows that linear plan's states under LQR
+feedback (on some tasks the open-loop torques drift into a joint's end, where the linearised terminal condition
+cannot be met). The problem is not convex: the plan is a local minimum, reached from its start (the plan's info says
+which). Two solvers (see SOLVERS):
 
 - the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights, a tenth of a second
   at N = 100, and 10 to 20 with Q = 0. The default of both planners ('auto': SLSQP where it does not converge).
