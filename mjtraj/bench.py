@@ -125,7 +125,8 @@ def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int 
     converge is reported by its error). Then each nonlinear planner over the first `scenarios` nominal scenarios
     with its default solver and each of NONLINEAR_SOLVERS: per solver the plans that failed, the median and largest
     seconds per plan, the plans SLSQP made ('auto' turns to it when the SQP does not converge), the largest
-    relative objective difference to SLSQP alone's, and the plans worse than it by more than 1e-4."""
+    relative objective difference to SLSQP alone's, and the plans worse than it by more than 1e-4; over all those
+    plans, the linearisations that were analytic and those that were differenced (see `Shooting.jacobians`)."""
     from mjtraj.core.planners import make
     from mjtraj.core.planners.nonlinear import NonlinearOptimal
     from mjtraj.exceptions import MjtrajError
@@ -155,12 +156,16 @@ def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int 
             except MjtrajError as e:
                 out[f"{name} {solver}"] = {"error": str(e)}
     tasks = [draw_scenario("nominal", 0, i, model, task.dt).task for i in range(scenarios)]
+    out["jacobians"] = {"analytic": 0, "differenced": 0}
     for name in NEW_PLANNERS[1:]:
         planner = make(name)
         assert isinstance(planner, NonlinearOptimal)
         default = planner.solver
         runs = {solver: [_plan_or_error(make(name, solver=solver), t, model) for t in tasks]
                 for solver in dict.fromkeys((default, *NONLINEAR_SOLVERS))}
+        for infos in runs.values():
+            for kind in ("analytic", "differenced"):
+                out["jacobians"][kind] += sum(info[f"{kind}_jacobians"] for info in infos if info)
         oracle = [info["objective"] if info else np.nan for info in runs["slsqp"]]
         rows = {}
         for solver, infos in runs.items():

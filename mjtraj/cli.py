@@ -577,9 +577,10 @@ def _bench(args: argparse.Namespace) -> int:
                                  positive_int("planner_scenarios", args.planner_scenarios))
         linear = new["linear_s"]
         print(f"the fair study's planners on the scenario's task (N = {new['steps']}), one process: the linear "
-              f"optimal plan takes {1e3 * linear:.2f} ms on one core; the nonlinear planners step their batched "
-              f"differences on {new['threads']} threads (MuJoCo's batch, every CPU); targets: scurve below the closed "
-              f"loop that executes it, each nonlinear planner at most 100 times the linear plan")
+              f"optimal plan takes {1e3 * linear:.2f} ms on one core; the nonlinear planners linearise by "
+              f"Pinocchio's derivatives where its step is MuJoCo's, else by batched differences on {new['threads']} "
+              f"threads (MuJoCo's batch, every CPU); targets: scurve below the closed loop that executes it, each "
+              f"nonlinear planner at most 100 times the linear plan")
         print(f"{'planner':<22} {'solver':<6} {'s per plan':>10} {'x linear':>9} {'iterations':>10} {'objective':>12}")
         print(f"{'scurve':<22} {'':<6} {new['scurve_s']:>10.5f} {new['scurve_s'] / linear:>9.2f} {'':>10} {'':>12}"
               f"   (one closed-loop execution: {new['loop_s']:.5f} s; ratio {new['scurve_s'] / new['loop_s']:.2f})")
@@ -606,6 +607,8 @@ def _bench(args: argparse.Namespace) -> int:
                       f"{row['median_s'] / linear:>8.0f} {row['max_s']:>7.2f} {row['by_slsqp']:>8} "
                       f"{row['tracked']:>7} {row['max_gap']:>+9.1e} {row['worse']:>5}")
         print("* the planner's default solver")
+        print(f"linearisations over these plans: {new['jacobians']['analytic']} analytic, "
+              f"{new['jacobians']['differenced']} differenced")
     if args.what in ("loop", "all"):
         print("closed loop (FF + PID + plant) vs raw mujoco.batch stepping, same run")
         print(f"{'scenarios':>9} {'raw steps/s':>12} {'loop steps/s':>13} {'ratio':>6}")

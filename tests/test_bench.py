@@ -56,6 +56,9 @@ def test_new_planners_table_prints_what_it_measured(capsys):
             assert times == pytest.approx(seconds / linear, rel=0.02, abs=1) and iterations >= 1 and objective > 0
     assert "over 2 nominal scenarios" in out
     assert re.search(r"batched differences on [1-9][0-9]* threads", out)
+    analytic, differenced = map(int, re.search(r"^linearisations over these plans: (\d+) analytic, (\d+) "
+                                               r"differenced$", out, re.MULTILINE).groups())
+    assert analytic > 0 and differenced >= 0  # Pinocchio holds the shipped arm
     families = re.findall(r"^(nonlinear_\w+)\s+(auto|sqp|slsqp)(\*?)\s+(\d+)\s+([0-9.]+)\s+(\d+)\s+([0-9.]+)\s+"
                           r"(\d+)\s+(\d+)\s+([+-][0-9.]+e[+-]\d+)\s+(\d+)$", out, re.MULTILINE)
     assert {(name, solver, star) for name, solver, star, *_ in families} == {

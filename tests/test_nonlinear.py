@@ -279,9 +279,10 @@ def test_the_path_rows_jacobian_is_their_derivative(model):
         np.testing.assert_allclose(J @ direction, numeric, rtol=1e-4, atol=1e-6 * np.abs(numeric).max())
 
 
-def test_the_qp_of_an_sqp_step_is_osqps_solution():
-    """The step's QP (DAQP on the Cholesky-transformed problem) against OSQP on a random QP with equalities, rows and
-    bounds, several of them active."""
+@pytest.mark.parametrize("hessian", ["dense", "diagonal"])
+def test_the_qp_of_an_sqp_step_is_osqps_solution(hessian):
+    """The step's QP (DAQP on the Cholesky-transformed problem; the box as simple bounds where H is diagonal) against
+    OSQP on a random QP with equalities, rows and bounds, several of them active."""
     import osqp
     import scipy.sparse as sparse
 
@@ -291,6 +292,8 @@ def test_the_qp_of_an_sqp_step_is_osqps_solution():
     size = 30
     root = rng.normal(size=(size, size))
     H, g = root @ root.T + np.eye(size), rng.normal(size=size) * 10
+    if hessian == "diagonal":
+        H = np.diag(rng.uniform(0.01, 100.0, size))
     C, c = rng.normal(size=(3, size)), rng.normal(size=3)
     G, h = rng.normal(size=(8, size)), rng.uniform(0.0, 0.5, 8)
     low, high = -np.full(size, 0.3), np.full(size, 0.3)
@@ -304,6 +307,19 @@ def test_the_qp_of_an_sqp_step_is_osqps_solution():
     np.testing.assert_allclose(d, theirs, atol=1e-7)
     np.testing.assert_allclose(C @ d, -c, atol=1e-10)
     assert np.all(G @ d >= -h - 1e-10) and multipliers.shape == (11,)
+
+
+def test_the_bound_linearises_analytically_and_reaches_the_differenced_plans_optimum(model, effort, monkeypatch):
+    """On the paper's arm every linearisation of a plan is Pinocchio's (mjtraj.core.planners.rigid_body); with
+    MuJoCo's differences alone the plan reaches the same optimum, to their noise."""
+    task, _ = effort
+    mine = make("nonlinear_min_effort").plan(task, model)
+    assert mine.info["analytic_jacobians"] > 0 and mine.info["differenced_jacobians"] == 0
+    monkeypatch.setattr("mjtraj.core.planners.shooting.RigidBody.of", lambda model: None)
+    theirs = make("nonlinear_min_effort").plan(task, model)
+    assert theirs.info["analytic_jacobians"] == 0 and theirs.info["differenced_jacobians"] > 0
+    assert mine.info["objective"] == pytest.approx(theirs.info["objective"], rel=1e-7)
+    np.testing.assert_allclose(mine.u_plan, theirs.u_plan, atol=1e-5 * np.abs(theirs.u_plan).max())
 
 
 def test_the_sqp_plan_is_slsqps_optimum(model, effort):

@@ -8,9 +8,11 @@ nominal arm can make the move, the effort bound of the study.
 
 Method: sequential quadratic programming in single-shooting form (`mjtraj.core.planners.shooting`). The variables
 are the N n torques; every iterate is rolled out exactly on the model, so every plan is realisable. The transition's
-Jacobians A_k, B_k come from forward finite differences of mj_step about the rollout's own steps (backward for a
-torque on its control's upper end, where MuJoCo clamps), all N (3n) perturbed steps in one mujoco.batch call
-(MuJoCo's mjd_transitionFD does not support RK4); forward sensitivities dx_k/dU give the constraints' Jacobians and
+Jacobians A_k, B_k are analytic where Pinocchio holds the model and reproduces the rollout to 1e-9 (its derivatives of
+the articulated-body algorithm chained through the RK4 stages, `mjtraj.core.planners.rigid_body`), else forward
+finite differences of mj_step about the rollout's own steps (backward for a torque on its control's upper end, where
+MuJoCo clamps), all N (3n) perturbed steps in one mujoco.batch call (MuJoCo's mjd_transitionFD does not support
+RK4); the plan's info counts each kind. Forward sensitivities dx_k/dU give the constraints' Jacobians and
 the objective's gradient. The path constraints (ranges, speed, torque) are screened: only rows within reach of their
 limit enter a solve; the returned plan is checked against every constraint. The start is the linear optimal
 planner's plan for the same weights when its rollout keeps every path constraint, else the linear minimum-effort
@@ -20,12 +22,12 @@ feedback (on some tasks the open-loop torques drift into a joint's end, where th
 cannot be met). The problem is not convex: the plan is a local minimum, reached from its start (the plan's info says
 which). Two solvers (see SOLVERS):
 
-- the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights, a tenth of a second
-  at N = 100, and 10 to 20 with Q = 0. The default of both planners ('auto': SLSQP where it does not converge).
-  `nonlinear_optimal` keeps the plan from the first start from which it converges, `nonlinear_min_effort` runs it
-  from both starts and keeps the lower plan (`keep`; see KEEPS): a bound is a minimum, and with Q = 0 the starts
-  can reach different local minima (on the paper task 0.0985 from the linear start, a strict local minimum, and
-  0.0613 from the tracked one);
+- the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights (0.08 s at N = 100 on
+  two cores), and 10 to 20 with Q = 0 from each start (0.16 s for a bound plan). The default of both planners ('auto':
+  SLSQP where it does not converge). `nonlinear_optimal` keeps the plan from the first start from which it converges,
+  `nonlinear_min_effort` runs it from both starts and keeps the lower plan (`keep`; see KEEPS): a bound is a minimum,
+  and with Q = 0 the starts can reach different local minima (on the paper task 0.0985 from the linear start, a strict
+  local minimum, and 0.0613 from the tracked one);
 - scipy's SLSQP, which keeps a quasi-Newton model of the Lagrangian's curvature, the dynamics' second derivatives
   included. That model starts at the identity, so the solve runs in variables v = L^T u in which the identity is a
   multiple of the Gauss-Newton Hessian (see `_Metric`): without this SLSQP spent one iteration per variable
@@ -182,7 +184,7 @@ class NonlinearOptimal(Planner):
       max_iter: SLSQP iterations per solve.
       tol: SLSQP's tolerance on the scaled objective; the plan must also meet x_N = x_g to 1e-8 and every path
         constraint to 1e-8 (relative to its limit).
-      fd_eps: forward-difference step of the transition Jacobians.
+      fd_eps: forward-difference step of the transition Jacobians where they are differenced.
       curvature_scale: SLSQP's quasi-Newton model starts at this multiple of the Gauss-Newton Hessian (see
         CURVATURE_SCALE).
       solver: 'auto' (the default) = the Gauss-Newton SQP (`mjtraj.core.planners.sqp`) for at most sqp_max_iter
@@ -266,7 +268,7 @@ class NonlinearOptimal(Planner):
                 objective, name, result = min(found, key=lambda plan: plan[0])  # the first of equals
                 U, X = problem.states(result.u)
                 return self._reference(task, U, X, objective, "sqp", name, result.iterations, 1, result.rows, 0,
-                                       time.perf_counter() - clock, converged=len(found))
+                                       time.perf_counter() - clock, problem.jacobian_counts, converged=len(found))
             failure = "; ".join(failures)
             if self.solver == "sqp":
                 raise SolverError(f"{self.name}: the Gauss-Newton SQP stopped {failure}")
@@ -278,7 +280,7 @@ class NonlinearOptimal(Planner):
             u, name, rounds, iterations, rows, retried = self._slsqp(problem, limits, starts)
         U, X, _, _ = problem.evaluate(u)
         return self._reference(task, U, X, problem.objective(u), "slsqp", name, iterations, rounds, rows, retried,
-                               time.perf_counter() - clock)
+                               time.perf_counter() - clock, problem.jacobian_counts)
 
     def _slsqp(self, problem: Shooting, limits: PathLimits, starts: _Starts
                ) -> tuple[NDArray[np.float64], str, int, int, int, int]:
@@ -432,10 +434,11 @@ class NonlinearOptimal(Planner):
         return f"{CONSTRAINT_NAMES[group]} of joint {joint} at sample {sample}"
 
     def _reference(self, task: Task, U: NDArray[np.float64], X: NDArray[np.float64], objective: float, solver: str,
-                   start: str, iterations: int, rounds: int, rows: int, retried: int, wall: float, *,
-                   converged: int = 0) -> Reference:
-        """The rollout X (N+1, 2n) under U (N, n) as a Reference: qdd is the ZOH acceleration per step. `converged`:
-        the starts from which the Gauss-Newton SQP converged (0 where SLSQP planned)."""
+                   start: str, iterations: int, rounds: int, rows: int, retried: int, wall: float,
+                   jacobians: dict[str, int], *, converged: int = 0) -> Reference:
+        """The rollout X (N+1, 2n) under U (N, n) as a Reference: qdd is the ZOH acceleration per step. `jacobians`:
+        how many linearisations were analytic and how many differenced (see `Shooting.jacobians`); `converged`: the
+        starts from which the Gauss-Newton SQP converged (0 where SLSQP planned)."""
         n = task.n
         terminal = float(np.max(np.abs(X[-1] - np.concatenate([task.qg, np.zeros(n)]))))
         q, qd = X[:, :n].copy(), X[:, n:].copy()
@@ -445,7 +448,8 @@ class NonlinearOptimal(Planner):
         qd[-1] = 0.0
         info = {"objective": objective, "solver": solver, "start": start, "iterations": iterations, "rounds": rounds,
                 "path_rows": rows, "retried": retried, "terminal_residual": terminal, "plan_time": wall,
-                "sqp_converged": converged}
+                "sqp_converged": converged, "analytic_jacobians": jacobians["analytic"],
+                "differenced_jacobians": jacobians["differenced"]}
         return Reference(planner=self.name, t=task.times, q=q, qd=qd, qdd=qdd, u_plan=U.copy(), info=info)
 
 

@@ -1,12 +1,13 @@
 """The nonlinear planners' problem in single-shooting form: the torques U are the variables, the states their exact
 rollout on the nominal MuJoCo model (its own integrator and timestep, one step per control period).
 
-`Shooting` rolls out, differentiates each step by forward differences (all N (3n) perturbed steps in one
-mujoco.batch call, on every CPU: bit-identical at any thread count; MuJoCo's mjd_transitionFD does not support
-RK4), propagates the forward sensitivities S_k = dx_k/dU, and gives the objective, its gradient and its Gauss-Newton
-Hessian. It steps a copy of the model without collision detection where no two geoms can touch (`_collision_free`):
-the same steps bit for bit, 15 % sooner. `PathLimits` holds the path constraints (joint ranges, speed limit, torque
-bound) as rows h >= 0.
+`Shooting` rolls out, differentiates each step (analytically by Pinocchio where it reproduces the rollout,
+`mjtraj.core.planners.rigid_body`; else by forward differences, all N (3n) perturbed steps in one mujoco.batch call,
+on every CPU: bit-identical at any thread count; MuJoCo's mjd_transitionFD does not support RK4), propagates the
+forward sensitivities S_k = dx_k/dU, and gives the objective, its gradient and its Gauss-Newton Hessian. It steps a
+copy of the model without collision detection where no two geoms can touch (`_collision_free`): the same steps bit
+for bit, 15 % sooner. `PathLimits` holds the path constraints (joint ranges, speed limit, torque bound) as rows
+h >= 0.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 from mujoco.batch import Batch
 from numpy.typing import NDArray
 
+from mjtraj.core.planners.rigid_body import RigidBody
 from mjtraj.exceptions import SolverError
 
 UNSTABLE = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
@@ -66,6 +68,8 @@ class Shooting:
         # torque on it backwards (a forward difference would see no effect)
         limited = self.model.actuator_ctrllimited.astype(bool)
         self._ctrl_high = np.where(limited, self.model.actuator_ctrlrange[:, 1], np.inf)
+        self._rigid_body = RigidBody.of(self.model)
+        self.jacobian_counts = {"analytic": 0, "differenced": 0}
 
     def rollout(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
         """States x_0..x_N of the model under U (N, n) from x0; shape (N+1, 2n).
@@ -123,9 +127,22 @@ class Shooting:
 
     def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """A_k (N, 2n, 2n) and B_k (N, 2n, n) of one control period at each (x_k, u_k), forward differences from the
-        rollout's own steps X[k+1]; backward for a torque within eps of its control's upper end, which MuJoCo
-        clamps (a forward difference there sees no effect, and a plan's torques sit on their bound)."""
+        """A_k (N, 2n, 2n) and B_k (N, 2n, n) of one control period at each (x_k, u_k): analytic where Pinocchio holds
+        the model and reproduces this rollout (`mjtraj.core.planners.rigid_body`), else forward differences from the
+        rollout's own steps X[k+1]; backward for a torque within eps of its control's upper end, which MuJoCo clamps
+        (a forward difference there sees no effect, and a plan's torques sit on their bound). `jacobian_counts`
+        counts the two kinds."""
+        if self._rigid_body is not None:
+            found = self._rigid_body.jacobians(X, U)
+            if found is not None:
+                self.jacobian_counts["analytic"] += 1
+                return found
+        self.jacobian_counts["differenced"] += 1
+        return self.differenced(X, U)
+
+    def differenced(self, X: NDArray[np.float64], U: NDArray[np.float64]
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """`jacobians` by forward differences of MuJoCo's step alone (all N (3n) perturbed steps in one batch)."""
         n, N = self.n, self.steps
         point = np.concatenate([X[:-1], U], axis=1)
         steps = np.full((N, 3 * n), self.eps)

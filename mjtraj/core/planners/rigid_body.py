@@ -1,0 +1,160 @@
+"""Analytic Jacobians of one control period (the model's RK4 step) from Pinocchio's derivatives of the articulated-body
+algorithm (Carpentier and Mansard, 2018), for the nonlinear planners' `Shooting` problems.
+
+`Shooting` differences the step: 3n perturbed MuJoCo steps per sample, about 11 ms per iterate on one core at
+N = 100, n = 3. Here one call of `pinocchio.computeABADerivatives` per RK4 stage (4 N calls) gives the acceleration
+a, da/dq, da/dv and M^-1 at the stage's state, and the chain rule through the four stages gives A_k = dx_{k+1}/dx_k and
+B_k = dx_{k+1}/du_k exactly (about 2.3 ms). Pinocchio's model is built from the MjModel's own arrays (`RigidBody.of`):
+the bodies, hinge axes and inertias, armature and damping, and gravity as MuJoCo applies it after gravity
+compensation. Every evaluation checks that Pinocchio's RK4 step reproduces the rollout MuJoCo made, sample by sample,
+within TRANSITION_TOL; where it does not (a joint pressed on the end of its range, a clamped actuator force, any force
+the conversion leaves out), `RigidBody.jacobians` returns None and the caller differences MuJoCo's step. So every
+Jacobian used is one of the plant's own transition.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+TRANSITION_TOL = 1e-9
+"""Pinocchio's RK4 step must give MuJoCo's next state within this, times (1 + |x|), in every component."""
+RK4 = ((0.0, 1.0 / 6.0), (0.5, 1.0 / 3.0), (0.5, 1.0 / 3.0), (1.0, 1.0 / 6.0))
+"""The classical Runge-Kutta stages, MuJoCo's mjINT_RK4: (the stage's fraction of the step along the previous
+stage's derivative, the stage's weight in the step)."""
+
+
+@dataclass(frozen=True)
+class RigidBody:
+    """A hinge-joint tree of `mujoco.MjModel` as a Pinocchio model, with MuJoCo's input map and damping.
+
+    Attributes:
+      model, data: Pinocchio's model and its workspace.
+      qpos0: MuJoCo's reference angles (n,), rad: Pinocchio's angle is qpos - qpos0.
+      actuation: the joint torque per control (n, nu), N m per unit: gear times gain.
+      ctrl_low, ctrl_high: each control's range (nu,), -inf/inf where unlimited (MuJoCo clamps ctrl to it).
+      damping: each joint's viscous damping (n,), N m s/rad.
+      timestep: the RK4 step, s.
+    """
+
+    model: Any
+    data: Any
+    qpos0: NDArray[np.float64]
+    actuation: NDArray[np.float64]
+    ctrl_low: NDArray[np.float64]
+    ctrl_high: NDArray[np.float64]
+    damping: NDArray[np.float64]
+    timestep: float
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> RigidBody | None:
+        """`model` as Pinocchio's, or None where the conversion does not hold it (see `unsupported`)."""
+        if unsupported(model) is not None:
+            return None
+        import pinocchio as pin  # here, not at import: only the nonlinear planners need it (0.16 s)
+        body = pin.Model()
+        joint_of = {0: 0}  # MuJoCo body -> the Pinocchio joint it moves with
+        frame_of = {0: pin.SE3.Identity()}  # MuJoCo body frame in that joint's frame
+        for b in range(1, model.nbody):
+            parent = int(model.body_parentid[b])
+            in_parent = frame_of[parent] * _pose(pin, model.body_quat[b], model.body_pos[b])
+            if model.body_jntnum[b] == 0:  # welded to its parent
+                joint_of[b], frame_of[b] = joint_of[parent], in_parent
+            else:
+                j = int(model.body_jntadr[b])
+                offset = np.array(model.jnt_pos[j], dtype=np.float64)
+                joint_of[b] = body.addJoint(joint_of[parent], pin.JointModelRevoluteUnaligned(model.jnt_axis[j].copy()),
+                                            in_parent * pin.SE3(np.eye(3), offset), f"joint{j}")
+                frame_of[b] = pin.SE3(np.eye(3), -offset)
+            rotation = _pose(pin, model.body_iquat[b], np.zeros(3)).rotation
+            inertia = rotation @ np.diag(model.body_inertia[b]) @ rotation.T
+            body.appendBodyToJoint(joint_of[b], pin.Inertia(float(model.body_mass[b]), model.body_ipos[b].copy(),
+                                                            inertia), frame_of[b])
+        gravity = np.zeros(3)
+        if not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
+            gravity = (1.0 - float(model.body_gravcomp[1:].max(initial=0.0))) * model.opt.gravity
+        body.gravity.linear[:] = gravity
+        body.armature[:] = model.dof_armature
+        actuation = np.zeros((model.nv, model.nu))
+        actuation[model.jnt_dofadr[model.actuator_trnid[:, 0]], np.arange(model.nu)] = (model.actuator_gear[:, 0]
+                                                                                         * model.actuator_gainprm[:, 0])
+        limited = model.actuator_ctrllimited.astype(bool)
+        return cls(body, body.createData(), model.qpos0.copy(), actuation,
+                   np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf),
+                   np.where(limited, model.actuator_ctrlrange[:, 1], np.inf), model.dof_damping.copy(),
+                   float(model.opt.timestep))
+
+    def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """A_k (N, 2n, 2n) and B_k (N, 2n, nu) of the RK4 step at each (x_k, u_k) of the rollout X (N+1, 2n) under U
+        (N, nu), or None where Pinocchio's step misses MuJoCo's X[k+1] by more than TRANSITION_TOL. A control outside
+        its range has no effect (MuJoCo clamps it), one on its end the effect from inside."""
+        import pinocchio as pin
+
+        steps, n = U.shape[0], self.qpos0.size
+        x, h = X[:-1], self.timestep
+        inside = (U >= self.ctrl_low) & (U <= self.ctrl_high)
+        tau = np.clip(U, self.ctrl_low, self.ctrl_high) @ self.actuation.T  # (N, n)
+        lift = np.zeros((2 * n, 3 * n))  # d(x_k, u_k)/d(x_k, u_k)'s state rows
+        lift[:, :2 * n] = np.eye(2 * n)
+        F = np.zeros((steps, 2 * n, 2 * n))  # d f/d x at a stage, f = (v, a)
+        F[:, :n, n:] = np.eye(n)
+        G = np.zeros((steps, 2 * n, n))  # d f/d tau at a stage
+        acceleration = np.empty((steps, n))
+        slope, d_slope = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, 3 * n))  # the last stage's f and df/dz
+        step, d_step = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, 3 * n))
+        for along, weight in RK4:
+            stage = x + (h * along) * slope
+            d_stage = lift + (h * along) * d_slope
+            q, v = stage[:, :n] - self.qpos0, stage[:, n:]
+            torque = tau - v * self.damping
+            for k in range(steps):
+                pin.computeABADerivatives(self.model, self.data, q[k], v[k], torque[k])
+                acceleration[k] = self.data.ddq
+                F[k, n:, :n] = self.data.ddq_dq
+                F[k, n:, n:] = self.data.ddq_dv
+                G[k, n:] = self.data.Minv
+            F[:, n:, n:] -= G[:, n:] * self.damping  # the damping torque -D v
+            slope = np.concatenate([stage[:, n:], acceleration], axis=1)
+            d_slope = F @ d_stage
+            d_slope[:, :, 2 * n:] += G @ (self.actuation * inside[:, None, :])
+            step += weight * slope
+            d_step += weight * d_slope
+        miss = np.abs(x + h * step - X[1:])
+        if np.any(miss > TRANSITION_TOL * (1.0 + np.abs(X[1:]))):
+            return None
+        jacobian = lift + h * d_step
+        return jacobian[:, :, :2 * n], jacobian[:, :, 2 * n:]
+
+
+def unsupported(model: mujoco.MjModel) -> str | None:
+    """Why `RigidBody.of` does not hold `model`, or None: it needs the RK4 integrator, one hinge joint per moving body,
+    motors on joints (fixed gain, no bias or dynamics), one gravity compensation for every body, and no joint
+    stiffness, dry friction or fluid forces."""
+    if model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4:
+        return "the integrator is not RK4"
+    if (model.njnt != model.nv or model.nu != model.nv or np.any(model.jnt_type != mujoco.mjtJoint.mjJNT_HINGE)
+            or np.any(model.body_jntnum > 1)):
+        return "a joint is not a hinge, a body has more than one, or the controls are not one per joint"
+    if (np.any(model.actuator_trntype != mujoco.mjtTrn.mjTRN_JOINT)
+            or np.any(model.actuator_dyntype != mujoco.mjtDyn.mjDYN_NONE)
+            or np.any(model.actuator_gaintype != mujoco.mjtGain.mjGAIN_FIXED)
+            or np.any(model.actuator_biastype != mujoco.mjtBias.mjBIAS_NONE)):
+        return "an actuator is not a motor on a joint"
+    if model.nbody > 1 and np.ptp(model.body_gravcomp[1:]) > 0.0:
+        return "the bodies' gravity compensation differs"
+    if np.any(model.jnt_stiffness != 0.0) or np.any(model.dof_frictionloss != 0.0):
+        return "a joint has stiffness or dry friction"
+    if model.opt.density != 0.0 or model.opt.viscosity != 0.0 or np.any(model.opt.wind != 0.0):
+        return "the medium exerts fluid forces"
+    return None
+
+
+def _pose(pin: Any, quaternion: NDArray[np.float64], position: NDArray[np.float64]) -> Any:
+    """Pinocchio's SE3 of MuJoCo's (w, x, y, z) quaternion and position."""
+    w, x, y, z = (float(c) for c in quaternion)
+    return pin.SE3(pin.Quaternion(w, x, y, z).normalized().toRotationMatrix(), np.array(position, dtype=np.float64))
