@@ -121,7 +121,8 @@ SQP_MAX_ITER = 40
 """The Gauss-Newton SQP's iterations from each start before 'auto' turns to SLSQP. For nonlinear_min_effort, 40, 80
 and 200 were compared on a validation set (nominal scenarios 0-129 and aggressive 0-49 of seed 1) by the rule: most
 plans at SLSQP's optimum or lower, then the least mean time. 40 had 178 of 180 (the 2 others fail under SLSQP
-too); 80 and 200 had 177, stopping in a higher local minimum on nominal 25 (by 0.8 %) where 40 turned to SLSQP."""
+too); 80 and 200 had 177, stopping in a higher local minimum on nominal 25 (by 0.8 %) where 40 turned to SLSQP.
+Run again with the analytic Jacobians: the same counts, so 40 again, though 200 had the lower mean time."""
 TRACKING_ERROR = (0.01, 0.1)
 """The tracked start's feedback is LQR along the linear plan with Bryson's weights for these largest tracking errors
 (rad, rad/s) and the torque bound (see `NonlinearOptimal._tracked_start`)."""
