@@ -310,7 +310,7 @@ def test_the_qp_of_an_sqp_step_is_osqps_solution(hessian):
 
 
 def test_the_bound_linearises_analytically_and_reaches_the_differenced_plans_optimum(model, effort, monkeypatch):
-    """On the paper's arm every linearisation of a plan is Pinocchio's (mjtraj.core.planners.rigid_body); with
+    """On the shipped arm every linearisation of this plan is Pinocchio's (mjtraj.core.planners.rigid_body); with
     MuJoCo's differences alone the plan reaches the same optimum, to their noise."""
     task, _ = effort
     mine = make("nonlinear_min_effort").plan(task, model)
