@@ -57,6 +57,13 @@ def load_model(path: str | os.PathLike[str] | None = None, *, dt: float | None =
     return model
 
 
+def control_range(model: mujoco.MjModel) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each control's range (low, high), shape (nu,) each: MuJoCo clamps ctrl to it; -inf/inf where unlimited."""
+    limited = model.actuator_ctrllimited.astype(bool)
+    return (np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf),
+            np.where(limited, model.actuator_ctrlrange[:, 1], np.inf))
+
+
 @dataclass(frozen=True)
 class JointInfo:
     """Joint names and limits of a model; arrays of shape (n,)."""

@@ -21,6 +21,8 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from mjtraj.core.model import control_range
+
 TRANSITION_TOL = 1e-9
 """Pinocchio's RK4 step must give MuJoCo's next state within this, times (1 + |x|), in every component."""
 RK4 = ((0.0, 1.0 / 6.0), (0.5, 1.0 / 3.0), (0.5, 1.0 / 3.0), (1.0, 1.0 / 6.0))
@@ -82,11 +84,8 @@ class RigidBody:
         actuation = np.zeros((model.nv, model.nu))
         actuation[model.jnt_dofadr[model.actuator_trnid[:, 0]], np.arange(model.nu)] = (model.actuator_gear[:, 0]
                                                                                          * model.actuator_gainprm[:, 0])
-        limited = model.actuator_ctrllimited.astype(bool)
-        return cls(body, body.createData(), model.qpos0.copy(), actuation,
-                   np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf),
-                   np.where(limited, model.actuator_ctrlrange[:, 1], np.inf), model.dof_damping.copy(),
-                   float(model.opt.timestep))
+        return cls(body, body.createData(), model.qpos0.copy(), actuation, *control_range(model),
+                   model.dof_damping.copy(), float(model.opt.timestep))
 
     def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:

@@ -22,6 +22,7 @@ import numpy as np
 from mujoco.batch import Batch
 from numpy.typing import NDArray
 
+from mjtraj.core.model import control_range
 from mjtraj.core.planners.rigid_body import RigidBody
 from mjtraj.exceptions import SolverError
 
@@ -66,8 +67,7 @@ class Shooting:
         self._diagonal.reshape(N, n, N, n)[blocks, :, blocks, :] = True
         # each control's upper end (inf where unlimited): MuJoCo clamps ctrl there, so `jacobians` differences a
         # torque on it backwards (a forward difference would see no effect)
-        limited = self.model.actuator_ctrllimited.astype(bool)
-        self._ctrl_high = np.where(limited, self.model.actuator_ctrlrange[:, 1], np.inf)
+        self._ctrl_high = control_range(self.model)[1]
         self._rigid_body = RigidBody.of(self.model)
         self.jacobian_counts = {"analytic": 0, "differenced": 0}
 
