@@ -558,6 +558,35 @@ def test_a_start_drifting_into_a_joints_end_is_planned_from_the_tracked_start(mo
     check_plan(model, drifting, plan)
 
 
+def test_a_solve_allowed_exactly_the_steps_it_needs_converges(model, effort):
+    """The iterate of the last allowed step is tested too: a solve capped at the number of steps in which it
+    converges reports convergence, with the same iterate bit for bit; one step fewer does not."""
+    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
+    from mjtraj.core.planners.optimal import planner_weights
+    from mjtraj.core.planners.sqp import gauss_newton_sqp
+
+    task, _ = effort
+    planner = make("nonlinear_optimal")
+    joints = JointInfo.of(model)
+    n = task.n
+    limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
+    x0, xg = (np.concatenate([q, np.zeros(n)]) for q in (task.q0, task.qg))
+    Q, R = planner_weights(task, joints.torque_limit, None, None, 1.0, 0.5)
+    problem = Shooting(model, x0, xg, Q, R, task.steps, 1e-7)
+    start, _ = planner._start(task, model, problem, limits)
+
+    def solve(max_iter):
+        return gauss_newton_sqp(problem, limits, start, curvature_scale=SQP_CURVATURE_SCALE, shrink=SQP_SHRINK,
+                                max_iter=max_iter)
+
+    free = solve(100)
+    assert free.converged and 2 <= free.iterations < 100
+    capped, short = solve(free.iterations), solve(free.iterations - 1)
+    assert capped.converged and capped.iterations == free.iterations
+    np.testing.assert_array_equal(capped.u, free.u)
+    assert not short.converged and short.message == f"no convergence in {free.iterations - 1} iterations"
+
+
 @pytest.mark.slow
 def test_slsqp_reaches_the_sqps_plan_from_the_tracked_start(model, drifting):
     """The oracle for the drifting task: SLSQP alone (from the linear start, where it converges now that a torque on

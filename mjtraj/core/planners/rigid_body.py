@@ -4,7 +4,7 @@ algorithm (Carpentier and Mansard, 2018), for the nonlinear planners' `Shooting`
 `Shooting` differences the step: 3n perturbed MuJoCo steps per sample, about 11 ms per iterate on one core at
 N = 100, n = 3. Here one call of `pinocchio.computeABADerivatives` per RK4 stage (4 N calls) gives the acceleration
 a, da/dq, da/dv and M^-1 at the stage's state, and the chain rule through the four stages gives A_k = dx_{k+1}/dx_k and
-B_k = dx_{k+1}/du_k exactly (about 2.3 ms). Pinocchio's model is built from the MjModel's own arrays (`RigidBody.of`):
+B_k = dx_{k+1}/du_k exactly (about 2.1 ms). Pinocchio's model is built from the MjModel's own arrays (`RigidBody.of`):
 the bodies, hinge axes and inertias, armature and damping, and gravity as MuJoCo applies it after gravity
 compensation. Every evaluation checks that Pinocchio's RK4 step reproduces the rollout MuJoCo made, sample by sample,
 within TRANSITION_TOL; where it does not (a joint pressed on the end of its range, a clamped actuator force, any force
@@ -103,7 +103,8 @@ class RigidBody:
         F = np.zeros((steps, 2 * n, 2 * n))  # d f/d x at a stage, f = (v, a)
         F[:, :n, n:] = np.eye(n)
         G = np.zeros((steps, 2 * n, n))  # d f/d tau at a stage
-        acceleration = np.empty((steps, n))
+        acceleration, da_dq, da_dv, inverse_mass = (np.empty((steps, n)), np.empty((steps, n, n)),
+                                                    np.empty((steps, n, n)), np.empty((steps, n, n)))
         slope, d_slope = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, 3 * n))  # the last stage's f and df/dz
         step, d_step = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, 3 * n))
         for along, weight in RK4:
@@ -111,13 +112,13 @@ class RigidBody:
             d_stage = lift + (h * along) * d_slope
             q, v = stage[:, :n] - self.qpos0, stage[:, n:]
             torque = tau - v * self.damping
-            for k in range(steps):
-                pin.computeABADerivatives(self.model, self.data, q[k], v[k], torque[k])
+            for k in range(steps):  # into contiguous rows (Pinocchio's results are views of its workspace)
+                da_dq[k], da_dv[k], inverse_mass[k] = pin.computeABADerivatives(self.model, self.data, q[k], v[k],
+                                                                                torque[k])
                 acceleration[k] = self.data.ddq
-                F[k, n:, :n] = self.data.ddq_dq
-                F[k, n:, n:] = self.data.ddq_dv
-                G[k, n:] = self.data.Minv
-            F[:, n:, n:] -= G[:, n:] * self.damping  # the damping torque -D v
+            F[:, n:, :n] = da_dq
+            F[:, n:, n:] = da_dv - inverse_mass * self.damping  # the damping torque -D v
+            G[:, n:] = inverse_mass
             slope = np.concatenate([stage[:, n:], acceleration], axis=1)
             d_slope = F @ d_stage
             d_slope[:, :, 2 * n:] += G @ (self.actuation * inside[:, None, :])

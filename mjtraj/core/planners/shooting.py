@@ -55,10 +55,6 @@ class Shooting:
         self.n = self.model.nv
         self._stepped = _collision_free(self.model)  # what rollouts and their differences step
         self.data = mujoco.MjData(self._stepped)
-        self.batch = Batch(self._stepped, self.steps * 3 * self.n, nthread=0)
-        self._bind = (self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl"))
-        self.batch.reset([0], stage=mujoco.mjtStage.mjSTAGE_NONE)
-        self._reset_state = self.batch.state[0].copy()  # a simulation's state as reset: restored by a copy
         N, n = self.steps, self.n
         self._input_hessian = np.zeros((N * n, N * n))
         self._diagonal = np.zeros((N * n, N * n), dtype=bool)  # the (n, n) blocks on the diagonal
@@ -148,13 +144,23 @@ class Shooting:
         steps = np.full((N, 3 * n), self.eps)
         steps[:, 2 * n:] = np.where(U + self.eps > self._ctrl_high, -self.eps, self.eps)
         z = (point[:, None, :] + steps[:, :, None] * np.eye(3 * n)[None]).reshape(-1, 3 * n)
-        qpos, qvel, ctrl = self._bind
-        self.batch.state[:] = self._reset_state  # Batch.reset's rows, without the call
+        batch, (qpos, qvel, ctrl), reset_state = self._differencer()
+        batch.state[:] = reset_state  # Batch.reset's rows, without the call
         qpos[:], qvel[:], ctrl[:] = z[:, :n], z[:, n:2 * n], z[:, 2 * n:]
-        self.batch.step(None, 1)
+        batch.step(None, 1)
         after = np.concatenate([qpos, qvel], axis=1).reshape(N, 3 * n, 2 * n)
         jac = ((after - X[1:, None, :]) / steps[:, :, None]).transpose(0, 2, 1)
         return jac[:, :, :2 * n], jac[:, :, 2 * n:]
+
+    def _differencer(self) -> tuple[Batch, tuple[NDArray[np.float64], ...], NDArray[np.float64]]:
+        """The batch of N (3n) simulations `differenced` steps, its qpos, qvel and ctrl, and a simulation's state as
+        reset; made at the first call (about 6 ms: a plan whose Jacobians are all analytic never needs it)."""
+        if "differencer" not in self._cache:
+            batch = Batch(self._stepped, self.steps * 3 * self.n, nthread=0)
+            batch.reset([0], stage=mujoco.mjtStage.mjSTAGE_NONE)
+            self._cache["differencer"] = (batch, (batch.bind("qpos"), batch.bind("qvel"), batch.bind("ctrl")),
+                                          batch.state[0].copy())
+        return self._cache["differencer"]  # type: ignore[no-any-return]
 
     def evaluate(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
                                                         NDArray[np.float64]]:

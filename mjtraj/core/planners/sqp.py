@@ -130,7 +130,7 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
     scale, penalty = float(curvature_scale), 0.0
     last: float | None = None
     rows = np.zeros(0, dtype=np.intp)
-    for iteration in range(1, max_iter + 1):
+    for iteration in range(1, max_iter + 2):  # the last pass only tests the last step's iterate
         U, X = problem.states(u)
         f = problem.objective(u)
         terminal = X[-1] - problem.xg
@@ -138,6 +138,8 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         if (np.abs(terminal).max() <= FEASIBLE and np.all(h >= -FEASIBLE * path_scale) and last is not None
                 and abs(last - f) <= STALL * abs(f)):
             return SqpResult(u, iteration - 1, int(rows.size), True, "converged")
+        if iteration > max_iter:
+            break
         S = problem.evaluate(u)[3]
         g = problem.gradient(u)
         now = violation(problem, limits, u)
