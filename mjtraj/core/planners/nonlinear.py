@@ -22,8 +22,8 @@ feedback (on some tasks the open-loop torques drift into a joint's end, where th
 cannot be met). The problem is not convex: the plan is a local minimum, reached from its start (the plan's info says
 which). Two solvers (see SOLVERS):
 
-- the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights (0.08 s at N = 100 on
-  two cores), and 10 to 20 with Q = 0 from each start (0.16 s for a bound plan). The default of both planners ('auto':
+- the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights (0.07 s at N = 100 on
+  two cores), and 10 to 20 with Q = 0 from each start (0.13 s for a bound plan). The default of both planners ('auto':
   SLSQP where it does not converge). `nonlinear_optimal` keeps the plan from the first start from which it converges,
   `nonlinear_min_effort` runs it from both starts and keeps the lower plan (`keep`; see KEEPS): a bound is a minimum,
   and with Q = 0 the starts can reach different local minima (on the paper task 0.0985 from the linear start, a strict
@@ -122,7 +122,10 @@ SQP_MAX_ITER = 40
 and 200 were compared on a validation set (nominal scenarios 0-129 and aggressive 0-49 of seed 1) by the rule: most
 plans at SLSQP's optimum or lower, then the least mean time. 40 had 178 of 180 (the 2 others fail under SLSQP
 too); 80 and 200 had 177, stopping in a higher local minimum on nominal 25 (by 0.8 %) where 40 turned to SLSQP.
-Run again with the analytic Jacobians: the same counts, so 40 again, though 200 had the lower mean time."""
+Run again with the analytic Jacobians: the same counts, so 40 again, though 200 had the lower mean time. Run again
+with the last step's iterate tested (`gauss_newton_sqp`), beside SLSQP warm-started from the SQP's last iterate:
+40 with SLSQP from the starts again (178); the warm start had 177 at 40, 80 and 200 (at 40 nominal 25 0.8 % higher,
+nominal 92 64 % lower, both counted once)."""
 TRACKING_ERROR = (0.01, 0.1)
 """The tracked start's feedback is LQR along the linear plan with Bryson's weights for these largest tracking errors
 (rad, rad/s) and the torque bound (see `NonlinearOptimal._tracked_start`)."""

@@ -57,7 +57,7 @@ class RigidBody:
         """`model` as Pinocchio's, or None where the conversion does not hold it (see `unsupported`)."""
         if unsupported(model) is not None:
             return None
-        import pinocchio as pin  # here, not at import: only the nonlinear planners need it (0.16 s)
+        import pinocchio as pin  # here, not at import: only the nonlinear planners need it (0.1 to 0.2 s)
         body = pin.Model()
         joint_of = {0: 0}  # MuJoCo body -> the Pinocchio joint it moves with
         frame_of = {0: pin.SE3.Identity()}  # MuJoCo body frame in that joint's frame
