@@ -533,27 +533,35 @@ def drifting(model):
     return draw_scenario("nominal", 0, 605, model, 0.02).task
 
 
+def optimal_problem(model, task):
+    """`nonlinear_optimal`'s problem for `task` (the paper's weights by Bryson's rule, the model's torque bound, the
+    pi rad/s speed limit): (its Shooting problem, path limits, the linear start)."""
+    from mjtraj.core.planners.optimal import planner_weights
+
+    joints = JointInfo.of(model)
+    n = task.n
+    limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
+    x0, xg = (np.concatenate([q, np.zeros(n)]) for q in (task.q0, task.qg))
+    Q, R = planner_weights(task, joints.torque_limit, None, None, 1.0, 0.5)
+    problem = Shooting(model, x0, xg, Q, R, task.steps, 1e-7)
+    start, _ = make("nonlinear_optimal")._start(task, model, problem, limits)
+    return problem, limits, start
+
+
 def test_a_start_drifting_into_a_joints_end_is_planned_from_the_tracked_start(model, drifting):
     """From the linear start the Gauss-Newton SQP finds no step (the linearised terminal condition cannot be met);
     from the tracked start it converges, and the plan holds every constraint."""
     from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
-    from mjtraj.core.planners.optimal import planner_weights
     from mjtraj.core.planners.sqp import gauss_newton_sqp
 
-    planner = make("nonlinear_optimal")
+    problem, limits, start = optimal_problem(model, drifting)
     joints = JointInfo.of(model)
-    n = drifting.n
-    limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
-    x0, xg = (np.concatenate([q, np.zeros(n)]) for q in (drifting.q0, drifting.qg))
-    Q, R = planner_weights(drifting, joints.torque_limit, None, None, 1.0, 0.5)
-    problem = Shooting(model, x0, xg, Q, R, drifting.steps, 1e-7)
-    start, _ = planner._start(drifting, model, problem, limits)
     _, X = problem.states(start)
     assert X[:, 1].min() < joints.lower[1] + 1e-3  # into joint 1's lower end
     stuck = gauss_newton_sqp(problem, limits, start, curvature_scale=SQP_CURVATURE_SCALE, shrink=SQP_SHRINK,
                              max_iter=40)
     assert not stuck.converged and stuck.message == "the linearised constraints admit no step"
-    plan = planner.plan(drifting, model)
+    plan = make("nonlinear_optimal").plan(drifting, model)
     assert (plan.info["solver"], plan.info["start"]) == ("sqp", "tracked")
     check_plan(model, drifting, plan)
 
@@ -562,18 +570,9 @@ def test_a_solve_allowed_exactly_the_steps_it_needs_converges(model, effort):
     """The iterate of the last allowed step is tested too: a solve capped at the number of steps in which it
     converges reports convergence, with the same iterate bit for bit; one step fewer does not."""
     from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
-    from mjtraj.core.planners.optimal import planner_weights
     from mjtraj.core.planners.sqp import gauss_newton_sqp
 
-    task, _ = effort
-    planner = make("nonlinear_optimal")
-    joints = JointInfo.of(model)
-    n = task.n
-    limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
-    x0, xg = (np.concatenate([q, np.zeros(n)]) for q in (task.q0, task.qg))
-    Q, R = planner_weights(task, joints.torque_limit, None, None, 1.0, 0.5)
-    problem = Shooting(model, x0, xg, Q, R, task.steps, 1e-7)
-    start, _ = planner._start(task, model, problem, limits)
+    problem, limits, start = optimal_problem(model, effort[0])
 
     def solve(max_iter):
         return gauss_newton_sqp(problem, limits, start, curvature_scale=SQP_CURVATURE_SCALE, shrink=SQP_SHRINK,
