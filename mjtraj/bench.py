@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -121,12 +122,13 @@ converges)."""
 def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int = 21) -> dict[str, Any]:
     """Time per plan of the fair study's planners on the scenario's task, in one process: the linear optimal plan
     (median of `repeats`), scurve (median of `repeats`) against one closed-loop execution of its plan, and each
-    nonlinear planner with each of NONLINEAR_SOLVERS once, after an untimed plan (seconds, iterations, objective; a
-    solver that does not converge is reported by its error). Then each nonlinear planner over the first `scenarios`
-    nominal scenarios with its default solver and each of NONLINEAR_SOLVERS: per solver the plans that failed, the
-    median and largest seconds per plan, the plans SLSQP made ('auto' turns to it when the SQP does not converge),
-    the largest relative objective difference to SLSQP alone's, and the plans worse than it by more than 1e-4; over
-    all those plans, the linearisations that were analytic and those differenced (see `Shooting.jacobians`)."""
+    nonlinear planner with each of NONLINEAR_SOLVERS once, after one untimed plan per solver (seconds, iterations,
+    objective; a solver that does not converge is reported by its error). Then each nonlinear planner over the
+    first `scenarios` nominal scenarios with its default solver and each of NONLINEAR_SOLVERS: per solver the plans
+    that failed, the median and largest seconds per plan, the plans SLSQP made ('auto' turns to it when the SQP
+    does not converge), the largest relative objective difference to SLSQP alone's, and the plans worse than it by
+    more than 1e-4; over all those plans, the linearisations that were analytic and those differenced (see
+    `Shooting.jacobians`)."""
     from mjtraj.core.planners import make
     from mjtraj.core.planners.nonlinear import NonlinearOptimal
     from mjtraj.exceptions import MjtrajError
@@ -148,10 +150,12 @@ def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int 
                            "scurve_s": _median_time(lambda: scurve.plan(task, model), repeats),
                            "loop_s": _median_time(execute, repeats), "steps": task.steps,
                            "threads": Batch(model, 3 * task.n * task.steps, nthread=0).nthread}  # as Shooting's
+    for solver in NONLINEAR_SOLVERS:  # untimed: a process's first plans import Pinocchio, DAQP, scipy.optimize
+        with contextlib.suppress(MjtrajError):  # a failure is reported below, where it is timed
+            make(NEW_PLANNERS[1], solver=solver).plan(task, model)
     for name in NEW_PLANNERS[1:]:
         for solver in NONLINEAR_SOLVERS:
             try:
-                make(name, solver=solver).plan(task, model)  # untimed: it imports Pinocchio, DAQP, scipy.optimize
                 info = make(name, solver=solver).plan(task, model).info
                 out[f"{name} {solver}"] = {key: info[key] for key in ("plan_time", "iterations", "objective")}
             except MjtrajError as e:
