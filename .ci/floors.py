@@ -1,7 +1,7 @@
 """Print the declared floor of every dependency of mjtraj and of its `test` extra as an exact pin, one per line,
 read from pyproject.toml (the one source of the floors). Left out, with the reason printed to stderr: markers for
-other Pythons; pin (Pinocchio, a test oracle only), whose wheels need a newer NumPy than mjtraj's floor; and
-torch, whose CPU build on this machine's disk is the one CI installs (torch 2.3 would be a CUDA download)."""
+other Pythons, and torch, whose CPU build on this machine's disk is the one CI installs (torch 2.3 would be a CUDA
+download)."""
 
 from __future__ import annotations
 

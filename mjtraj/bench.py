@@ -150,7 +150,8 @@ def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int 
                            "scurve_s": _median_time(lambda: scurve.plan(task, model), repeats),
                            "loop_s": _median_time(execute, repeats), "steps": task.steps,
                            "threads": Batch(model, 3 * task.n * task.steps, nthread=0).nthread}  # as Shooting's
-    for solver in NONLINEAR_SOLVERS:  # untimed: a process's first plans import Pinocchio, DAQP, scipy.optimize
+    for solver in NONLINEAR_SOLVERS:  # untimed: a process's first plans import Pinocchio, DAQP,
+        # scipy.optimize and numba, and load (or first compile) the dynamics kernel
         with contextlib.suppress(MjtrajError):  # a failure is reported below, where it is timed
             make(NEW_PLANNERS[1], solver=solver).plan(task, model)
     for name in NEW_PLANNERS[1:]:

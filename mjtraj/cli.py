@@ -578,7 +578,8 @@ def _bench(args: argparse.Namespace) -> int:
         linear = new["linear_s"]
         print(f"the fair study's planners on the scenario's task (N = {new['steps']}), one process: the linear "
               f"optimal plan takes {1e3 * linear:.2f} ms on one core; the nonlinear planners linearise by "
-              f"Pinocchio's derivatives where its step is MuJoCo's, else by batched differences on {new['threads']} "
+              f"the compiled dynamics derivatives where their step is MuJoCo's, else by batched differences on "
+              f"{new['threads']} "
               f"threads (MuJoCo's batch, every CPU); targets: scurve below the closed loop that executes it, each "
               f"nonlinear planner at most 100 times the linear plan")
         print(f"{'planner':<22} {'solver':<6} {'s per plan':>10} {'x linear':>9} {'iterations':>10} {'objective':>12}")

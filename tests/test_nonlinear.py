@@ -226,6 +226,36 @@ def test_lowest_keeps_the_least_of_the_starts_plans_and_first_the_first(model, m
     check_plan(model, task, plan)
 
 
+def test_a_start_heading_for_the_first_starts_plan_joins_it(model, monkeypatch):
+    """keep='lowest' hands the first start's plan to the second start's solve, which stops once an iterate comes
+    within JOIN of it. Oracle: the same solve without `join`, run to its own convergence test, ends at that plan
+    (the same objective to 1e-9, the torques within a tenth of JOIN: the convergence test is on the objective and
+    the constraints, and leaves the torques a few 1e-6 N m apart along the minimum's flat directions), in more
+    iterations."""
+    from mjtraj.core.planners import nonlinear
+    from mjtraj.core.planners.sqp import JOIN
+
+    task = short_task(model, 0.8)
+    runs = []
+    sqp = nonlinear.gauss_newton_sqp
+
+    def recorded(problem, limits, u, **options):
+        result = sqp(problem, limits, u, **options)
+        runs.append((problem, limits, u, options, result))
+        return result
+
+    monkeypatch.setattr(nonlinear, "gauss_newton_sqp", recorded)
+    plan = make("nonlinear_min_effort").plan(task, model)
+    (_, _, _, first_options, first), (problem, limits, u, options, second) = runs
+    assert first_options["join"] is None and options["join"] is first.u
+    assert second.joined and second.converged and second.u is first.u
+    np.testing.assert_array_equal(plan.u_plan.ravel(), first.u)
+    alone = sqp(problem, limits, u, **{**options, "join": None})
+    assert alone.converged and not alone.joined and alone.iterations > second.iterations
+    assert problem.objective(alone.u) == pytest.approx(problem.objective(first.u), rel=1e-9)
+    assert np.linalg.norm(alone.u - first.u) <= 0.1 * JOIN * np.linalg.norm(first.u)
+
+
 def test_a_diverging_rollout_is_an_error_not_a_reset_state(model, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT in the working directory
     task = short_task(model, 0.3)
@@ -257,6 +287,42 @@ def test_the_gauss_newton_hessian_is_its_sum_over_the_samples(model):
     np.testing.assert_allclose(problem.gauss_newton(u), expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
 
 
+def test_sensitivities_filled_again_at_another_point_are_that_points_own(model):
+    """Shooting.evaluate fills one array S at every new point: at u, then v, then u again it holds each point's own
+    sensitivities, bit for bit those of a fresh problem evaluated there first (the entries it never writes stay
+    zero)."""
+    task = short_task(model, 0.3)
+    rng = np.random.default_rng(8)
+    n, N = task.n, task.steps
+
+    def problem():
+        return Shooting(model, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]),
+                        np.zeros((2 * n, 2 * n)), np.eye(n), N, 1e-7)
+
+    reused = problem()
+    u, v = rng.normal(0.0, 2.0, (2, N * n))
+    for point in (u, v, u):
+        np.testing.assert_array_equal(reused.evaluate(point)[3], problem().evaluate(point)[3])
+
+
+def test_the_rollout_is_mujocos_own_step_loop_bit_for_bit_with_a_joint_on_its_limit(model):
+    """Shooting.rollout (mujoco.rollout) against `replay`, a plain mj_step loop from a fresh MjData, on a model whose
+    joint 1 is driven into a narrow range's end (the limit's constraint solver and its warm start at work), twice and
+    after another rollout: the same states bit for bit."""
+    limited = copy.deepcopy(model)
+    limited.jnt_range[1] = (-0.2, 0.2)
+    limited.jnt_limited[1] = True
+    task = short_task(model, 0.1, q0=np.array([0.3, 0.0, 0.5]))
+    n, N = task.n, task.steps
+    problem = Shooting(limited, np.concatenate([task.q0, np.zeros(n)]), np.concatenate([task.qg, np.zeros(n)]),
+                       np.zeros((2 * n, 2 * n)), np.eye(n), N, 1e-7)
+    U = np.tile([0.0, 40.0, 0.0], (N, 1))
+    expected = replay(limited, task, U)
+    assert np.abs(expected[:, 1]).max() > 0.2  # the limit is engaged (a soft constraint)
+    for torques in (U, -U, U):
+        np.testing.assert_array_equal(problem.rollout(torques), replay(limited, task, torques))
+
+
 def test_the_path_rows_jacobian_is_their_derivative(model):
     """PathLimits.jacobian against central differences of the rows along random directions (through the rollout)."""
     task = short_task(model, 0.3)
@@ -281,8 +347,8 @@ def test_the_path_rows_jacobian_is_their_derivative(model):
 
 @pytest.mark.parametrize("hessian", ["dense", "diagonal"])
 def test_the_qp_of_an_sqp_step_is_osqps_solution(hessian):
-    """The step's QP (DAQP on the Cholesky-transformed problem; the box as simple bounds where H is diagonal) against
-    OSQP on a random QP with equalities, rows and bounds, several of them active."""
+    """The step's QP (DAQP on the Cholesky-transformed problem; the box as simple bounds where H is diagonal, given
+    as its diagonal) against OSQP on a random QP with equalities, rows and bounds, several of them active."""
     import osqp
     import scipy.sparse as sparse
 
@@ -293,13 +359,14 @@ def test_the_qp_of_an_sqp_step_is_osqps_solution(hessian):
     root = rng.normal(size=(size, size))
     H, g = root @ root.T + np.eye(size), rng.normal(size=size) * 10
     if hessian == "diagonal":
-        H = np.diag(rng.uniform(0.01, 100.0, size))
+        H = rng.uniform(0.01, 100.0, size)  # given as its diagonal, as the effort bound's
     C, c = rng.normal(size=(3, size)), rng.normal(size=3)
     G, h = rng.normal(size=(8, size)), rng.uniform(0.0, 0.5, 8)
     low, high = -np.full(size, 0.3), np.full(size, 0.3)
     d, multipliers = _qp(H, g, C, c, G, h, low, high, soft=False)
     solver = osqp.OSQP()
-    solver.setup(sparse.csc_matrix(H), g, sparse.csc_matrix(np.vstack([C, G, np.eye(size)])),
+    dense = np.diag(H) if H.ndim == 1 else H
+    solver.setup(sparse.csc_matrix(dense), g, sparse.csc_matrix(np.vstack([C, G, np.eye(size)])),
                  np.concatenate([-c, -h, low]), np.concatenate([-c, np.full(8, np.inf), high]), eps_abs=1e-10,
                  eps_rel=1e-10, polishing=True, max_iter=100_000, verbose=False)
     theirs = solver.solve(raise_error=True).x

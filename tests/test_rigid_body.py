@@ -172,3 +172,22 @@ def test_every_arm_of_the_suite_converts_exactly_or_is_declined_with_its_reason(
         held.append(name)
     assert len(held) >= 10
     assert set(declined.values()) <= {"a joint has stiffness or dry friction"}, declined
+
+
+@pytest.mark.parametrize("which", ["tree", "shipped"])
+def test_the_compiled_dynamics_and_derivatives_are_pinocchios(which, rng):
+    """tree_dynamics (the compiled Newton-Euler passes with forward-mode tangents) against Pinocchio's own
+    computeABADerivatives, the oracle, at random states and torques of the general tree and the shipped arm."""
+    import pinocchio as pin
+
+    from mjtraj.core.planners.rigid_body import pinocchio_model
+
+    model = mujoco.MjModel.from_xml_string(TREE) if which == "tree" else load_model()
+    body, n = pinocchio_model(model), model.nv
+    data = body.createData()
+    q, qd, tau = rng.uniform(-3.0, 3.0, (40, n)), rng.uniform(-4.0, 4.0, (40, n)), rng.uniform(-30.0, 30.0, (40, n))
+    computed = RigidBody.of(model).tree.derivatives(q, qd, tau)
+    for k in range(len(q)):
+        da_dq, da_dqd, inverse_mass = (np.array(a) for a in pin.computeABADerivatives(body, data, q[k], qd[k], tau[k]))
+        for mine, oracle in zip(computed, (data.ddq, da_dq, da_dqd, inverse_mass), strict=True):
+            np.testing.assert_allclose(mine[k], oracle, rtol=1e-11, atol=1e-11 * (1.0 + np.abs(oracle).max()))

@@ -8,8 +8,9 @@ nominal arm can make the move, the effort bound of the study.
 
 Method: sequential quadratic programming in single-shooting form (`mjtraj.core.planners.shooting`). The variables
 are the N n torques; every iterate is rolled out exactly on the model, so every plan is realisable. The transition's
-Jacobians A_k, B_k are analytic where Pinocchio holds the model and reproduces the rollout to 1e-9 (its derivatives of
-the articulated-body algorithm chained through the RK4 stages, `mjtraj.core.planners.rigid_body`), else forward
+Jacobians A_k, B_k are analytic where Pinocchio holds the model and the tree reproduces the rollout to 1e-9 (the
+forward dynamics' derivatives, compiled by numba, chained through the RK4 stages, `mjtraj.core.planners.rigid_body`
+and `tree_dynamics`), else forward
 finite differences of mj_step about the rollout's own steps (backward for a torque on its control's upper end, where
 MuJoCo clamps), all N (3n) perturbed steps in one mujoco.batch call (MuJoCo's mjd_transitionFD does not support
 RK4); the plan's info counts each kind. Forward sensitivities dx_k/dU give the constraints' Jacobians and
@@ -22,12 +23,13 @@ feedback (on some tasks the open-loop torques drift into a joint's end, where th
 cannot be met). The problem is not convex: the plan is a local minimum, reached from its start (the plan's info says
 which). Two solvers (see SOLVERS):
 
-- the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights (0.07 s at N = 100 on
-  two cores), and 10 to 20 with Q = 0 from each start (0.13 s for a bound plan). The default of both planners ('auto':
+- the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights (0.06 s at N = 100 on
+  one core), and 10 to 20 with Q = 0 from each start (0.08 s for a bound plan). The default of both planners ('auto':
   SLSQP where it does not converge). `nonlinear_optimal` keeps the plan from the first start from which it converges,
   `nonlinear_min_effort` runs it from both starts and keeps the lower plan (`keep`; see KEEPS): a bound is a minimum,
   and with Q = 0 the starts can reach different local minima (on the paper task 0.0985 from the linear start, a strict
-  local minimum, and 0.0613 from the tracked one);
+  local minimum, and 0.0613 from the tracked one). The second start's solve is given the first start's plan and
+  stops once it comes within `sqp.JOIN` of it (heading for the same minimum);
 - scipy's SLSQP, which keeps a quasi-Newton model of the Lagrangian's curvature, the dynamics' second derivatives
   included. That model starts at the identity, so the solve runs in variables v = L^T u in which the identity is a
   multiple of the Gauss-Newton Hessian (see `_Metric`): without this SLSQP spent one iteration per variable
@@ -125,7 +127,9 @@ too); 80 and 200 had 177, stopping in a higher local minimum on nominal 25 (by 0
 Run again with the analytic Jacobians: the same counts, so 40 again, though 200 had the lower mean time. Run again
 with the last step's iterate tested (`gauss_newton_sqp`), beside SLSQP warm-started from the SQP's last iterate:
 40 with SLSQP from the starts again (178); the warm start had 177 at 40, 80 and 200 (at 40 nominal 25 0.8 % higher,
-nominal 92 64 % lower, both counted once)."""
+nominal 92 64 % lower, both counted once). Run again with the second start joining the first's plan (`sqp.JOIN`)
+and the compiled Jacobians: 40 had 179 (SLSQP now also plans nominal 85, a change of its path by the Jacobians'
+last bits), 80 and 200 had 178 (nominal 25 again), though their mean time was 0.42 s a plan against 1.12 s."""
 TRACKING_ERROR = (0.01, 0.1)
 """The tracked start's feedback is LQR along the linear plan with Bryson's weights for these largest tracking errors
 (rad, rad/s) and the torque bound (see `NonlinearOptimal._tracked_start`)."""
@@ -257,7 +261,8 @@ class NonlinearOptimal(Planner):
             for name in START_NAMES:
                 try:
                     result = gauss_newton_sqp(problem, limits, starts.get(name), curvature_scale=SQP_CURVATURE_SCALE,
-                                              shrink=SQP_SHRINK, max_iter=self.sqp_max_iter)
+                                              shrink=SQP_SHRINK, max_iter=self.sqp_max_iter,
+                                              join=found[0][2].u if found else None)
                 except SolverError as e:
                     failures.append(f"from the {name} start: {e}")
                     continue

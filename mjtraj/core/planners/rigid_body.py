@@ -1,15 +1,16 @@
-"""Analytic Jacobians of one control period (the model's RK4 step) from Pinocchio's derivatives of the articulated-body
-algorithm (Carpentier and Mansard, 2018), for the nonlinear planners' `Shooting` problems.
+"""Analytic Jacobians of one control period (the model's RK4 step) from the derivatives of the forward dynamics
+(Carpentier and Mansard, 2018), for the nonlinear planners' `Shooting` problems.
 
 `Shooting` differences the step: 3n perturbed MuJoCo steps per sample, about 11 ms per iterate on one core at
-N = 100, n = 3. Here one call of `pinocchio.computeABADerivatives` per RK4 stage (4 N calls) gives the acceleration
-a, da/dq, da/dv and M^-1 at the stage's state, and the chain rule through the four stages gives A_k = dx_{k+1}/dx_k and
-B_k = dx_{k+1}/du_k exactly (about 2.1 ms). Pinocchio's model is built from the MjModel's own arrays (`RigidBody.of`):
-the bodies, hinge axes and inertias, armature and damping, and gravity as MuJoCo applies it after gravity
-compensation. Every evaluation checks that Pinocchio's RK4 step reproduces the rollout MuJoCo made, sample by sample,
-within TRANSITION_TOL; where it does not (a joint pressed on the end of its range, a clamped actuator force, any force
-the conversion leaves out), `RigidBody.jacobians` returns None and the caller differences MuJoCo's step. So every
-Jacobian used is one of the plant's own transition.
+N = 100, n = 3. Here the acceleration a, da/dq, da/dv and M^-1 at the 4 N stage states of RK4
+(`mjtraj.core.planners.tree_dynamics`, compiled; one call per stage over all N samples) and the chain rule through
+the four stages give A_k = dx_{k+1}/dx_k and B_k = dx_{k+1}/du_k exactly (about 1 ms; 1.8 ms with a call of
+Pinocchio's computeABADerivatives per state, which gives the same values to 1e-11, tested). The tree is Pinocchio's
+model built from the MjModel's own arrays (`RigidBody.of`): the bodies, hinge axes and inertias, armature and
+damping, and gravity as MuJoCo applies it after gravity compensation. Every evaluation checks that this RK4 step
+reproduces the rollout MuJoCo made, sample by sample, within TRANSITION_TOL; where it does not (a joint pressed on
+the end of its range, a clamped actuator force, any force the conversion leaves out), `RigidBody.jacobians` returns
+None and the caller differences MuJoCo's step. So every Jacobian used is one of the plant's own transition.
 """
 
 from __future__ import annotations
@@ -22,9 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.core.model import control_range
+from mjtraj.core.planners.tree_dynamics import HingeTree
 
 TRANSITION_TOL = 1e-9
-"""Pinocchio's RK4 step must give MuJoCo's next state within this, times (1 + |x|), in every component."""
+"""The tree's RK4 step must give MuJoCo's next state within this, times (1 + |x|), in every component."""
 RK4 = ((0.0, 1.0 / 6.0), (0.5, 1.0 / 3.0), (0.5, 1.0 / 3.0), (1.0, 1.0 / 6.0))
 """The classical Runge-Kutta stages, MuJoCo's mjINT_RK4: (the stage's fraction of the step along the previous
 stage's derivative, the stage's weight in the step)."""
@@ -32,10 +34,10 @@ stage's derivative, the stage's weight in the step)."""
 
 @dataclass(frozen=True)
 class RigidBody:
-    """A hinge-joint tree of `mujoco.MjModel` as a Pinocchio model, with MuJoCo's input map and damping.
+    """A hinge-joint tree of `mujoco.MjModel` as Pinocchio models it, with MuJoCo's input map and damping.
 
     Attributes:
-      model, data: Pinocchio's model and its workspace.
+      tree: the joints, frames and inertias of Pinocchio's model, for `mjtraj.core.planners.tree_dynamics`.
       qpos0: MuJoCo's reference angles (n,), rad: Pinocchio's angle is qpos - qpos0.
       actuation: the joint torque per control (n, nu), N m per unit: gear times gain.
       ctrl_low, ctrl_high: each control's range (nu,), -inf/inf where unlimited (MuJoCo clamps ctrl to it).
@@ -43,8 +45,7 @@ class RigidBody:
       timestep: the RK4 step, s.
     """
 
-    model: Any
-    data: Any
+    tree: HingeTree
     qpos0: NDArray[np.float64]
     actuation: NDArray[np.float64]
     ctrl_low: NDArray[np.float64]
@@ -54,46 +55,30 @@ class RigidBody:
 
     @classmethod
     def of(cls, model: mujoco.MjModel) -> RigidBody | None:
-        """`model` as Pinocchio's, or None where the conversion does not hold it (see `unsupported`)."""
+        """`model` as Pinocchio models it, or None where the conversion does not hold it (see `unsupported`)."""
         if unsupported(model) is not None:
             return None
-        import pinocchio as pin  # here, not at import: only the nonlinear planners need it (0.1 to 0.2 s)
-        body = pin.Model()
-        joint_of = {0: 0}  # MuJoCo body -> the Pinocchio joint it moves with
-        frame_of = {0: pin.SE3.Identity()}  # MuJoCo body frame in that joint's frame
-        for b in range(1, model.nbody):
-            parent = int(model.body_parentid[b])
-            in_parent = frame_of[parent] * _pose(pin, model.body_quat[b], model.body_pos[b])
-            if model.body_jntnum[b] == 0:  # welded to its parent
-                joint_of[b], frame_of[b] = joint_of[parent], in_parent
-            else:
-                j = int(model.body_jntadr[b])
-                offset = np.array(model.jnt_pos[j], dtype=np.float64)
-                joint_of[b] = body.addJoint(joint_of[parent], pin.JointModelRevoluteUnaligned(model.jnt_axis[j].copy()),
-                                            in_parent * pin.SE3(np.eye(3), offset), f"joint{j}")
-                frame_of[b] = pin.SE3(np.eye(3), -offset)
-            rotation = _pose(pin, model.body_iquat[b], np.zeros(3)).rotation
-            inertia = rotation @ np.diag(model.body_inertia[b]) @ rotation.T
-            body.appendBodyToJoint(joint_of[b], pin.Inertia(float(model.body_mass[b]), model.body_ipos[b].copy(),
-                                                            inertia), frame_of[b])
-        gravity = np.zeros(3)
-        if not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
-            gravity = (1.0 - float(model.body_gravcomp[1:].max(initial=0.0))) * model.opt.gravity
-        body.gravity.linear[:] = gravity
-        body.armature[:] = model.dof_armature
+        body = pinocchio_model(model)
         actuation = np.zeros((model.nv, model.nu))
         actuation[model.jnt_dofadr[model.actuator_trnid[:, 0]], np.arange(model.nu)] = (model.actuator_gear[:, 0]
                                                                                          * model.actuator_gainprm[:, 0])
-        return cls(body, body.createData(), model.qpos0.copy(), actuation, *control_range(model),
-                   model.dof_damping.copy(), float(model.opt.timestep))
+        joints = range(1, body.njoints)
+        tree = HingeTree(np.array([body.parents[j] - 1 for j in joints]),
+                         np.array([body.jointPlacements[j].rotation for j in joints]),
+                         np.array([body.jointPlacements[j].translation for j in joints]),
+                         np.array([body.joints[j].extract().axis for j in joints]),
+                         np.array([body.inertias[j].mass for j in joints]),
+                         np.array([body.inertias[j].lever for j in joints]),
+                         np.array([body.inertias[j].inertia for j in joints]), np.array(body.armature),
+                         np.array(body.gravity.linear))
+        return cls(tree, model.qpos0.copy(), actuation, *control_range(model), model.dof_damping.copy(),
+                   float(model.opt.timestep))
 
     def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
         """A_k (N, 2n, 2n) and B_k (N, 2n, nu) of the RK4 step at each (x_k, u_k) of the rollout X (N+1, 2n) under U
-        (N, nu), or None where Pinocchio's step misses MuJoCo's X[k+1] by more than TRANSITION_TOL. A control outside
+        (N, nu), or None where the tree's step misses MuJoCo's X[k+1] by more than TRANSITION_TOL. A control outside
         its range has no effect (MuJoCo clamps it), one on its end the effect from inside."""
-        import pinocchio as pin
-
         steps, n = U.shape[0], self.qpos0.size
         x, h = X[:-1], self.timestep
         inside = (U >= self.ctrl_low) & (U <= self.ctrl_high)
@@ -103,19 +88,13 @@ class RigidBody:
         F = np.zeros((steps, 2 * n, 2 * n))  # d f/d x at a stage, f = (v, a)
         F[:, :n, n:] = np.eye(n)
         G = np.zeros((steps, 2 * n, n))  # d f/d tau at a stage
-        acceleration, da_dq, da_dv, inverse_mass = (np.empty((steps, n)), np.empty((steps, n, n)),
-                                                    np.empty((steps, n, n)), np.empty((steps, n, n)))
         slope, d_slope = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, 3 * n))  # the last stage's f and df/dz
         step, d_step = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, 3 * n))
         for along, weight in RK4:
             stage = x + (h * along) * slope
             d_stage = lift + (h * along) * d_slope
             q, v = stage[:, :n] - self.qpos0, stage[:, n:]
-            torque = tau - v * self.damping
-            for k in range(steps):  # into contiguous rows (Pinocchio's results are views of its workspace)
-                da_dq[k], da_dv[k], inverse_mass[k] = pin.computeABADerivatives(self.model, self.data, q[k], v[k],
-                                                                                torque[k])
-                acceleration[k] = self.data.ddq
+            acceleration, da_dq, da_dv, inverse_mass = self.tree.derivatives(q, v, tau - v * self.damping)
             F[:, n:, :n] = da_dq
             F[:, n:, n:] = da_dv - inverse_mass * self.damping  # the damping torque -D v
             G[:, n:] = inverse_mass
@@ -152,6 +131,37 @@ def unsupported(model: mujoco.MjModel) -> str | None:
     if model.opt.density != 0.0 or model.opt.viscosity != 0.0 or np.any(model.opt.wind != 0.0):
         return "the medium exerts fluid forces"
     return None
+
+
+def pinocchio_model(model: mujoco.MjModel) -> Any:
+    """Pinocchio's model of the hinge tree `model` (one `unsupported` holds): the bodies, hinge axes and inertias
+    (welded bodies lumped into their joint's), armature, and gravity as MuJoCo applies it after gravity compensation;
+    Pinocchio's angles are qpos - qpos0. Damping and the input map are left to the caller (`RigidBody`)."""
+    import pinocchio as pin  # here, not at import: only the nonlinear planners need it (0.1 to 0.2 s)
+    body = pin.Model()
+    joint_of = {0: 0}  # MuJoCo body -> the Pinocchio joint it moves with
+    frame_of = {0: pin.SE3.Identity()}  # MuJoCo body frame in that joint's frame
+    for b in range(1, model.nbody):
+        parent = int(model.body_parentid[b])
+        in_parent = frame_of[parent] * _pose(pin, model.body_quat[b], model.body_pos[b])
+        if model.body_jntnum[b] == 0:  # welded to its parent
+            joint_of[b], frame_of[b] = joint_of[parent], in_parent
+        else:
+            j = int(model.body_jntadr[b])
+            offset = np.array(model.jnt_pos[j], dtype=np.float64)
+            joint_of[b] = body.addJoint(joint_of[parent], pin.JointModelRevoluteUnaligned(model.jnt_axis[j].copy()),
+                                        in_parent * pin.SE3(np.eye(3), offset), f"joint{j}")
+            frame_of[b] = pin.SE3(np.eye(3), -offset)
+        rotation = _pose(pin, model.body_iquat[b], np.zeros(3)).rotation
+        inertia = rotation @ np.diag(model.body_inertia[b]) @ rotation.T
+        body.appendBodyToJoint(joint_of[b], pin.Inertia(float(model.body_mass[b]), model.body_ipos[b].copy(),
+                                                        inertia), frame_of[b])
+    gravity = np.zeros(3)
+    if not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
+        gravity = (1.0 - float(model.body_gravcomp[1:].max(initial=0.0))) * model.opt.gravity
+    body.gravity.linear[:] = gravity
+    body.armature[:] = model.dof_armature
+    return body
 
 
 def _pose(pin: Any, quaternion: NDArray[np.float64], position: NDArray[np.float64]) -> Any:

@@ -1,13 +1,13 @@
 """The nonlinear planners' problem in single-shooting form: the torques U are the variables, the states their exact
 rollout on the nominal MuJoCo model (its own integrator and timestep, one step per control period).
 
-`Shooting` rolls out, differentiates each step (analytically by Pinocchio where it reproduces the rollout,
-`mjtraj.core.planners.rigid_body`; else by forward differences, all N (3n) perturbed steps in one mujoco.batch call,
-on every CPU: bit-identical at any thread count; MuJoCo's mjd_transitionFD does not support RK4), propagates the
-forward sensitivities S_k = dx_k/dU, and gives the objective, its gradient and its Gauss-Newton Hessian. It steps a
-copy of the model without collision detection where no two geoms can touch (`_collision_free`): the same steps bit
-for bit, 15 % sooner. `PathLimits` holds the path constraints (joint ranges, speed limit, torque bound) as rows
-h >= 0.
+`Shooting` rolls out (MuJoCo's own loop, mujoco.rollout), differentiates each step (analytically where the model's
+hinge tree reproduces the rollout, `mjtraj.core.planners.rigid_body`; else by forward differences, all N (3n)
+perturbed steps in one mujoco.batch call, on every CPU: bit-identical at any thread count; MuJoCo's
+mjd_transitionFD does not support RK4), propagates the forward sensitivities S_k = dx_k/dU, and gives the
+objective, its gradient and its Gauss-Newton Hessian. It steps a copy of the model without collision detection
+where no two geoms can touch (`_collision_free`): the same steps bit for bit, 15 % sooner. `PathLimits` holds the
+path constraints (joint ranges, speed limit, torque bound) as rows h >= 0.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from typing import Any
 
 import mujoco
 import numpy as np
+from mujoco import rollout as mj_rollout
 from mujoco.batch import Batch
 from numpy.typing import NDArray
 
@@ -67,14 +68,33 @@ class Shooting:
         self._ctrl_high = control_range(self.model)[1]
         self._rigid_body = RigidBody.of(self.model)
         self.jacobian_counts = {"analytic": 0, "differenced": 0}
+        # the state `_simulate` starts from, as mujoco.rollout takes it, and where qpos and qvel sit in a state
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        mujoco.mj_resetData(self._stepped, self.data)
+        self.data.qpos[:], self.data.qvel[:] = self.x0[:n], self.x0[n:]
+        self._initial_state = np.empty(mujoco.mj_stateSize(self._stepped, spec))
+        mujoco.mj_getState(self._stepped, self.data, self._initial_state, spec)
+        self._warmstart = np.zeros(self.model.nv)  # mj_resetData's
+        start, nq = mujoco.mj_stateSize(self._stepped, mujoco.mjtState.mjSTATE_TIME), self.model.nq
+        self._qpos_qvel = np.concatenate([start + np.arange(nq), start + nq + np.arange(n)])  # time, qpos, qvel, ...
 
     def rollout(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
-        """States x_0..x_N of the model under U (N, n) from x0; shape (N+1, 2n).
+        """States x_0..x_N of the model under U (N, n) from x0; shape (N+1, 2n). MuJoCo's own loop (mujoco.rollout)
+        steps it: the same steps as `_simulate`'s bit for bit (a reset state, no warm start), about 15 % sooner.
 
         Raises:
           SolverError: MuJoCo had to reset the simulation (the rollout diverged).
         """
-        return self._simulate(U.shape[0], lambda k, x: U[k], "the rollout of an iterate")[1]
+        n, d = self.n, self.data
+        d.warning.number[:] = 0
+        states = mj_rollout.rollout(self._stepped, d, self._initial_state, U[None], nstep=U.shape[0],
+                                    initial_warmstart=self._warmstart)[0][0]  # (N, nstate): the only batch
+        if any(d.warning.number[w] for w in UNSTABLE):
+            raise SolverError("the rollout of an iterate diverged (MuJoCo reset the simulation)")
+        X = np.empty((U.shape[0] + 1, 2 * n))
+        X[0] = self.x0
+        X[1:] = states[:, self._qpos_qvel]
+        return X
 
     def tracked(self, U: NDArray[np.float64], X_ref: NDArray[np.float64], K: NDArray[np.float64],
                 u_max: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -124,8 +144,8 @@ class Shooting:
 
     def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """A_k (N, 2n, 2n) and B_k (N, 2n, n) of one control period at each (x_k, u_k): analytic where Pinocchio holds
-        the model and reproduces this rollout (`mjtraj.core.planners.rigid_body`), else forward differences from the
+        """A_k (N, 2n, 2n) and B_k (N, 2n, n) of one control period at each (x_k, u_k): analytic where the model's
+        hinge tree reproduces this rollout (`mjtraj.core.planners.rigid_body`), else forward differences from the
         rollout's own steps X[k+1]; backward for a torque within eps of its control's upper end, which MuJoCo clamps
         (a forward difference there sees no effect, and a plan's torques sit on their bound). `jacobian_counts`
         counts the two kinds."""
@@ -163,14 +183,15 @@ class Shooting:
 
     def evaluate(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
                                                         NDArray[np.float64]]:
-        """(U, X, A, S) at u, where S (N+1, 2n, N n) holds dx_k/du; the last point is cached."""
+        """(U, X, A, S) at u, where S (N+1, 2n, N n) holds dx_k/du; the last point is cached. S is one array that every
+        evaluation fills again (1.5 MB at N = 100, n = 3, made once): it is valid until the next point is evaluated."""
         key = u.tobytes()
         if self._cache.get("key") != key:
             n, N = self.n, self.steps
             U, X = self.states(u)
             A, B = self.jacobians(X, U)
-            S = np.zeros((N + 1, 2 * n, N * n))
-            for k in range(N):  # S_k is zero right of block k - 1: x_k does not depend on later torques
+            S = self._sensitivities
+            for k in range(N):  # S_k is zero right of block k - 1 (never written): x_k does not depend on later torques
                 np.matmul(A[k], S[k, :, :k * n], out=S[k + 1, :, :k * n])
                 S[k + 1, :, k * n:(k + 1) * n] = B[k]
             self._cache.update(key=key, value=(U, X, A, S))
@@ -185,6 +206,19 @@ class Shooting:
         U, X, _, S = self.evaluate(u)
         d = X[1:] - self.xg
         return (U @ self.R).ravel() + (d @ self.Q.T).ravel() @ S[1:].reshape(-1, S.shape[2])
+
+    @cached_property
+    def _sensitivities(self) -> NDArray[np.float64]:
+        """The array `evaluate` fills, (N+1, 2n, N n), zero where it never writes."""
+        return np.zeros((self.steps + 1, 2 * self.n, self.steps * self.n))
+
+    @cached_property
+    def diagonal_hessian(self) -> NDArray[np.float64] | None:
+        """The Gauss-Newton Hessian's diagonal (N n,) where the Hessian is diagonal at every u (Q = 0 and a diagonal
+        R: the effort bound's), else None."""
+        if self.Q.any() or np.count_nonzero(self.R) != np.count_nonzero(np.diag(self.R)):
+            return None
+        return np.tile(np.diag(self.R), self.steps)  # type: ignore[no-any-return]
 
     def gauss_newton(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
         """The objective's Gauss-Newton Hessian R (block diagonal) + sum_{k=1..N} S_k^T Q S_k at u, shape (N n, N n).
@@ -229,6 +263,7 @@ class PathLimits:
     q_low: NDArray[np.float64]
     q_high: NDArray[np.float64]
     v_max: NDArray[np.float64]
+    _scales: dict[int, NDArray[np.float64]] = field(default_factory=dict, compare=False, repr=False)
 
     def values(self, U: NDArray[np.float64], X: NDArray[np.float64]) -> NDArray[np.float64]:
         """h, shape (6 N n,): q_high - q, q - q_low, v_max - qd, v_max + qd (k = 1..N), u_max - u, u_max + u."""
@@ -238,9 +273,14 @@ class PathLimits:
                                (self.v_max + qd).ravel(), (self.u_max - U).ravel(), (self.u_max + U).ravel()])
 
     def scale(self, steps: int) -> NDArray[np.float64]:
-        """Each row's natural size, shape (6 N n,): half the range width, the speed limit, the torque bound."""
-        half = np.tile(0.5 * (self.q_high - self.q_low), steps)
-        return np.concatenate([half, half, np.tile(self.v_max, 2 * steps), np.tile(self.u_max, 2 * steps)])
+        """Each row's natural size, shape (6 N n,): half the range width, the speed limit, the torque bound; made
+        once per `steps` (read-only)."""
+        if steps not in self._scales:
+            half = np.tile(0.5 * (self.q_high - self.q_low), steps)
+            made = np.concatenate([half, half, np.tile(self.v_max, 2 * steps), np.tile(self.u_max, 2 * steps)])
+            made.setflags(write=False)
+            self._scales[steps] = made
+        return self._scales[steps]
 
     def near(self, U: NDArray[np.float64], X: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Rows within reach of their limit (see SCREEN)."""
