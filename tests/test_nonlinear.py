@@ -307,8 +307,8 @@ def test_sensitivities_filled_again_at_another_point_are_that_points_own(model):
 
 def test_the_rollout_is_mujocos_own_step_loop_bit_for_bit_with_a_joint_on_its_limit(model):
     """Shooting.rollout (mujoco.rollout) against `replay`, a plain mj_step loop from a fresh MjData, on a model whose
-    joint 1 is driven into a narrow range's end (the limit's constraint solver and its warm start at work), twice and
-    after another rollout: the same states bit for bit."""
+    joint 1 is driven into a narrow range's end (the limit's constraint solver at work), twice and after another
+    rollout: the same states bit for bit."""
     limited = copy.deepcopy(model)
     limited.jnt_range[1] = (-0.2, 0.2)
     limited.jnt_limited[1] = True
