@@ -579,9 +579,8 @@ def _bench(args: argparse.Namespace) -> int:
         print(f"the fair study's planners on the scenario's task (N = {new['steps']}), one process: the linear "
               f"optimal plan takes {1e3 * linear:.2f} ms on one core; the nonlinear planners linearise by "
               f"the compiled dynamics derivatives where their step is MuJoCo's, else by batched differences on "
-              f"{new['threads']} "
-              f"threads (MuJoCo's batch, every CPU); targets: scurve below the closed loop that executes it, each "
-              f"nonlinear planner at most 100 times the linear plan")
+              f"{new['threads']} threads (MuJoCo's batch, every CPU); targets: scurve below the closed loop that "
+              f"executes it, each nonlinear planner at most 100 times the linear plan")
         print(f"{'planner':<22} {'solver':<6} {'s per plan':>10} {'x linear':>9} {'iterations':>10} {'objective':>12}")
         print(f"{'scurve':<22} {'':<6} {new['scurve_s']:>10.5f} {new['scurve_s'] / linear:>9.2f} {'':>10} {'':>12}"
               f"   (one closed-loop execution: {new['loop_s']:.5f} s; ratio {new['scurve_s'] / new['loop_s']:.2f})")

@@ -70,8 +70,7 @@ class Shooting:
         self.jacobian_counts = {"analytic": 0, "differenced": 0}
         # the state `_simulate` starts from, as mujoco.rollout takes it, and where qpos and qvel sit in a state
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-        mujoco.mj_resetData(self._stepped, self.data)
-        self.data.qpos[:], self.data.qvel[:] = self.x0[:n], self.x0[n:]
+        self._start()
         self._initial_state = np.empty(mujoco.mj_stateSize(self._stepped, spec))
         mujoco.mj_getState(self._stepped, self.data, self._initial_state, spec)
         self._warmstart = np.zeros(self.model.nv)  # mj_resetData's
@@ -89,8 +88,7 @@ class Shooting:
         d.warning.number[:] = 0
         states = mj_rollout.rollout(self._stepped, d, self._initial_state, U[None], nstep=U.shape[0],
                                     initial_warmstart=self._warmstart)[0][0]  # (N, nstate): the only batch
-        if any(d.warning.number[w] for w in UNSTABLE):
-            raise SolverError("the rollout of an iterate diverged (MuJoCo reset the simulation)")
+        self._check_stable("the rollout of an iterate")
         X = np.empty((U.shape[0] + 1, 2 * n))
         X[0] = self.x0
         X[1:] = states[:, self._qpos_qvel]
@@ -120,16 +118,24 @@ class Shooting:
         U = np.empty((steps, n))
         X = np.empty((steps + 1, 2 * n))
         X[0] = self.x0
-        mujoco.mj_resetData(self._stepped, d)
-        d.qpos[:], d.qvel[:] = self.x0[:n], self.x0[n:]
+        self._start()
         for k in range(steps):
             U[k] = control(k, X[k])
             d.ctrl[:] = U[k]
             mujoco.mj_step(self._stepped, d)
             X[k + 1, :n], X[k + 1, n:] = d.qpos, d.qvel
-        if any(d.warning[w].number for w in UNSTABLE):
-            raise SolverError(f"{what} diverged (MuJoCo reset the simulation)")
+        self._check_stable(what)
         return U, X
+
+    def _start(self) -> None:
+        """Reset `data` (warnings and warm start included) and put it at x0."""
+        mujoco.mj_resetData(self._stepped, self.data)
+        self.data.qpos[:], self.data.qvel[:] = self.x0[:self.n], self.x0[self.n:]
+
+    def _check_stable(self, what: str) -> None:
+        """Raise SolverError if MuJoCo had to reset `data`'s simulation (`what` diverged)."""
+        if any(self.data.warning.number[w] for w in UNSTABLE):
+            raise SolverError(f"{what} diverged (MuJoCo reset the simulation)")
 
     def states(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(U, X) at u without derivatives (a line search's trial point); the last point is cached."""
