@@ -191,3 +191,36 @@ def test_the_compiled_dynamics_and_derivatives_are_pinocchios(which, rng):
         da_dq, da_dqd, inverse_mass = (np.array(a) for a in pin.computeABADerivatives(body, data, q[k], qd[k], tau[k]))
         for mine, oracle in zip(computed, (data.ddq, da_dq, da_dqd, inverse_mass), strict=True):
             np.testing.assert_allclose(mine[k], oracle, rtol=1e-11, atol=1e-11 * (1.0 + np.abs(oracle).max()))
+
+
+def test_the_steps_curvature_is_mujocos_second_differences(rng):
+    """RigidBody.curvature (forward differences of the analytic Jacobian) against the Hessian of p^T step(z) by second
+    differences of MuJoCo's own step, on the general tree: central ones, and at a sample whose control sits on its
+    upper end (MuJoCo clamps beyond it) one-sided ones taken from inside."""
+    model = mujoco.MjModel.from_xml_string(TREE)
+    n = model.nv
+    U = rng.uniform(-4.0, 4.0, (6, 3))
+    U[4, 2] = 5.0  # j2's control on its upper end
+    X = rollout(model, np.array([0.2, -0.1, 0.4, 1.0, -2.0, 0.5]), U)
+    p = rng.normal(size=(6, 2 * n))
+    curvature = RigidBody.of(model).curvature(X[:-1], U, p)
+    eye = np.eye(3 * n)
+    for k in (0, 4, 5):
+        z = np.concatenate([X[k], U[k]])
+
+        def value(dz, k=k, z=z):
+            return float(p[k] @ rollout(model, (z + dz)[:2 * n], (z + dz)[None, 2 * n:])[1])
+
+        if k != 4:
+            h = 1e-4
+            numeric = np.array([[value(h * (a + b)) - value(h * (a - b)) - value(h * (b - a)) + value(-h * (a + b))
+                                 for b in eye] for a in eye]) / (4 * h * h)
+            rtol = 1e-4
+        else:
+            h = 1e-5
+            inward = np.where(np.arange(3 * n) == 2 * n + 2, -1.0, 1.0)[:, None] * eye  # -u for the clamped control
+            numeric = np.array([[value(h * (a + b)) - value(h * a) - value(h * b) + value(0.0 * a) for b in inward]
+                                for a in inward]) / (h * h)
+            numeric *= np.outer(np.diag(inward), np.diag(inward))  # back to derivatives in +z
+            rtol = 1e-3
+        np.testing.assert_allclose(curvature[k], numeric, rtol=rtol, atol=rtol * 0.1 * np.abs(numeric).max())

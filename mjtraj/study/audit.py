@@ -710,7 +710,7 @@ def _effort_left(data: SweepData) -> list[str]:
                      int(np.sum(np.isfinite(bound)))))
     if not rows:
         return lines[:2] + [f"(not measured: add `{BOUND}` to the sweep's planners; it plans in about 0.08 s: "
-                            "1,000 nominal scenarios take about five minutes on two cores)", ""]
+                            "1,000 nominal scenarios take about two minutes on two cores)", ""]
     for c, present, ratios, count in rows:
         lines += [f"{c} ({count} scenarios with a bound):", "", "| " + " | ".join(present) + " |",
                   "|" + "---|" * len(present), "| " + " | ".join(_fmt_ratio(r) for r in ratios) + " |", ""]

@@ -2,9 +2,9 @@
 
 min 1/2 sum_{k=1..N} (x_k - x_g)^T Q (x_k - x_g) + 1/2 sum_{k=0..N-1} u_k^T R u_k  over the corrective torques u_k,
 subject to x_{k+1} = F(x_k, u_k) (one control period of the nominal MuJoCo model: RK4, gravity compensated, the
-plant itself), x_N = x_g = [qg; 0], |u_k| <= u_max, and at every sample k = 1..N q_k within the joint ranges and
-|qd_k| <= the speed limit. `nonlinear_min_effort` is the case Q = 0: the least corrective effort with which the
-nominal arm can make the move, the effort bound of the study.
+plant itself), x_N = x_g = [qg; 0], |u_k| <= u_max, and at every sample k = 1..N q_k within the joint ranges
+(RANGE_MARGIN inside) and |qd_k| <= the speed limit. `nonlinear_min_effort` is the case Q = 0: the least corrective
+effort with which the nominal arm can make the move, the effort bound of the study.
 
 Method: sequential quadratic programming in single-shooting form (`mjtraj.core.planners.shooting`). The variables
 are the N n torques; every iterate is rolled out exactly on the model, so every plan is realisable. The transition's
@@ -24,11 +24,13 @@ cannot be met). The problem is not convex: the plan is a local minimum, reached 
 which). Two solvers (see SOLVERS):
 
 - the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights (0.06 s at N = 100 on
-  one core), and 10 to 20 with Q = 0 from each start (0.08 s for a bound plan). The default of both planners ('auto':
-  SLSQP where it does not converge). `nonlinear_optimal` keeps the plan from the first start from which it converges,
-  `nonlinear_min_effort` runs it from both starts and keeps the lower plan (`keep`; see KEEPS): a bound is a minimum,
-  and with Q = 0 the starts can reach different local minima (on the paper task 0.0985 from the linear start, a strict
-  local minimum, and 0.0613 from the tracked one). The second start's solve is given the first start's plan and
+  one core), and 10 to 20 with Q = 0 from each start (0.08 s for a bound plan); from its 21st iteration its Hessian is
+  the Lagrangian's (`sqp.SECOND_ORDER_AFTER`), with which the solves that Gauss-Newton's linear convergence left to
+  SLSQP converge. The default of both planners ('auto': SLSQP where it does not converge). `nonlinear_optimal`
+  keeps the plan from the first start from which it converges, `nonlinear_min_effort` runs it from both starts and
+  keeps the lower plan (`keep`; see KEEPS): a bound is a minimum, and with Q = 0 the starts can reach different
+  local minima (on the paper task 0.0985 from the linear start, a strict local minimum, and 0.0613 from the tracked
+  one). The second start's solve is given the first start's plan and
   stops once it comes within `sqp.JOIN` of it (heading for the same minimum);
 - scipy's SLSQP, which keeps a quasi-Newton model of the Lagrangian's curvature, the dynamics' second derivatives
   included. That model starts at the identity, so the solve runs in variables v = L^T u in which the identity is a
@@ -107,10 +109,11 @@ SOLVERS = ("auto", "sqp", "slsqp")
 """The nonlinear planners' solvers (see NonlinearOptimal.solver). The Gauss-Newton SQP ignores the dynamics' second
 derivatives; with the paper's state weight Q they are small against Q and it converges in about 8 iterations to
 SLSQP's optimum. With Q = 0 (the effort bound), weighted by the terminal condition's multipliers, they are of the
-order of R: it converges more slowly (10 to 20 iterations, some over 40), and from different starts it can reach
-different local minima, as SLSQP can. On the paper task the SQP from the linear start stops at 0.0985, a strict
-local minimum (second-order sufficiency is tested with the Lagrangian's exact Hessian), and from the tracked start
-at 0.0613, SLSQP's; hence keep='lowest' for the bound (KEEPS)."""
+order of R: it converges more slowly (10 to 20 iterations, some over 40, hence the Lagrangian's Hessian from the
+21st, `sqp.SECOND_ORDER_AFTER`), and from different starts it can reach different local minima, as SLSQP can. On
+the paper task the SQP from the linear start stops at 0.0985, a strict local minimum (second-order sufficiency is
+tested with the Lagrangian's exact Hessian), and from the tracked start at 0.0613, SLSQP's; hence keep='lowest' for
+the bound (KEEPS)."""
 SQP_CURVATURE_SCALE = 10.0
 """The Gauss-Newton SQP's first model is this multiple of the Gauss-Newton Hessian ..."""
 SQP_SHRINK = 4.0
@@ -129,7 +132,14 @@ with the last step's iterate tested (`gauss_newton_sqp`), beside SLSQP warm-star
 40 with SLSQP from the starts again (178); the warm start had 177 at 40, 80 and 200 (at 40 nominal 25 0.8 % higher,
 nominal 92 64 % lower, both counted once). Run again with the second start joining the first's plan (`sqp.JOIN`)
 and the compiled Jacobians: 40 had 179 (SLSQP now also plans nominal 85, a change of its path by the Jacobians'
-last bits), 80 and 200 had 178 (nominal 25 again), though their mean time was 0.42 s a plan against 1.12 s."""
+last bits), 80 and 200 had 178 (nominal 25 again), though their mean time was 0.42 s a plan against 1.12 s. With
+the Lagrangian's Hessian from the 21st iteration (`sqp.SECOND_ORDER_AFTER`) and RANGE_MARGIN, 40 has 179 in a
+mean of 0.11 s a plan, SLSQP planning one (nominal 25); 80 and 200 were not run again."""
+RANGE_MARGIN = 1e-4
+"""The plans keep this far (rad) inside each joint's range (less where the start or the goal is nearer its end).
+MuJoCo's range constraint acts on a joint beyond its end, a force the rollout's derivatives do not see; a plan pressed
+exactly on the end met it in the line search's trial points, which then found no decrease (nominal 85 of the
+validation tasks, planned by the SQP in 8 iterations with the margin, and otherwise by SLSQP in 560)."""
 TRACKING_ERROR = (0.01, 0.1)
 """The tracked start's feedback is LQR along the linear plan with Bryson's weights for these largest tracking errors
 (rad, rad/s) and the torque bound (see `NonlinearOptimal._tracked_start`)."""
@@ -243,18 +253,7 @@ class NonlinearOptimal(Planner):
           SolverError: SLSQP failed (its message).
         """
         clock = time.perf_counter()
-        joints = JointInfo.of(model)
-        task.check_limits(model, joints)
-        linear = self.linear()
-        bound = linear.bounds(task, model, joints)
-        n = task.n
-        Q, R = planner_weights(task, bound, self.state_weight, self.input_weight, self.alpha, self.split)
-        limits = PathLimits(bound, joints.lower, joints.upper, np.full(n, float(self.speed_limit)))
-        x0 = np.concatenate([task.q0, np.zeros(n)])
-        xg = np.concatenate([task.qg, np.zeros(n)])
-        problem = Shooting(model, x0, xg, Q, R, task.steps, self.fd_eps)
-        start, linear_plan = self._start(task, model, problem, limits)
-        starts = _Starts(start, lambda: self._tracked_start(task, linear_plan, problem, limits))
+        problem, limits, starts = self.problem(task, model)
         if self.solver != "slsqp":
             failures = []
             found: list[tuple[float, str, SqpResult]] = []
@@ -290,6 +289,27 @@ class NonlinearOptimal(Planner):
         U, X, _, _ = problem.evaluate(u)
         return self._reference(task, U, X, problem.objective(u), "slsqp", name, iterations, rounds, rows, retried,
                                time.perf_counter() - clock, problem.jacobian_counts)
+
+    def problem(self, task: Task, model: mujoco.MjModel) -> tuple[Shooting, PathLimits, _Starts]:
+        """`task`'s problem on `model` as `plan` solves it: the shooting problem, its path limits (the joint ranges
+        RANGE_MARGIN inside), and its starts.
+
+        Raises:
+          InfeasibleError: the linearised arm cannot make the move within the torque bound (no start).
+        """
+        joints = JointInfo.of(model)
+        task.check_limits(model, joints)
+        bound = self.linear().bounds(task, model, joints)
+        n = task.n
+        Q, R = planner_weights(task, bound, self.state_weight, self.input_weight, self.alpha, self.split)
+        inside = np.minimum(task.q0, task.qg), np.maximum(task.q0, task.qg)  # a margin never excludes these
+        limits = PathLimits(bound, np.minimum(joints.lower + RANGE_MARGIN, inside[0]),
+                            np.maximum(joints.upper - RANGE_MARGIN, inside[1]), np.full(n, float(self.speed_limit)))
+        x0 = np.concatenate([task.q0, np.zeros(n)])
+        xg = np.concatenate([task.qg, np.zeros(n)])
+        problem = Shooting(model, x0, xg, Q, R, task.steps, self.fd_eps)
+        start, linear_plan = self._start(task, model, problem, limits)
+        return problem, limits, _Starts(start, lambda: self._tracked_start(task, linear_plan, problem, limits))
 
     def _slsqp(self, problem: Shooting, limits: PathLimits, starts: _Starts
                ) -> tuple[NDArray[np.float64], str, int, int, int, int]:

@@ -27,6 +27,8 @@ from mjtraj.core.planners.tree_dynamics import HingeTree
 
 TRANSITION_TOL = 1e-9
 """The tree's RK4 step must give MuJoCo's next state within this, times (1 + |x|), in every component."""
+CURVATURE_STEP = 1e-6
+"""The relative forward-difference step of `RigidBody.curvature` (its error is of this order; rounding's of 1e-10)."""
 RK4 = ((0.0, 1.0 / 6.0), (0.5, 1.0 / 3.0), (0.5, 1.0 / 3.0), (1.0, 1.0 / 6.0))
 """The classical Runge-Kutta stages, MuJoCo's mjINT_RK4: (the stage's fraction of the step along the previous
 stage's derivative, the stage's weight in the step)."""
@@ -79,17 +81,26 @@ class RigidBody:
         """A_k (N, 2n, 2n) and B_k (N, 2n, nu) of the RK4 step at each (x_k, u_k) of the rollout X (N+1, 2n) under U
         (N, nu), or None where the tree's step misses MuJoCo's X[k+1] by more than TRANSITION_TOL. A control outside
         its range has no effect (MuJoCo clamps it), one on its end the effect from inside."""
+        after, jacobian = self.step(X[:-1], U)
+        if np.any(np.abs(after - X[1:]) > TRANSITION_TOL * (1.0 + np.abs(X[1:]))):
+            return None
+        n = self.qpos0.size
+        return jacobian[:, :, :2 * n], jacobian[:, :, 2 * n:]
+
+    def step(self, x: NDArray[np.float64], U: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The tree's RK4 step from each state x (M, 2n) under U (M, nu) and its Jacobian: (x' (M, 2n),
+        dx'/d(x, u) (M, 2n, 2n + nu)). No check against MuJoCo (see `jacobians`)."""
         steps, n = U.shape[0], self.qpos0.size
-        x, h = X[:-1], self.timestep
+        h = self.timestep
         inside = (U >= self.ctrl_low) & (U <= self.ctrl_high)
-        tau = np.clip(U, self.ctrl_low, self.ctrl_high) @ self.actuation.T  # (N, n)
-        lift = np.zeros((2 * n, 3 * n))  # d(x_k, u_k)/d(x_k, u_k)'s state rows
-        lift[:, :2 * n] = np.eye(2 * n)
+        tau = np.clip(U, self.ctrl_low, self.ctrl_high) @ self.actuation.T  # (M, n)
+        width = 2 * n + U.shape[1]
+        lift = np.eye(2 * n, width)  # d(x_k, u_k)/d(x_k, u_k)'s state rows
         F = np.zeros((steps, 2 * n, 2 * n))  # d f/d x at a stage, f = (v, a)
         F[:, :n, n:] = np.eye(n)
         G = np.zeros((steps, 2 * n, n))  # d f/d tau at a stage
-        slope, d_slope = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, 3 * n))  # the last stage's f and df/dz
-        step, d_step = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, 3 * n))
+        slope, d_slope = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, width))  # the last stage's f and df/dz
+        total, d_total = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, width))
         for along, weight in RK4:
             stage = x + (h * along) * slope
             d_stage = lift + (h * along) * d_slope
@@ -101,13 +112,28 @@ class RigidBody:
             slope = np.concatenate([stage[:, n:], acceleration], axis=1)
             d_slope = F @ d_stage
             d_slope[:, :, 2 * n:] += G @ (self.actuation * inside[:, None, :])
-            step += weight * slope
-            d_step += weight * d_slope
-        miss = np.abs(x + h * step - X[1:])
-        if np.any(miss > TRANSITION_TOL * (1.0 + np.abs(X[1:]))):
-            return None
-        jacobian = lift + h * d_step
-        return jacobian[:, :, :2 * n], jacobian[:, :, 2 * n:]
+            total += weight * slope
+            d_total += weight * d_slope
+        return x + h * total, lift + h * d_total
+
+    def curvature(self, x: NDArray[np.float64], U: NDArray[np.float64], p: NDArray[np.float64]
+                  ) -> NDArray[np.float64]:
+        """The Hessian of p_k^T x'(x_k, u_k), the step's next state weighted by p (M, 2n), in z = (x, u) at each
+        (x_k, u_k) (x (M, 2n), U (M, nu)): shape (M, 2n + nu, 2n + nu). Forward differences of the step's analytic
+        Jacobian, step CURVATURE_STEP (1 + |z_i|) (backward for a control that would pass its upper end, where MuJoCo
+        clamps it), all M (2n + nu) perturbed points in one call; symmetrised."""
+        z = np.concatenate([x, U], axis=1)
+        steps, width = z.shape
+        n = self.qpos0.size
+        delta = CURVATURE_STEP * (1.0 + np.abs(z))  # (M, width)
+        delta[:, 2 * n:] *= np.where(U + delta[:, 2 * n:] > self.ctrl_high, -1.0, 1.0)
+        moved = (z[:, None, :] + delta[:, :, None] * np.eye(width)[None]).reshape(-1, width)
+        points = np.concatenate([z, moved])
+        _, jacobian = self.step(points[:, :2 * n], points[:, 2 * n:])
+        pulled = np.einsum("mab,ma->mb", jacobian[:steps], p)  # J^T p at each point, (M, width)
+        moved_pulled = np.einsum("miab,ma->mib", jacobian[steps:].reshape(steps, width, 2 * n, width), p)
+        hessian = (moved_pulled - pulled[:, None, :]) / delta[:, :, None]  # row i: d(J^T p)/dz_i
+        return 0.5 * (hessian + hessian.transpose(0, 2, 1))  # type: ignore[no-any-return]
 
 
 def unsupported(model: mujoco.MjModel) -> str | None:

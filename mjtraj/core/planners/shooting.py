@@ -195,12 +195,13 @@ class Shooting:
         if self._cache.get("key") != key:
             n, N = self.n, self.steps
             U, X = self.states(u)
+            analytic = self.jacobian_counts["analytic"]
             A, B = self.jacobians(X, U)
             S = self._sensitivities
             for k in range(N):  # S_k is zero right of block k - 1 (never written): x_k does not depend on later torques
                 np.matmul(A[k], S[k, :, :k * n], out=S[k + 1, :, :k * n])
                 S[k + 1, :, k * n:(k + 1) * n] = B[k]
-            self._cache.update(key=key, value=(U, X, A, S))
+            self._cache.update(key=key, value=(U, X, A, S), analytic=self.jacobian_counts["analytic"] > analytic)
         return self._cache["value"]  # type: ignore[no-any-return]
 
     def objective(self, u: NDArray[np.float64]) -> float:
@@ -243,10 +244,48 @@ class Shooting:
         P[N] = Q
         for k in range(N - 1, 0, -1):
             P[k] = Q + A[k].T @ P[k + 1] @ A[k]
-        B = np.stack([S[j + 1, :, j * n:(j + 1) * n] for j in range(N)])  # S_{j+1}'s block j is B_j
-        columns = np.matmul(S[1:].transpose(0, 2, 1), P[1:] @ B)  # (N, N n, n): the upper triangle's block columns
-        upper = columns.transpose(1, 0, 2).reshape(N * n, N * n)
+        columns = np.matmul(S[1:].transpose(0, 2, 1), P[1:] @ _input_blocks(S))  # (N, N n, n): the upper triangle's
+        upper = columns.transpose(1, 0, 2).reshape(N * n, N * n)                # block columns
         return H + np.where(self._diagonal, upper, upper + upper.T)  # type: ignore[no-any-return]
+
+    def second_order(self, u: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """The Hessian (N n, N n) of sum_{k=1..N} w_k^T x_k(u), w (N+1, 2n) (w_0 unused): the dynamics' curvature
+        that the Gauss-Newton Hessian leaves out, weighted by w (a Lagrangian's multipliers). None where the model's
+        tree does not give this rollout's Jacobians (`jacobians`): its curvature would not be the plant's.
+
+        Stage by stage: the adjoint p_k = w_{k+1} + A_{k+1}^T p_{k+1} (p_{N-1} = w_N) weights step k's next state; M_k,
+        the Hessian of p_k^T x_{k+1} in (x_k, u_k) (`RigidBody.curvature`), enters as S_k^T Mxx_k S_k + the cross
+        and input terms. With P_N = 0 and P_k = Mxx_k + A_k^T P_{k+1} A_k, block (i, j), i < j, is
+        S_j[:, block i]^T (Mxu_j + A_j^T P_{j+1} B_j) and block (j, j) is Muu_j + B_j^T P_{j+1} B_j, as in
+        `gauss_newton`.
+        """
+        U, X, A, S = self.evaluate(u)
+        if not self._cache["analytic"]:
+            return None
+        assert self._rigid_body is not None
+        n, N = self.n, self.steps
+        p = np.empty((N, 2 * n))
+        p[N - 1] = w[N]
+        for k in range(N - 2, -1, -1):
+            p[k] = w[k + 1] + A[k + 1].T @ p[k + 1]
+        M = self._rigid_body.curvature(X[:-1], U, p)
+        P = np.zeros((N + 1, 2 * n, 2 * n))
+        for k in range(N - 1, 0, -1):
+            P[k] = M[k, :2 * n, :2 * n] + A[k].T @ P[k + 1] @ A[k]
+        B = _input_blocks(S)
+        PB = P[1:] @ B
+        columns = np.matmul(S[:-1].transpose(0, 2, 1), M[:, :2 * n, 2 * n:] + A.transpose(0, 2, 1) @ PB)
+        upper = columns.transpose(1, 0, 2).reshape(N * n, N * n)  # block (i, j) for i < j; zero on and below
+        H = upper + upper.T
+        blocks = np.arange(N)
+        H.reshape(N, n, N, n)[blocks, :, blocks, :] += M[:, 2 * n:, 2 * n:] + B.transpose(0, 2, 1) @ PB
+        return H  # type: ignore[no-any-return]
+
+
+def _input_blocks(S: NDArray[np.float64]) -> NDArray[np.float64]:
+    """B_j = dx_{j+1}/du_j, (N, 2n, n), read from the sensitivities S (N+1, 2n, N n): S_{j+1}'s block j."""
+    steps, n = S.shape[0] - 1, S.shape[2] // (S.shape[0] - 1)
+    return np.stack([S[j + 1, :, j * n:(j + 1) * n] for j in range(steps)])
 
 
 def _collision_free(model: mujoco.MjModel) -> mujoco.MjModel:
@@ -297,12 +336,28 @@ class PathLimits:
         n = S.shape[1] // 2
         size = S.shape[2]
         steps = S.shape[0] - 1
-        group, rest = np.divmod(np.asarray(rows, dtype=np.intp), steps * n)
-        k, joint = np.divmod(rest, n)
+        state, sign, k, component, rest = _targets(rows, steps, n)
         out = np.zeros((len(rows), size))
-        state = group < 4  # ranges and speeds: +-(the sensitivity of q or qd at sample k + 1)
-        sign = np.where(group % 2 == 0, -1.0, 1.0)
-        component = np.where(group < 2, joint, n + joint)
         out[state] = sign[state, None] * S[k[state] + 1, component[state]]
         out[~state, rest[~state]] = sign[~state]  # torques: -+1 on u_k itself
         return out
+
+    def on_states(self, rows: NDArray[np.intp], weights: NDArray[np.float64], steps: int, n: int
+                  ) -> NDArray[np.float64]:
+        """sum_r weights_r dh_r/dx_k over `rows`, (steps+1, 2n): the rows' weights on the states they bound (the
+        range and speed rows are linear in x_k; the torque rows do not involve the states)."""
+        state, sign, k, component, _ = _targets(rows, steps, n)
+        out = np.zeros((steps + 1, 2 * n))
+        np.add.at(out, (k[state] + 1, component[state]), sign[state] * weights[state])
+        return out
+
+
+def _targets(rows: NDArray[np.intp], steps: int, n: int
+             ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """Where each path row of `PathLimits.values` acts: (a state row?, its sign in x or u, its sample k (x_{k+1} or
+    u_k), its state component, its index within the group)."""
+    group, rest = np.divmod(np.asarray(rows, dtype=np.intp), steps * n)
+    k, joint = np.divmod(rest, n)
+    sign = np.where(group % 2 == 0, -1.0, 1.0)  # the upper ends: -x; the lower: +x
+    component = np.where(group < 2, joint, n + joint)  # ranges: q; speeds: qd
+    return group < 4, sign, k, component, rest
