@@ -203,7 +203,8 @@ def test_the_steps_curvature_is_mujocos_second_differences(rng):
     U[4, 2] = 5.0  # j2's control on its upper end
     X = rollout(model, np.array([0.2, -0.1, 0.4, 1.0, -2.0, 0.5]), U)
     p = rng.normal(size=(6, 2 * n))
-    curvature = RigidBody.of(model).curvature(X[:-1], U, p)
+    rigid = RigidBody.of(model)
+    curvature = rigid.curvature(X[:-1], U, p, rigid.step(X[:-1], U)[1])
     eye = np.eye(3 * n)
     for k in (0, 4, 5):
         z = np.concatenate([X[k], U[k]])

@@ -116,22 +116,22 @@ class RigidBody:
             d_total += weight * d_slope
         return x + h * total, lift + h * d_total
 
-    def curvature(self, x: NDArray[np.float64], U: NDArray[np.float64], p: NDArray[np.float64]
-                  ) -> NDArray[np.float64]:
+    def curvature(self, x: NDArray[np.float64], U: NDArray[np.float64], p: NDArray[np.float64],
+                  jacobian: NDArray[np.float64]) -> NDArray[np.float64]:
         """The Hessian of p_k^T x'(x_k, u_k), the step's next state weighted by p (M, 2n), in z = (x, u) at each
-        (x_k, u_k) (x (M, 2n), U (M, nu)): shape (M, 2n + nu, 2n + nu). Forward differences of the step's analytic
-        Jacobian, step CURVATURE_STEP (1 + |z_i|) (backward for a control that would pass its upper end, where MuJoCo
-        clamps it), all M (2n + nu) perturbed points in one call; symmetrised."""
+        (x_k, u_k) (x (M, 2n), U (M, nu)), given the step's Jacobian there (M, 2n, 2n + nu; `step`'s): shape
+        (M, 2n + nu, 2n + nu). Forward differences of the analytic Jacobian, step CURVATURE_STEP (1 + |z_i|)
+        (backward for a control that would pass its upper end, where MuJoCo clamps it), all M (2n + nu) perturbed
+        points in one batched `step`; symmetrised."""
         z = np.concatenate([x, U], axis=1)
         steps, width = z.shape
         n = self.qpos0.size
         delta = CURVATURE_STEP * (1.0 + np.abs(z))  # (M, width)
         delta[:, 2 * n:] *= np.where(U + delta[:, 2 * n:] > self.ctrl_high, -1.0, 1.0)
         moved = (z[:, None, :] + delta[:, :, None] * np.eye(width)[None]).reshape(-1, width)
-        points = np.concatenate([z, moved])
-        _, jacobian = self.step(points[:, :2 * n], points[:, 2 * n:])
-        pulled = np.einsum("mab,ma->mb", jacobian[:steps], p)  # J^T p at each point, (M, width)
-        moved_pulled = np.einsum("miab,ma->mib", jacobian[steps:].reshape(steps, width, 2 * n, width), p)
+        _, moved_jacobian = self.step(moved[:, :2 * n], moved[:, 2 * n:])
+        pulled = np.einsum("mab,ma->mb", jacobian, p)  # J^T p at each point, (M, width)
+        moved_pulled = np.einsum("miab,ma->mib", moved_jacobian.reshape(steps, width, 2 * n, width), p)
         hessian = (moved_pulled - pulled[:, None, :]) / delta[:, :, None]  # row i: d(J^T p)/dz_i
         return 0.5 * (hessian + hessian.transpose(0, 2, 1))  # type: ignore[no-any-return]
 

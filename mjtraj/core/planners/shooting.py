@@ -268,11 +268,11 @@ class Shooting:
         p[N - 1] = w[N]
         for k in range(N - 2, -1, -1):
             p[k] = w[k + 1] + A[k + 1].T @ p[k + 1]
-        M = self._rigid_body.curvature(X[:-1], U, p)
+        B = _input_blocks(S)
+        M = self._rigid_body.curvature(X[:-1], U, p, np.concatenate([A, B], axis=2))
         P = np.zeros((N + 1, 2 * n, 2 * n))
         for k in range(N - 1, 0, -1):
             P[k] = M[k, :2 * n, :2 * n] + A[k].T @ P[k + 1] @ A[k]
-        B = _input_blocks(S)
         PB = P[1:] @ B
         columns = np.matmul(S[:-1].transpose(0, 2, 1), M[:, :2 * n, 2 * n:] + A.transpose(0, 2, 1) @ PB)
         upper = columns.transpose(1, 0, 2).reshape(N * n, N * n)  # block (i, j) for i < j; zero on and below
