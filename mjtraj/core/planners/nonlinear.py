@@ -134,7 +134,8 @@ nominal 92 64 % lower, both counted once). Run again with the second start joini
 and the compiled Jacobians: 40 had 179 (SLSQP now also plans nominal 85, a change of its path by the Jacobians'
 last bits), 80 and 200 had 178 (nominal 25 again), though their mean time was 0.42 s a plan against 1.12 s. With
 the Lagrangian's Hessian from the 21st iteration (`sqp.SECOND_ORDER_AFTER`) and RANGE_MARGIN, 40 has 179 in a
-mean of 0.11 s a plan, SLSQP planning one (nominal 25); 80 and 200 were not run again."""
+mean of 0.113 s a plan, SLSQP planning one (nominal 25); 80 has 178 (nominal 25 again) in 0.114 s; 200 was not
+run again."""
 RANGE_MARGIN = 1e-4
 """The plans keep this far (rad) inside each joint's range (less where the start or the goal is nearer its end).
 MuJoCo's range constraint acts on a joint beyond its end, a force the rollout's derivatives do not see; a plan pressed
