@@ -394,7 +394,7 @@ def test_the_second_order_term_is_the_curvature_of_the_weighted_states(model):
                   + weighted(u - h * (a + b))) / (4 * h * h)
         assert a @ H @ b == pytest.approx(oracle, rel=1e-4, abs=1e-6 * np.abs(H).max())
     limited = copy.deepcopy(model)
-    limited.jnt_range[1] = (-1.6, -1.5)  # the start's joint 1 on the range's end: the limit's force acts
+    limited.jnt_range[1] = (-1.6, -1.5)  # a narrow range about the start: the rollout meets the limit's force
     limited.jnt_limited[1] = True
     pressed = Shooting(limited, problem.x0, problem.xg, problem.Q, problem.R, N, 1e-7)
     assert pressed.second_order(u, w) is None and pressed.jacobian_counts == {"analytic": 0, "differenced": 1}
