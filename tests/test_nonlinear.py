@@ -658,18 +658,10 @@ def drifting(model):
 
 
 def optimal_problem(model, task):
-    """`nonlinear_optimal`'s problem for `task` (the paper's weights by Bryson's rule, the model's torque bound, the
-    pi rad/s speed limit): (its Shooting problem, path limits, the linear start)."""
-    from mjtraj.core.planners.optimal import planner_weights
-
-    joints = JointInfo.of(model)
-    n = task.n
-    limits = PathLimits(joints.torque_limit, joints.lower, joints.upper, np.full(n, np.pi))
-    x0, xg = (np.concatenate([q, np.zeros(n)]) for q in (task.q0, task.qg))
-    Q, R = planner_weights(task, joints.torque_limit, None, None, 1.0, 0.5)
-    problem = Shooting(model, x0, xg, Q, R, task.steps, 1e-7)
-    start, _ = make("nonlinear_optimal")._start(task, model, problem, limits)
-    return problem, limits, start
+    """`nonlinear_optimal`'s problem for `task` as it plans it (`NonlinearOptimal.problem`): (its Shooting problem,
+    path limits, the linear start)."""
+    problem, limits, starts = make("nonlinear_optimal").problem(task, model)
+    return problem, limits, starts.get("linear")
 
 
 def test_a_start_drifting_into_a_joints_end_is_planned_from_the_tracked_start(model, drifting):
