@@ -30,8 +30,8 @@ which). Two solvers (see SOLVERS):
   keeps the plan from the first start from which it converges, `nonlinear_min_effort` runs it from both starts and
   keeps the lower plan (`keep`; see KEEPS): a bound is a minimum, and with Q = 0 the starts can reach different
   local minima (on the paper task 0.0985 from the linear start, a strict local minimum, and 0.0613 from the tracked
-  one). The second start's solve is given the first start's plan and
-  stops once it comes within `sqp.JOIN` of it (heading for the same minimum);
+  one). The second start's solve is given the first start's plan and stops once it comes within `sqp.JOIN` of it
+  (heading for the same minimum);
 - scipy's SLSQP, which keeps a quasi-Newton model of the Lagrangian's curvature, the dynamics' second derivatives
   included. That model starts at the identity, so the solve runs in variables v = L^T u in which the identity is a
   multiple of the Gauss-Newton Hessian (see `_Metric`): without this SLSQP spent one iteration per variable
