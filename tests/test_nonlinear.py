@@ -608,7 +608,7 @@ def test_tracking_gains_reach_the_discrete_riccati_gain_over_a_long_horizon():
     finite-horizon gains of a time-invariant system are the infinite-horizon gain."""
     import scipy.linalg
 
-    from mjtraj.core.planners.nonlinear import tracking_gains
+    from mjtraj.core.planners.tracking import tracking_gains
 
     rng = np.random.default_rng(3)
     A = np.eye(4) + 0.05 * rng.normal(size=(4, 4))
@@ -646,6 +646,34 @@ def test_the_tracked_torques_are_the_feedback_law_and_replay_its_motion(model):
     assert np.abs(mine).max() == 30.0  # the bound binds somewhere
     np.testing.assert_array_equal(problem.rollout(mine)[-1], np.concatenate([data.qpos, data.qvel]))
     np.testing.assert_array_equal(problem.tracked(U, X_ref, np.zeros_like(K), u_max), np.clip(U, -u_max, u_max))
+
+
+def test_the_projected_step_is_the_open_loop_step_to_first_order_and_stays_near_its_prediction(model):
+    """sqp.projector on the paper task's bound from its linear start, along a smooth random direction d: at t = 0
+    it is u itself, bit for bit (the rollout tracks its own states); its distance from u + t d shrinks as t^2 (the
+    two agree to first order, so the line search's predicted decrease holds); at t = 1 its states stay far nearer
+    the linearised prediction x + S d than the open-loop step's, which single shooting's rollout amplifies."""
+    from mjtraj.core.planners.sqp import projector
+    from mjtraj.study.scenario import load_scenario
+
+    task = load_scenario(None).task
+    problem, limits, starts = make("nonlinear_min_effort").problem(task, model)
+    u = starts.get("linear")
+    N, n = problem.steps, problem.n
+    d = np.cumsum(np.random.default_rng(0).normal(size=(N, n)), axis=0).ravel()
+    d *= 0.1 * np.linalg.norm(u) / np.linalg.norm(d)
+    project = projector(problem, limits, u, d)
+    np.testing.assert_array_equal(project(0.0), u)
+    gaps = [np.linalg.norm(project(t) - (u + t * d)) for t in (1e-2, 1e-3)]
+    assert 80.0 < gaps[0] / gaps[1] < 120.0, gaps
+    _, X, _, S = problem.evaluate(u)
+    prediction = X + S @ d
+    projected = project(1.0)
+    assert np.abs(projected).max() <= limits.u_max.max()
+    open_loop = np.abs(problem.rollout((u + d).reshape(N, n)) - prediction)
+    tracked = np.abs(problem.rollout(projected.reshape(N, n)) - prediction)
+    assert tracked.max() < open_loop.max() / 5.0, (tracked.max(), open_loop.max())
+    assert tracked[-1].max() < open_loop[-1].max() / 10.0, (tracked[-1], open_loop[-1])
 
 
 @pytest.fixture(scope="module")

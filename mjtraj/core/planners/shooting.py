@@ -244,7 +244,7 @@ class Shooting:
         P[N] = Q
         for k in range(N - 1, 0, -1):
             P[k] = Q + A[k].T @ P[k + 1] @ A[k]
-        columns = np.matmul(S[1:].transpose(0, 2, 1), P[1:] @ _input_blocks(S))  # (N, N n, n): the upper triangle's
+        columns = np.matmul(S[1:].transpose(0, 2, 1), P[1:] @ input_blocks(S))  # (N, N n, n): the upper triangle's
         upper = columns.transpose(1, 0, 2).reshape(N * n, N * n)                # block columns
         return H + np.where(self._diagonal, upper, upper + upper.T)  # type: ignore[no-any-return]
 
@@ -268,7 +268,7 @@ class Shooting:
         p[N - 1] = w[N]
         for k in range(N - 2, -1, -1):
             p[k] = w[k + 1] + A[k + 1].T @ p[k + 1]
-        B = _input_blocks(S)
+        B = input_blocks(S)
         M = self._rigid_body.curvature(X[:-1], U, p, np.concatenate([A, B], axis=2))
         P = np.zeros((N + 1, 2 * n, 2 * n))
         for k in range(N - 1, 0, -1):
@@ -282,7 +282,7 @@ class Shooting:
         return H  # type: ignore[no-any-return]
 
 
-def _input_blocks(S: NDArray[np.float64]) -> NDArray[np.float64]:
+def input_blocks(S: NDArray[np.float64]) -> NDArray[np.float64]:
     """B_j = dx_{j+1}/du_j, (N, 2n, n), read from the sensitivities S (N+1, 2n, N n): S_{j+1}'s block j."""
     steps, n = S.shape[0] - 1, S.shape[2] // (S.shape[0] - 1)
     return np.stack([S[j + 1, :, j * n:(j + 1) * n] for j in range(steps)])

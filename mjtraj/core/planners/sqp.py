@@ -12,16 +12,21 @@ Bemporad and Axehill, 2022). This is the structure of an SQP for optimal control
 active-set QP solver (as in acados): on the 3-DoF arm the condensed QP has N n = 300 variables and solves in about
 2.5 ms (0.4 ms for the effort bound, whose Hessian is diagonal). The step is accepted by an Armijo line search
 on the l1 merit f + rho (|x_N - x_g|_1 + the scaled path violations), with a second-order correction when the full
-step is refused (the Maratos effect near the solution). The factor s starts at `curvature_scale` (short first steps, the
-role of SLSQP's first curvature model) and is divided by `shrink` after every full step down to 1, where the
-iteration is Gauss-Newton's: linear convergence, fast where the dynamics' second derivatives, weighted by the
-multipliers, are small against R and Q (with the paper's weights: about 8 iterations), slow where they are not (the
-effort bound's Q = 0; see `mjtraj.core.planners.nonlinear.SOLVERS`). So after SECOND_ORDER_AFTER iterations the
-Hessian becomes the Lagrangian's: H_GN plus that curvature, weighted by the last QP's multipliers
-(`Shooting.second_order`, about 10 ms at N = 100), made positive definite on the constraints' null space by an
-augmented term (AUGMENT) and damped where a step is cut (DAMPING): Newton's method, locally quadratic. A solve
-given the plan of an earlier start (`join`) stops once its iterate comes within JOIN of it: it is converging to the
-same minimum.
+step is refused (the Maratos effect near the solution). Where that is refused too, the line search runs along the
+projected path (`projector`, the projection operator of Hauser's PRONTO, 2002; the forward pass of iLQR and DDP is
+of the same kind): the model tracks the states the QP's linearisation predicts for the step t d under LQR feedback,
+so that the trial stays near that prediction. An open-loop step of single shooting is amplified along the rollout's
+100 steps; far from the solution its trials missed the prediction, and the line search cut the step to 1/16 or 1/32
+for tens of iterations. Only where no projected step decreases the merit does it backtrack along d itself. The
+factor s starts at `curvature_scale` (short first steps, the role of SLSQP's first curvature model) and is divided
+by `shrink` after every full, corrected or projected step down to 1, where the iteration is Gauss-Newton's: linear
+convergence, fast where the dynamics' second derivatives, weighted by the multipliers, are small against R and Q
+(with the paper's weights: about 8 iterations), slow where they are not (the effort bound's Q = 0; see
+`mjtraj.core.planners.nonlinear.SOLVERS`). So after SECOND_ORDER_AFTER iterations the Hessian becomes the
+Lagrangian's: H_GN plus that curvature, weighted by the last QP's multipliers (`Shooting.second_order`, about 10 ms
+at N = 100), made positive definite on the constraints' null space by an augmented term (AUGMENT) and damped where a
+step is cut (DAMPING): Newton's method, locally quadratic. A solve given the plan of an earlier start (`join`) stops
+once its iterate comes within JOIN of it: it is converging to the same minimum.
 
 The torque bound is a box on u: iterates never leave it. Path rows are screened as in SLSQP's solve (SCREEN); a
 row left out enters once an iterate nears it. A QP whose linearised constraints cannot all hold is solved again
@@ -31,13 +36,15 @@ decides.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from mjtraj.core.planners.shooting import SCREEN, PathLimits, Shooting
+from mjtraj.core.planners.shooting import SCREEN, PathLimits, Shooting, input_blocks
+from mjtraj.core.planners.tracking import bryson_gains
 from mjtraj.exceptions import SolverError
 
 ARMIJO = 1e-4
@@ -210,11 +217,13 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
             damping = damping / factor if step is not None else max(low, damping * factor)
             damping = damping if damping >= low else 0.0
         if step is None:
+            step = _projected(problem, limits, u, d, merit, slope, penalty)
+        if step is None:
             step = _backtrack(problem, limits, u, d, merit, slope, penalty)
             if step is None:
                 return SqpResult(u, iteration, int(rows.size), False, "the line search found no decrease")
         else:
-            scale = max(1.0, scale / shrink)  # a full (or corrected) step: trust the model more
+            scale = max(1.0, scale / shrink)  # a full, corrected or projected step: trust the model more
         last = f
         u = u + step
     return SqpResult(u, max_iter, int(rows.size), False, f"no convergence in {max_iter} iterations")
@@ -269,6 +278,42 @@ def _backtrack(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d:
             return t * d
         t *= 0.5
     return None
+
+
+def _projected(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
+               merit: float, slope: float, penalty: float) -> NDArray[np.float64] | None:
+    """The step to `projector`'s torques for the largest t = 1, 1/2, ... >= MIN_STEP with enough decrease, else
+    None."""
+    project = projector(problem, limits, u, d)
+    t = 1.0
+    while t >= MIN_STEP:
+        try:
+            trial: NDArray[np.float64] | None = project(t)
+        except SolverError:
+            trial = None
+        if trial is not None and _merit(problem, limits, trial, penalty) <= merit + ARMIJO * t * slope:
+            return trial - u
+        t *= 0.5
+    return None
+
+
+def projector(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64]
+              ) -> Callable[[float], NDArray[np.float64]]:
+    """t -> the torques (N n,) with which the model tracks the linearised prediction of the step t d from u (N n,):
+    its rollout under u_k + t d_k + K_k (x_k + t (S d)_k - x'_k), x'_k its own state, clipped to the torque bound
+    (`Shooting.tracked`; K_k: `tracking.bryson_gains` on the Jacobians of u's rollout, S: its sensitivities). Its
+    torques are u + t d to first order in t, and its motion stays near the predicted states where the open-loop
+    step of the same t drifts away from them (module docstring). The returned function raises SolverError where
+    that rollout diverges."""
+    N, n = problem.steps, problem.n
+    U, X, A, S = problem.evaluate(u)
+    K = bryson_gains(A, input_blocks(S), limits.u_max)
+    predicted, D = S @ d, d.reshape(N, n)
+
+    def project(t: float) -> NDArray[np.float64]:
+        return problem.tracked(U + t * D, X + t * predicted, K, limits.u_max).ravel()
+
+    return project
 
 
 def _second_order(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
