@@ -485,8 +485,9 @@ def test_the_effort_bound_is_slsqps_optimum_or_lower_on_the_paper_task_and_50_no
 
 
 def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort, monkeypatch):
-    """'auto' plans with SLSQP where the SQP stops unconverged from both starts; 'sqp' fails then in one line, and
-    where SLSQP fails too, the error carries every reason."""
+    """'auto' plans with SLSQP where the SQP stops unconverged from both starts and from the feasible point the least
+    violation's search restores; 'sqp' fails then in one line, and where SLSQP fails too, the error carries every
+    reason."""
     from mjtraj.core.planners import nonlinear
 
     task, _ = effort
@@ -495,7 +496,8 @@ def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort, monke
     check_plan(model, task, plan)
     with pytest.raises(SolverError, match=r"^nonlinear_optimal: the Gauss-Newton SQP stopped from the linear start: no "
                                           r"convergence in 1 iterations; from the tracked start: no convergence in 1 "
-                                          r"iterations$"):
+                                          r"iterations; from the feasible point restored from the linear start's last "
+                                          r"iterate: no convergence in 1 iterations$"):
         make("nonlinear_optimal", solver="sqp", sqp_max_iter=1).plan(task, model)
 
     def fails(self, problem, limits, u, scale):
@@ -506,7 +508,9 @@ def test_auto_turns_to_slsqp_when_the_sqp_does_not_converge(model, effort, monke
                                           r"nonlinear_optimal: SLSQP failed at 30\) \(from the tracked start: "
                                           r"nonlinear_optimal: SLSQP failed at 30\) \(before SLSQP, the Gauss-Newton "
                                           r"SQP stopped from the linear start: no convergence in 1 iterations; from "
-                                          r"the tracked start: no convergence in 1 iterations\)$"):
+                                          r"the tracked start: no convergence in 1 iterations; from the feasible point "
+                                          r"restored from the linear start's last iterate: no convergence in 1 "
+                                          r"iterations\)$"):
         make("nonlinear_optimal", sqp_max_iter=1).plan(task, model)
 
 

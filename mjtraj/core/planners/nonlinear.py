@@ -21,7 +21,10 @@ plan (Q = 0: the zero-order-held slow move). Where a solver fails from it (with 
 once more from the tracked start: the torques with which the model follows that linear plan's states under LQR
 feedback (on some tasks the open-loop torques drift into a joint's end, where the linearised terminal condition
 cannot be met). The problem is not convex: the plan is a local minimum, reached from its start (the plan's info says
-which). Two solvers (see SOLVERS):
+which). Where the SQP stops short from both starts, the least violation of the constraints is sought from where it
+stopped (`mjtraj.core.planners.restoration`): a feasible point found, the SQP runs again from it; a positive least
+violation from both, the task is reported infeasible, locally (a stationary point of the violation, not a proof);
+else SLSQP decides. Two solvers (see SOLVERS):
 
 - the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights (0.06 s at N = 100 on
   one core), and 10 to 20 with Q = 0 from each start (0.08 s for a bound plan); from its 21st iteration its Hessian is
@@ -63,6 +66,7 @@ from mjtraj.core.linearize import discretize_zoh, linearize_many
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners.base import Planner, register
 from mjtraj.core.planners.optimal import Optimal, check_weight_options, planner_weights
+from mjtraj.core.planners.restoration import LeastViolation, least_violation
 from mjtraj.core.planners.shooting import PathLimits, Shooting
 from mjtraj.core.planners.sqp import SqpResult, gauss_newton_sqp
 from mjtraj.core.planners.tracking import bryson_gains
@@ -157,7 +161,9 @@ KEEPS = ("first", "lowest")
 it converges; 'lowest' = it runs from every start and keeps the plan of least objective. The problem is not convex,
 and the starts can reach different local minima (see SOLVERS)."""
 START_NAMES = ("linear", "tracked")
-"""The solvers' starts, in the order tried (see `NonlinearOptimal._start` and `_tracked_start`)."""
+"""The solvers' starts, in the order tried (see `NonlinearOptimal._start` and `_tracked_start`). A plan's info names
+its start: one of these, or 'restored' (the SQP stopped short from both, and ran again from a feasible point that
+the least violation's search found, `NonlinearOptimal._restored`)."""
 
 
 class _Starts:
@@ -237,8 +243,9 @@ class NonlinearOptimal(Planner):
         """Plan `task` on the nominal `model`.
 
         Raises:
-          InfeasibleError: the linearised arm cannot make the move within the torque bound (no start), or no plan
-            meets every constraint (names which).
+          InfeasibleError: the linearised arm cannot make the move within the torque bound (no start), the least
+            violation of the constraints is positive from every start at which the SQP stopped (local
+            infeasibility, `_restored`), or no plan meets every constraint (names which).
           SolverError: SLSQP failed (its message).
         """
         clock = time.perf_counter()
@@ -246,6 +253,7 @@ class NonlinearOptimal(Planner):
         if self.solver != "slsqp":
             failures = []
             found: list[tuple[float, str, SqpResult]] = []
+            stopped: list[tuple[str, NDArray[np.float64]]] = []  # the SQP's last iterates where it stopped short
             for name in START_NAMES:
                 try:
                     result = gauss_newton_sqp(problem, limits, starts.get(name), curvature_scale=SQP_CURVATURE_SCALE,
@@ -261,6 +269,9 @@ class NonlinearOptimal(Planner):
                         break
                 else:
                     failures.append(f"from the {name} start: {failure}")
+                    stopped.append((name, result.u))
+            if not found and stopped:
+                found = self._restored(problem, limits, stopped, failures)
             if found:
                 objective, name, result = min(found, key=lambda plan: plan[0])  # the first of equals
                 U, X = problem.states(result.u)
@@ -299,6 +310,56 @@ class NonlinearOptimal(Planner):
         problem = Shooting(model, x0, xg, Q, R, task.steps, self.fd_eps)
         start, linear_plan = self._start(task, model, problem, limits)
         return problem, limits, _Starts(start, lambda: self._tracked_start(task, linear_plan, problem, limits))
+
+    def _restored(self, problem: Shooting, limits: PathLimits, stopped: list[tuple[str, NDArray[np.float64]]],
+                  failures: list[str]) -> list[tuple[float, str, SqpResult]]:
+        """Where the SQP stopped short from every start: the least violation of the constraints from each start's last
+        iterate (`restoration.least_violation`). From a feasible point found the SQP runs once more: its plan, start
+        'restored', if it converges. Else [], the reasons added to `failures`.
+
+        Raises:
+          InfeasibleError: every search converged at a positive violation (local infeasibility; the message names
+            each one's worst constraint).
+        """
+        searches = []
+        for name, u in stopped:
+            try:
+                least = least_violation(problem, limits, u)
+            except SolverError as e:
+                failures.append(f"the least violation from the {name} start's last iterate: {e}")
+                return []
+            if least.feasible:
+                result = gauss_newton_sqp(problem, limits, least.u, curvature_scale=SQP_CURVATURE_SCALE,
+                                          shrink=SQP_SHRINK, max_iter=self.sqp_max_iter)
+                failure = result.message if not result.converged else self._unmet(problem, limits, result.u)
+                if failure is None:
+                    return [(problem.objective(result.u), "restored", result)]
+                failures.append(f"from the feasible point restored from the {name} start's last iterate: {failure}")
+                return []
+            searches.append((name, least))
+        for name, least in searches:
+            if not least.converged:
+                failures.append(f"the least violation's search from the {name} start's last iterate did not "
+                                f"converge in {least.evaluations} rollouts")
+                return []
+        found = "; ".join(f"from the {name} start's last iterate {self._worst(least, problem.steps, problem.n)}"
+                          for name, least in searches)
+        raise InfeasibleError(f"{self.name}: no plan near where the SQP stopped (locally infeasible): the least "
+                              f"violation of the constraints is positive {found}. Each is a stationary point of the "
+                              "violation on the torque box: not a proof that no plan exists")
+
+    @staticmethod
+    def _worst(least: LeastViolation, steps: int, n: int) -> str:
+        """The worst constraint at a least violation, and its first-order optimality."""
+        worst = least.worst()
+        value = least.residual[worst]
+        if worst < n:
+            what = f"joint {worst} misses its goal by {abs(value):.2g} rad"
+        elif worst < 2 * n:
+            what = f"joint {worst - n} ends at {abs(value):.2g} rad/s, not at rest"
+        else:
+            what = f"{NonlinearOptimal._describe(worst - 2 * n, (steps, n))} is exceeded by {-value:.2g} of its size"
+        return f"({what}; first-order optimality {least.optimality:.1e})"
 
     def _slsqp(self, problem: Shooting, limits: PathLimits, starts: _Starts
                ) -> tuple[NDArray[np.float64], str, int, int, int, int]:
