@@ -709,8 +709,8 @@ def _effort_left(data: SweepData) -> list[str]:
         rows.append((c, present, [paired_ratio(data.values(c, p, "rms_dtau"), bound) for p in present],
                      int(np.sum(np.isfinite(bound)))))
     if not rows:
-        return lines[:2] + [f"(not measured: add `{BOUND}` to the sweep's planners; it plans in about 0.08 s: "
-                            "1,000 nominal scenarios take about two minutes on two cores)", ""]
+        return lines[:2] + [f"(not measured: add `{BOUND}` to the sweep's planners; it plans in about 0.07 s: "
+                            "1,000 nominal scenarios take about a minute on two cores)", ""]
     for c, present, ratios, count in rows:
         lines += [f"{c} ({count} scenarios with a bound):", "", "| " + " | ".join(present) + " |",
                   "|" + "---|" * len(present), "| " + " | ".join(_fmt_ratio(r) for r in ratios) + " |", ""]
