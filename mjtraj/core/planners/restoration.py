@@ -23,8 +23,8 @@ from mjtraj.exceptions import SolverError
 FEASIBLE = 1e-9
 """A point whose |r| is at most this in every component is feasible (the SQP then polishes it to its own 1e-10)."""
 MAX_EVALUATIONS = 3000
-"""Rollouts per search; on the six aggressive tasks of the study's effort sweep that ended without a plan, the
-searches converged in 326 to 1,873 (0.9 to 7 s on one core)."""
+"""Rollouts per search; on the six aggressive tasks of the study's effort sweep that the SQP could not plan, the
+searches from both starts converged in 326 to 1,873 (1 to 4 s on one core)."""
 DIVERGED = 1e3
 """r's every component at a trial point whose rollout diverged."""
 TOLERANCE = 1e-12

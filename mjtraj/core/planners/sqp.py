@@ -68,9 +68,9 @@ the last QP's active path rows A, H + rho A^T A is positive definite for a large
 those rows is unchanged. rho is tried at these multiples of max diag(H) / max diag(A^T A), smallest first; where none
 makes H positive definite, the iteration keeps the Gauss-Newton Hessian."""
 DAMPING = (0.1, 4.0)
-"""Levenberg-Marquardt damping of the second-order Hessian, as a multiple of R's diagonal: a backtracked step sets it
-to at least the first number, or multiplies it by the second; a full (or corrected) step divides it by the second,
-and below the first it is zero."""
+"""Levenberg-Marquardt damping of the second-order Hessian, as a multiple of R's diagonal: a step neither full nor
+corrected (projected or backtracked) sets it to at least the first number, or multiplies it by the second; a full
+(or corrected) step divides it by the second, and below the first it is zero."""
 JOIN = 1e-2
 """An iterate within this distance of an earlier start's plan, relative to that plan's norm, joins it. On the 180
 validation tasks of `mjtraj.core.planners.nonlinear.SQP_MAX_ITER`, the bound's second start headed for another
