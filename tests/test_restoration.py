@@ -24,6 +24,8 @@ def impossible(model):
 
 
 def test_an_impossible_move_is_reported_locally_infeasible(model, impossible):
+    """The SQP stops short from both starts, and the least violation is positive from both: InfeasibleError, local,
+    naming a joint that misses its goal."""
     task, planner = impossible
     with pytest.raises(InfeasibleError, match=r"^nonlinear_min_effort: no plan near where the SQP stopped \(locally "
                                               r"infeasible\): the least violation of the constraints is positive from "
