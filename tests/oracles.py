@@ -1,10 +1,14 @@
-"""Oracles and tasks shared by the planner and QP tests."""
+"""Oracles and tasks shared by the planner, QP and nonlinear planner tests."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from mjtraj.core.task import Task
+
+SHORT_Q0 = np.array([0.0, -np.pi / 2, 0.0])
+SHORT_DIRECTION = np.array([1.0, 0.5, -1.0])
+"""`short_task`'s default start and its direction of motion."""
 
 WEIGHTS = {"state_weight": (1.0, 1.0, 1.0, 0.1, 0.1, 0.1), "input_weight": (1 / 3600,) * 3}
 """Fixed optimal-planner weights (Bryson's for a 1 rad move)."""
@@ -14,6 +18,12 @@ def unit_task(model, n_move=1.0):
     """From (0, -1.5, 0.5) rad, every joint by n_move rad, in 2 s at 0.02 s."""
     q0 = np.array([0.0, -1.5, 0.5])
     return Task.create(q0, q0 + n_move, 2.0, 0.02, model=model)
+
+
+def short_task(model, move, duration=0.5, q0=SHORT_Q0):
+    """A move of `move` rad along SHORT_DIRECTION in `duration` s (N = 25 at dt = 0.02: the nonlinear planners plan
+    it in seconds, not minutes)."""
+    return Task.create(q0, q0 + move * SHORT_DIRECTION, duration, 0.02, model=model)
 
 
 def kkt_solve(qp):

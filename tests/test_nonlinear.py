@@ -8,21 +8,13 @@ import copy
 import mujoco
 import numpy as np
 import pytest
+from oracles import short_task
 
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners import default_names, make
 from mjtraj.core.planners.nonlinear import _Metric
 from mjtraj.core.planners.shooting import PathLimits, Shooting
-from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, SolverError
-
-Q0 = np.array([0.0, -np.pi / 2, 0.0])
-DIRECTION = np.array([1.0, 0.5, -1.0])
-
-
-def short_task(model, move, duration=0.5, q0=Q0):
-    """A move of `move` rad along DIRECTION in `duration` s (N = 25 at dt = 0.02: seconds per plan, not minutes)."""
-    return Task.create(q0, q0 + move * DIRECTION, duration, 0.02, model=model)
 
 
 @pytest.fixture(scope="module")

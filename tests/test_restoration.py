@@ -5,21 +5,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from oracles import short_task
 
 from mjtraj.core.planners import make
 from mjtraj.core.planners.restoration import least_violation, residual
-from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, SolverError
-
-Q0 = np.array([0.0, -np.pi / 2, 0.0])
-DIRECTION = np.array([1.0, 0.5, -1.0])
 
 
 @pytest.fixture(scope="module")
 def impossible(model):
     """Joints 0 and 2 move 0.2 rad in 0.3 s from rest to rest under a speed limit of 0.5 rad/s: a mean speed of
     0.67 rad/s, 1.33 times the largest allowed. No plan exists."""
-    task = Task.create(Q0, Q0 + 0.2 * DIRECTION, 0.3, 0.02, model=model)
+    task = short_task(model, 0.2, duration=0.3)
     return task, make("nonlinear_min_effort", speed_limit=0.5)
 
 
@@ -62,7 +59,7 @@ def test_where_the_sqp_stops_short_it_plans_again_from_a_restored_feasible_point
     point, and the SQP from it reaches the plan of an unhindered solve."""
     from mjtraj.core.planners import nonlinear
 
-    task = Task.create(Q0, Q0 + 0.3 * DIRECTION, 0.5, 0.02, model=model)
+    task = short_task(model, 0.3)
     free = make("nonlinear_min_effort").plan(task, model)
     real, calls = nonlinear.gauss_newton_sqp, []
 

@@ -256,13 +256,10 @@ class NonlinearOptimal(Planner):
             stopped: list[tuple[str, NDArray[np.float64]]] = []  # the SQP's last iterates where it stopped short
             for name in START_NAMES:
                 try:
-                    result = gauss_newton_sqp(problem, limits, starts.get(name), curvature_scale=SQP_CURVATURE_SCALE,
-                                              shrink=SQP_SHRINK, max_iter=self.sqp_max_iter,
-                                              join=found[0][2].u if found else None)
+                    result, failure = self._sqp(problem, limits, starts.get(name), found[0][2].u if found else None)
                 except SolverError as e:
                     failures.append(f"from the {name} start: {e}")
                     continue
-                failure = result.message if not result.converged else self._unmet(problem, limits, result.u)
                 if failure is None:
                     found.append((problem.objective(result.u), name, result))
                     if self.keep == "first":
@@ -311,6 +308,18 @@ class NonlinearOptimal(Planner):
         start, linear_plan = self._start(task, model, problem, limits)
         return problem, limits, _Starts(start, lambda: self._tracked_start(task, linear_plan, problem, limits))
 
+    def _sqp(self, problem: Shooting, limits: PathLimits, u: NDArray[np.float64],
+             join: NDArray[np.float64] | None = None) -> tuple[SqpResult, str | None]:
+        """The Gauss-Newton SQP from u (N n,) with this planner's settings (`join` as `gauss_newton_sqp`'s): its
+        result, and what its last iterate fails (None: it is a plan).
+
+        Raises:
+          SolverError: the rollout of u diverged.
+        """
+        result = gauss_newton_sqp(problem, limits, u, curvature_scale=SQP_CURVATURE_SCALE, shrink=SQP_SHRINK,
+                                  max_iter=self.sqp_max_iter, join=join)
+        return result, result.message if not result.converged else self._unmet(problem, limits, result.u)
+
     def _restored(self, problem: Shooting, limits: PathLimits, stopped: list[tuple[str, NDArray[np.float64]]],
                   failures: list[str]) -> list[tuple[float, str, SqpResult]]:
         """Where the SQP stopped short from every start: the least violation of the constraints from each start's last
@@ -329,9 +338,7 @@ class NonlinearOptimal(Planner):
                 failures.append(f"the least violation from the {name} start's last iterate: {e}")
                 return []
             if least.feasible:
-                result = gauss_newton_sqp(problem, limits, least.u, curvature_scale=SQP_CURVATURE_SCALE,
-                                          shrink=SQP_SHRINK, max_iter=self.sqp_max_iter)
-                failure = result.message if not result.converged else self._unmet(problem, limits, result.u)
+                result, failure = self._sqp(problem, limits, least.u)
                 if failure is None:
                     return [(problem.objective(result.u), "restored", result)]
                 failures.append(f"from the feasible point restored from the {name} start's last iterate: {failure}")
