@@ -12,10 +12,11 @@ ROOT = Path(__file__).resolve().parents[1]
 SOURCES = {"mjtraj": ROOT / "mjtraj", "mjtraj.envs": ROOT / "envs"}
 """Package name -> folder (envs/ is installed as mjtraj.envs)."""
 BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj.plugins", "mjtraj._lazy",
-        "mjtraj._checkout", "mjtraj._registration")
+        "mjtraj._checkout", "mjtraj._registration", "mjtraj.threads")
 APP = ("mjtraj", "mjtraj.cli", "mjtraj.bench", "mjtraj.__main__")
 LAYERS = ["base", "core", "study", "media", "envs", "rl", "app"]
-PUBLIC_BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj.plugins")
+PUBLIC_BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj.plugins",
+               "mjtraj.threads")
 
 
 def layer(module: str) -> str:

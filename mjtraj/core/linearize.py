@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from mjtraj.checks import positive, vector
 from mjtraj.core.dynamics import DynamicsProbe, serial_probe, without_dry_friction
 from mjtraj.exceptions import InvalidInputError
+from mjtraj.threads import single_blas_thread
 
 
 def _points(name: str, value: npt.ArrayLike | None, shape: tuple[int, int]) -> NDArray[np.float64]:
@@ -26,6 +27,7 @@ SERIAL_ROWS = 64
 """Most perturbed states (6n per point) linearised serially on one MjData rather than on a Batch."""
 
 
+@single_blas_thread
 def linearize_many(model: mujoco.MjModel, q: npt.ArrayLike, qd: npt.ArrayLike | None = None,
                    u: npt.ArrayLike | None = None, *, eps: float = 1e-6, probe: DynamicsProbe | None = None
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -74,6 +76,7 @@ def linearize(model: mujoco.MjModel, q: npt.ArrayLike, qd: npt.ArrayLike | None 
     return A[0], B[0]
 
 
+@single_blas_thread
 def discretize_zoh(A: npt.ArrayLike, B: npt.ArrayLike, dt: float
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Zero-order-hold pair A_d = e^{A dt}, B_d = int_0^dt e^{A s} ds B, from one matrix exponential.

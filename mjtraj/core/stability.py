@@ -18,6 +18,7 @@ from mjtraj.core.dynamics import DynamicsProbe, without_dry_friction
 from mjtraj.core.linearize import discretize_zoh, linearize_many
 from mjtraj.core.model import JointInfo
 from mjtraj.core.reference import Reference
+from mjtraj.threads import single_blas_thread
 
 MAX_SAMPLES = 200
 """Most samples per reference at which the loop is linearised (evenly spread, both ends included)."""
@@ -46,6 +47,7 @@ def sample_indices(steps: int, max_samples: int = MAX_SAMPLES) -> NDArray[np.int
     return np.unique(np.round(np.linspace(0, steps - 1, max_samples)).astype(np.intp))
 
 
+@single_blas_thread
 def spectral_radii(model: mujoco.MjModel, gains: PIDGains, references: Sequence[Reference], *,
                    max_samples: int = MAX_SAMPLES, nthread: int = 0) -> dict[str, float]:
     """Largest frozen-time spectral radius of the closed-loop map over the sampled periods of `references`.

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from mjtraj.core.reference import Reference
 from mjtraj.core.task import Task
 from mjtraj.exceptions import InvalidInputError, MjtrajError
+from mjtraj.threads import single_blas_thread
 
 
 @runtime_checkable
@@ -56,9 +57,13 @@ P = TypeVar("P", bound=type)
 
 def register(name: str, *, on_request: bool = False) -> Callable[[P], P]:
     """Class decorator: make a planner class available under `name`. A planner registered `on_request` (the slow
-    nonlinear bounds) runs only when named, never in the default set of `mjtraj compare` or `render`."""
+    nonlinear bounds) runs only when named, never in the default set of `mjtraj compare` or `render`. Its `plan` and
+    `plan_many` run their BLAS on one thread (`mjtraj.threads`), however they are called."""
 
     def add(cls: P) -> P:
+        for method in ("plan", "plan_many"):  # mjtraj's BLAS threads on every entry (mjtraj.threads)
+            if callable(getattr(cls, method, None)) and not getattr(getattr(cls, method), "one_blas_thread", False):
+                setattr(cls, method, single_blas_thread(getattr(cls, method)))
         _REGISTRY[name] = cls
         if on_request:
             _ON_REQUEST.add(name)
