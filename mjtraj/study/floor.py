@@ -1,0 +1,166 @@
+"""The clairvoyant floor of a scenario (`mjtraj.core.floor`), computed on its true plant, started from the executed
+torques of the classical control laws, and checked by replaying its torques through the one closed loop.
+
+The floor is what no controller can beat on that execution: the least J_exec over corrective torques within the
+saturation, on the plant the scenario really runs (payload, link scales, damping and friction included), among
+executions that reach the goal by the benchmark's goal rule (GOAL_TOLERANCE of the move). Its value is the replay's
+J_exec (the pipeline's own metrics of the torques, applied in the env's torque mode), not the solver's.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
+from mjtraj.core.floor import clairvoyant_floor
+from mjtraj.core.model import JointInfo
+from mjtraj.core.reference import Reference
+from mjtraj.exceptions import InvalidInputError, MjtrajError
+from mjtraj.study.families import Perturbation, plant_fields
+from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, Outcome, execute_batch, goal_checked
+
+STARTS = ("pid", "computed_torque", "adaptive_computed_torque")
+"""The control laws whose executed torques start the floor's solves (each one's execution of the same job)."""
+REPLAY_TOLERANCE = 1e-6
+"""The replay's J_exec and the solver's agree to this relative difference (the same steps; MuJoCo's warm start of
+a friction-loss constraint may differ in the last bits)."""
+
+
+@dataclass(frozen=True)
+class Floor:
+    """One execution's floor.
+
+    Attributes:
+      cost: J_exec of the floor's torques replayed through the closed loop (the floor's value).
+      solver_cost: J_exec by the solver's own rollout.
+      terminal_err: the replay's |q_ref,N - q_N|, rad; goal_radius: the goal rule's bound on it, rad.
+      start: the start the best solve came from; starts: each start's cost (inf: it did not reach the goal).
+      controllers: J_exec of each starting law's own execution (the starts' sources).
+      iterations, converged: the best solve's Gauss-Newton iterations and whether it converged.
+      seconds: the solve's wall time, s (the starting executions and the replay not included).
+      torques: the applied corrective torques, (N, n), N m.
+    """
+
+    cost: float
+    solver_cost: float
+    terminal_err: float
+    goal_radius: float
+    start: str
+    starts: Mapping[str, float]
+    controllers: Mapping[str, float]
+    iterations: int
+    converged: bool
+    seconds: float
+    torques: NDArray[np.float64]
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON-ready, without the torques."""
+        out = dataclasses.asdict(self)
+        out.pop("torques")
+        out["starts"] = dict(self.starts)
+        out["controllers"] = dict(self.controllers)
+        return out
+
+
+class Replay:
+    """An Actor that applies given corrective torques (the env's torque mode), (B, N, n) N m. With a one-period
+    actuation delay the command of period k is the torque the plant is to receive in period k + 1."""
+
+    action_mode = "torque"
+
+    def __init__(self, torques: NDArray[np.float64], *, delay: int = 0) -> None:
+        self.torques = np.asarray(torques, dtype=np.float64)
+        self.delay = delay
+
+    def begin(self, loop: ClosedLoop, references: Sequence[Reference],
+              plants: Sequence[Perturbation | None] = ()) -> None:
+        """Nothing to prepare: the torques are given."""
+
+    def act(self, loop: ClosedLoop) -> NDArray[np.float64]:
+        k = loop.periods + self.delay
+        N = self.torques.shape[1]
+        rows = np.arange(self.torques.shape[0])
+        out = self.torques[rows, np.minimum(k, N - 1)]
+        return np.where((k < N)[:, None], out, 0.0)  # type: ignore[no-any-return]
+
+
+def true_plant(plant: mujoco.MjModel, perturbation: Perturbation) -> mujoco.MjModel:
+    """A copy of the perturbed `plant` model (`perturbed_plant`) with `perturbation`'s fields set: the scenario's
+    true plant as one MjModel."""
+    out = copy.copy(plant)
+    for name, values in plant_fields(plant, [perturbation]).items():
+        getattr(out, name)[:] = values[0]
+    mujoco.mj_setConst(out, mujoco.MjData(out))
+    return out
+
+
+def floor_of(model: mujoco.MjModel, config: LoopConfig, job: Job, *, plant: mujoco.MjModel | None = None,
+             starts: Sequence[str] = STARTS, displacement: float | None = None) -> Floor:
+    """The floor of executing `job` (its reference, weights, plant perturbation; noise does not reach a torque
+    sequence) under `config`'s saturation, delay and integrator.
+
+    Args:
+      model: the nominal model; plant: the perturbed plant model (`perturbed_plant`) when the job is perturbed.
+      starts: the control laws whose executions start the solves.
+      displacement: the task's largest joint displacement, rad, for the goal rule (default: the reference's).
+
+    Raises:
+      InvalidInputError: a configuration the floor does not model (zoh gravity compensation, substeps), or no start.
+      SolverError: no start reached the goal.
+      MjtrajError: the replay does not reproduce the solver's cost or misses the goal (a defect).
+    """
+    if config.gravity_comp != "native" or config.substeps != 1:
+        raise InvalidInputError(f"config: the floor models native gravity compensation at one integrator step per "
+                                f"period; got gravity_comp={config.gravity_comp!r}, substeps={config.substeps}")
+    if not starts:
+        raise InvalidInputError("starts: expected at least one control law, got none")
+    reference = job.reference
+    if displacement is None:
+        displacement = float(np.max(np.abs(reference.q[-1] - reference.q[0])))
+    radius = GOAL_TOLERANCE * displacement
+    truth = model if job.perturbation is None else true_plant(_needs(plant), job.perturbation)
+    executed: dict[str, NDArray[np.float64]] = {}
+    controllers: dict[str, float] = {}
+    for law in starts:
+        rollout, outcomes = execute_batch(model, dataclasses.replace(config, controller=law), [job], plant=plant)
+        if outcomes[0].status == "ok":  # the torques the plant received (after a delay, if any)
+            executed[law] = rollout.dtau[0]
+        controllers[law] = float(outcomes[0].metrics.get("cost", np.inf))
+    if not executed:
+        executed["zero"] = np.zeros((reference.steps, reference.n))
+    limit = JointInfo.of(model).torque_limit
+    solution = clairvoyant_floor(truth, reference.q, reference.qd, job.weights[0], job.weights[1], limit,
+                                 goal_radius=radius, starts=executed, first_fixed=bool(config.delay))
+    result = replay(model, config, job, solution.torques, plant=plant, displacement=displacement)
+    if result.status != "ok":
+        raise MjtrajError(f"the floor's torques replayed: {result.status} ({result.reason})")
+    cost = result.metrics["cost"]
+    if abs(cost - solution.cost) > REPLAY_TOLERANCE * max(cost, 1e-12):
+        raise MjtrajError(f"the floor's torques replayed give J_exec {cost!r}, the solver's rollout {solution.cost!r}")
+    return Floor(cost, solution.cost, result.metrics["terminal_err"], radius, solution.start, solution.starts,
+                 controllers, solution.iterations, solution.converged, solution.seconds, solution.torques)
+
+
+def replay(model: mujoco.MjModel, config: LoopConfig, job: Job, torques: NDArray[np.float64], *,
+           plant: mujoco.MjModel | None = None, displacement: float | None = None) -> Outcome:
+    """The outcome of applying `torques` (N, n), N m (the applied ones), to `job`'s plant through the closed loop,
+    with the goal rule applied (every family)."""
+    _, outcomes = execute_batch(model, config, [job], plant=plant,
+                                actor=Replay(np.asarray(torques)[None], delay=config.delay))
+    reference = job.reference
+    if displacement is None:
+        displacement = float(np.max(np.abs(reference.q[-1] - reference.q[0])))
+    return goal_checked(outcomes[0], displacement)
+
+
+def _needs(plant: mujoco.MjModel | None) -> mujoco.MjModel:
+    if plant is None:
+        raise InvalidInputError("plant: a perturbed job needs the perturbed plant model (perturbed_plant)")
+    return plant

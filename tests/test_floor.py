@@ -1,0 +1,146 @@
+"""The clairvoyant floor: a closed-form LQ oracle on a linear plant, finite differences for its derivatives, the
+replay through the closed loop, the goal constraint, and no controller ever below it."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjtraj.core.floor import _Problem, clairvoyant_floor
+from mjtraj.core.model import JointInfo
+from mjtraj.core.planners.shooting import Shooting
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.study.families import draw_scenario, perturbed_plant
+from mjtraj.study.floor import STARTS, floor_of, replay
+from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, execute_batch
+
+ROTOR = """
+<mujoco>
+  <option timestep="0.02" integrator="RK4" gravity="0 0 0"/>
+  <worldbody>
+    <body>
+      <joint name="spin" type="hinge" axis="0 0 1" damping="{damping}"/>
+      <inertial pos="0 0 0" mass="1" diaginertia="{inertia} {inertia} {inertia}"/>
+    </body>
+  </worldbody>
+  <actuator><motor joint="spin" ctrlrange="-1000 1000"/></actuator>
+</mujoco>
+"""
+
+
+def rk4_map(inertia: float, damping: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """RK4's exact one-step map of the rotor theta'' = (u - b theta') / I under a torque held over the step."""
+    A = np.array([[0.0, 1.0], [0.0, -damping / inertia]])
+    B = np.array([[0.0], [1.0 / inertia]])
+    hA = h * A
+    eye = np.eye(2)
+    Ad = eye + hA + hA @ hA / 2 + hA @ hA @ hA / 6 + hA @ hA @ hA @ hA / 24
+    Bd = h * (eye + hA / 2 + hA @ hA / 6 + hA @ hA @ hA / 24) @ B
+    return Ad, Bd
+
+
+def test_on_a_linear_plant_without_active_bounds_the_floor_is_the_closed_form_lq_tracking_solution():
+    inertia, damping, N, h = 0.3, 0.4, 40, 0.02
+    plant = mujoco.MjModel.from_xml_string(ROTOR.format(inertia=inertia, damping=damping))
+    t = np.arange(N + 1) * h
+    q_ref = (0.8 * (3 * (t / t[-1]) ** 2 - 2 * (t / t[-1]) ** 3))[:, None]
+    qd_ref = np.gradient(q_ref[:, 0], h)[:, None]
+    q_diag, r_diag = np.array([4.0, 0.1]), np.array([0.05])
+    found = clairvoyant_floor(plant, q_ref, qd_ref, q_diag, r_diag, np.array([1000.0]), goal_radius=10.0,
+                              starts={"zero": np.zeros((N, 1))})
+    # closed form: x_k = Ad^k x0 + sum_j Ad^(k-1-j) Bd u_j; J = |W (Phi x0 + Gamma U - r)|^2 + |sqrt(R) U|^2
+    Ad, Bd = rk4_map(inertia, damping, h)
+    x_ref = np.concatenate([q_ref, qd_ref], axis=1)
+    Gamma = np.zeros((N + 1, 2, N))
+    Phi = np.zeros((N + 1, 2))
+    x = x_ref[0].copy()
+    for k in range(N + 1):
+        Phi[k] = x
+        x = Ad @ x
+        if k < N:
+            Gamma[k + 1] = Ad @ Gamma[k]
+            Gamma[k + 1, :, k] = Bd[:, 0]
+    w = np.sqrt(q_diag)
+    rows = (Gamma[1:N] * w[None, :, None]).reshape(-1, N)
+    target = ((x_ref[1:N] - Phi[1:N]) * w).ravel()
+    system = np.vstack([rows, np.sqrt(r_diag[0]) * np.eye(N)])
+    U = np.linalg.lstsq(system, np.concatenate([target, np.zeros(N)]), rcond=None)[0]
+    d = x_ref[0] - x_ref[0]
+    best = float(np.sum((system @ U - np.concatenate([target, np.zeros(N)])) ** 2) + d @ (q_diag * d))
+    assert found.converged
+    np.testing.assert_allclose(found.torques[:, 0], U, rtol=1e-6, atol=1e-6 * np.abs(U).max())
+    assert found.cost == pytest.approx(best, rel=1e-9)
+
+
+def test_the_gauss_newton_gradient_and_the_goal_constraints_gradient_match_finite_differences(scenario, model):
+    fs = draw_scenario("nominal", 1, 3, model, scenario.task.dt)
+    ref = scenario.planner("cubic").plan(fs.task, model)
+    q_diag, r_diag = scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit)
+    x_ref = np.concatenate([ref.q, ref.qd], axis=1)
+    problem = _Problem(Shooting(model, x_ref[0].copy(), x_ref[-1].copy(), np.zeros((6, 6)), np.zeros((3, 3)),
+                                ref.steps, 1e-7), x_ref, np.sqrt(q_diag), np.sqrt(r_diag), 0.05)
+    u = np.random.default_rng(0).uniform(-2.0, 2.0, ref.steps * 3)
+    _, gradient, terminal = problem.linearised(u)
+    direction = np.random.default_rng(1).standard_normal(u.size)
+    step = 1e-5
+    plus, minus = problem.rollout(u + step * direction), problem.rollout(u - step * direction)
+    assert (plus[0] - minus[0]) / (2 * step) == pytest.approx(2.0 * gradient @ direction, rel=1e-6)
+    assert (plus[1] - minus[1]) / (2 * step) == pytest.approx(terminal @ direction, rel=1e-6)
+
+
+@pytest.mark.parametrize("family", ["nominal", "aggressive"])
+def test_the_floors_torques_replayed_through_the_closed_loop_give_its_cost_and_every_start_agrees(
+        family, scenario, model):
+    fs = draw_scenario(family, 1, 2, model, scenario.task.dt)
+    ref = scenario.planner("cubic").plan(fs.task, model)
+    job = Job(ref, scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit))
+    floor = floor_of(model, scenario.loop, job, displacement=float(np.max(np.abs(fs.task.displacement))))
+    assert floor.cost == pytest.approx(floor.solver_cost, rel=1e-12)
+    again = replay(model, scenario.loop, job, floor.torques)
+    assert again.status == "ok" and again.metrics["cost"] == floor.cost
+    assert floor.terminal_err <= floor.goal_radius
+    assert set(floor.starts) == set(STARTS)
+    spread = max(floor.starts.values()) - min(floor.starts.values())
+    assert spread <= 1e-8 * floor.cost  # a smooth plant: every start reaches the same minimum
+    assert np.abs(floor.torques).max() <= 60.0
+
+
+@pytest.mark.parametrize("family, index", [("nominal", 0), ("nominal", 4), ("aggressive", 0), ("aggressive", 3),
+                                           ("mismatch", 3)])
+def test_no_controller_scores_below_the_floor(family, index, scenario, model):
+    fs = draw_scenario(family, 1, index, model, scenario.task.dt)
+    plant = perturbed_plant(model) if fs.perturbation is not None else None
+    ref = scenario.planner("cubic").plan(fs.task, model)
+    job = Job(ref, scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit), fs.perturbation)
+    floor = floor_of(model, scenario.loop, job, plant=plant, starts=("pid",))
+    for law in ("pid", "computed_torque", "adaptive_computed_torque"):
+        _, outcomes = execute_batch(model, dataclasses.replace(scenario.loop, controller=law), [job], plant=plant)
+        assert outcomes[0].metrics["cost"] >= floor.cost, law
+
+
+def test_the_goal_constraint_binds_where_the_unconstrained_optimum_stops_short(scenario, model):
+    fs = draw_scenario("aggressive", 1, 3, model, scenario.task.dt)
+    ref = scenario.planner("cubic").plan(fs.task, model)
+    q_diag, r_diag = scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit)
+    limit = JointInfo.of(model).torque_limit
+    start = {"zero": np.zeros((ref.steps, 3))}
+    loose = clairvoyant_floor(model, ref.q, ref.qd, q_diag, r_diag, limit, goal_radius=10.0, starts=start)
+    radius = 0.25 * loose.terminal_err
+    tight = clairvoyant_floor(model, ref.q, ref.qd, q_diag, r_diag, limit, goal_radius=radius, starts=start)
+    assert loose.terminal_err > 0.05
+    assert tight.terminal_err <= radius
+    assert tight.cost > loose.cost
+
+
+def test_bad_configuration_and_starts_are_refused_by_name(scenario, model):
+    ref = scenario.planner("cubic").plan(scenario.task, model)
+    job = Job(ref, scenario.scoring.weights(scenario.task, JointInfo.of(model).torque_limit))
+    with pytest.raises(InvalidInputError, match=r"^config: the floor models native gravity compensation at one "
+                                                r"integrator step per period; got gravity_comp='zoh', substeps=1$"):
+        floor_of(model, dataclasses.replace(scenario.loop, gravity_comp="zoh"), job)
+    with pytest.raises(InvalidInputError, match=r"^starts: expected at least one control law, got none$"):
+        floor_of(model, scenario.loop, job, starts=())
+    assert GOAL_TOLERANCE == 0.2
