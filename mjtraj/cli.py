@@ -394,6 +394,20 @@ def _parser() -> argparse.ArgumentParser:
 
     g = sub.add_parser("gains", help="derive the default PID gains and optimal weights by their stated rules")
     g.add_argument("--config", type=Path, help="scenario TOML whose task to use (default: the paper scenario)")
+
+    fl = sub.add_parser("floor", help="the clairvoyant floor of J_exec: the least any controller can score on each "
+                        "scenario (true plant, torques within the saturation, the goal reached), beside the control "
+                        "laws' own scores")
+    fl.add_argument("--config", type=Path, help="scenario TOML (default: the paper scenario)")
+    fl.add_argument("--family", choices=("nominal", "aggressive", "mismatch"), default="nominal",
+                    help="the scenarios' family, drawn as sweeps draw them (default nominal)")
+    fl.add_argument("--scenarios", type=_scenario_range, default=range(0, 20),
+                    help="how many (K: 0..K-1) or which (A:B, B excluded) scenarios (default 20)")
+    fl.add_argument("--seed", type=int, default=1, help="the family's seed (default 1: the held-out scenarios)")
+    fl.add_argument("--planner", default="cubic", help="the planner whose reference is executed (default cubic)")
+    fl.add_argument("--out", type=Path, help="also write every record to this CSV file")
+    fl.add_argument("--json", action="store_true", help="print the records and the summary as JSON")
+    fl.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
 
@@ -777,6 +791,70 @@ def _doctor(args: argparse.Namespace) -> int:
     return 0
 
 
+def _scenario_range(text: str) -> range:
+    """--scenarios of `mjtraj floor`: K (0..K-1) or A:B."""
+    first, sep, last = text.partition(":")
+    try:
+        span = range(int(first), int(last)) if sep else range(int(first))
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"expected K or A:B (integers), got {text!r}") from e
+    if len(span) == 0 or span.start < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-empty range of indices >= 0, got {text!r}")
+    return span
+
+
+def _floor(args: argparse.Namespace) -> int:
+    import csv
+
+    import numpy as np
+
+    from mjtraj.study.floor import family_floors
+    from mjtraj.study.scenario import load_scenario
+
+    scenario = load_scenario(args.config)
+    records = []
+    with _Progress("mjtraj floor", "scenario", not args.no_progress) as progress:
+        for record in family_floors(scenario, args.family, seed=args.seed, scenarios=args.scenarios,
+                                    planner=args.planner):
+            records.append(record)
+            progress(len(records), len(args.scenarios))
+    ok = [r for r in records if r["status"] == "ok"]
+    laws = [k[2:] for k in ok[0] if k.startswith("J_")] if ok else []
+    summary: dict[str, Any] = {"family": args.family, "seed": args.seed, "planner": args.planner,
+                               "scenarios": len(records), "floored": len(ok)}
+    if ok:
+        pid = np.array([r["J_pid"] for r in ok]) if "pid" in laws else None
+        for law in laws:
+            summary[f"mean J_{law}"] = float(np.mean([r[f"J_{law}"] for r in ok]))
+        summary["mean floor"] = float(np.mean([r["floor"] for r in ok]))
+        if pid is not None:
+            summary["floor / cubic+PID (ratio of means)"] = summary["mean floor"] / float(np.mean(pid))
+        summary["median floor / best law"] = float(np.median([r["floor_over_best"] for r in ok]))
+        summary["median seconds"] = float(np.median([r["seconds"] for r in ok]))
+        summary["largest terminal_err / goal radius"] = float(max(r["terminal_err"] / r["goal_radius"] for r in ok))
+    if args.out is not None:
+        names = list(dict.fromkeys(k for r in records for k in r))
+        with open(args.out, "w", newline="") as handle:
+            writer = csv.DictWriter(handle, names)
+            writer.writeheader()
+            writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in r.items()} for r in records)
+    if args.json:
+        print(json.dumps(_json_safe({"summary": summary, "records": records}), indent=2))
+        return 0
+    print(f"{'scenario':>8} " + " ".join(f"{'J ' + law:>26}" for law in laws) + f" {'floor':>10} {'/best':>6} "
+          f"{'start':>24} {'s':>6}")
+    for r in records:
+        if r["status"] != "ok":
+            print(f"{r['scenario']:>8} {r['status']}")
+            continue
+        print(f"{r['scenario']:>8} " + " ".join(f"{r['J_' + law]:>26.5g}" for law in laws)
+              + f" {r['floor']:>10.5g} {r['floor_over_best']:>6.3f} {r['start']:>24} {r['seconds']:>6.2f}")
+    print()
+    for key, value in summary.items():
+        print(f"{key}: {value:.4g}" if isinstance(value, float) else f"{key}: {value}")
+    return 0
+
+
 def _gains(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -906,7 +984,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         commands = {"compare": _compare, "frontier": _frontier, "tune": _tune, "bench": _bench, "gains": _gains,
-                    "render": _render, "doctor": _doctor, "sweep": _sweep, "audit": _audit, "export": _export,
+                    "render": _render, "doctor": _doctor, "floor": _floor, "sweep": _sweep, "audit": _audit,
+                    "export": _export,
                     "rl": _rl}
         return commands[args.command](args)
     except MjtrajError as e:

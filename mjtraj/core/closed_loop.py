@@ -303,6 +303,7 @@ class ClosedLoop:
                                  np.full((B, n), np.nan), noise=checked,
                                  held=np.zeros((B, n)) if self.config.delay else None,
                                  law_state=self._initial_law_state(B))
+        self._track(slice(None), q_ref, qd_ref, ff)
         self._plant.reset(q_ref[0], qd_ref[0])
 
     def restart(self, ids: npt.ArrayLike, references: Sequence[Reference], *,
@@ -337,6 +338,7 @@ class ClosedLoop:
         if s.law_state is not None:
             s.law_state[where] = self._initial_law_state(rows.size)
         s.resync()
+        self._track(where, q_ref, qd_ref, ff)
         self._plant.reset(q_ref[0], qd_ref[0], rows)
 
     def step(self, *, residual: NDArray[np.float64] | None = None,
@@ -423,6 +425,14 @@ class ClosedLoop:
                              override=override)
         return self._law(e, ed, integral, tau_ff, qdd_ref, dynamics, self._limit, self.dt,  # type: ignore[call-arg]
                          residual=residual, override=override, state=law_state, q=q, qd=qd)
+
+    def _track(self, rows: slice | NDArray[np.intp], q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64],
+               ff: NDArray[np.float64]) -> None:
+        """Give a law that previews the reference (one with `track`, the model-predictive ones) the references of
+        simulations `rows`: q_ref, qd_ref (N+1, R, n), the feedforward (N, R, n)."""
+        track = getattr(self._law, "track", None)
+        if track is not None:
+            track(rows, q_ref, qd_ref, ff)
 
     def _initial_law_state(self, rows: int) -> NDArray[np.float64] | None:
         """A stateful law's initial state for `rows` simulations, (rows, state_size); None for other laws."""

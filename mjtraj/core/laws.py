@@ -1,4 +1,5 @@
-"""The control laws by name: the built-in ones (PID, computed torque, adaptive computed torque) and plug-ins'
+"""The control laws by name: the built-in ones (PID, computed torque, adaptive computed torque, model-predictive and
+adaptive model-predictive) and plug-ins'
 (entry points `mjtraj.controllers`), and the factory the closed loop calls."""
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from typing import Any
 from mjtraj.core.adaptive import AdaptiveComputedTorque
 from mjtraj.core.controller import PID, ComputedTorque, Controller
 
-CONTROLLERS = ("pid", "computed_torque", "adaptive_computed_torque")
+CONTROLLERS = ("pid", "computed_torque", "adaptive_computed_torque", "mpc", "adaptive_mpc")
 """The built-in control laws (`LoopConfig.controller`); plug-ins add others (`controller_names`)."""
 
 
@@ -26,8 +27,21 @@ def _adaptive(config: Any, dt: float, n: int, nsim: int, model: Any) -> Controll
     return AdaptiveComputedTorque(model, dt, nsim, config.adaptation_rate)
 
 
+def _mpc(config: Any, dt: float, n: int, nsim: int, model: Any) -> Controller:
+    from mjtraj.core.mpc import ModelPredictive
+
+    return ModelPredictive(model, dt, nsim)
+
+
+def _adaptive_mpc(config: Any, dt: float, n: int, nsim: int, model: Any) -> Controller:
+    from mjtraj.core.mpc import AdaptiveModelPredictive
+
+    return AdaptiveModelPredictive(model, dt, nsim, rate=config.adaptation_rate)
+
+
 _BUILT_IN: dict[str, Callable[..., Controller]] = {"pid": _pid, "computed_torque": _computed_torque,
-                                                   "adaptive_computed_torque": _adaptive}
+                                                   "adaptive_computed_torque": _adaptive, "mpc": _mpc,
+                                                   "adaptive_mpc": _adaptive_mpc}
 
 
 def _factories() -> dict[str, Callable[..., Controller]]:

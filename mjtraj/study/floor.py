@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -24,7 +25,10 @@ from mjtraj.core.model import JointInfo
 from mjtraj.core.reference import Reference
 from mjtraj.exceptions import InvalidInputError, MjtrajError
 from mjtraj.study.families import Perturbation, plant_fields
-from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, Outcome, execute_batch, goal_checked
+from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, Outcome, execute_batch, goal_checked, one_line
+
+if TYPE_CHECKING:
+    from mjtraj.study.scenario import Scenario
 
 STARTS = ("pid", "computed_torque", "adaptive_computed_torque")
 """The control laws whose executed torques start the floor's solves (each one's execution of the same job)."""
@@ -164,3 +168,44 @@ def _needs(plant: mujoco.MjModel | None) -> mujoco.MjModel:
     if plant is None:
         raise InvalidInputError("plant: a perturbed job needs the perturbed plant model (perturbed_plant)")
     return plant
+
+
+def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequence[int], planner: str = "cubic",
+                  starts: Sequence[str] = STARTS) -> Iterator[dict[str, Any]]:
+    """One record per scenario of `family` (drawn as sweeps draw it, seed `seed`): the starting laws' J_exec on
+    `planner`'s reference and the floor of that execution. A scenario whose planning or floor fails gets its error
+    in 'status' and the run goes on.
+
+    Args:
+      scenario: the base scenario (model, controller, scoring), as sweeps take it.
+      scenarios: the scenario indices.
+    """
+    from mjtraj.study.families import draw_scenario, perturbed_plant
+
+    model = scenario.model
+    plant = (perturbed_plant(model, scenario.model_path, scenario.model_torque_limit) if family == "mismatch"
+             else None)
+    limit = JointInfo.of(model).torque_limit
+    config = dataclasses.replace(scenario.loop, delay=0)
+    for index in scenarios:
+        drawn = draw_scenario(family, seed, index, model, scenario.task.dt)
+        move = float(np.max(np.abs(drawn.task.displacement)))
+        record: dict[str, Any] = {"family": family, "scenario": index, "planner": planner}
+        try:
+            reference = scenario.planner(planner).plan(drawn.task, model)
+            job = Job(reference, scenario.scoring.weights(drawn.task, limit), drawn.perturbation)
+            found = floor_of(model, config, job, plant=plant, starts=starts, displacement=move)
+        except MjtrajError as e:
+            yield {**record, "status": one_line(e)}
+            continue
+        best = min(found.controllers.values())
+        yield {**record, "status": "ok", **{f"J_{law}": cost for law, cost in found.controllers.items()},
+               "floor": found.cost, "floor_over_best": found.cost / best, "start": found.start,
+               "start_spread": _spread(found.starts), "iterations": found.iterations, "converged": found.converged,
+               "terminal_err": found.terminal_err, "goal_radius": found.goal_radius, "seconds": found.seconds}
+
+
+def _spread(costs: Mapping[str, float]) -> float:
+    """(largest - least) / least over the starts that reached the goal; NaN with fewer than two."""
+    finite = [c for c in costs.values() if np.isfinite(c)]
+    return (max(finite) - min(finite)) / min(finite) if len(finite) > 1 else float("nan")

@@ -1,0 +1,261 @@
+"""Model-predictive tracking (`mpc`) and its adaptive variant (`adaptive_mpc`): control laws like the others, that plan
+the saturation ahead on the nominal model with the reference's preview.
+
+Each control period, at the measured state x_k and for each simulation, a receding-horizon QP in the corrective
+torques u_k..u_{k+H-1} (H = HORIZON periods, fewer near the end) is solved and u_k applied:
+
+    min  sum_{j=1..H'} (x_{k+j} - x_ref,k+j)^T Q (x_{k+j} - x_ref,k+j) [j < N - k]  +  sum_j u^T R u
+    s.t. x_{j+1} = A_j x_j + B_j u_j + c_j   (the nominal model linearised along the reference)
+         |u| <= limit,   and where the horizon reaches the reference's end N: |q_N,i - q_ref,N,i| <= GOAL_AIM r/sqrt(n)
+
+with J_exec's weights by Bryson's rule on the reference's move (the score's default rule: Q = diag(1/move^2,
+1/pi^2), R = 1/limit^2), so that the law minimises the score it is judged by, and the goal rule (r = GOAL_TOLERANCE
+of the move) as the terminal constraint that the floor (`mjtraj.core.floor`) also has: x_N is not scored, and an
+optimiser of J_exec with no such constraint stops short of the goal. The model is linearised once per reference,
+when the loop starts it (`track`): at each sample (x_ref,j, tau_ff,j) the analytic RK4 step of the model's hinge tree
+(`mjtraj.core.planners.rigid_body`) gives A_j, B_j and the defect c_j = F(x_ref,j, tau_ff,j) - x_ref,j+1 (differences of
+MuJoCo's step where the tree does not hold the model). The QP (H n variables) is condensed and solved by DAQP
+(`mjtraj.core.planners.sqp._qp`), the terminal rows soft.
+
+`adaptive_mpc` plans on the adaptive law's online estimate (`mjtraj.core.adaptive`): it adds the estimated torque
+Y theta_hat of the payload, damping and friction the nominal model leaves out (held over the horizon, inside the
+saturation), and updates theta_hat by the adaptive law's own rule.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.core.adaptive import ADAPTATION_RATE, AdaptiveComputedTorque
+from mjtraj.core.controller import ControlOutput, overridden
+from mjtraj.core.model import JointInfo
+from mjtraj.core.scoring import JOINT_SPEED_LIMIT
+from mjtraj.threads import one_blas_thread
+
+HORIZON = 25
+"""Periods of preview (0.5 s at the UR5's 20 ms)."""
+GOAL_TOLERANCE = 0.2
+"""The goal rule: an execution ends within this fraction of the task's largest joint displacement of its goal
+(the benchmark's rule, `mjtraj.study.pipeline.GOAL_TOLERANCE`, the same number)."""
+GOAL_AIM = 0.5
+"""The terminal rows aim at this fraction of the goal rule's per-joint box, a margin for the model's error."""
+
+
+def linearised_steps(model: mujoco.MjModel, X: NDArray[np.float64], U: NDArray[np.float64]
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """One control period of `model` from each state X (M, 2n) under U (M, n): (next (M, 2n), A (M, 2n, 2n),
+    B (M, 2n, n)); analytic where the model's hinge tree holds it, else central differences of MuJoCo's step."""
+    from mjtraj.core.planners.rigid_body import RigidBody
+
+    tree = RigidBody.of(model)
+    n = model.nv
+    if tree is not None:
+        after, jacobian = tree.step(X, U)
+        return after, jacobian[:, :, :2 * n], jacobian[:, :, 2 * n:]
+    data = mujoco.MjData(model)
+    M = X.shape[0]
+    after = np.empty((M, 2 * n))
+    jacobian = np.empty((M, 2 * n, 3 * n))
+    eps = 1e-6
+
+    def step(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        mujoco.mj_resetData(model, data)
+        data.qpos[:], data.qvel[:], data.ctrl[:] = z[:n], z[n:2 * n], z[2 * n:]
+        mujoco.mj_step(model, data)
+        return np.concatenate([data.qpos, data.qvel])
+
+    for m in range(M):
+        z = np.concatenate([X[m], U[m]])
+        after[m] = step(z)
+        for i in range(3 * n):
+            dz = np.zeros(3 * n)
+            dz[i] = eps
+            jacobian[m, :, i] = (step(z + dz) - step(z - dz)) / (2 * eps)
+    return after, jacobian[:, :, :2 * n], jacobian[:, :, 2 * n:]
+
+
+@dataclass
+class ModelPredictive:
+    """The module's law for `nsim` simulations of the nominal `model` at control period `dt` (s).
+
+    Its per-simulation state is the period counter (the loop keeps and resets it); `track` takes each simulation's
+    reference when the loop (re)starts it.
+    """
+
+    model: mujoco.MjModel
+    dt: float
+    nsim: int
+    horizon: int = HORIZON
+    name: ClassVar[str] = "mpc"
+    needs_dynamics: ClassVar[bool] = False
+    _plan: dict[str, NDArray[np.float64]] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.n = self.model.nv
+        self.limit = JointInfo.of(self.model).torque_limit
+
+    @property
+    def state_size(self) -> int:
+        """1 + 2n: the period counter k, then the state the model predicted for now (NaN at the start)."""
+        return 1 + 2 * self.n
+
+    def initial_state(self, rows: int) -> NDArray[np.float64]:
+        """k = 0 and no prediction for `rows` simulations, shape (rows, state_size)."""
+        out = np.zeros((rows, self.state_size))
+        out[:, 1:1 + 2 * self.n] = np.nan
+        return out
+
+    def track(self, rows: NDArray[np.intp] | slice, q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64],
+              tau_ff: NDArray[np.float64]) -> None:
+        """Linearise the model along the references of simulations `rows`: q_ref, qd_ref (N+1, R, n), the
+        feedforward tau_ff (N, R, n). Past N the reference holds its last pose at rest, with zero torque."""
+        N, R, n = tau_ff.shape
+        H = self.horizon
+        x_ref = np.concatenate([q_ref, qd_ref], axis=2).transpose(1, 0, 2)  # (R, N+1, 2n)
+        hold = np.concatenate([q_ref[-1], np.zeros_like(qd_ref[-1])], axis=1)  # (R, 2n)
+        x_ext = np.concatenate([x_ref, np.repeat(hold[:, None], H, axis=1)], axis=1)  # (R, N+H+1, 2n)
+        u_ext = np.concatenate([tau_ff.transpose(1, 0, 2), np.zeros((R, H, n))], axis=1)  # (R, N+H, n)
+        with one_blas_thread():
+            after, A, B = linearised_steps(self.model, x_ext[:, :-1].reshape(-1, 2 * n), u_ext.reshape(-1, n))
+        fields = {"x": x_ext, "u": u_ext, "A": A.reshape(R, N + H, 2 * n, 2 * n),
+                  "B": B.reshape(R, N + H, 2 * n, n),
+                  "c": after.reshape(R, N + H, 2 * n) - x_ext[:, 1:],
+                  "steps": np.full(R, N, dtype=np.float64),
+                  "move": np.max(np.abs(q_ref[-1] - q_ref[0]), axis=1)}
+        if not self._plan or (self._plan["x"].shape[1] != N + H + 1):
+            self._plan = {k: np.zeros((self.nsim, *v.shape[1:])) for k, v in fields.items()}
+        for name, value in fields.items():
+            self._plan[name][rows] = value
+
+    def solve(self, b: int, k: int, x: NDArray[np.float64], shift: NDArray[np.float64] | None = None,
+              disturbance: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The torque (n,), N m, that simulation b applies at period k from the measured state x (2n,); `shift` is
+        a torque (n,) the plant also receives, held over the horizon (the adaptive estimate's), inside the limit;
+        `disturbance` (2n,) is added to every predicted step (the last step's prediction error: offset-free MPC).
+        Also returns the state (2n,) the model predicts after the applied torque."""
+        from mjtraj.core.planners.sqp import _qp
+
+        p = self._plan
+        n, N = self.n, int(p["steps"][b])
+        H = min(self.horizon, max(N - k, 1))
+        A, B, c = p["A"][b, k:k + H], p["B"][b, k:k + H], p["c"][b, k:k + H]
+        x_ref, u_bar = p["x"][b, k:k + H + 1], p["u"][b, k:k + H]
+        move = float(p["move"][b]) or 1.0
+        q_w = np.concatenate([np.full(n, 1.0 / move**2), np.full(n, 1.0 / JOINT_SPEED_LIMIT**2)])
+        r_w = 1.0 / self.limit**2
+        held = np.zeros(n) if shift is None else shift
+        # condensed prediction of the deviations d_j = x_{k+j} - x_ref,k+j: d = F d_0 + G v + e, v the torque change
+        F = np.empty((H + 1, 2 * n, 2 * n))
+        G = np.zeros((H + 1, 2 * n, H * n))
+        e = np.zeros((H + 1, 2 * n))
+        F[0] = np.eye(2 * n)
+        for j in range(H):
+            F[j + 1] = A[j] @ F[j]
+            G[j + 1] = A[j] @ G[j]
+            G[j + 1, :, j * n:(j + 1) * n] = B[j]
+            e[j + 1] = A[j] @ e[j] + c[j] + (0.0 if disturbance is None else disturbance)
+        d0 = x - x_ref[0]
+        free = np.einsum("jab,b->ja", F, d0) + e  # (H+1, 2n): the deviations with v = 0
+        scored = np.arange(1, H + 1) + k < N  # x_N and beyond are not scored (J_exec's sum ends at N-1)
+        weights = np.where(scored[:, None], q_w, 0.0)  # (H, 2n)
+        Gs = G[1:] * np.sqrt(weights)[:, :, None]
+        rs = free[1:] * np.sqrt(weights)
+        total = u_bar + held  # the torque with v = 0, (H, n)
+        hessian = Gs.reshape(-1, H * n).T @ Gs.reshape(-1, H * n)
+        hessian[np.diag_indices(H * n)] += np.tile(r_w, H)
+        gradient = Gs.reshape(-1, H * n).T @ rs.ravel() + (total * r_w).ravel()
+        high = (self.limit - total).ravel()
+        low = (-self.limit - total).ravel()
+        rows_g, rows_h = np.zeros((0, H * n)), np.zeros(0)
+        if k + H >= N:  # the horizon reaches the end: the goal rule's box at x_N
+            end = N - k
+            box = GOAL_AIM * GOAL_TOLERANCE * move / np.sqrt(n)
+            Gq = G[end, :n]
+            rows_g = np.vstack([-Gq, Gq])
+            rows_h = np.concatenate([box - free[end, :n], box + free[end, :n]])
+        solved = _qp(hessian, gradient, np.zeros((0, H * n)), np.zeros(0), rows_g, rows_h, low, high, True)
+        v = np.zeros(H * n) if solved is None else solved[0]
+        predicted = x_ref[1] + free[1] + G[1] @ v
+        return total[0] + v[:n], predicted
+
+    def __call__(self, e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArray[np.float64],
+                 tau_ff: NDArray[np.float64], qdd_ref: NDArray[np.float64] | None,
+                 dynamics: tuple[NDArray[np.float64], NDArray[np.float64]] | None, limit: NDArray[np.float64],
+                 dt: float, *, residual: NDArray[np.float64] | None = None,
+                 override: NDArray[np.float64] | None = None, state: NDArray[np.float64] | None = None,
+                 q: NDArray[np.float64] | None = None, qd: NDArray[np.float64] | None = None) -> ControlOutput:
+        """One period for the batch: the command (B, n), N m; the counter advances in `ControlOutput.state`."""
+        assert state is not None and q is not None and qd is not None
+        n = self.n
+        counter, expected = state[:, :1], state[:, 1:1 + 2 * n]
+        x = np.concatenate([q, qd], axis=1)
+        if override is not None:
+            return overridden(override, limit, integral)._replace(
+                state=np.concatenate([counter + 1, np.full_like(x, np.nan)], axis=1))
+        disturbance = np.nan_to_num(x - expected)  # the last step's prediction error (0 at the start)
+        with one_blas_thread():
+            solved = [self.solve(b, int(counter[b, 0]), x[b], None, disturbance[b]) for b in range(x.shape[0])]
+        command = np.stack([u for u, _ in solved])
+        predicted = np.stack([p for _, p in solved])
+        return self._output(command, tau_ff, limit, integral, residual, np.concatenate([counter + 1, predicted],
+                                                                                       axis=1))
+
+    def _output(self, command: NDArray[np.float64], tau_ff: NDArray[np.float64], limit: NDArray[np.float64],
+                integral: NDArray[np.float64], residual: NDArray[np.float64] | None,
+                state: NDArray[np.float64]) -> ControlOutput:
+        """The saturated command (a residual added first); reported split: tau_ff the loop's feedforward, tau_fb the
+        rest of the MPC's command."""
+        if residual is not None:
+            command = command + residual
+        dtau = np.minimum(np.maximum(command, -limit), limit)
+        return ControlOutput(tau_ff, command - tau_ff, dtau, dtau != command, integral, state)
+
+
+@dataclass
+class AdaptiveModelPredictive(ModelPredictive):
+    """`mpc` planning on the adaptive law's estimate, offset-free: state [k, the predicted state (2n), theta_hat]."""
+
+    rate: float = ADAPTATION_RATE
+    name: ClassVar[str] = "adaptive_mpc"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self._adaptive = AdaptiveComputedTorque(self.model, self.dt, self.nsim, self.rate)
+
+    @property
+    def state_size(self) -> int:
+        """1 + 2n + (1 + 2n): the counter, the state predicted for now (NaN at the start), then the estimate
+        (payload kg, damping, friction per joint)."""
+        return 1 + 2 * self.n + self._adaptive.state_size
+
+    def __call__(self, e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArray[np.float64],
+                 tau_ff: NDArray[np.float64], qdd_ref: NDArray[np.float64] | None,
+                 dynamics: tuple[NDArray[np.float64], NDArray[np.float64]] | None, limit: NDArray[np.float64],
+                 dt: float, *, residual: NDArray[np.float64] | None = None,
+                 override: NDArray[np.float64] | None = None, state: NDArray[np.float64] | None = None,
+                 q: NDArray[np.float64] | None = None, qd: NDArray[np.float64] | None = None) -> ControlOutput:
+        assert state is not None and q is not None and qd is not None and qdd_ref is not None
+        n = self.n
+        counter, expected, theta = state[:, :1], state[:, 1:1 + 2 * n], state[:, 1 + 2 * n:]
+        x = np.concatenate([q, qd], axis=1)
+        if override is not None:
+            return overridden(override, limit, integral)._replace(
+                state=np.concatenate([counter + 1, np.full_like(x, np.nan), theta], axis=1))
+        w = self._adaptive.w
+        sigma = ed + w * e
+        _, _, Y = self._adaptive.regressor(q, qd, qd + sigma, qdd_ref + w * ed)
+        shift = np.einsum("bip,bp->bi", Y, theta)
+        estimate = theta + dt * self._adaptive._gain * np.einsum("bip,bi->bp", Y, sigma)
+        estimate = np.minimum(np.maximum(estimate, 0.0), self._adaptive.bounds)
+        disturbance = np.nan_to_num(x - expected)  # the last step's prediction error (0 at the start)
+        with one_blas_thread():
+            solved = [self.solve(b, int(counter[b, 0]), x[b], shift[b], disturbance[b]) for b in range(x.shape[0])]
+        command = np.stack([u for u, _ in solved])
+        predicted = np.stack([p for _, p in solved])
+        return self._output(command, tau_ff, limit, integral, residual,
+                            np.concatenate([counter + 1, predicted, estimate], axis=1))
