@@ -562,3 +562,53 @@ def bench_store(rows: int = 100_000, timed: Sequence[str] = STORE_STAGES) -> dic
             wall, peak = _peak_child(target)
             stages[name] = {"wall_s": wall, "peak_mb": peak}
     return {"rows": written, "write_s": write_s, "stages": stages}
+
+
+def bench_floor(scenario: Scenario, *, scenarios: int = 20, mismatch: int = 5, seed: int = 1) -> list[dict[str, Any]]:
+    """The floor's solve time per scenario (`mjtraj.study.floor.floor_of`, one core) on `scenarios` nominal and
+    aggressive scenarios and `mismatch` mismatch ones of `seed`: median, 90th percentile and worst, s."""
+    from mjtraj.study.floor import family_floors
+
+    rows = []
+    for family, count in (("nominal", scenarios), ("aggressive", scenarios), ("mismatch", mismatch)):
+        if count <= 0:
+            continue
+        seconds = [r["seconds"] for r in family_floors(scenario, family, seed=seed, scenarios=range(count))
+                   if r["status"] == "ok"]
+        rows.append({"family": family, "scenarios": count, "floored": len(seconds),
+                     "median_s": float(np.median(seconds)) if seconds else float("nan"),
+                     "p90_s": float(np.percentile(seconds, 90)) if seconds else float("nan"),
+                     "max_s": float(np.max(seconds)) if seconds else float("nan")})
+    return rows
+
+
+def bench_controllers(scenario: Scenario, *, scenarios: int = 5, seed: int = 1,
+                      laws: Sequence[str] = ("pid", "adaptive_computed_torque", "mpc", "adaptive_mpc")
+                      ) -> list[dict[str, Any]]:
+    """Each control law's time per control period on one simulation (one `ClosedLoop.step`: the law and the plant's
+    step), over `scenarios` mismatch scenarios of `seed`: median and 90th percentile, ms, and the median as a fraction
+    of the control period."""
+    import dataclasses
+
+    from mjtraj.study.families import draw_scenario, perturbed_plant, plant_fields
+
+    model = scenario.model
+    plant = perturbed_plant(model, scenario.model_path, scenario.model_torque_limit)
+    drawn = [draw_scenario("mismatch", seed, i, model, scenario.task.dt) for i in range(scenarios)]
+    references = [scenario.planner("cubic").plan(d.task, model) for d in drawn]
+    rows = []
+    for law in laws:
+        config = dataclasses.replace(scenario.loop, controller=law)
+        times = []
+        for d, reference in zip(drawn, references, strict=True):
+            assert d.perturbation is not None
+            loop = ClosedLoop(model, config, plant=plant, plant_fields=plant_fields(plant, [d.perturbation]))
+            loop.start([reference])
+            for _ in range(loop.steps):
+                clock = time.perf_counter()
+                loop.step()
+                times.append(time.perf_counter() - clock)
+        median = float(np.median(times))
+        rows.append({"law": law, "median_ms": 1e3 * median, "p90_ms": 1e3 * float(np.percentile(times, 90)),
+                     "of_period": median / scenario.task.dt})
+    return rows

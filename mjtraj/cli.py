@@ -212,8 +212,8 @@ def _parser() -> argparse.ArgumentParser:
                    "tuned.toml)")
 
     b = sub.add_parser("bench", help="speed ratios measured in one run")
-    b.add_argument("what", choices=("plan", "planners", "loop", "env", "startup", "sweep", "store", "all"), nargs="?",
-                   default="all",
+    b.add_argument("what", choices=("plan", "planners", "loop", "floor", "env", "startup", "sweep", "store", "all"),
+                   nargs="?", default="all",
                    help="what to time ('all' skips the minute-long sweep and the store)")
     b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     b.add_argument("--sizes", type=_counts, help="loop batch sizes, comma-separated whole numbers >= 1")
@@ -660,6 +660,20 @@ def _bench(args: argparse.Namespace) -> int:
               f"threads: {sweep['floor']:.1f} s; sweep / floor = {sweep['wall'] / sweep['floor']:.2f}")
         print(f"the driver's peak resident memory (this process; target <= 500 MB whatever the scenarios): "
               f"{sweep['driver_mb']:.0f} MB")
+    if args.what in ("floor", "all"):
+        from mjtraj.bench import bench_controllers, bench_floor
+
+        print("the clairvoyant floor: solve time per scenario on one core (seed 1, cubic reference, three starts); "
+              "target median <= 0.2 s")
+        print(f"{'family':>11} {'scenarios':>10} {'floored':>8} {'median s':>9} {'p90 s':>7} {'max s':>7}")
+        for row in bench_floor(scenario):
+            print(f"{row['family']:>11} {row['scenarios']:>10} {row['floored']:>8} {row['median_s']:>9.3f} "
+                  f"{row['p90_s']:>7.3f} {row['max_s']:>7.3f}")
+        print("control laws: one closed-loop period on one simulation (the law and the plant's step), 5 mismatch "
+              "scenarios; target mpc median <= 0.5 of the control period")
+        print(f"{'law':>25} {'median ms':>10} {'p90 ms':>7} {'of period':>10}")
+        for row in bench_controllers(scenario):
+            print(f"{row['law']:>25} {row['median_ms']:>10.3f} {row['p90_ms']:>7.3f} {row['of_period']:>10.3f}")
     if args.what in ("startup", "all"):
         from mjtraj.bench import bench_startup
 

@@ -39,6 +39,11 @@ MAX_ITER = 60
 """Gauss-Newton iterations per start at most."""
 STALL = 1e-10
 """A start has converged when its feasible cost changes by less than this fraction between iterations."""
+HALVINGS = 10
+"""Backtracking halvings of a step before the step is refused (t >= 2^-9)."""
+MAX_DAMPING = 1e2
+"""A refused step multiplies the Levenberg-Marquardt damping (relative to the Hessian's mean diagonal) by 100, from
+1e-4; past this the start has converged as far as the merit's model allows (at a kink of the dry friction)."""
 FD_EPS = 1e-7
 """Forward-difference step of the step Jacobians where they are differenced (as the nonlinear planners')."""
 GOAL_MARGIN = 0.999
@@ -137,7 +142,7 @@ def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], 
         now = _merit(cost, constraint, weight)
         slope = float(gradient @ step) * 2.0 - weight * max(0.0, constraint)
         t, accepted = 1.0, False
-        for _ in range(30):
+        for _ in range(HALVINGS):
             trial = np.clip(u + t * step, low, high)
             try:
                 c_trial, g_trial, _ = problem.rollout(trial)
@@ -148,9 +153,9 @@ def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], 
                 accepted = True
                 break
             t *= 0.5
-        if not accepted:
-            if damping < 1e3:
-                damping = max(10.0 * damping, 1e-6)
+        if not accepted:  # a kink of the dry friction, or a poor model of the merit: trust the model less
+            if damping < MAX_DAMPING:
+                damping = max(100.0 * damping, 1e-4)
                 continue
             return u, cost, constraint, iteration, constraint <= FEASIBLE
         damping = damping / 4.0 if t == 1.0 else damping
