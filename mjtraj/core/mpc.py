@@ -12,7 +12,7 @@ with J_exec's weights by Bryson's rule on the reference's move (the score's defa
 1/pi^2), R = 1/limit^2), so that the law minimises the score it is judged by, and the goal rule (r = GOAL_TOLERANCE
 of the move) as the terminal constraint that the floor (`mjtraj.core.floor`) also has: x_N is not scored, and an
 optimiser of J_exec with no such constraint stops short of the goal. The model is linearised once per reference,
-when the loop starts it (`track`): at each sample (x_ref,j, tau_ff,j) the analytic RK4 step of the model's hinge tree
+when the loop starts it (`track`): at each sample (x_ref,j, tau_ff,j) (the feedforward clipped into the saturation) the analytic RK4 step of the model's hinge tree
 (`mjtraj.core.planners.rigid_body`) gives A_j, B_j and the defect c_j = F(x_ref,j, tau_ff,j) - x_ref,j+1 (differences of
 MuJoCo's step where the tree does not hold the model). The QP (H n variables) is condensed and solved by DAQP
 (`mjtraj.core.planners.sqp._qp`), the terminal rows soft.
@@ -128,7 +128,10 @@ class ModelPredictive:
         x_ref = np.concatenate([q_ref, qd_ref], axis=2).transpose(1, 0, 2)  # (R, N+1, 2n)
         hold = np.concatenate([q_ref[-1], np.zeros_like(qd_ref[-1])], axis=1)  # (R, 2n)
         x_ext = np.concatenate([x_ref, np.repeat(hold[:, None], H, axis=1)], axis=1)  # (R, N+H+1, 2n)
-        u_ext = np.concatenate([tau_ff.transpose(1, 0, 2), np.zeros((R, H, n))], axis=1)  # (R, N+H, n)
+        # linearised at the feedforward within the saturation: MuJoCo clamps a control to its range, so beyond it the
+        # step's Jacobian in that torque is zero
+        inside = np.clip(tau_ff, -self.limit, self.limit)
+        u_ext = np.concatenate([inside.transpose(1, 0, 2), np.zeros((R, H, n))], axis=1)  # (R, N+H, n)
         with one_blas_thread():
             after, A, B = linearised_steps(self.model, x_ext[:, :-1].reshape(-1, 2 * n), u_ext.reshape(-1, n))
         fields = {"x": x_ext, "u": u_ext, "A": A.reshape(R, N + H, 2 * n, 2 * n),

@@ -1,0 +1,98 @@
+"""Model-predictive control laws: near the floor on the exact model, never below it, the goal reached, the same
+episode whichever way the loop (re)starts it, and in the env like any law."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mjtraj.envs  # noqa: F401
+from mjtraj.core.closed_loop import ClosedLoop
+from mjtraj.core.model import JointInfo
+from mjtraj.core.mpc import ModelPredictive, linearised_steps
+from mjtraj.study.families import draw_scenario, perturbed_plant, plant_fields
+from mjtraj.study.floor import floor_of
+from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, execute_batch
+
+
+def _job(scenario, model, family, index):
+    drawn = draw_scenario(family, 1, index, model, scenario.task.dt)
+    reference = scenario.planner("cubic").plan(drawn.task, model)
+    return drawn, Job(reference, scenario.scoring.weights(drawn.task, JointInfo.of(model).torque_limit),
+                      drawn.perturbation)
+
+
+@pytest.mark.parametrize("family, index", [("nominal", 0), ("nominal", 4), ("aggressive", 3)])
+def test_on_the_exact_model_mpc_comes_within_ten_percent_of_the_floor_and_reaches_the_goal(family, index, scenario,
+                                                                                             model):
+    drawn, job = _job(scenario, model, family, index)
+    floor = floor_of(model, scenario.loop, job, starts=("pid",))
+    _, outcomes = execute_batch(model, dataclasses.replace(scenario.loop, controller="mpc"), [job])
+    mpc = outcomes[0].metrics
+    assert floor.cost <= mpc["cost"] <= 1.10 * floor.cost
+    assert mpc["terminal_err"] <= GOAL_TOLERANCE * float(np.max(np.abs(drawn.task.displacement)))
+    assert mpc["peak_dtau"] <= 60.0
+
+
+def test_adaptive_mpc_on_a_mismatched_plant_stays_above_its_floor_and_reaches_the_goal(scenario, model):
+    drawn, job = _job(scenario, model, "mismatch", 3)
+    plant = perturbed_plant(model)
+    floor = floor_of(model, scenario.loop, job, plant=plant, starts=("computed_torque",))
+    _, outcomes = execute_batch(model, dataclasses.replace(scenario.loop, controller="adaptive_mpc"), [job],
+                                plant=plant)
+    assert outcomes[0].status == "ok"
+    assert outcomes[0].metrics["cost"] >= floor.cost
+    assert outcomes[0].metrics["terminal_err"] <= GOAL_TOLERANCE * float(np.max(np.abs(drawn.task.displacement)))
+
+
+@pytest.mark.parametrize("law", ["mpc", "adaptive_mpc"])
+def test_a_restarted_simulation_runs_the_episode_a_fresh_loop_runs(law, scenario, model):
+    """The vector env's autoreset path (restart, `track` for some rows) gives the fresh start's episode bit for bit."""
+    jobs = [_job(scenario, model, "mismatch", i)[1] for i in (0, 1)]
+    plant = perturbed_plant(model)
+    config = dataclasses.replace(scenario.loop, controller=law)
+    fresh = ClosedLoop(model, config, plant=plant, plant_fields=plant_fields(plant, [jobs[1].perturbation]))
+    alone = fresh.run([jobs[1].reference])
+    loop = ClosedLoop(model, config, nsim=2, plant=plant,
+                      plant_fields=plant_fields(plant, [jobs[0].perturbation, jobs[0].perturbation]))
+    loop.start([jobs[0].reference, jobs[0].reference])
+    for _ in range(7):
+        loop.step()
+    loop.set_plant_fields(plant_fields(plant, [jobs[1].perturbation]), [1])
+    loop.restart([1], [jobs[1].reference])
+    while not loop.done[1]:
+        loop.step()
+    again = loop.rollout([1])
+    np.testing.assert_array_equal(again.dtau, alone.dtau)
+    np.testing.assert_array_equal(again.q, alone.q)
+
+
+def test_the_linearisation_is_the_models_step_and_its_jacobians_match_differences(model, rng):
+    X = np.concatenate([rng.uniform(-1, 1, (4, 3)), rng.uniform(-1, 1, (4, 3))], axis=1)
+    U = rng.uniform(-20, 20, (4, 3))
+    after, A, B = linearised_steps(model, X, U)
+    eps = 1e-6
+    for m in range(4):
+        for i in range(3):
+            du = np.zeros(3)
+            du[i] = eps
+            plus = linearised_steps(model, X[m:m + 1], U[m:m + 1] + du)[0][0]
+            minus = linearised_steps(model, X[m:m + 1], U[m:m + 1] - du)[0][0]
+            np.testing.assert_allclose((plus - minus) / (2 * eps), B[m, :, i], rtol=1e-5, atol=1e-8)
+    law = ModelPredictive(model, 0.02, 1)
+    assert law.horizon == 50
+
+
+@pytest.mark.parametrize("law", ["mpc", "adaptive_mpc"])
+def test_the_env_runs_a_predictive_law_like_any_other(law):
+    env = gym.make("UR5TrackMismatch-v1", controller=law)
+    env.reset(seed=3)
+    done, total = False, 0.0
+    while not done:
+        _, reward, terminated, truncated, info = env.step(np.zeros(3))
+        total += reward
+        done = terminated or truncated
+    assert np.isfinite(total) and info["metrics"]["cost"] == pytest.approx(-total, rel=1e-9)
