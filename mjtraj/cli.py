@@ -374,6 +374,9 @@ def _parser() -> argparse.ArgumentParser:
                    "policy also runs on its own)")
     e.add_argument("--tuned-gains", dest="tuned_gains", type=Path,
                    help="a scenario file from `mjtraj tune --gains`, scored as 'cubic+PID (tuned gains)'")
+    e.add_argument("--floor", action="store_true", help="also compute each scenario's clairvoyant floor and read "
+                   "every method against it and against the strongest classical method (floor.csv; mismatch floors "
+                   "take about 4 s a scenario)")
     e.add_argument("--reps", type=int, default=2000, help="bootstrap resamples per interval (default 2000)")
     e.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")
     e.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
@@ -970,10 +973,13 @@ def _rl(args: argparse.Namespace) -> int:
                           planners=tuple(args.planners), controllers=tuple(args.controllers),
                           tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
                           settings=_overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
-                          progress=not args.no_progress)
+                          progress=not args.no_progress, floor=args.floor)
     print(evaluation.table)
     print(f"\nIn short (J / {REFERENCE}, then P(improve)):\n")
     print(evaluation.compact)
+    if evaluation.floor_table:
+        print("\nAgainst the floor and the strongest classical method:\n")
+        print(evaluation.floor_table)
     print(f"\nwrote {evaluation.csv}, {evaluation.summary_json}, {evaluation.markdown} and {evaluation.figure}")
     return 0
 

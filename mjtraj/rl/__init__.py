@@ -18,7 +18,8 @@ ALGORITHM_NAMES = {"sac": "SAC", "ppo": "PPO", "td3": "TD3", "recurrent_ppo": "R
 """How labels name each algorithm."""
 ACTION_MODES = ("residual", "torque")
 """The env's action modes a policy can learn in ('pid' has nothing to learn)."""
-LAW_LABELS = {"pid": "PID", "computed_torque": "CT", "adaptive_computed_torque": "adaptive CT"}
+LAW_LABELS = {"pid": "PID", "computed_torque": "CT", "adaptive_computed_torque": "adaptive CT", "mpc": "MPC",
+              "adaptive_mpc": "adaptive MPC"}
 """How tables name a control law (planner+LAW, planner+LAW+residual ...); a plug-in law by its own name."""
 
 

@@ -32,11 +32,13 @@ from mjtraj.rl.episodes import PolicyActor
 from mjtraj.rl.extra import require_sb3, rl_versions
 from mjtraj.rl.protocol_stats import (
     FAILURE_RULE,
+    FloorSummary,
     MethodSummary,
     improvement,
     profile_figure,
     ratio_of_means,
     summarize,
+    summarize_floor,
 )
 from mjtraj.rl.streams import VALIDATION_STREAM, check_seed, family_entropies, shared_streams
 from mjtraj.study import (
@@ -95,6 +97,8 @@ class EvalReport:
     """family -> method -> its summary."""
     compact: str = ""
     """The short table: ratio of means and probability of improvement per family."""
+    floor_table: str = ""
+    """The table against the floor (with `floor=True`)."""
 
 
 def _labels(policies: Sequence[ScoredPolicy]) -> list[str]:
@@ -194,7 +198,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
              seed: int = 0, planners: Sequence[str] = ("cubic",), controllers: Sequence[str] = ("pid",),
              tuned_gains: str | Path | None = None, settings: Mapping[str, Any] | None = None,
              out: str | Path = "rl_eval", batch: int = 250, reps: int = 2000, threads: int | None = 1,
-             command: str = "", progress: bool = False) -> EvalReport:
+             command: str = "", progress: bool = False, floor: bool = False) -> EvalReport:
     """Score `policies` beside the `planners` under every law of `controllers` on scenarios 0..scenarios-1 of each
     of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md and profiles.png into `out`.
 
@@ -207,6 +211,10 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
       reps: bootstrap resamples of every interval.
       threads: PyTorch CPU threads (mjtraj.rl.train.THREADS_RULE; None: PyTorch's default), recorded.
       command: the command line that regenerates the files (written into SUMMARY.md).
+      floor: also compute each scenario's clairvoyant floor (`mjtraj.study.floor`, of the cubic reference's
+        execution, which the reference and every policy on cubic track): rows gain the columns floor and
+        cost_over_floor, floor.csv holds the floors, and the summary reads every method against the floor and the
+        strongest classical method (FloorSummary).
 
     Raises:
       InvalidInputError: bad arguments, an unreadable policy, or scenarios not held out from a policy's training.
@@ -280,11 +288,20 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
             bar.update(1)
     if bar is not None:
         bar.close()
+    floors = scenario_floors(families, scenarios, seed, out, progress) if floor else {}
+    extra: list[str] = []
+    if floors:
+        extra = list(FLOOR_COLUMNS)
+        for row in rows:
+            value = floors[row["family"]][int(row["scenario"])]
+            cost = numeric(row["cost"]) if row["status"] == "ok" else float("nan")
+            row.update(floor=value, cost_over_floor=cost / value)
     csv_path = out / "eval.csv"
-    write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS], rows))
+    write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS, *extra], rows))
     groups = configurations(loaded, labels)
     costs = {family: method_costs(rows, groups, family) for family in families}
     summaries, scores = summarise(costs, reps=reps)
+    against = {family: against_floor(costs[family], floors[family], groups, reps=reps) for family in floors}
     figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps)
     table = summary_table(summaries, families)
     compact = compact_table(summaries, families)
@@ -295,12 +312,86 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
               "policies": [{"label": label, **p.columns()} for p, label in zip(loaded, labels, strict=True)],
               "configurations": groups, "versions": rl_versions(), "command": command,
               "torch_threads": _torch_threads(),
-              "summary": {family: {m: s.as_dict() for m, s in per.items()} for family, per in summaries.items()}}
+              "summary": {family: {m: s.as_dict() for m, s in per.items()} for family, per in summaries.items()},
+              "floor": {family: {m: s.as_dict() for m, s in per.items()} for family, per in against.items()}}
     json_path = out / "summary.json"
     write_text_atomic(json_path, json.dumps(record, indent=1) + "\n")
     md_path = out / "SUMMARY.md"
-    write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded, compact))
-    return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact)
+    floors_md = floor_table(against, families) if against else ""
+    write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded, compact, floors_md))
+    return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md)
+
+
+FLOOR_COLUMNS = ("floor", "cost_over_floor")
+"""The columns `evaluate(floor=True)` adds: the scenario's floor (of the cubic reference's execution) and J / floor."""
+
+
+def scenario_floors(families: Sequence[str], scenarios: int, seed: int, out: Path, progress: bool
+                    ) -> dict[str, NDArray[np.float64]]:
+    """Each family's floors (K,), NaN where the floor failed (`mjtraj.study.floor.family_floors` on the shipped
+    scenario), also written to out/floor.csv."""
+    from mjtraj.study import load_scenario
+    from mjtraj.study.floor import family_floors
+
+    base = load_scenario()
+    records: list[dict[str, Any]] = []
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(families) * scenarios, unit="floor", desc="floors", dynamic_ncols=True)
+    out_floors = {}
+    for family in families:
+        values = np.full(scenarios, np.nan)
+        for record in family_floors(base, family, seed=seed, scenarios=range(scenarios)):
+            records.append(record)
+            if record["status"] == "ok":
+                values[record["scenario"]] = record["floor"]
+            if bar is not None:
+                bar.update(1)
+        out_floors[family] = values
+    if bar is not None:
+        bar.close()
+    names = list(dict.fromkeys(k for r in records for k in r))
+    write_text_atomic(out / "floor.csv", csv_text(names, [{k: r.get(k, "") for k in names} for r in records]))
+    return out_floors
+
+
+def against_floor(costs: tuple[NDArray[np.float64], Mapping[str, NDArray[np.float64]]], floor: NDArray[np.float64],
+                  groups: Mapping[str, Sequence[str]], *, reps: int) -> dict[str, FloorSummary]:
+    """Each method's FloorSummary on one family (`method_costs`' output, the family's floors (K,)); the strongest
+    classical method is the planner+law or tuned-gains method of least mean J_exec (no policy, no oracle)."""
+    ref, by_method = costs
+    classical = {m: c for m, c in by_method.items() if m not in groups and m != ORACLE_LABEL
+                 and not m.startswith(tuple(f"{label} " for label in groups)) and np.all(np.isfinite(c))}
+    best = min(classical, key=lambda m: float(np.mean(classical[m]))) if classical else REFERENCE
+    best_cost = by_method[best][0] if best in by_method else ref
+    return {m: summarize_floor(c, ref, floor, best_cost, best, reps=reps) for m, c in by_method.items()}
+
+
+def floor_table(against: Mapping[str, Mapping[str, FloorSummary]], families: Sequence[str]) -> str:
+    """Markdown: per family and method, J / floor, the share of the headroom closed and the paired comparison with
+    the strongest classical method, each with its 95 % interval."""
+    present = [f for f in families if f in against]
+    methods = list(dict.fromkeys(m for f in present for m in against[f]))
+    head = "| method | " + " | ".join(f"{f}: J / floor | {f}: headroom closed | {f}: J / {_best(against[f])}, "
+                                      f"P(better)" for f in present) + " |"
+    lines = [head, "|---|" + "---|---|---|" * len(present)]
+    for m in methods:
+        cells = []
+        for f in present:
+            s = against[f].get(m)
+            if s is None:
+                cells += ["-"] * 3
+                continue
+            cells += [_cell(s.ratio_to_floor), _cell(s.headroom_closed, ".2f"),
+                      f"{_cell(s.versus_best)}, {s.beats_best.value:.2f}"]
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _best(per: Mapping[str, FloorSummary]) -> str:
+    return next(iter(per.values())).best if per else REFERENCE
 
 
 def _torch_threads() -> int:
@@ -409,7 +500,7 @@ def payload_table(rows: Sequence[dict[str, Any]],
 
 
 def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: Sequence[str],
-                     policies: Sequence[ScoredPolicy], compact: str = "") -> str:
+                     policies: Sequence[ScoredPolicy], compact: str = "", floors: str = "") -> str:
     """SUMMARY.md: how to regenerate it, the protocol in brief, the table, the by-payload table, the policies."""
     families = ", ".join(record["families"])
     lines = ["# Benchmark summary", ""]
@@ -428,6 +519,15 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
               "others), and each policy configuration (its seeds pooled; `seeds` counts them).", "", table, ""]
     if compact:
         lines += ["In short (J / reference, then P(improve)):", "", compact, ""]
+    if floors:
+        lines += ["Against the floor (the clairvoyant floor of each scenario's cubic reference: the least J_exec any "
+                  "controller can score on that plant, reaching the goal; floor.csv) and paired with the strongest "
+                  "classical method of each family (least mean J_exec among planner+law and tuned gains). J / floor "
+                  "is the ratio of means; headroom closed (J_ref - J) / (J_ref - J_floor) with J_ref "
+                  f"{REFERENCE}'s (0: the reference, 1: the floor); 95 % intervals as above. On the mismatch family "
+                  "the floor is the best found from several starts on a plant with dry friction: an upper estimate "
+                  "of the true floor. Methods on other planners than cubic track another reference, whose floor "
+                  "differs.", "", floors, ""]
     if payload:
         lines += ["By payload on the mismatch family (J / reference, seeds pooled; scenarios per bin in brackets):",
                   "", payload, ""]

@@ -188,3 +188,62 @@ def profile_figure(scores: dict[str, dict[str, NDArray[np.float64]]], path: Any,
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+@dataclass(frozen=True)
+class FloorSummary:
+    """One method on one family read against the clairvoyant floor of the reference's reference (`mjtraj.study.floor`)
+    and against the strongest classical method, each paired on the same scenarios, with 95 % bootstrap intervals.
+
+    Attributes:
+      ratio_to_floor: mean J / mean floor (1: as good as possible; seeds pooled).
+      headroom_closed: (mean J_ref - mean J) / (mean J_ref - mean floor): 0 is the reference, 1 the floor.
+      versus_best: mean J / mean J_best, J_best the strongest classical method's on the family (paired).
+      beats_best: P(J < J_best), ties one half.
+      best: the strongest classical method's name.
+    """
+
+    ratio_to_floor: Interval
+    headroom_closed: Interval
+    versus_best: Interval
+    beats_best: Interval
+    best: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return _json_ready(asdict(self))
+
+
+def headroom_closed(cost: NDArray[np.float64], ref: NDArray[np.float64], floor: NDArray[np.float64]
+                    ) -> NDArray[np.float64]:
+    """(sum J_ref - sum J) / (sum J_ref - sum floor) over the entries whose reference and floor exist, as a 1-element
+    array; arrays of one shape (S, K); -inf if any such entry failed."""
+    c, r, f = failed_as_inf(cost), failed_as_inf(ref), failed_as_inf(floor)
+    keep = np.isfinite(r) & np.isfinite(f)
+    if not keep.any():
+        return np.array([np.nan])
+    gap = np.sum(r[keep]) - np.sum(f[keep])
+    with np.errstate(invalid="ignore"):
+        return np.array([(np.sum(r[keep]) - np.sum(c[keep])) / gap])
+
+
+def summarize_floor(cost: NDArray[np.float64], ref: NDArray[np.float64], floor: NDArray[np.float64],
+                    best: NDArray[np.float64], best_name: str, *, reps: int = 2000,
+                    seed: int = BOOTSTRAP_SEED) -> FloorSummary:
+    """A method's FloorSummary from its costs (S, K; NaN = failed), the reference's, the floors and the strongest
+    classical method's (K,) each; the bootstrap as in `summarize` (scenarios, then seeds; pairs kept)."""
+    from rliable.library import StratifiedBootstrap
+
+    cost = np.asarray(cost, dtype=np.float64)
+    refs, floors, bests = (np.broadcast_to(np.asarray(a, dtype=np.float64), cost.shape).copy()
+                           for a in (ref, floor, best))
+    x, y = -failed_as_inf(cost), -failed_as_inf(bests)
+    with seeded_global_rng(seed):
+        to_floor = _interval(ratio_of_means(cost, floors), StratifiedBootstrap(cost, floors, task_bootstrap=True),
+                             ratio_of_means, reps)
+        closed = _interval(headroom_closed(cost, refs, floors),
+                           StratifiedBootstrap(cost, refs, floors, task_bootstrap=True), headroom_closed, reps)
+        versus = _interval(ratio_of_means(cost, bests), StratifiedBootstrap(cost, bests, task_bootstrap=True),
+                           ratio_of_means, reps)
+        beats = _interval(probability_of_improvement(x, y), StratifiedBootstrap(x, y, task_bootstrap=True),
+                          probability_of_improvement, reps)
+    return FloorSummary(to_floor, closed, versus, beats, best_name)

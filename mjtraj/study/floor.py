@@ -172,8 +172,8 @@ def _needs(plant: mujoco.MjModel | None) -> mujoco.MjModel:
 
 def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequence[int], planner: str = "cubic",
                   starts: Sequence[str] = STARTS) -> Iterator[dict[str, Any]]:
-    """One record per scenario of `family` (drawn as sweeps draw it, seed `seed`): the starting laws' J_exec on
-    `planner`'s reference and the floor of that execution. A scenario whose planning or floor fails gets its error
+    """One record per scenario of `family` (drawn and scored as sweeps draw and score it, seed `seed`: Bryson's
+    weights on each task): the starting laws' J_exec on `planner`'s reference and the floor of that execution. A scenario whose planning or floor fails gets its error
     in 'status' and the run goes on.
 
     Args:
@@ -181,6 +181,7 @@ def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequ
       scenarios: the scenario indices.
     """
     from mjtraj.study.families import draw_scenario, perturbed_plant
+    from mjtraj.study.sweep import SCORING
 
     model = scenario.model
     plant = (perturbed_plant(model, scenario.model_path, scenario.model_torque_limit) if family == "mismatch"
@@ -193,7 +194,7 @@ def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequ
         record: dict[str, Any] = {"family": family, "scenario": index, "planner": planner}
         try:
             reference = scenario.planner(planner).plan(drawn.task, model)
-            job = Job(reference, scenario.scoring.weights(drawn.task, limit), drawn.perturbation)
+            job = Job(reference, SCORING.weights(drawn.task, limit), drawn.perturbation)
             found = floor_of(model, config, job, plant=plant, starts=starts, displacement=move)
         except MjtrajError as e:
             yield {**record, "status": one_line(e)}
