@@ -6,10 +6,10 @@ from __future__ import annotations
 import dataclasses
 
 import gymnasium as gym
+import mjtraj.envs  # noqa: F401
 import numpy as np
 import pytest
 
-import mjtraj.envs  # noqa: F401
 from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.model import JointInfo
 from mjtraj.core.mpc import ModelPredictive, linearised_steps

@@ -12,14 +12,16 @@ with J_exec's weights by Bryson's rule on the reference's move (the score's defa
 1/pi^2), R = 1/limit^2), so that the law minimises the score it is judged by, and the goal rule (r = GOAL_TOLERANCE
 of the move) as the terminal constraint that the floor (`mjtraj.core.floor`) also has: x_N is not scored, and an
 optimiser of J_exec with no such constraint stops short of the goal. The model is linearised once per reference,
-when the loop starts it (`track`): at each sample (x_ref,j, tau_ff,j) (the feedforward clipped into the saturation) the analytic RK4 step of the model's hinge tree
-(`mjtraj.core.planners.rigid_body`) gives A_j, B_j and the defect c_j = F(x_ref,j, tau_ff,j) - x_ref,j+1 (differences of
-MuJoCo's step where the tree does not hold the model). The QP (H n variables) is condensed and solved by DAQP
-(`mjtraj.core.planners.sqp._qp`), the terminal rows soft.
+when the loop starts it (`track`): at each sample (x_ref,j, tau_ff,j), the feedforward clipped into the saturation,
+the analytic RK4 step of the model's hinge tree (`mjtraj.core.planners.rigid_body`) gives A_j, B_j and the defect
+c_j = F(x_ref,j, tau_ff,j) - x_ref,j+1 (central differences of MuJoCo's step where the tree does not hold the model).
+The prediction is made offset-free by a disturbance estimate d added to every step: d_k = d_{k-1} + L (x_k - x_pred,k)
+(OBSERVER_GAIN L), which integrates what the model mispredicts (a payload, friction, the linearisation's error). The
+QP (H n variables) is condensed and solved by DAQP (`mjtraj.core.planners.sqp._qp`), the terminal rows soft.
 
 `adaptive_mpc` plans on the adaptive law's online estimate (`mjtraj.core.adaptive`): it adds the estimated torque
 Y theta_hat of the payload, damping and friction the nominal model leaves out (held over the horizon, inside the
-saturation), and updates theta_hat by the adaptive law's own rule.
+saturation), and updates theta_hat by the adaptive law's own rule; the disturbance estimate then carries the rest.
 """
 
 from __future__ import annotations
@@ -40,7 +42,8 @@ from mjtraj.threads import one_blas_thread
 HORIZON_SECONDS = 1.0
 """s of preview: the horizon is round(HORIZON_SECONDS / dt) periods (50 at the UR5's 20 ms). With OBSERVER_GAIN, chosen
 on the validation stream (seed 0, mismatch scenarios 0-29, adaptive_mpc's mean J_exec over the adaptive law's) among
-0.5 s and 1 s x gains 0.3, 0.6 and 1: 0.5 s gave 0.906, 0.894, 0.885; 1 s 0.894, 0.875, 0.865 (docs/control.md)."""
+0.5 s and 1 s x gains 0.3, 0.6 and 1, scored as sweeps score: 0.5 s gave 0.903, 0.891, 0.882; 1 s 0.893, 0.874,
+0.864 (docs/control.md)."""
 GOAL_TOLERANCE = 0.2
 """The goal rule: an execution ends within this fraction of the task's largest joint displacement of its goal
 (the benchmark's rule, `mjtraj.study.pipeline.GOAL_TOLERANCE`, the same number)."""

@@ -173,11 +173,11 @@ def _needs(plant: mujoco.MjModel | None) -> mujoco.MjModel:
 def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequence[int], planner: str = "cubic",
                   starts: Sequence[str] = STARTS) -> Iterator[dict[str, Any]]:
     """One record per scenario of `family` (drawn and scored as sweeps draw and score it, seed `seed`: Bryson's
-    weights on each task): the starting laws' J_exec on `planner`'s reference and the floor of that execution. A scenario whose planning or floor fails gets its error
-    in 'status' and the run goes on.
+    weights on each task): the starting laws' J_exec on `planner`'s reference and the floor of that execution. A
+    scenario whose planning or floor fails gets its error in 'status' and the run goes on.
 
     Args:
-      scenario: the base scenario (model, controller, scoring), as sweeps take it.
+      scenario: the base scenario (model, controller), as sweeps take it.
       scenarios: the scenario indices.
     """
     from mjtraj.study.families import draw_scenario, perturbed_plant
