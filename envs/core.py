@@ -23,6 +23,7 @@ from mjtraj.core import (
     Rollout,
     Task,
     metrics_arrays,
+    missed_goal,
     parameter_bounds,
     step_cost,
 )
@@ -296,6 +297,12 @@ class TrackCore:
             for name in METRIC_NAMES:
                 out[name][j] = partial[name][0]
         return out
+
+    def goal_missed(self, ids: NDArray[np.intp], terminal_err: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Whether the episodes of simulations `ids`, ending with `terminal_err` (rad, (len(ids),)), missed their goal
+        by the benchmark's goal rule (GOAL_TOLERANCE of the task's largest joint displacement), shape (len(ids),)."""
+        moves = np.array([float(np.max(np.abs(self.tasks[i].displacement))) for i in ids])  # type: ignore[union-attr]
+        return missed_goal(terminal_err, moves)
 
     def reference_pose(self, row: int) -> NDArray[np.float64]:
         """The reference sample simulation `row` tracks next (the ghost arm), rad."""

@@ -137,7 +137,10 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     Terminated after N = duration/dt steps (the motion's horizon is part of the state through the phase), or
     earlier when the closed loop diverges (|e| above pi on a joint, or a non-finite state); the episode length
     follows duration and dt (no TimeLimit is registered). At the end `info["metrics"]` holds the episode's Metrics
-    (`mjtraj.Metrics` fields; NaN if diverged) and `info["diverged"]` says whether it diverged. Under a time
+    (`mjtraj.Metrics` fields; NaN if diverged), `info["diverged"]` says whether it diverged and
+    `info["missed_goal"]` whether it ended farther from the goal than the benchmark's goal rule allows (terminal
+    error above `mjtraj.core.GOAL_TOLERANCE` of the task's largest joint displacement: a failure in every family,
+    whatever the return). Under a time
     limit of your own (`gym.make(..., max_episode_steps=k)`, k < N), which the env itself cannot see, read them at
     the truncation with `env.unwrapped.episode_metrics()`: over the k periods run, J_exec summed over them (minus
     the return), terminal_err at the pose reached. The vector env's own `max_episode_steps` puts them in the
@@ -287,6 +290,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             self._running = False
             out["metrics"] = self.episode_metrics()
             out["diverged"] = bool(self._core.loop.diverged[0])
+            out["missed_goal"] = bool(self._core.goal_missed(np.zeros(1, np.intp),
+                                                             np.array([out["metrics"]["terminal_err"]]))[0])
         if self.render_mode == "human":
             self.render()
         return obs[0], float(reward[0]), done, False, out

@@ -32,7 +32,8 @@ class UR5TrackVectorEnv(VectorEnv):
     Stable-Baselines3 expects) the ending step already returns the new episode's first observation, and the final
     one is in `info["final_obs"]` (an object array with the mask `info["_final_obs"]`). In both modes
     `info["metrics"]` (name -> (num_envs,) array, with the mask `info["_metrics"]`) carries the Metrics of the
-    episodes that ended in that step, and `info["diverged"]` whether they diverged. With plant randomisation,
+    episodes that ended in that step, `info["diverged"]` whether they diverged and `info["missed_goal"]` whether
+    they missed their goal (the goal rule; masks `_diverged`, `_missed_goal`). With plant randomisation,
     `info["plant"]` (name -> (num_envs,) array, mask `info["_plant"]`) describes the plants of the episodes that
     start in that call (reset, or a step that autoresets).
 
@@ -131,6 +132,9 @@ class UR5TrackVectorEnv(VectorEnv):
             out["_metrics"] = done.copy()
             diverged = self._core.loop.diverged
             out["diverged"], out["_diverged"] = diverged & done, done.copy()
+            missed = np.zeros(self.num_envs, dtype=bool)
+            missed[ended] = self._core.goal_missed(ended, values["terminal_err"])
+            out["missed_goal"], out["_missed_goal"] = missed, done.copy()
         if restart.size:
             self._restart(restart, obs, out)
             reward[restart] = 0.0

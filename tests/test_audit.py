@@ -188,3 +188,28 @@ def test_progress_names_each_stage_as_it_begins(tmp_path):
     stages: list[str] = []
     write_audit([synthetic(tmp_path / "p.csv", costs)], tmp_path / "p.md", progress=stages.append, tasks=False)
     assert stages == ["reading p.csv", "the claims", "the figures"]
+
+
+def test_missed_goals_are_counted_as_failures_and_leave_the_verdicts(tmp_path):
+    """A planner whose every mismatch row missed its goal: the summary counts them, its comparisons have no pairs
+    (said so, never '+nan %'), and the other family's verdicts are unchanged."""
+    costs = {f: {"optimal": 1.0, "cubic": 2.0, "quintic": 2.0, "trapezoidal": 3.0} for f in ("nominal", "mismatch")}
+    path = synthetic(tmp_path / "m.csv", costs, families=("nominal", "mismatch"))
+    rows = path.read_text().splitlines()
+    header = rows[0].split(",")
+    status = header.index("status")
+    edited = [rows[0]]
+    for line in rows[1:]:
+        cells = line.split(",")
+        if cells[0] == "mismatch" and cells[header.index("planner")] == "optimal":
+            cells[status] = "missed_goal"
+        edited.append(",".join(cells))
+    path.write_text("\n".join(edited) + "\n")
+    text = write_audit([path], tmp_path / "m.md", figures=False, tasks=False)
+    assert "+nan" not in text and "- (no paired rows: no ok execution on one side)" in text
+    summary = [line for line in text.splitlines() if line.startswith("| mismatch") and "| optimal |" in line]
+    assert summary and all("| 0 | 40 | 40 |" in line for line in summary)
+    claim = text.split("## Claim 1", 1)[1].split("## Claim 2")[0]
+    mismatch = [line for line in claim.splitlines() if line.startswith("| mismatch")]
+    assert mismatch and all("no paired rows" in line for line in mismatch), mismatch
+    assert verdicts(text)["1"] == "holds"  # where pairs exist (nominal); mismatch gives no verdict

@@ -39,3 +39,24 @@ def test_stability_is_computed_once_per_scenario(scenario):
 def test_bad_planner_lists(scenario, planners, message):
     with pytest.raises(InvalidInputError, match=message):
         compare(scenario, planners)
+
+
+def test_compare_says_which_planner_missed_its_goal_in_the_table_the_report_and_the_json(scenario):
+    """Gains a hundred times too soft and no feedforward: the arm stays far short of the 1 rad move, and compare says
+    so (it was silent)."""
+    from mjtraj.core.controller import PIDGains
+    from mjtraj.study.comparison import compare, comparison_record
+    from mjtraj.study.report import format_report
+
+    g = scenario.loop.gains
+    soft = PIDGains.create(g.kp * 0.01, 0.0 * g.ki, g.kd * 0.01, 3)
+    weak = scenario.replace(loop={"feedforward": "none", "gains": soft})
+    result = compare(weak, ["cubic", "quintic"])
+    record = comparison_record(result)
+    assert {name: p["status"] for name, p in record["planners"].items()} == {"cubic": "missed_goal",
+                                                                             "quintic": "missed_goal"}
+    assert record["planners"]["cubic"]["reason"].startswith("terminal error ")
+    text = format_report(result)
+    assert "MISSED THE GOAL (2 of 2: terminal error above 0.2 x the move of 1 rad, a failure by the goal rule)" in text
+    assert text.count("MISSED") == 3  # the line and both rows' Goal column
+    assert result.metrics["cubic"].terminal_err > 0.2

@@ -119,12 +119,21 @@ def test_the_env_sizes_gains_for_drawn_tasks_and_takes_an_explicit_task(arms):
     np.testing.assert_array_equal(info["task"]["qg"], [0.4, 0.5, 0.9])
 
 
+def assert_ran(rows):
+    """Every row executed, and is ok exactly when it ends within the goal rule (mismatched light arms often miss:
+    a row that does is never ok)."""
+    for r in rows:
+        assert r["status"] in ("ok", "missed_goal"), r["reason"]
+        missed = float(r["terminal_err"]) > GOAL_TOLERANCE * float(r["max_displacement"])
+        assert (r["status"] == "missed_goal") == missed
+
+
 def test_a_missed_goal_is_a_status_with_its_reason():
     ok = Outcome("ok", "", {"terminal_err": 0.3})
     assert goal_checked(ok, 2.0) is ok
     missed = goal_checked(ok, 1.0)
     assert missed.status == "missed_goal" and missed.metrics == ok.metrics
-    assert missed.reason == "terminal error 0.3 rad > 0.2 x the move (1 rad) on the nominal plant"
+    assert missed.reason == "terminal error 0.3 rad > 0.2 x the move (1 rad)"
     failed = Outcome("diverged", "x")
     assert goal_checked(failed, 1.0) is failed
 
@@ -142,7 +151,7 @@ def test_an_arm_with_a_body_named_payload_runs_the_mismatch_family(arms, tmp_pat
     settings = SweepSettings(families=("mismatch",), scenarios=3, seed=1, model=str(arms["geared"]),
                              planners=("cubic",))
     rows = run_unit(settings, ("mismatch", 0)).rows
-    assert [r["status"] for r in rows] == ["ok"] * 3
+    assert_ran(rows)
     clash = tmp_path / "clash.xml"
     clash.write_text(GEARED.replace('name="payload"', 'name="mjtraj_payload"'))
     with pytest.raises(ModelError, match=r"a body is named 'mjtraj_payload', the name mjtraj gives the mismatch "
@@ -188,7 +197,7 @@ def test_unnamed_joints_and_bodies_are_named_in_the_copy_and_run_every_family(tm
     assert unnamed.read_text() == text  # named in mjtraj's copy only
     for family in ("nominal", "mismatch"):
         settings = SweepSettings(families=(family,), scenarios=2, seed=0, model=str(unnamed), planners=("cubic",))
-        assert [r["status"] for r in run_unit(settings, (family, 0)).rows] == ["ok", "ok"]
+        assert_ran(run_unit(settings, (family, 0)).rows)
 
 
 def test_dry_friction_is_left_out_of_linearisations_and_every_planner_plans(arms, tmp_path):

@@ -48,6 +48,8 @@ _EXPORTS = {
     "RECORDED": "mjtraj.core.closed_loop",
     "Metrics": "mjtraj.core.metrics",
     "METRIC_NAMES": "mjtraj.core.metrics",
+    "GOAL_TOLERANCE": "mjtraj.core.metrics",
+    "missed_goal": "mjtraj.core.metrics",
     "METRIC_UNITS": "mjtraj.core.metrics",
     "metrics_arrays": "mjtraj.core.metrics",
     "gravity_along": "mjtraj.core.metrics",
@@ -93,7 +95,16 @@ if TYPE_CHECKING:
     from mjtraj.core.laws import CONTROLLERS, controller_names
     from mjtraj.core.linearize import discretize_zoh, linearize_many
     from mjtraj.core.lqr import BoxLQRSolution, box_lqr
-    from mjtraj.core.metrics import METRIC_NAMES, METRIC_UNITS, Metrics, gravity_along, metrics_arrays, reduction
+    from mjtraj.core.metrics import (
+        GOAL_TOLERANCE,
+        METRIC_NAMES,
+        METRIC_UNITS,
+        Metrics,
+        gravity_along,
+        metrics_arrays,
+        missed_goal,
+        reduction,
+    )
     from mjtraj.core.model import JointInfo, default_model_path, load_model
     from mjtraj.core.options import check_options, declared_options, from_mapping, option, option_names
     from mjtraj.core.payload import flange
@@ -110,7 +121,8 @@ __all__ = [
     "AdaptiveComputedTorque", "parameter_bounds", "RECORDED", "flange",
     "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "CONTROLLERS", "ClosedLoop", "ComputedTorque", "CondensedQP",
     "ControlOutput", "Controller", "DynamicsProbe", "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE",
-    "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS", "Metrics",
+    "GOAL_TOLERANCE", "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS",
+    "Metrics", "missed_goal",
     "PID", "PIDGains", "Planner", "QPSolution", "Reference", "Rollout", "Scoring", "Step", "Task", "available",
     "box_lqr", "bryson_weights", "build_qp", "check_name", "check_options", "control_law", "controller_names",
     "declared_options",

@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from mjtraj.core.adaptive import ADAPTATION_RATE, AdaptiveComputedTorque
 from mjtraj.core.controller import ControlOutput, overridden
+from mjtraj.core.metrics import GOAL_TOLERANCE
 from mjtraj.core.model import JointInfo
 from mjtraj.core.scoring import JOINT_SPEED_LIMIT
 from mjtraj.threads import one_blas_thread
@@ -44,9 +45,6 @@ HORIZON_SECONDS = 1.0
 on the validation stream (seed 0, mismatch scenarios 0-29, adaptive_mpc's mean J_exec over the adaptive law's) among
 0.5 s and 1 s x gains 0.3, 0.6 and 1, scored as sweeps score: 0.5 s gave 0.903, 0.891, 0.882; 1 s 0.893, 0.874,
 0.864 (docs/control.md)."""
-GOAL_TOLERANCE = 0.2
-"""The goal rule: an execution ends within this fraction of the task's largest joint displacement of its goal
-(the benchmark's rule, `mjtraj.study.pipeline.GOAL_TOLERANCE`, the same number)."""
 OBSERVER_GAIN = 1.0
 """L of the disturbance estimate d_k = d_{k-1} + L (x_k - x_pred,k) (an integrator of the prediction error)."""
 GOAL_AIM = 0.5

@@ -330,8 +330,7 @@ def scenario_floors(families: Sequence[str], scenarios: int, seed: int, out: Pat
                     ) -> dict[str, NDArray[np.float64]]:
     """Each family's floors (K,), NaN where the floor failed (`mjtraj.study.floor.family_floors` on the shipped
     scenario), also written to out/floor.csv."""
-    from mjtraj.study import load_scenario
-    from mjtraj.study.floor import family_floors
+    from mjtraj.study import family_floors, load_scenario
 
     base = load_scenario()
     records: list[dict[str, Any]] = []

@@ -30,6 +30,9 @@ _EXPORTS = {
     "no_perturbation": "mjtraj.study.families",
     "noise_scale": "mjtraj.study.families",
     "Actor": "mjtraj.study.pipeline",
+    "Floor": "mjtraj.study.floor",
+    "floor_of": "mjtraj.study.floor",
+    "family_floors": "mjtraj.study.floor",
     "ORACLE_LABEL": "mjtraj.study.oracle",
     "TrueParameters": "mjtraj.study.oracle",
     "true_parameters": "mjtraj.study.oracle",
@@ -102,6 +105,7 @@ if TYPE_CHECKING:
         perturbed_plant,
         plant_fields,
     )
+    from mjtraj.study.floor import Floor, family_floors, floor_of
     from mjtraj.study.oracle import ORACLE_LABEL, TrueParameters, true_parameters
     from mjtraj.study.paper import PAPER_TABLE
     from mjtraj.study.pipeline import (
@@ -145,6 +149,7 @@ if TYPE_CHECKING:
     )
 
 __all__ = [
+    "Floor", "family_floors", "floor_of",
     "Actor", "ActorSpec", "BACKENDS", "Comparison", "Condition", "DEFAULT_PLANNERS", "EXTRA_METRICS", "FAMILIES",
     "FAMILY_ID", "FamilyScenario", "Job", "ORACLE_LABEL", "Outcome", "PAPER_TABLE", "PAYLOAD_MASS", "PairedRatio",
     "Perturbation", "ResultsFile", "Row", "STATUSES", "SWEPT", "Scenario", "SweepData", "SweepReport",

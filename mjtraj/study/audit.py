@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.core.metrics import METRIC_NAMES
+from mjtraj.core.metrics import GOAL_TOLERANCE, METRIC_NAMES
 from mjtraj.exceptions import InvalidInputError, MjtrajError
 from mjtraj.files import atomic_path
 from mjtraj.study.families import FAMILIES
@@ -189,6 +189,7 @@ class _Group:
 
     scenarios: list[NDArray[np.int64]] = dataclasses.field(default_factory=list)
     ok: list[NDArray[np.float64]] = dataclasses.field(default_factory=list)
+    missed: list[NDArray[np.float64]] = dataclasses.field(default_factory=list)
     metrics: list[NDArray[np.float64]] = dataclasses.field(default_factory=list)
 
 
@@ -291,14 +292,16 @@ class SweepData:
         self._tables: dict[Condition, dict[str, dict[str, NDArray[np.float64]]]] = {}
         for c in self.conditions:
             per = {planner: [np.concatenate([a for g in parts for a in getattr(g, name)])
-                             for name in ("scenarios", "ok", "metrics")] for planner, parts in merged[c].items()}
-            scenarios = np.unique(np.concatenate([s for s, _, _ in per.values()]))
+                             for name in ("scenarios", "ok", "missed", "metrics")]
+                   for planner, parts in merged[c].items()}
+            scenarios = np.unique(np.concatenate([s for s, _, _, _ in per.values()]))
             table: dict[str, dict[str, NDArray[np.float64]]] = {}
-            for planner, (scenario, ok, metrics) in per.items():
+            for planner, (scenario, ok, missed, metrics) in per.items():
                 last = len(scenario) - 1 - np.unique(scenario[::-1], return_index=True)[1]  # a repeat's last row
                 at = np.searchsorted(scenarios, scenario[last])
-                t = {m: np.full(len(scenarios), np.nan) for m in NUMERIC + ("ok",)}
+                t = {m: np.full(len(scenarios), np.nan) for m in NUMERIC + ("ok", "missed")}
                 t["ok"][at] = ok[last]
+                t["missed"][at] = missed[last]
                 for j, m in enumerate(NUMERIC):
                     t[m][at] = metrics[last, j]
                 table[planner] = t
@@ -314,6 +317,7 @@ class SweepData:
         metrics = np.fromiter((float(cell or "nan") for v in chunk for cell in metric_cells(v)), dtype=np.float64,
                               count=len(chunk) * len(NUMERIC)).reshape(len(chunk), len(NUMERIC))  # as `numeric`
         good = np.array([v[where["status"]] == "ok" for v in chunk])
+        missed = np.array([v[where["status"]] == "missed_goal" for v in chunk])
         failed = np.flatnonzero(~good)
         metrics[np.ix_(failed, FAILED_NAN)] = np.nan
         scenario = np.array([v[where["scenario"]] for v in chunk]).astype(np.int64)
@@ -324,6 +328,7 @@ class SweepData:
             group = groups.setdefault(key, _Group())
             group.scenarios.append(scenario[rows])
             group.ok.append(good[rows].astype(np.float64))
+            group.missed.append(missed[rows].astype(np.float64))
             group.metrics.append(metrics[rows])
 
     def values(self, condition: Condition, planner: str, metric: str) -> NDArray[np.float64]:
@@ -336,6 +341,10 @@ class SweepData:
     def failures(self, condition: Condition, planner: str) -> int:
         ok = self.values(condition, planner, "ok")
         return int(np.sum(ok != 1.0))
+
+    def missed_goals(self, condition: Condition, planner: str) -> int:
+        """Rows of the planner in the condition whose status is missed_goal (counted among its failures)."""
+        return int(np.sum(self.values(condition, planner, "missed") == 1.0))
 
 
 def below(data: SweepData, c: Condition, a: str, b: str, metric: str, mask: NDArray[np.bool_] | None = None
@@ -352,12 +361,19 @@ def below(data: SweepData, c: Condition, a: str, b: str, metric: str, mask: NDAr
     return verdict, r
 
 
+NO_PAIRS = "- (no paired rows: no ok execution on one side)"
+
+
 def _fmt_ratio(r: PairedRatio) -> str:
+    if r.count == 0 or not np.isfinite(r.ratio):
+        return NO_PAIRS
     return f"{r.ratio:.3f}" + (" (one motion)" if r.count == 1 else f" [{r.low:.3f}, {r.high:.3f}]")
 
 
 def _fmt_red(r: PairedRatio) -> str:
     red, lo, hi = r.reduction
+    if r.count == 0 or not np.isfinite(red):
+        return NO_PAIRS
     return f"{red:+.1f} %" + (" (one motion)" if r.count == 1 else f" [{lo:+.1f}, {hi:+.1f}]")
 
 
@@ -492,7 +508,11 @@ def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[
     lines += _where_it_pays(data)
     lines += _min_effort(data)
     lines += ["## Per-condition summary", "", "Mean and median per planner; CVaR(90 %) of the RMS tracking error "
-              "(the mean of the worst 10 % of scenarios); failures are rows whose status is not ok.", ""] + summary
+              "(the mean of the worst 10 % of scenarios); failures are rows whose status is not ok. Missed goals "
+              "(status missed_goal, on every family: the execution ended farther from its goal than "
+              f"{GOAL_TOLERANCE:g} x the task's largest joint displacement) are failures: they keep their metrics in "
+              "the sweep file but leave every paired ratio and verdict above, as a diverged row does, so each "
+              "verdict reads only executions that reached their goals.", ""] + summary
     if figures:
         stage("the figures")
         lines += _figures(data, out)
@@ -535,19 +555,20 @@ def _header(data: SweepData, paths: Sequence[str | os.PathLike[str]]) -> list[st
 
 
 def _summary_table(data: SweepData) -> list[str]:
-    out = ["| condition | planner | n ok | failures | RMS err mean / median (rad) | CVaR90 RMS err | "
-           "Int. dtau mean / median (N m s) | RMS dtau mean | J_exec mean / median |",
-           "|---|---|---|---|---|---|---|---|---|"]
+    out = ["| condition | planner | n ok | failures | of them missed goals | RMS err mean / median (rad) | "
+           "CVaR90 RMS err | Int. dtau mean / median (N m s) | RMS dtau mean | J_exec mean / median |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for c in data.conditions:
         for p in data.planners:
             if not data.has(c, p):
                 continue
             e, i, r, j = (data.values(c, p, m) for m in ("rms_err", "int_dtau", "rms_dtau", "cost"))
             ok = int(np.sum(np.isfinite(e)))
-            out.append(f"| {c} | {p} | {ok} | {data.failures(c, p)} | {np.nanmean(e):.4g} / {np.nanmedian(e):.4g} | "
+            failed, missed = data.failures(c, p), data.missed_goals(c, p)
+            out.append(f"| {c} | {p} | {ok} | {failed} | {missed} | {np.nanmean(e):.4g} / {np.nanmedian(e):.4g} | "
                        f"{cvar(e, 0.9):.4g} | {np.nanmean(i):.4g} / {np.nanmedian(i):.4g} | {np.nanmean(r):.4g} | "
                        f"{np.nanmean(j):.4g} / {np.nanmedian(j):.4g} |" if ok else
-                       f"| {c} | {p} | 0 | {data.failures(c, p)} | - | - | - | - | - |")
+                       f"| {c} | {p} | 0 | {failed} | {missed} | - | - | - | - | - |")
     return out + [""]
 
 

@@ -6,15 +6,17 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from mjtraj.core.gains import GAIN_RULE
-from mjtraj.core.metrics import Metrics
+from mjtraj.core.metrics import GOAL_TOLERANCE, Metrics
 from mjtraj.core.planners import check_name, default_names
 from mjtraj.core.reference import Reference
 from mjtraj.core.rollout import Rollout
 from mjtraj.core.stability import spectral_radii
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, MjtrajError, SolverError
 from mjtraj.study.paper import PAPER_TABLE
-from mjtraj.study.pipeline import Job, execute_batch, one_line
+from mjtraj.study.pipeline import Job, Outcome, execute_batch, goal_checked, one_line
 from mjtraj.study.scenario import Scenario
 from mjtraj.versions import versions
 
@@ -34,6 +36,8 @@ class Comparison:
     """Frozen-time spectral radii of the linearised closed loop: 'at_rest' and 'moving' (see mjtraj.core.stability)."""
     failed: dict[str, str] = field(default_factory=dict)
     """Planners that could not plan the task -> the one-line reason (they have no row)."""
+    outcomes: dict[str, Outcome] = field(default_factory=dict)
+    """Each executed planner's outcome, the goal rule applied (status ok, missed_goal, diverged, unstable)."""
 
     def reduction(self, planner: str, metric: str) -> float:
         """100 (M_planner - M_optimal) / M_planner in %; NaN without an optimal row."""
@@ -98,10 +102,11 @@ def compare(scenario: Scenario, planners: Sequence[str] | None = None, *,
                                       total_torque=True)
     if progress:
         progress("stability check")
-    scored = {name: Metrics(**result.metrics) if result.status == "ok" else Metrics.nan()
-              for name, result in zip(names, outcomes, strict=True)}
+    move = float(np.max(np.abs(scenario.task.displacement)))
+    checked = {name: goal_checked(result, move) for name, result in zip(names, outcomes, strict=True)}
+    scored = {name: Metrics(**result.metrics) if result.metrics else Metrics.nan() for name, result in checked.items()}
     return Comparison(scenario=scenario, planners=names, references=references, rollout=rollout, metrics=scored,
-                      stability=stability(scenario, names, references), failed=failed)
+                      stability=stability(scenario, names, references), failed=failed, outcomes=checked)
 
 
 def stability(scenario: Scenario, names: tuple[str, ...], references: dict[str, Reference]) -> dict[str, float]:
@@ -126,9 +131,11 @@ def comparison_record(result: Comparison) -> dict[str, Any]:
                               "rms_dtau": result.reduction(name, "rms_dtau"),
                               "rms_err": result.reduction(name, "rms_err")} if name != "optimal" else None,
             "diverged_step": int(result.rollout.diverged_step[result.planners.index(name)]),
+            "status": result.outcomes[name].status if name in result.outcomes else "ok",
+            "reason": result.outcomes[name].reason if name in result.outcomes else "",
             "plan": {k: v for k, v in ref.info.items()},
         }
     return {"scenario": result.scenario.as_dict(), "scenario_file": result.scenario.source,
             "gain_rule": GAIN_RULE, "stability": result.stability, "versions": versions(), "planners": planners,
-            "not_planned": dict(result.failed),
-            "paper_table_i": PAPER_TABLE}
+            "not_planned": dict(result.failed), "goal_tolerance": GOAL_TOLERANCE,
+            **({"paper_table_i": PAPER_TABLE} if result.scenario.model_path is None else {})}

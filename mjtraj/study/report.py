@@ -11,13 +11,16 @@ import numpy as np
 
 from mjtraj.core.controller import CT_RULE
 from mjtraj.core.gains import GAIN_RULE
-from mjtraj.core.metrics import METRIC_UNITS
+from mjtraj.core.metrics import GOAL_TOLERANCE, METRIC_UNITS
 from mjtraj.study.comparison import Comparison
 from mjtraj.study.frontier import TABLE_METRICS, Frontier
 from mjtraj.study.paper import PAPER_TABLE
 
-HEADER = ("Planner", "RMS dtau", "Int. dtau", "RMS Err.", "Cost", "dtau Red.", "Cost Red.", "RMS fb", "Peak dtau")
-UNITS = ("", "N m", "N m s", "rad", "-", "%", "%", "N m", "N m")
+HEADER = ("Planner", "RMS dtau", "Int. dtau", "RMS Err.", "Cost", "dtau Red.", "Cost Red.", "RMS fb", "Peak dtau",
+          "Term. err", "Goal")
+UNITS = ("", "N m", "N m s", "rad", "-", "%", "%", "N m", "N m", "rad", "")
+GOAL_WORDS = {"ok": "reached", "missed_goal": "MISSED"}
+"""The Goal column: the goal rule's verdict on each planner's execution (`--` where it diverged)."""
 
 
 def _fmt(value: float, kind: str) -> str:
@@ -47,7 +50,8 @@ def table_rows(result: Comparison) -> list[tuple[str, ...]]:
         rows.append((name, _fmt(m.rms_dtau, "num"), _fmt(m.int_dtau, "num"), _fmt(m.rms_err, "err"),
                      _fmt(m.cost, "num"), _fmt(result.reduction(name, "int_dtau") if red else float("nan"), "pct"),
                      _fmt(result.reduction(name, "cost") if red else float("nan"), "pct"),
-                     _fmt(m.rms_fb, "num"), _fmt(m.peak_dtau, "num")))
+                     _fmt(m.rms_fb, "num"), _fmt(m.peak_dtau, "num"), _fmt(m.terminal_err, "err"),
+                     GOAL_WORDS.get(result.outcomes[name].status, "--") if name in result.outcomes else "--"))
     return rows
 
 
@@ -57,7 +61,7 @@ def paper_rows() -> list[tuple[str, ...]]:
     for name, p in PAPER_TABLE.items():
         rows.append((name, _fmt(p["rms_dtau"], "num"), _fmt(p["int_dtau"], "num"), _fmt(p["rms_err"], "err"),
                      _fmt(p["cost"], "num"), _fmt(p.get("dtau_red", float("nan")), "pct"),
-                     _fmt(p.get("cost_red", float("nan")), "pct"), "n/a", "n/a"))
+                     _fmt(p.get("cost_red", float("nan")), "pct"), "n/a", "n/a", "n/a", "n/a"))
     return rows
 
 
@@ -77,7 +81,8 @@ def format_report(result: Comparison) -> str:
         f"  controller = {s.loop.controller}, feedforward = {s.loop.feedforward}, ff_accel = {s.loop.ff_accel}, "
         f"gravity_comp = {s.loop.gravity_comp}, anti_windup = {s.loop.anti_windup}, substeps = {s.loop.substeps}",
         *([f"  kp = {fmt(g.kp)}, ki = {fmt(g.ki)}, kd = {fmt(g.kd)}", f"  gain rule: {GAIN_RULE}"]
-          if s.loop.controller == "pid" else [f"  computed-torque gain rule: {CT_RULE}"]),
+          if s.loop.controller == "pid" else [f"  computed-torque gain rule: {CT_RULE}"]
+          if s.loop.controller in ("computed_torque", "adaptive_computed_torque") else []),
         f"  closed-loop spectral radius (frozen-time, linearised): at rest on every reference pose "
         f"{result.stability['at_rest']:.4f}, along the moving references {result.stability['moving']:.4f}"
         if s.loop.controller == "pid" else "  closed-loop spectral radius: checked for pid only",
@@ -89,6 +94,16 @@ def format_report(result: Comparison) -> str:
     ]
     if diverged:
         lines.append(f"  diverged (metrics NaN): {', '.join(diverged)}")
+    move = float(np.max(np.abs(s.task.displacement)))
+    missed = [n for n in result.planners if n in result.outcomes and result.outcomes[n].status == "missed_goal"]
+    worst = max((result.metrics[n].terminal_err for n in result.planners), default=float("nan"))
+    if missed:
+        lines.append(f"  MISSED THE GOAL ({len(missed)} of {len(result.planners)}: terminal error above "
+                     f"{GOAL_TOLERANCE:g} x the move of {move:.3g} rad, a failure by the goal rule): "
+                     + ", ".join(f"{n} ({result.metrics[n].terminal_err:.3g} rad)" for n in missed))
+    else:
+        lines.append(f"  every planner reached its goal (largest terminal error {worst:.3g} rad, within "
+                     f"{GOAL_TOLERANCE:g} x the move of {move:.3g} rad)")
     for name, reason in result.failed.items():
         lines.append(f"  not planned: {name}: {reason}")
     if "optimal" in result.references:

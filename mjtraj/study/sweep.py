@@ -342,8 +342,7 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
                     else:
                         result, extra, solver = outcomes[(b, name, ff, gc)], extras.get((b, name), {}), \
                             str(plan.info.get("solver", ""))
-                    if family == "nominal":
-                        result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
+                    result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
                     rows.append(Row(family=family, scenario=s.index, unit=u, planner=name, ff_accel=ff,
                                     gravity_comp=gc, outcome=result, extras=extra, solver=solver, task=s.task,
                                     perturbation=s.perturbation, settings=fixed).columns())
@@ -362,8 +361,7 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
             plan = refs[b]
             result = done[b] if b in done else plan_failure(plan) if isinstance(plan, MjtrajError) else \
                 Outcome("error", "not executed")
-            if family == "nominal":
-                result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
+            result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
             rows.append(Row(family=family, scenario=s.index, unit=u, planner=spec.label, ff_accel=ff,
                             gravity_comp=gc, outcome=result, task=s.task, perturbation=s.perturbation,
                             settings=fixed, more=spec.columns).columns())
