@@ -16,18 +16,21 @@ from mjtraj.core.mpc import ModelPredictive, linearised_steps
 from mjtraj.study.families import draw_scenario, perturbed_plant, plant_fields
 from mjtraj.study.floor import floor_of
 from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, execute_batch
+from mjtraj.study.sweep import SCORING
 
 
 def _job(scenario, model, family, index):
+    """Scenario `index` of `family` (seed 1) on the cubic reference, scored as sweeps score (Bryson's per task)."""
     drawn = draw_scenario(family, 1, index, model, scenario.task.dt)
     reference = scenario.planner("cubic").plan(drawn.task, model)
-    return drawn, Job(reference, scenario.scoring.weights(drawn.task, JointInfo.of(model).torque_limit),
-                      drawn.perturbation)
+    return drawn, Job(reference, SCORING.weights(drawn.task, JointInfo.of(model).torque_limit), drawn.perturbation)
 
 
-@pytest.mark.parametrize("family, index", [("nominal", 0), ("nominal", 4), ("aggressive", 3)])
+@pytest.mark.parametrize("family, index", [("nominal", 0), ("nominal", 4), ("aggressive", 3), ("aggressive", 58)])
 def test_on_the_exact_model_mpc_comes_within_ten_percent_of_the_floor_and_reaches_the_goal(family, index, scenario,
                                                                                              model):
+    """Aggressive 58: the arm lags the reference far; linearised along the reference the plan cost 20 times the
+    floor, along its own predicted motion (real-time iteration) within 1 %."""
     drawn, job = _job(scenario, model, family, index)
     floor = floor_of(model, scenario.loop, job, starts=("pid",))
     _, outcomes = execute_batch(model, dataclasses.replace(scenario.loop, controller="mpc"), [job])
