@@ -614,14 +614,16 @@ def _bench(args: argparse.Namespace) -> int:
               f"then SLSQP where it did not converge; each solver from the linear start, then the tracked one, "
               f"except nonlinear_min_effort's SQP: from both, the lower plan kept); gaps relative to SLSQP alone's "
               f"objective")
-        print(f"{'planner':<22} {'solver':<6} {'failed':>6} {'median s':>9} {'x linear':>8} {'max s':>7} "
-              f"{'by SLSQP':>8} {'tracked':>7} {'max gap':>9} {'worse':>5}")
+        print(f"{'planner':<22} {'solver':<6} {'failed':>6} {'median s':>9} {'x linear':>8} {'p90 s':>7} "
+              f"{'x linear':>8} {'max s':>7} {'x linear':>8} {'by SLSQP':>8} {'tracked':>7} {'max gap':>9} "
+              f"{'worse':>5}")
         for name in ("nonlinear_min_effort", "nonlinear_optimal"):
             family = new[f"{name} family"]
             for solver, row in family["solvers"].items():
                 label = f"{solver}*" if solver == family["default"] else solver
                 print(f"{name:<22} {label:<6} {row['failed']:>6} {row['median_s']:>9.3f} "
-                      f"{row['median_s'] / linear:>8.0f} {row['max_s']:>7.2f} {row['by_slsqp']:>8} "
+                      f"{row['median_s'] / linear:>8.0f} {row['p90_s']:>7.3f} {row['p90_s'] / linear:>8.0f} "
+                      f"{row['max_s']:>7.2f} {row['max_s'] / linear:>8.0f} {row['by_slsqp']:>8} "
                       f"{row['tracked']:>7} {row['max_gap']:>+9.1e} {row['worse']:>5}")
         print("* the planner's default solver")
         print(f"linearisations over these plans: {new['jacobians']['analytic']} analytic, "
