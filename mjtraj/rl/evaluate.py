@@ -293,7 +293,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
     if floors:
         extra = list(FLOOR_COLUMNS)
         for row in rows:
-            value = floors[row["family"]][int(row["scenario"])]
+            value = float(floors[row["family"]][int(row["scenario"])])
             cost = numeric(row["cost"]) if row["status"] == "ok" else float("nan")
             row.update(floor=value, cost_over_floor=cost / value)
     csv_path = out / "eval.csv"

@@ -30,8 +30,11 @@ from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, Outcome, execute_batch, g
 if TYPE_CHECKING:
     from mjtraj.study.scenario import Scenario
 
-STARTS = ("pid", "computed_torque", "adaptive_computed_torque")
-"""The control laws whose executed torques start the floor's solves (each one's execution of the same job)."""
+STARTS = ("pid", "computed_torque", "adaptive_computed_torque", "mpc")
+"""The control laws whose executed torques start the floor's solves (each one's execution of the same job). The
+line search only accepts decreases, so the floor is never above a start that reached the goal: with `mpc` among
+them, on the mismatch plants (where the solves stop in local minima) it is never above the predictive law's score,
+which it was on some scenarios from the classical laws' starts alone."""
 REPLAY_TOLERANCE = 1e-6
 """The replay's J_exec and the solver's agree to this relative difference (the same steps; MuJoCo's warm start of
 a friction-loss constraint may differ in the last bits)."""
