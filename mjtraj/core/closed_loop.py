@@ -35,7 +35,10 @@ class LoopConfig:
     controller: str = option("pid", "control law: pid = feedforward + PID with the gains (the paper's); "
                              "computed_torque = inverse dynamics of the nominal model at the measured state with PD "
                              "on the error (gains by the stated rule; ff_accel picks its reference acceleration; "
-                             "feedforward and the PID gains are unused)", choices=controller_names)
+                             "feedforward and the PID gains are unused); adaptive_computed_torque = computed torque "
+                             "with an online estimate of a payload, damping and friction; mpc = model-predictive "
+                             "tracking with the reference's preview; adaptive_mpc = mpc on the adaptive estimate",
+                             choices=controller_names)
     feedforward: str = option("inverse", "feedforward torque: inverse = ID(q_ref, qd_ref, qdd_ref) - G(q_ref) on the "
                               "nominal model, planned = the planner's own u_plan, none = 0",
                               choices=FEEDFORWARD_MODES, flag="--ff")
