@@ -99,3 +99,17 @@ def test_the_env_runs_a_predictive_law_like_any_other(law):
         total += reward
         done = terminated or truncated
     assert np.isfinite(total) and info["metrics"]["cost"] == pytest.approx(-total, rel=1e-9)
+
+
+def test_an_env_copied_mid_episode_goes_on_bit_for_bit_under_mpc():
+    """The law's per-simulation plan (its reference linearisation and last prediction) travels with the env."""
+    import copy
+
+    env = gym.make("UR5TrackMismatch-v1", controller="mpc")
+    env.reset(seed=2)
+    for _ in range(10):
+        env.step(np.zeros(3))
+    twin = copy.deepcopy(env)
+    ours = [env.step(np.full(3, 0.1))[1] for _ in range(20)]
+    theirs = [twin.step(np.full(3, 0.1))[1] for _ in range(20)]
+    assert ours == theirs

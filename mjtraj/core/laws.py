@@ -1,6 +1,5 @@
 """The control laws by name: the built-in ones (PID, computed torque, adaptive computed torque, model-predictive and
-adaptive model-predictive) and plug-ins'
-(entry points `mjtraj.controllers`), and the factory the closed loop calls."""
+adaptive model-predictive) and plug-ins' (entry points `mjtraj.controllers`), and the factory the closed loop calls."""
 
 from __future__ import annotations
 
