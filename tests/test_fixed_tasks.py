@@ -76,3 +76,18 @@ def test_the_audit_draws_the_frontier_and_places_each_weight_set_on_it(tmp_path)
     assert f"optimal, Bryson weights (paper.toml): {float(task['rms_dtau']):.4g}, {float(task['rms_err']):.4g}" \
         in section
     assert "| paper_tuned: reverse task, ff_accel=sample, gravity_comp=native |" in text
+
+
+def test_each_planners_reference_on_the_fixed_motions_is_executed_above_its_floor():
+    from mjtraj.study import SweepSettings, run_unit
+    from mjtraj.study.fixed_tasks import task_floors
+
+    settings = SweepSettings(families=("nominal",), scenarios=1, seed=0, planners=("optimal", "cubic"))
+    record = {k: str(v) for k, v in run_unit(settings, ("nominal", 0)).rows[0].items()}
+    rows, why = task_floors(record)
+    assert why == "" and [(r["task"], r["planner"]) for r in rows] == [
+        ("paper task", "optimal"), ("paper task", "cubic"), ("reverse task", "optimal"), ("reverse task", "cubic")]
+    for r in rows:
+        assert r["status"] == "ok" and 0 < r["floor"] <= r["cost"]
+    paper = {r["planner"]: r for r in rows if r["task"] == "paper task"}
+    assert paper["cubic"]["cost"] == pytest.approx(0.492, abs=5e-4)  # Table I's cubic row, the same execution

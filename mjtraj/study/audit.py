@@ -507,6 +507,9 @@ def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[
         lines += _frontier_section(data, out, paths, figures=figures)
     lines += _where_it_pays(data)
     lines += _min_effort(data)
+    if tasks:
+        stage("the floors of the fixed motions")
+        lines += _floors_section(data)
     lines += ["## Per-condition summary", "", "Mean and median per planner; CVaR(90 %) of the RMS tracking error "
               "(the mean of the worst 10 % of scenarios); failures are rows whose status is not ok. Missed goals "
               "(status missed_goal, on every family: the execution ended farther from its goal than "
@@ -642,6 +645,31 @@ DISPLACEMENT_BINS = (0.0, 0.5, 1.0, 1.5)
 """rad: the largest joint displacement's bins of the "where it pays" table."""
 DURATION_BINS = (0.0, 0.7, 0.85, 1.0, 2.0)
 """s: the duration bins (the aggressive family spans 0.5 to 1 s; nominal moves take 2 s)."""
+
+
+def _floors_section(data: SweepData) -> list[str]:
+    """Each planner's reference on the paper task and its reverse: its execution under the first file's controller
+    beside the clairvoyant floor of that reference (`mjtraj.study.fixed_tasks.task_floors`)."""
+    from mjtraj.study.fixed_tasks import task_floors
+
+    rows, why = task_floors(data.first)
+    lines = ["## How well each reference can be executed: the floor", "",
+             "The clairvoyant floor of a reference is the least J_exec any controller can score executing it on the "
+             "nominal plant within the saturation, reaching the goal (docs/floor.md): how well the reference can be "
+             "executed at best. Beside it, the first file's controller's execution (its first controller variant, "
+             "native gravity compensation) on the paper task and its reverse.", ""]
+    if not rows:
+        return lines + [f"Not computed: {why}.", ""]
+    lines += ["| motion | planner | J_exec of its execution | floor of its reference | J / floor |",
+              "|---|---|---|---|---|"]
+    for r in rows:
+        if "error" in r:
+            lines.append(f"| {r['task']} | {r['planner']} | not computed: {r['error']} | - | - |")
+            continue
+        cost, floor = float(r["cost"]), float(r["floor"])  # type: ignore[arg-type]
+        note = "" if r["status"] == "ok" else f" ({r['status']})"
+        lines.append(f"| {r['task']} | {r['planner']} | {cost:.4g}{note} | {floor:.4g} | {cost / floor:.3f} |")
+    return lines + [""]
 
 
 def _where_it_pays(data: SweepData) -> list[str]:

@@ -44,3 +44,39 @@ def task_rows(record: dict[str, str]) -> tuple[list[dict[str, str]], str]:
         rows += scenario_rows(settings, (name, 0), [scenario], scoring_weights(settings, [scenario]))
     header = columns(settings)
     return list(csv.DictReader(io.StringIO(csv_text(header, rows)))), ""
+
+
+def task_floors(record: dict[str, str]) -> tuple[list[dict[str, object]], str]:
+    """On the two fixed motions, each planner of the sweep that wrote `record`: its execution's J_exec under the
+    sweep's controller (first controller variant) and the clairvoyant floor of its reference (`mjtraj.study.floor`):
+    how well each reference can be executed at best. Or no records and why they cannot be computed."""
+    import dataclasses
+
+    import numpy as np
+
+    from mjtraj.study.floor import floor_of
+    from mjtraj.study.pipeline import Job, execute_batch
+
+    try:
+        settings = SweepSettings.from_record(record)
+    except MjtrajError as e:
+        return [], f"cannot rebuild the sweep's settings ({e})"
+    base = settings.base
+    config = dataclasses.replace(settings.loop_config(settings.ff_accel[0], settings.gravity_comp[0],
+                                                      mismatch=False), gravity_comp="native")
+    out: list[dict[str, object]] = []
+    for name, scenario in fixed_scenarios(settings):
+        weights = scoring_weights(settings, [scenario])[0]
+        move = float(np.max(np.abs(scenario.task.displacement)))
+        for planner in settings.planners:
+            record_out: dict[str, object] = {"task": name, "planner": planner}
+            try:
+                job = Job(base.planner(planner).plan(scenario.task, base.model), weights)
+                _, outcomes = execute_batch(base.model, config, [job])
+                found = floor_of(base.model, config, job, displacement=move)
+            except MjtrajError as e:
+                out.append({**record_out, "error": str(e)})
+                continue
+            out.append({**record_out, "cost": outcomes[0].metrics.get("cost", float("nan")),
+                        "status": outcomes[0].status, "floor": found.cost})
+    return out, ""
