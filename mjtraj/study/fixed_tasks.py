@@ -16,7 +16,7 @@ from mjtraj.core.task import Task
 from mjtraj.exceptions import MjtrajError
 from mjtraj.study.families import FamilyScenario
 from mjtraj.study.store import csv_text
-from mjtraj.study.sweep import SweepSettings, columns, scenario_rows, scoring_weights
+from mjtraj.study.sweep import SweepSettings, columns, plan_scenarios, scenario_rows, scoring_weights
 
 TASKS = ("paper task", "reverse task")
 """The fixed motions' family names in rows and audit conditions."""
@@ -68,10 +68,14 @@ def task_floors(record: dict[str, str]) -> tuple[list[dict[str, object]], str]:
     for name, scenario in fixed_scenarios(settings):
         weights = scoring_weights(settings, [scenario])[0]
         move = float(np.max(np.abs(scenario.task.displacement)))
+        plans = plan_scenarios(settings, [scenario])  # the sweep's own planners and variants
         for planner in settings.planners:
             record_out: dict[str, object] = {"task": name, "planner": planner}
+            reference = plans[planner][0]
             try:
-                job = Job(base.planner(planner).plan(scenario.task, base.model), weights)
+                if isinstance(reference, MjtrajError):
+                    raise reference
+                job = Job(reference, weights)
                 _, outcomes = execute_batch(base.model, config, [job])
                 found = floor_of(base.model, config, job, displacement=move)
             except MjtrajError as e:
