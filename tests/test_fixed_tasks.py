@@ -78,6 +78,7 @@ def test_the_audit_draws_the_frontier_and_places_each_weight_set_on_it(tmp_path)
     assert "| paper_tuned: reverse task, ff_accel=sample, gravity_comp=native |" in text
 
 
+@pytest.mark.slow
 def test_each_planners_reference_on_the_fixed_motions_is_executed_above_its_floor():
     from mjtraj.study import SweepSettings, run_unit
     from mjtraj.study.fixed_tasks import task_floors

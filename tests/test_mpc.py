@@ -40,6 +40,7 @@ def test_on_the_exact_model_mpc_comes_within_ten_percent_of_the_floor_and_reache
     assert mpc["peak_dtau"] <= 60.0
 
 
+@pytest.mark.slow
 def test_adaptive_mpc_on_a_mismatched_plant_stays_above_its_floor_and_reaches_the_goal(scenario, model):
     drawn, job = _job(scenario, model, "mismatch", 3)
     plant = perturbed_plant(model)
@@ -51,6 +52,7 @@ def test_adaptive_mpc_on_a_mismatched_plant_stays_above_its_floor_and_reaches_th
     assert outcomes[0].metrics["terminal_err"] <= GOAL_TOLERANCE * float(np.max(np.abs(drawn.task.displacement)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("law", ["mpc", "adaptive_mpc"])
 def test_a_restarted_simulation_runs_the_episode_a_fresh_loop_runs(law, scenario, model):
     """The vector env's autoreset path (restart, `track` for some rows) gives the fresh start's episode bit for bit."""
@@ -101,6 +103,7 @@ def test_the_env_runs_a_predictive_law_like_any_other(law):
     assert np.isfinite(total) and info["metrics"]["cost"] == pytest.approx(-total, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_an_env_copied_mid_episode_goes_on_bit_for_bit_under_mpc():
     """The law's per-simulation plan (its reference linearisation and last prediction) travels with the env."""
     import copy
