@@ -668,7 +668,7 @@ def _bench(args: argparse.Namespace) -> int:
     if args.what in ("floor", "all"):
         from mjtraj.bench import bench_controllers, bench_floor
 
-        print("the clairvoyant floor: solve time per scenario on one core (seed 1, cubic reference, three starts); "
+        print("the clairvoyant floor: solve time per scenario on one core (seed 1, cubic reference, four starts); "
               "target median <= 0.2 s")
         print(f"{'family':>11} {'scenarios':>10} {'floored':>8} {'median s':>9} {'p90 s':>7} {'max s':>7}")
         for row in bench_floor(scenario):
