@@ -129,8 +129,7 @@ def floor_of(model: mujoco.MjModel, config: LoopConfig, job: Job, *, plant: mujo
     if not starts:
         raise InvalidInputError("starts: expected at least one control law, got none")
     reference = job.reference
-    if displacement is None:
-        displacement = float(np.max(np.abs(reference.q[-1] - reference.q[0])))
+    displacement = _move(reference) if displacement is None else displacement
     radius = GOAL_TOLERANCE * displacement
     truth = model if job.perturbation is None else true_plant(_needs(plant), job.perturbation)
     executed: dict[str, NDArray[np.float64]] = {}
@@ -161,10 +160,12 @@ def replay(model: mujoco.MjModel, config: LoopConfig, job: Job, torques: NDArray
     with the goal rule applied (every family)."""
     _, outcomes = execute_batch(model, config, [job], plant=plant,
                                 actor=Replay(np.asarray(torques)[None], delay=config.delay))
-    reference = job.reference
-    if displacement is None:
-        displacement = float(np.max(np.abs(reference.q[-1] - reference.q[0])))
-    return goal_checked(outcomes[0], displacement)
+    return goal_checked(outcomes[0], _move(job.reference) if displacement is None else displacement)
+
+
+def _move(reference: Reference) -> float:
+    """The reference's largest joint displacement, rad (the goal rule's scale when the task's is not given)."""
+    return float(np.max(np.abs(reference.q[-1] - reference.q[0])))
 
 
 def _needs(plant: mujoco.MjModel | None) -> mujoco.MjModel:
