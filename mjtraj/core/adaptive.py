@@ -138,6 +138,11 @@ class AdaptiveComputedTorque:
         if residual is not None:
             command = command + residual
         dtau = np.minimum(np.maximum(command, -limit), limit)
+        return ControlOutput(command - fb, fb, dtau, dtau != command, integral, self.adapted(state, Y, sigma, dt))
+
+    def adapted(self, state: NDArray[np.float64], Y: NDArray[np.float64], sigma: NDArray[np.float64], dt: float
+                ) -> NDArray[np.float64]:
+        """One period of the adaptation law: theta_hat + dt Gamma Y^T sigma, projected onto [0, theta_max]; state
+        (B, 1 + 2n), Y (B, n, 1 + 2n), sigma (B, n)."""
         estimate = state + dt * self._gain * np.einsum("bip,bi->bp", Y, sigma)
-        estimate = np.minimum(np.maximum(estimate, 0.0), self.bounds)
-        return ControlOutput(command - fb, fb, dtau, dtau != command, integral, estimate)
+        return np.minimum(np.maximum(estimate, 0.0), self.bounds)  # type: ignore[no-any-return]

@@ -266,7 +266,7 @@ class ModelPredictive:
         assert state is not None and q is not None and qd is not None
         x = np.concatenate([q, qd], axis=1)
         if override is not None:
-            return overridden(override, limit, integral)._replace(state=self._skipped(state, x))
+            return overridden(override, limit, integral)._replace(state=self._skipped(state))
         counter, disturbance = self._observe(state, x)
         command, predicted = self._solve_all(counter, x, None, disturbance)
         return self._output(command, tau_ff, limit, integral, residual,
@@ -279,7 +279,7 @@ class ModelPredictive:
         counter, expected, disturbance = state[:, :1], state[:, 1:1 + 2 * n], state[:, 1 + 2 * n:1 + 4 * n]
         return counter, disturbance + self.observer_gain * np.nan_to_num(x - expected)
 
-    def _skipped(self, state: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
+    def _skipped(self, state: NDArray[np.float64]) -> NDArray[np.float64]:
         """The state after a period the law did not command (the env's torque mode): no prediction to compare."""
         out = state.copy()
         out[:, 0] += 1
@@ -307,7 +307,8 @@ class ModelPredictive:
 
 @dataclass
 class AdaptiveModelPredictive(ModelPredictive):
-    """`mpc` planning on the adaptive law's estimate, offset-free: state [k, the predicted state (2n), theta_hat]."""
+    """`mpc` planning on the adaptive law's estimate: state [`mpc`'s (k, the predicted state, the disturbance),
+    theta_hat]."""
 
     rate: float = ADAPTATION_RATE
     name: ClassVar[str] = "adaptive_mpc"
@@ -332,13 +333,12 @@ class AdaptiveModelPredictive(ModelPredictive):
         theta = state[:, 1 + 4 * n:]
         x = np.concatenate([q, qd], axis=1)
         if override is not None:
-            return overridden(override, limit, integral)._replace(state=self._skipped(state, x))
+            return overridden(override, limit, integral)._replace(state=self._skipped(state))
         counter, disturbance = self._observe(state, x)
         w = self._adaptive.w
         sigma = ed + w * e
         _, _, Y = self._adaptive.regressor(q, qd, qd + sigma, qdd_ref + w * ed)
-        estimate = theta + dt * self._adaptive._gain * np.einsum("bip,bi->bp", Y, sigma)
-        estimate = np.minimum(np.maximum(estimate, 0.0), self._adaptive.bounds)
+        estimate = self._adaptive.adapted(theta, Y, sigma, dt)
         shift = np.einsum("bip,bp->bi", Y, estimate)
         command, predicted = self._solve_all(counter, x, shift, disturbance)
         out = self._output(command, tau_ff, limit, integral, residual,
