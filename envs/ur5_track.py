@@ -105,7 +105,6 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | 22+6j .. 24+6j | preview j: qd_ref,k+1+j (held at N)                | -200          | 200          | rad/s |
     | m .. m+2       | observe_control: the PID integral of e             | -max float    | max float    | rad s |
     | m+3 .. m+5     | observe_control: tau_ff of period k+1 (then N)     | -max float    | max float    | N m   |
-
     | p .. p+6      | observe_plant: payload, damping_j, friction_j over their bounds theta_max | 0 | max float | - |
 
     (m = 19 + 6 preview; max float = the largest finite float64: these two have no a-priori bound. p = m (+ 6
@@ -165,10 +164,18 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     joints j = 0..2.
 
     ## Arguments
+    The defaults are UR5Track-v0's (kept as it was for earlier numbers). The benchmark envs differ in three:
+
+    | argument         | UR5Track-v1 | UR5TrackAggressive-v1 | UR5TrackMismatch-v1 |
+    |------------------|-------------|-----------------------|---------------------|
+    | action_mode      | "residual"  | "residual"            | "residual"          |
+    | task             | "random"    | "random"              | "random"            |
+    | family           | "nominal"   | "aggressive"          | "mismatch"          |
+
     | argument         | default    | meaning                                                                 |
     |------------------|------------|-------------------------------------------------------------------------|
     | planner          | "cubic"    | registered planner name or an object with plan(task, model)             |
-    | xml_file         | None       | an MJCF arm instead of the UR5 (ArmTrack-v0; docs/design.md, "Your own arm") |
+    | xml_file         | None       | an MJCF arm instead of the UR5 (ArmTrack-v0; docs/arms.md)                |
     | torque_limit     | None       | with xml_file: every joint's corrective saturation, N m (None: the model's) |
     | action_mode      | "pid"      | pid, residual or torque                                                 |
     | residual_scale   | 6.0        | s, N m per unit of action in residual mode (> 0)                        |

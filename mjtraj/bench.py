@@ -188,6 +188,48 @@ def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int 
     return out
 
 
+def bench_tail(scenario: Scenario, tasks: dict[str, int], *, seed: int = 1) -> dict[str, Any]:
+    """Each nonlinear planner (default solver) over `tasks` random tasks per family (e.g. {"nominal": 200}) of `seed`,
+    on one thread: per task the plan's seconds over the linear optimal plan's of the same task (a task whose linear
+    plan is infeasible, as aggressive ones can be, is left out and counted). Returns the multiples' median, 90th
+    percentile and largest per planner, the slowest task, and the failures."""
+    from mjtraj.core.planners import make
+    from mjtraj.exceptions import MjtrajError
+    from mjtraj.study.families import draw_scenario
+
+    model, dt = scenario.model, scenario.task.dt
+    drawn = [(family, i, draw_scenario(family, seed, i, model, dt).task)
+             for family, count in tasks.items() for i in range(count)]
+    linear = make("optimal")
+    timed, skipped = [], 0
+    for family, i, task in drawn:
+        try:
+            start = time.perf_counter()
+            linear.plan(task, model)
+            timed.append((family, i, task, time.perf_counter() - start))
+        except MjtrajError:
+            skipped += 1
+    out: dict[str, Any] = {"tasks": len(timed), "skipped": skipped, "seed": seed}
+    for name in NEW_PLANNERS[1:]:
+        planner = make(name)
+        planner.plan(timed[0][2], model)  # untimed: imports and compiled kernels
+        multiples, failed, slowest = [], 0, (0.0, "")
+        for family, i, task, base in timed:
+            start = time.perf_counter()
+            try:
+                planner.plan(task, model)
+            except MjtrajError:
+                failed += 1
+                continue
+            seconds = time.perf_counter() - start
+            multiples.append(seconds / base)
+            slowest = max(slowest, (seconds, f"{family} {i}"))
+        m = np.array(multiples)
+        out[name] = {"median": float(np.median(m)), "p90": float(np.percentile(m, 90)), "max": float(m.max()),
+                     "failed": failed, "slowest_s": slowest[0], "slowest": slowest[1]}
+    return out
+
+
 def _plan_or_error(planner: Any, task: Any, model: Any) -> dict[str, Any] | None:
     """The plan's info, or None where planning raised (for the nonlinear SQP alone: it did not converge)."""
     from mjtraj.exceptions import MjtrajError
@@ -388,7 +430,8 @@ def bench_render(sizes: tuple[tuple[int, int], ...] = ((320, 240), (640, 480)), 
             env.close()
         reacher = best.get("Reacher-v5", float("nan"))
         rows.append({"size": f"{width}x{height}", "backend": active_backend(), "fast_fps": best["fast"],
-                     "high_fps": best["high"], "reacher_fps": reacher, "ratio": best["fast"] / reacher})
+                     "high_fps": best["high"], "reacher_fps": reacher, "ratio": best["fast"] / reacher,
+                     "high_ratio": best["high"] / reacher})
     return rows
 
 

@@ -15,6 +15,14 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from mjtraj.exceptions import InvalidInputError, MjtrajError
+from mjtraj.rl.protocol import PROTOCOL_V1
+
+BENCH_ALL = ("plan", "planners", "busy", "loop", "floor", "startup", "env")
+"""What a bare `mjtraj bench` runs, in order."""
+BENCH_ALL_MINUTES = 9
+"""How long a bare `mjtraj bench` took on the 2-core development machine (docs/speed.md), minutes."""
+TAIL_TASKS = {"nominal": 200, "aggressive": 100}
+"""`bench planners`' tail table: random tasks per family (mjtraj.bench.bench_tail)."""
 
 log = logging.getLogger(__name__)
 
@@ -143,7 +151,10 @@ def _loop_flags(parser: argparse.ArgumentParser) -> None:
 
 
 def _parser() -> argparse.ArgumentParser:
+    from mjtraj.core import controller_names
     from mjtraj.versions import __version__
+
+    laws = ", ".join(controller_names())  # help from the registry: it cannot drift from what runs
 
     parser = _Parser(prog="mjtraj", description="How the trajectory planner changes closed-loop execution.")
     parser.add_argument("--version", action="version", version=f"mjtraj {__version__}")
@@ -161,7 +172,8 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--dt", type=float, help="control period, s")
     _loop_flags(c)
     c.add_argument("--planners", type=_names, help="comma-separated planner names (default: all)")
-    c.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
+    c.add_argument("--out", type=Path, help="output folder (default: results/, or results/MODEL/ with --model, "
+                   "MODEL the file's name without .xml)")
     c.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
     c.add_argument("--no-figures", action="store_true", help="skip the figures")
     c.add_argument("--figure-format", dest="figure_format", type=_figure_formats, default=["png"],
@@ -212,7 +224,8 @@ def _parser() -> argparse.ArgumentParser:
                    "tuned.toml)")
 
     b = sub.add_parser("bench", help="speed ratios measured in one run")
-    b.add_argument("what", choices=("plan", "planners", "loop", "floor", "env", "startup", "sweep", "store", "all"),
+    b.add_argument("what", choices=("plan", "planners", "busy", "loop", "floor", "env", "startup", "sweep", "store",
+                                    "all"),
                    nargs="?", default="all",
                    help="what to time ('all' skips the minute-long sweep and the store)")
     b.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
@@ -220,6 +233,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--scenarios", type=int, default=10_000, help="sweep: nominal scenarios (default 10000)")
     b.add_argument("--planner-scenarios", type=int, default=12,
                    help="planners: nominal scenarios each nonlinear planner plans with both solvers (default 12)")
+    b.add_argument("--tail-tasks", dest="tail_tasks", type=int, default=TAIL_TASKS["nominal"],
+                   help="planners: random nominal tasks of the tail table, and half as many aggressive ones (default "
+                   f"{TAIL_TASKS['nominal']})")
     b.add_argument("--workers", type=int, help="sweep: worker processes (default: all cores)")
     b.add_argument("--rows", type=int, default=100_000, help="store: rows of the synthetic store (default 100000)")
     b.add_argument("--stages", default="csv,jsonl,sqlite,audit",
@@ -296,9 +312,10 @@ def _parser() -> argparse.ArgumentParser:
 
     sub.add_parser("doctor", help="which OpenGL backends render here, and the library versions")
 
-    rl = sub.add_parser("rl", help="RL tracking policies (the rl extra): train on UR5Track-v0, evaluate against "
-                        "the planners")
-    rl_sub = rl.add_subparsers(dest="rl_command", required=True, parser_class=_Parser)
+    rl = sub.add_parser("rl", help="RL tracking policies: train on the UR5Track-v1 envs (the rl extra), score any "
+                        "policy by the benchmark protocol beside the planners and control laws")
+    rl.set_defaults(print_help=rl.print_help)  # a bare `mjtraj rl` lists its commands
+    rl_sub = rl.add_subparsers(dest="rl_command", parser_class=_Parser)
     t = rl_sub.add_parser("train", help="train an SB3 agent on the vectorised env; checkpoints, learning curve, "
                           "run.json")
     t.add_argument("--algo", default="sac", help="sac | ppo | td3 | recurrent_ppo (sb3-contrib's LSTM PPO: "
@@ -328,8 +345,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="none | mismatch: train and validate on plants drawn by the mismatch family's rules "
                    "(default none)")
     t.add_argument("--planner", default="cubic", help="planner whose references the policy tracks (default cubic)")
-    t.add_argument("--controller", default="pid", help="control law the residual acts on: pid | computed_torque "
-                   "| adaptive_computed_torque (or a plug-in law; default pid)")
+    t.add_argument("--controller", default="pid", help=f"control law the residual acts on: {laws} (or a "
+                   "registered plug-in law; default pid)")
     t.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
     t.add_argument("--steps", type=int, default=100_000, help="environment steps (default 100000)")
     t.add_argument("--seed", type=int, default=0, help="the run's seed, 0 <= seed < 2^32 (default 0)")
@@ -363,21 +380,25 @@ def _parser() -> argparse.ArgumentParser:
                    help="an env setting for policies that are not zips and do not declare it (planner, controller, "
                    "action_mode, residual_scale, observe_control, preview, observe_plant, history; default "
                    "UR5Track-v1's); repeatable")
-    e.add_argument("--family", type=_names, default=["nominal"],
-                   help="families, comma-separated: nominal, aggressive, mismatch (default nominal)")
-    e.add_argument("--scenarios", type=int, default=200, help="held-out scenarios per family (default 200)")
-    e.add_argument("--seed", type=int, default=0, help="the scenarios' seed (default 0, as mjtraj sweep's)")
+    e.add_argument("--family", type=_names, default=list(PROTOCOL_V1["families"]),
+                   help="families, comma-separated: nominal, aggressive, mismatch (default all three, protocol v1)")
+    e.add_argument("--scenarios", type=int, default=PROTOCOL_V1["scenarios"],
+                   help="held-out scenarios per family (default 200, protocol v1)")
+    e.add_argument("--seed", type=int, default=PROTOCOL_V1["seed"],
+                   help="the scenarios' seed (default 1, protocol v1: held out from sweeps and training, seed 0); "
+                   "any other family, count, seed or --reps is stamped off-protocol in SUMMARY.md and summary.json")
     e.add_argument("--planners", type=_names, default=["cubic"],
                    help="planners scored under each control law (cubic, the reference's, always; default cubic)")
     e.add_argument("--controllers", type=_names, default=["pid"],
-                   help="control laws the planners run under: pid, computed_torque or plug-ins (pid always; each "
-                   "policy also runs on its own)")
+                   help=f"control laws the planners run under, comma-separated: {laws} or registered plug-ins "
+                   "(pid always; each policy also runs on its own)")
     e.add_argument("--tuned-gains", dest="tuned_gains", type=Path,
                    help="a scenario file from `mjtraj tune --gains`, scored as 'cubic+PID (tuned gains)'")
     e.add_argument("--floor", action="store_true", help="also compute each scenario's clairvoyant floor and read "
                    "every method against it and against the strongest classical method (floor.csv; mismatch floors "
                    "take about 4 s a scenario)")
-    e.add_argument("--reps", type=int, default=2000, help="bootstrap resamples per interval (default 2000)")
+    e.add_argument("--reps", type=int, default=PROTOCOL_V1["reps"],
+                   help="bootstrap resamples per interval (default 2000, protocol v1)")
     e.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")
     e.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
     e.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -451,6 +472,14 @@ def _base_scenario(args: argparse.Namespace, *, workspace: bool = False, **task:
     return scenario_for_model(args.model, torque_limit=args.torque_limit, workspace=workspace, **task)
 
 
+def _compare_out(args: argparse.Namespace) -> Path:
+    """compare's output folder: --out, else results/ for the UR5 and results/MODEL/ for an arm file (its results
+    beside the UR5's, never over them)."""
+    if args.out is not None:
+        return Path(args.out)
+    return Path("results") / args.model.stem if args.model is not None else Path("results")
+
+
 def _compare(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -460,6 +489,7 @@ def _compare(args: argparse.Namespace) -> int:
 
     scenario = _scenario(args)
     scenario.task.check_limits(scenario.model)
+    args.out = _compare_out(args)
     from mjtraj.study.comparison import default_planners
 
     # plans, execute, check, figures
@@ -570,6 +600,9 @@ def _bench(args: argparse.Namespace) -> int:
     from mjtraj.study.scenario import load_scenario
 
     scenario = load_scenario(args.config)
+    if args.what == "all":
+        print(f"mjtraj bench: {', '.join(BENCH_ALL)} in turn (about {BENCH_ALL_MINUTES} minutes on two cores; "
+              "`mjtraj bench sweep` and `mjtraj bench store` run on their own)", flush=True)
     if args.what in ("plan", "all"):
         print("optimal planner (linearise + solve; the exact active set on the banded KKT system, OSQP as "
               "fallback), median wall time; target N=100 <= 1 ms, N=800 <= 10 ms")
@@ -628,6 +661,30 @@ def _bench(args: argparse.Namespace) -> int:
         print("* the planner's default solver")
         print(f"linearisations over these plans: {new['jacobians']['analytic']} analytic, "
               f"{new['jacobians']['differenced']} differenced")
+        from mjtraj.bench import bench_tail
+
+        nominal = positive_int("tail_tasks", args.tail_tasks)
+        tail = bench_tail(scenario, {"nominal": nominal, "aggressive": max(1, nominal // 2)})
+        print(f"the tail: each nonlinear planner (default solver) on {tail['tasks']} random tasks of seed "
+              f"{tail['seed']} (nominal and aggressive; {tail['skipped']} aggressive tasks the linear plan cannot "
+              f"meet left out), multiples of the linear plan of the same task; targets: 90th percentile <= 100, "
+              f"largest <= 300")
+        print(f"{'planner':<22} {'median x':>9} {'p90 x':>7} {'max x':>7} {'failed':>6}  slowest")
+        for name in ("nonlinear_min_effort", "nonlinear_optimal"):
+            row = tail[name]
+            print(f"{name:<22} {row['median']:>9.0f} {row['p90']:>7.0f} {row['max']:>7.0f} {row['failed']:>6}  "
+                  f"{row['slowest']} ({row['slowest_s']:.2f} s)")
+    if args.what in ("busy", "all"):
+        from mjtraj.bench_busy import HELD_OUT_TASK, bench_busy
+
+        print(f"the public API as a Python script calls it (a fresh interpreter, no thread variables set by mjtraj), "
+              f"quiet and with a helper process spinning on one core, same run: seconds per plan of the task q0 = "
+              f"{HELD_OUT_TASK[0]}, qg = {HELD_OUT_TASK[1]} and per UR5Track-v1 env.step; target: the linear "
+              f"plan busy <= 1.2 times quiet")
+        print(f"{'call':<22} {'quiet ms':>10} {'busy ms':>10} {'busy / quiet':>13}")
+        for row in bench_busy():
+            print(f"{row['call']:<22} {1e3 * row['quiet_s']:>10.3f} {1e3 * row['busy_s']:>10.3f} "
+                  f"{row['ratio']:>13.2f}")
     if args.what in ("loop", "all"):
         print("closed loop (FF + PID + plant) vs raw mujoco.batch stepping, same run")
         print(f"{'scenarios':>9} {'raw steps/s':>12} {'loop steps/s':>13} {'ratio':>6}")
@@ -706,11 +763,13 @@ def _bench(args: argparse.Namespace) -> int:
             print(f"{row['envs']:>6} {row['raw_steps_per_s']:>14.0f} {row['replay_steps_per_s']:>13.0f} "
                   f"{row['env_steps_per_s']:>12.0f} {row['ratio']:>6.2f} {row['ratio_replay']:>10.2f}")
         print("rendering: env.render() frames/s of UR5Track-v0 (executed arm + ghost) at render_quality fast "
-              "(default) and high, and of Gymnasium's Reacher-v5, same run; target fast / Reacher-v5 >= 0.5")
-        print(f"{'size':>9} {'backend':>8} {'fast':>7} {'high':>7} {'Reacher-v5':>11} {'ratio':>6}")
+              "(default) and high, and of Gymnasium's Reacher-v5, same run; targets fast / Reacher-v5 >= 0.5, "
+              "high / Reacher-v5 >= 0.1 at 640x480")
+        print(f"{'size':>9} {'backend':>8} {'fast':>7} {'high':>7} {'Reacher-v5':>11} {'fast / R':>9} "
+              f"{'high / R':>9}")
         for f in bench_render():
             print(f"{f['size']:>9} {f['backend']:>8} {f['fast_fps']:>7.1f} {f['high_fps']:>7.1f} "
-                  f"{f['reacher_fps']:>11.1f} {f['ratio']:>6.2f}")
+                  f"{f['reacher_fps']:>11.1f} {f['ratio']:>9.2f} {f['high_ratio']:>9.2f}")
     return 0
 
 
@@ -894,15 +953,18 @@ def _gains(args: argparse.Namespace) -> int:
 
 
 def _rl(args: argparse.Namespace) -> int:
+    if args.rl_command is None:
+        args.print_help()
+        return 0
     if args.rl_command == "plot":
         from mjtraj.rl.train import plot_run
 
         print(f"wrote {plot_run(args.run)}")
         return 0
-    from mjtraj.rl.extra import require_sb3
-
-    require_sb3()
     if args.rl_command == "train":
+        from mjtraj.rl.extra import require_sb3
+
+        require_sb3()
         from mjtraj.rl.train import TrainSettings, resume_training, train
 
         if args.resume is not None:
@@ -994,8 +1056,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     depends on its thread count (same numbers bit for bit in `compare`, a sweep's workers and its in-process path).
     """
     if "numpy" not in sys.modules:  # its BLAS reads this once, when it loads
-        for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(name, "1")
+        unset = [name for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS") if name not in os.environ]
+        for name in unset:
+            os.environ[name] = "1"
+        os.environ["MJTRAJ_SET_THREADS"] = ",".join(unset)  # `bench busy` times the API without them
     words = _join_negative_values(sys.argv[1:] if argv is None else argv)
     parser = _parser()
     args = parser.parse_args(words)

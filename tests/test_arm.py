@@ -5,6 +5,8 @@ errors naming the element; `mjtraj compare --model` runs the study on it."""
 
 from __future__ import annotations
 
+import json
+
 import mujoco
 import numpy as np
 import pytest
@@ -115,6 +117,16 @@ def test_compare_runs_the_study_on_a_user_arm(tmp_path, capsys):
     assert main(["compare", "--model", str(PLANAR), "--config", "paper"]) == 2
     assert capsys.readouterr().err.strip() == ('mjtraj: error: model, config: give one (a scenario file names its arm '
                                                'with model = "PATH")')
+
+
+def test_compare_on_a_user_arm_writes_beside_the_ur5s_results(tmp_path, monkeypatch):
+    """Without --out, `compare --model ARM.xml` writes results/ARM/, and the UR5's results/ stays as it was."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "results.json").write_text("the UR5's")
+    assert main(["compare", "--model", str(PLANAR), "--no-figures"]) == 0
+    assert (tmp_path / "results" / "results.json").read_text() == "the UR5's"
+    assert json.loads((tmp_path / "results" / PLANAR.stem / "results.json").read_text())["planners"]
 
 
 def test_arm_track_env_runs_a_user_arm_like_the_loop():

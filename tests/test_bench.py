@@ -42,7 +42,7 @@ def test_startup_ratio_is_compare_over_imports():
 
 @pytest.mark.slow
 def test_new_planners_table_prints_what_it_measured(capsys):
-    assert main(["bench", "planners", "--planner-scenarios", "2"]) == 0
+    assert main(["bench", "planners", "--planner-scenarios", "2", "--tail-tasks", "2"]) == 0
     out = capsys.readouterr().out
     linear = float(re.search(r"the linear optimal plan takes ([0-9.]+) ms", out)[1]) / 1e3
     scurve = re.search(r"^scurve\s+([0-9.]+)\s+([0-9.]+)\s+\(one closed-loop execution: ([0-9.]+) s; ratio "
@@ -77,6 +77,13 @@ def test_new_planners_table_prints_what_it_measured(capsys):
         assert int(tracked) <= 2 - int(failed)
         if solver == "slsqp":  # the reference of the gaps, and every plan its own
             assert (int(failed), int(by_slsqp), float(gap), int(worse)) == (0, 2, 0.0, 0)
+    tail = re.findall(r"^(nonlinear_\w+)\s+(\d+)\s+(\d+)\s+(\d+)\s+(\d+)  (nominal|aggressive) (\d+) \(([0-9.]+) s\)$",
+                      out, re.MULTILINE)
+    assert [row[0] for row in tail] == ["nonlinear_min_effort", "nonlinear_optimal"]
+    assert re.search(r"on 3 random tasks of seed 1 \(nominal and aggressive; 0 aggressive tasks", out)
+    for _, median, p90, largest, failed, _, index, _ in tail:
+        assert int(median) <= int(p90) + 1 and int(p90) <= int(largest) + 1 and int(failed) == 0
+        assert int(index) in (0, 1)  # tasks 0 and 1 of nominal, 0 of aggressive
 
 
 def test_three_independent_qp_solvers_agree_with_mjtraj_on_the_optimal_planners_qp(scenario):
@@ -96,6 +103,7 @@ def test_render_ratio_is_fast_ur5_over_reacher_in_one_run():
     assert row["size"] == "64x48"
     assert all(row[k] > 0 for k in ("fast_fps", "high_fps", "reacher_fps"))  # Reacher-v5 present: not skipped
     assert row["ratio"] == pytest.approx(row["fast_fps"] / row["reacher_fps"], rel=1e-12)
+    assert row["high_ratio"] == pytest.approx(row["high_fps"] / row["reacher_fps"], rel=1e-12)
 
 
 def test_env_ratios_are_env_rate_over_each_raw_rate():
@@ -151,3 +159,26 @@ def test_bench_store_times_the_stages_asked_for(capsys):
     assert store["stages"]["audit --no-tasks"]["wall_s"] > 0 and store["stages"]["audit --no-tasks"]["peak_mb"] > 0
     assert main(["bench", "store", "--rows", "400", "--stages", "csv,xml"]) == 2
     assert capsys.readouterr().err.strip().endswith("got 'csv,xml'")
+
+
+def test_busy_bench_reports_quiet_and_busy_times_of_the_public_api(monkeypatch):
+    """bench busy: one row per timed call, the ratio busy over quiet, the child's environment without the thread
+    counts the CLI set for itself (and with those the user set)."""
+    import mjtraj.bench_busy as busy
+
+    calls = iter([{"optimal": 1e-3, "env.step": 5e-5}, {"optimal": 1.5e-3, "env.step": 5e-5}])
+    monkeypatch.setattr(busy, "_child", lambda: next(calls))
+    rows = busy.bench_busy()
+    assert [(r["call"], r["ratio"]) for r in rows] == [("optimal", pytest.approx(1.5)), ("env.step", 1.0)]
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "1")
+    monkeypatch.setenv("MKL_NUM_THREADS", "4")
+    monkeypatch.setenv("MJTRAJ_SET_THREADS", "OPENBLAS_NUM_THREADS")
+    env = busy.user_environment()
+    assert "OPENBLAS_NUM_THREADS" not in env and env["MKL_NUM_THREADS"] == "4"
+
+
+def test_api_timings_time_every_planner_and_the_env():
+    from mjtraj.bench_busy import PLANNERS, api_timings
+
+    times = api_timings(repeats=1, slow_repeats=1, env_steps=5)
+    assert list(times) == [*PLANNERS, "env.step"] and all(t > 0 for t in times.values())

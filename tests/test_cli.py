@@ -139,12 +139,14 @@ def test_a_closed_pipe_is_not_a_traceback(tmp_path):
 
 def test_defaults_leave_tracked_files_alone():
     """Run from a checkout, the commands' default outputs are under results/ (ignored by git)."""
-    from mjtraj.cli import _parser
+    from mjtraj.cli import _compare_out, _parser
 
     parser = _parser()
     assert parser.parse_args(["render"]).out == Path("results/videos")
     assert parser.parse_args(["audit", "x.csv"]).out == Path("results/AUDIT.md")
-    assert parser.parse_args(["compare"]).out == Path("results")
+    assert _compare_out(parser.parse_args(["compare"])) == Path("results")
+    assert _compare_out(parser.parse_args(["compare", "--model", "arms/z1.xml"])) == Path("results/z1")
+    assert _compare_out(parser.parse_args(["compare", "--model", "z1.xml", "--out", "o"])) == Path("o")
 
 
 def test_compare_keeps_its_time_series(tmp_path, scenario):

@@ -12,6 +12,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from mjtraj.envs import BENCHMARK_VARIANTS
 from mjtraj.envs.settings import ACTION_MODES, argument_defaults
 from mjtraj.envs.ur5_track import UR5TrackEnv
 from mjtraj.envs.vector import UR5TrackVectorEnv
@@ -299,10 +300,17 @@ def test_docstring_arguments_table_matches_the_code():
     """The Arguments table documents every argument the env accepts, with the default the code applies."""
     doc = inspect.getdoc(UR5TrackEnv)
     table = doc.split("## Arguments")[1].split("##")[0]
-    rows = re.findall(r"^\| (\w+)\s+\| (\S+)\s+\|", table, flags=re.M)
+    benchmark, arguments = table.split("| argument         | default ")
+    rows = re.findall(r"^\| (\w+)\s+\| (\S+)\s+\|", "| argument " + arguments, flags=re.M)
     documented = {name: value for name, value in rows if name != "argument"}
     code = {name: repr(value).replace("'", '"') for name, value in argument_defaults().items()}
     assert documented == code
+    variants = re.findall(r"^\| (\w+)\s+\| (\S+)\s+\| (\S+)\s+\| (\S+)\s+\|$", benchmark, flags=re.M)
+    ids = [cell.strip() for cell in benchmark.split("\n\n")[1].splitlines()[0].strip("|").split("|")[1:]]
+    assert ids == list(BENCHMARK_VARIANTS)
+    for column, env_id in enumerate(ids, start=1):
+        shown = {row[0]: row[column] for row in variants if row[0] != "argument"}
+        assert shown == {name: repr(value).replace("'", '"') for name, value in BENCHMARK_VARIANTS[env_id].items()}
     env = UR5TrackEnv()  # and those defaults are what an env built without arguments uses
     s = env.settings
     applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,

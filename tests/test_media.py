@@ -88,7 +88,7 @@ def test_one_planner_gets_no_grid_and_four_get_two_by_two(tmp_path):
     assert grid[:, 48:, 64:, :3].max() == 0  # the missing fourth tile is black
 
 
-def test_fast_frames_are_the_scene_without_shadows_reflection_or_fine_facets(model):
+def test_fast_frames_are_the_scene_without_shadows_reflection_skybox_or_fine_facets(model):
     """The fast scene equals MuJoCo's own renderer with those features off, and the caller's model is untouched."""
     import mujoco
 
@@ -111,9 +111,40 @@ def test_fast_frames_are_the_scene_without_shadows_reflection_or_fine_facets(mod
         plain.update_scene(data, "front")
         plain.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
         plain.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        plain.scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
         want = plain.render()
     np.testing.assert_array_equal(got, want)
     assert np.abs(rich.astype(int) - got).max() > 50  # high keeps the shadows and the reflection
+    assert model.light_castshadow.all()  # high casts one shadow on its own copy
+
+
+def test_high_frames_cast_the_brightest_light_s_shadow_alone(model):
+    """High frames equal MuJoCo's renderer on a copy where only the brightest light casts a shadow, at the high
+    shadow map's size and clip; a second shadow-casting light changes the image (the setting is not a no-op)."""
+    import copy
+
+    import mujoco
+
+    from mjtraj.media.render import HIGH_SHADOW_CLIP, HIGH_SHADOW_SIZE
+
+    q = np.array([0.3, -1.0, 0.8])
+    with ArmRenderer(model, width=160, height=120, quality="high") as high:
+        got = high.frame(q)
+    images = []
+    for cast in ([True, False], [True, True]):
+        plant = copy.copy(model)
+        plant.vis.quality.shadowsize, plant.vis.map.shadowclip = HIGH_SHADOW_SIZE, HIGH_SHADOW_CLIP
+        assert plant.light_diffuse[0].sum() > plant.light_diffuse[1].sum()  # "key" is the brighter
+        plant.light_castshadow[:] = cast
+        data = mujoco.MjData(plant)
+        data.qpos[:] = q
+        mujoco.mj_kinematics(plant, data)
+        mujoco.mj_camlight(plant, data)
+        with mujoco.Renderer(plant, 120, 160) as plain:
+            plain.update_scene(data, "front")
+            images.append(plain.render())
+    np.testing.assert_array_equal(got, images[0])
+    assert np.abs(images[1].astype(int) - images[0]).max() > 20
 
 
 def test_gif_is_small_and_true_to_the_frames(tmp_path):
@@ -262,3 +293,23 @@ def test_the_strobe_paths_are_drawn_whatever_the_scene_memory_held(model):
     blue = lambda f: ((f[..., 2].astype(int) - f[..., 0] > 80) & (f[..., 2] > 120)).sum()  # noqa: E731
     assert orange(clean) > 20 and blue(clean) > 5, (orange(clean), blue(clean))
     np.testing.assert_array_equal(poisoned, clean)
+
+
+def test_strobe_draws_earlier_poses_paler(model):
+    """Where only pose a is drawn, a two-pose strobe that starts at a is lighter than one that ends at a (the
+    caption's "earlier poses paler"), on a white background."""
+    from mjtraj.media.render import ArmRenderer as Renderer
+
+    a, b = np.array([0.0, -1.57, 0.0]), np.array([0.5, -0.5, 1.0])
+    with Renderer(model, width=240, height=200) as renderer:
+        path = np.array([renderer.flange_position(a), renderer.flange_position(b)])
+        frame = np.vstack([renderer.body_positions(a), renderer.body_positions(b), path])
+
+        def strobe(*poses: np.ndarray) -> np.ndarray:
+            return renderer.strobe(list(poses), path[:1], path[:1], path[:0], frame=frame).astype(int).sum(axis=2)
+
+        alone_a, alone_b, first_a, last_a = strobe(a), strobe(b), strobe(a, b), strobe(b, a)
+    only_a = (alone_a < 3 * 255) & (alone_b == 3 * 255)
+    assert only_a.sum() > 500
+    assert np.median(first_a[only_a]) > np.median(last_a[only_a]) + 60
+    assert np.mean(last_a[only_a] == alone_a[only_a]) > 0.9  # the last pose is drawn as it is (bar edges)

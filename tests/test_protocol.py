@@ -124,7 +124,9 @@ def test_the_cli_scores_a_users_file_beside_the_classical_methods(tmp_path, caps
     rows = read_rows(out / "eval.csv")
     assert {json.loads(r["policy_env"])["residual_scale"] for r in rows if r["policy"]} == {2}
     summary = (out / "SUMMARY.md").read_text()
-    assert summary.startswith("# Benchmark summary\n\nRegenerate: `mjtraj rl eval --policy ")
+    assert summary.startswith("# Benchmark summary (OFF-PROTOCOL)\n\n**Off-protocol**: families nominal,mismatch (v1: "
+                              "nominal,aggressive,mismatch); scenarios 3 (v1: 200); reps 20 (v1: 2000). ")
+    assert "\nRegenerate: `mjtraj rl eval --policy " in summary
     assert "By payload on the mismatch family" in summary and (out / "profiles.png").stat().st_size > 10_000
     record = json.loads((out / "summary.json").read_text())
     assert record["controllers"] == ["pid", "computed_torque"] and record["reference"] == "cubic+PID"
@@ -223,3 +225,22 @@ def test_a_shipped_baseline_rescores_to_the_summarys_rows_bit_for_bit(tmp_path):
     assert [r["cost"] for r in again] == [r["cost"] for r in mine]
     reference = [r["cost"] for r in read_rows(report.csv) if r["method"] == "cubic+PID"]
     assert reference == [r["cost"] for r in shipped if r["method"] == "cubic+PID" and r["family"] == "mismatch"]
+
+
+def test_a_run_off_the_published_protocol_says_so(tmp_path):
+    """The defaults are protocol v1 (no departure); any other family, count, seed or resample count is named in
+    summary.json's protocol and in SUMMARY.md's title and first lines."""
+    import inspect
+
+    from mjtraj.rl.protocol import PROTOCOL_V1, departures
+
+    defaults = {k: v.default for k, v in inspect.signature(evaluate).parameters.items()}
+    assert departures(defaults["families"], defaults["scenarios"], defaults["seed"], defaults["reps"]) == []
+    assert departures(*PROTOCOL_V1.values()) == []
+    evaluate([], families=("nominal",), scenarios=2, seed=3, reps=20, out=tmp_path)
+    protocol = json.loads((tmp_path / "summary.json").read_text())["protocol"]
+    assert protocol == ("off-protocol: families nominal (v1: nominal,aggressive,mismatch); scenarios 2 (v1: 200); "
+                        "seed 3 (v1: 1); reps 20 (v1: 2000)")
+    summary = (tmp_path / "SUMMARY.md").read_text().splitlines()
+    assert summary[0] == "# Benchmark summary (OFF-PROTOCOL)"
+    assert summary[2].startswith("**Off-protocol**: families nominal (v1: nominal,aggressive,mismatch); ")

@@ -456,6 +456,10 @@ def test_ppo_trains_and_reloads(tmp_path):
     (["rl", "eval", "--policy", "nowhere.zip"], "mjtraj: error: policy: file not found: nowhere.zip\n"),
     (["rl", "eval", "--policy", "p.pt"],
      "mjtraj: error: policy: expected a policy .zip saved by mjtraj rl train, got 'p.pt'\n"),
+    (["rl", "eval", "--policy", "mypolicy.py"],
+     "mjtraj: error: policy: expected FILE.py:ATTR (the file and the name of the policy in it, e.g. "
+     "mypolicy.py:policy), got 'mypolicy.py'\n"),
+    (["rl", "eval", "--seed", "-1"], "mjtraj: error: seed: expected a whole number in [0, 2^32), got -1\n"),
 ])
 def test_cli_bad_input(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -591,15 +595,23 @@ def test_train_refuses_a_folder_with_a_run(trained):
 
 
 
-def test_missing_rl_extra_says_how_to_install(monkeypatch, capsys):
+def test_missing_rl_extra_says_how_to_install(monkeypatch, capsys, tmp_path):
     monkeypatch.setitem(sys.modules, "stable_baselines3", None)
     with pytest.raises(MissingExtraError, match=r"^rl: stable_baselines3 is not installed; install the rl extra: "
                        r"pip install torch==2\.13\.0 && pip install 'mjtraj\[rl\]'"):
         require_sb3()
-    assert main(["rl", "eval", "--policy", "p.zip"]) == 2
+    monkeypatch.setitem(sys.modules, "sb3_contrib", None)
+    assert main(["rl", "eval", "--policy", "baseline:best"]) == 2  # a zip needs SB3 to act ...
     assert "install the rl extra" in capsys.readouterr().err
     with pytest.raises(MissingExtraError):
-        evaluate(["p.zip"])
+        evaluate(["baseline:best"])
+    # ... a plain callable does not (nor PyTorch: the README's set-up without the rl extra, tried in a fresh venv)
+    def zero(obs):
+        return np.zeros(3)
+
+    report = evaluate([zero], families=("nominal",), scenarios=2, reps=10, out=tmp_path)
+    (summary,) = [s for m, s in report.summaries["nominal"].items() if m.endswith("zero")]
+    assert summary.ratio_of_means.value == 1.0
 
 
 

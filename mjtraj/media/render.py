@@ -22,22 +22,34 @@ GHOST_RGBA = (0.95, 0.55, 0.15, 0.3)
 GHOST_SCALE = 1.04
 """The ghost's geoms are this much thicker, so that it wraps the executed arm as a shell (no z-fighting)."""
 RENDER_QUALITIES = ("fast", "high")
-"""fast (default): no shadows, no floor reflection, and round geoms drawn with FAST_SLICES x FAST_STACKS facets.
-Software OpenGL (OSMesa) spends most of a frame on these: at 320x240, shadows and reflection cost 5 to 10 times the
-rest of the frame, and the facet count halves it again. high: the model's own visual settings, shadows and
-reflection included, for publication frames."""
-HIGH_SHADOW_SIZE, HIGH_SHADOW_CLIP = 8192, 0.6
-"""High frames' shadow map: at least 8192 px and its light frustum clipped to 0.6 of the model's extent (MuJoCo's
-defaults, 4096 and 1, leave shadow acne speckling the far floor: seen on the UR5 at 640x480)."""
+"""fast (default): no shadows, no floor reflection, no skybox, and round geoms drawn with FAST_SLICES x FAST_STACKS
+facets. Software OpenGL (OSMesa) spends most of a frame on these: at 320x240, shadows and reflection cost 5 to 10
+times the rest of the frame, and the facet count halves it again. high: the model's own visual settings, reflection
+and skybox included, with one shadow (see HIGH_SHADOW_SIZE), for publication frames."""
+HIGH_SHADOW_SIZE, HIGH_SHADOW_CLIP = 4096, 0.6
+"""High frames' shadow map: at least 4096 px, its light frustum clipped to 0.6 of the model's extent, and cast by the
+model's brightest shadow-casting light alone. Software OpenGL renders every shadow-casting light's map at every
+frame: with the UR5's two lights at 8192 px a 640x480 frame took 0.25 s; one light at 4096 px draws the same floor
+free of shadow acne (at 2048 px speckles return on the far floor) in about a third of that."""
 FAST_SLICES, FAST_STACKS = 16, 8
 """Facets of round geoms in fast frames (MuJoCo's defaults: 28 and 16)."""
-_FAST_OFF = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION)
+_FAST_OFF = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION, mujoco.mjtRndFlag.mjRND_SKYBOX)
 STROBE_ALPHAS = (0.25, 1.0)
-"""Opacity of the first and the last pose of a stroboscopic frame (linear in between)."""
+"""Strength of the first and the last pose of a stroboscopic frame (linear in between): each earlier pose is drawn
+opaque with its colours this much of the way from white."""
 EXECUTED_RGBA = (0.12, 0.35, 0.75, 1.0)
 """The executed flange path: solid blue."""
 REFERENCE_RGBA = (0.95, 0.5, 0.1, 1.0)
 """The reference flange path and marks: orange (the ghost's hue), dashed."""
+
+
+def _one_shadow(model: mujoco.MjModel) -> None:
+    """Let only the brightest (largest diffuse sum) of `model`'s shadow-casting lights cast a shadow, in place."""
+    casting = np.flatnonzero(model.light_castshadow)
+    if casting.size > 1:
+        keep = casting[np.argmax(model.light_diffuse[casting].sum(axis=1))]
+        model.light_castshadow[:] = False
+        model.light_castshadow[keep] = True
 
 
 def framing_camera(points: NDArray[np.float64], fovy: float, aspect: float, *, pad: float = 0.0,
@@ -181,6 +193,7 @@ class ArmRenderer:
         else:
             model.vis.quality.shadowsize = max(int(model.vis.quality.shadowsize), HIGH_SHADOW_SIZE)
             model.vis.map.shadowclip = min(float(model.vis.map.shadowclip), HIGH_SHADOW_CLIP)
+            _one_shadow(model)
         try:
             self._renderer = mujoco.Renderer(model, self.height, self.width)
         except Exception as e:  # the GL backends raise many kinds
@@ -238,8 +251,10 @@ class ArmRenderer:
             mujoco.mj_kinematics(self.model, self._ghost)
             first = scene.ngeom
             mujoco.mjv_addGeoms(self.model, self._ghost, option, self._perturb, mujoco.mjtCatBit.mjCAT_DYNAMIC, scene)
-            for i in range(first, scene.ngeom):
-                scene.geoms[i].rgba[3] = alpha
+            for i in range(first, scene.ngeom):  # opaque, paler the earlier: translucency would blend with the
+                rgba = scene.geoms[i].rgba      # black the scene is drawn on before the background turns white
+                rgba[:3] = 1.0 - alpha * (1.0 - rgba[:3])
+                rgba[3] = 1.0
         width = 0.004 * float(self.model.stat.extent)
         for a, b in zip(exec_path[:-1], exec_path[1:], strict=True):
             _segment(scene, a, b, width, EXECUTED_RGBA)

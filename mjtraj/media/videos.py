@@ -23,6 +23,9 @@ model's offscreen buffer)."""
 GIF_COLORS = 128
 """Colours of a GIF's one palette, shared by all its frames (median cut over a sample of them, no dithering): a
 shared palette lets unchanged pixels repeat, so each frame stores only the region that moved."""
+STRIP_TEXT_PER_WIDTH = 110
+"""The snapshot strip's labels and caption are its width over this, px (22 px on a 2,400 px strip of five panels):
+read at a column's width in a paper."""
 LABEL_LINES_PER_HEIGHT = 30
 """A label's text size is the image height over this (16 px at 480, 8 px at 240), at least 6 px."""
 
@@ -163,7 +166,7 @@ def _grid(clips: Sequence[Sequence[NDArray[np.uint8]]]) -> list[NDArray[np.uint8
 
 def snapshot_strip(result: Comparison, renderer: ArmRenderer) -> NDArray[np.uint8]:
     """The paper's Fig. 1 in a paper's style: one stroboscopic panel per planner, side by side at one scale, on
-    white: the executed arm at the times SNAPSHOT_TIMES (earlier ones fading), its flange path (solid blue) and the
+    white: the executed arm at the times SNAPSHOT_TIMES (earlier ones paler), its flange path (solid blue) and the
     reference's (dashed orange, with dots at those times), which stay distinguishable where they coincide; a
     caption line says so under the panels."""
     panels = []
@@ -177,12 +180,13 @@ def snapshot_strip(result: Comparison, renderer: ArmRenderer) -> NDArray[np.uint
                        np.array([renderer.flange_position(ref.q[k]) for k in ks])))
     frame = np.vstack([np.vstack([renderer.body_positions(q) for q in poses] + [path, ref_path])
                        for _, poses, path, ref_path, _ in panels])
-    images = [label(renderer.strobe(poses, path, ref_path, marks, frame=frame), [planner], light=True)
+    size = max(label_size(renderer.height), round(len(panels) * renderer.width / STRIP_TEXT_PER_WIDTH))
+    images = [label(renderer.strobe(poses, path, ref_path, marks, frame=frame), [planner], size=size, light=True)
               for planner, poses, path, ref_path, marks in panels]
     strip = np.hstack(images)
     times = ", ".join(f"{fraction * result.scenario.task.duration:g}" for fraction in SNAPSHOT_TIMES)
-    caption = np.full((2 * label_size(strip.shape[0]) + 8, strip.shape[1], 3), 255, dtype=np.uint8)
-    caption = label(caption, [f"{result.scenario.name}: the executed arm at t = {times} s (earlier poses fainter); "
+    caption = np.full((2 * size + 8, strip.shape[1], 3), 255, dtype=np.uint8)
+    caption = label(caption, [f"{result.scenario.name}: the executed arm at t = {times} s (earlier poses paler); "
                               "flange path executed (solid blue) and planned (dashed orange; dots at those times)"],
-                    size=label_size(strip.shape[0]), light=True)
+                    size=size, light=True)
     return np.vstack([strip, caption])

@@ -1,6 +1,8 @@
-"""Reinforcement-learning tracking policies on UR5Track-v0, trained and scored like the planners.
+"""Reinforcement-learning tracking policies on the UR5Track envs (the benchmark: UR5Track-v1 and its variants),
+trained and scored like the planners.
 
-Needs the `rl` extra (Stable-Baselines3 on CPU PyTorch), imported only when a function needs it:
+Training, SB3 zips and the shipped baselines need the `rl` extra (Stable-Baselines3 on CPU PyTorch), imported only
+when a function needs it; scoring a plain callable needs none of it:
 - `train`: `train(TrainSettings, out)`, an SB3 agent on the natively vectorised env (`sb3_env`), with its
   learning curve (`curve`);
 - `evaluate`: `evaluate(policies, family=...)`, policies and planners on the same held-out sweep scenarios;

@@ -241,6 +241,9 @@ def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> Score
 
         name = text.split(":", 1)[1]
         return from_zip_policy(load_policy(baseline_path(name)), source=text)
+    if text.endswith(".py") and ":" not in text:
+        raise InvalidInputError(f"policy: expected FILE.py:ATTR (the file and the name of the policy in it, e.g. "
+                                f"{text}:policy), got {text!r}")
     if text.endswith(".zip") or ":" not in text or Path(text).exists():
         return from_zip_policy(load_policy(text), source=text)
     module, _, attr = text.rpartition(":")

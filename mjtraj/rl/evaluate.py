@@ -13,8 +13,10 @@ the columns POLICY_COLUMNS; `eval.csv` holds them all, `summary.json` and `SUMMA
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,7 +31,8 @@ from mjtraj.files import write_text_atomic
 from mjtraj.rl import law_label
 from mjtraj.rl.adapters import ScoredPolicy, check_settings, load_any
 from mjtraj.rl.episodes import PolicyActor
-from mjtraj.rl.extra import require_sb3, rl_versions
+from mjtraj.rl.extra import rl_versions
+from mjtraj.rl.protocol import PROTOCOL, PROTOCOL_V1, departures
 from mjtraj.rl.protocol_stats import (
     FAILURE_RULE,
     FloorSummary,
@@ -194,13 +197,15 @@ def _blank_policy(row: dict[str, Any], method: str) -> dict[str, Any]:
     return {**row, "method": method, **{k: "" for k in POLICY_COLUMNS if k != "method"}}
 
 
-def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",), scenarios: int = 200,
-             seed: int = 0, planners: Sequence[str] = ("cubic",), controllers: Sequence[str] = ("pid",),
+def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["families"],
+             scenarios: int = PROTOCOL_V1["scenarios"], seed: int = PROTOCOL_V1["seed"],
+             planners: Sequence[str] = ("cubic",), controllers: Sequence[str] = ("pid",),
              tuned_gains: str | Path | None = None, settings: Mapping[str, Any] | None = None,
-             out: str | Path = "rl_eval", batch: int = 250, reps: int = 2000, threads: int | None = 1,
-             command: str = "", progress: bool = False, floor: bool = False) -> EvalReport:
+             out: str | Path = "rl_eval", batch: int = 250, reps: int = PROTOCOL_V1["reps"],
+             threads: int | None = 1, command: str = "", progress: bool = False, floor: bool = False) -> EvalReport:
     """Score `policies` beside the `planners` under every law of `controllers` on scenarios 0..scenarios-1 of each
-    of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md and profiles.png into `out`.
+    of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md and profiles.png into `out`. The defaults
+    are protocol v1 (PROTOCOL_V1); other scenarios are stamped off-protocol.
 
     Args:
       policies: zips from `mjtraj rl train`, "baseline:NAME", "MODULE:ATTR" / "FILE.py:ATTR", or the objects
@@ -209,7 +214,8 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
       tuned_gains: a scenario file with tuned PID gains (`mjtraj tune --gains`), scored as TUNED_LABEL.
       settings: env settings (adapters.ENV_KEYS) for policies that are not zips and do not declare them.
       reps: bootstrap resamples of every interval.
-      threads: PyTorch CPU threads (mjtraj.rl.train.THREADS_RULE; None: PyTorch's default), recorded.
+      threads: PyTorch CPU threads (mjtraj.rl.train.THREADS_RULE; None: PyTorch's default), recorded; without
+        PyTorch installed (plain callables need none) there is nothing to set.
       command: the command line that regenerates the files (written into SUMMARY.md).
       floor: also compute each scenario's clairvoyant floor (`mjtraj.study.floor`, of the cubic reference's
         execution, which the reference and every policy on cubic track): rows gain the columns floor and
@@ -218,13 +224,15 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
 
     Raises:
       InvalidInputError: bad arguments, an unreadable policy, or scenarios not held out from a policy's training.
-      MissingExtraError: the rl extra is not installed.
+      MissingExtraError: a policy (an SB3 zip, a baseline, a torch module) or `threads` needs the rl extra and it is
+        not installed; plain callables need none of it.
     """
-    require_sb3()
     if threads is not None:
-        import torch
+        positive_int("threads", threads)
+        if importlib.util.find_spec("torch") is not None:  # without it no policy can run PyTorch
+            import torch
 
-        torch.set_num_threads(positive_int("threads", threads))
+            torch.set_num_threads(threads)
     for family in families:
         choice("family", family, FAMILIES)
     if not families:
@@ -300,14 +308,17 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = ("nominal",),
     write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS, *extra], rows))
     groups = configurations(loaded, labels)
     costs = {family: method_costs(rows, groups, family) for family in families}
-    summaries, scores = summarise(costs, reps=reps)
-    against = {family: against_floor(costs[family], floors[family], groups, reps=reps) for family in floors}
-    figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps)
+    with _stage(progress, f"intervals: {reps} bootstrap resamples per method and family, and the figure"):
+        summaries, scores = summarise(costs, reps=reps)
+        against = {family: against_floor(costs[family], floors[family], groups, reps=reps) for family in floors}
+        figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps)
     table = summary_table(summaries, families)
     compact = compact_table(summaries, families)
     payload = payload_table(rows, costs["mismatch"]) if "mismatch" in families else ""
+    off = departures(families, scenarios, seed, reps)
     record = {"format": "mjtraj-benchmark-summary/1", "reference": REFERENCE, "failure_rule": FAILURE_RULE,
-              "families": list(families), "scenarios": scenarios, "seed": seed, "reps": reps,
+              "protocol": f"off-protocol: {'; '.join(off)}" if off else PROTOCOL, "families": list(families),
+              "scenarios": scenarios, "seed": seed, "reps": reps,
               "controllers": laws, "planners": planner_list, "tuned_gains": str(tuned_gains or ""),
               "policies": [{"label": label, **p.columns()} for p, label in zip(loaded, labels, strict=True)],
               "configurations": groups, "versions": rl_versions(), "command": command,
@@ -393,10 +404,25 @@ def _best(per: Mapping[str, FloorSummary]) -> str:
     return next(iter(per.values())).best if per else REFERENCE
 
 
-def _torch_threads() -> int:
-    import torch
+@contextmanager
+def _stage(progress: bool, what: str) -> Iterator[None]:
+    """With `progress`, say on stderr that the stage `what` runs, then how long it took."""
+    import sys
+    import time
 
-    return int(torch.get_num_threads())
+    if progress:
+        print(f"rl eval: {what} ...", file=sys.stderr, flush=True)
+    start = time.perf_counter()
+    yield
+    if progress:
+        print(f"rl eval: {what}: done in {time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)
+
+
+def _torch_threads() -> int | None:
+    """PyTorch's CPU threads, or None where no policy loaded PyTorch (plain callables need none)."""
+    import sys
+
+    return int(sys.modules["torch"].get_num_threads()) if "torch" in sys.modules else None
 
 
 def method_costs(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[str]], family: str
@@ -502,7 +528,14 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
                      policies: Sequence[ScoredPolicy], compact: str = "", floors: str = "") -> str:
     """SUMMARY.md: how to regenerate it, the protocol in brief, the table, the by-payload table, the policies."""
     families = ", ".join(record["families"])
-    lines = ["# Benchmark summary", ""]
+    protocol = record.get("protocol", PROTOCOL)
+    lines = ["# Benchmark summary" + ("" if protocol == PROTOCOL else " (OFF-PROTOCOL)"), ""]
+    if protocol != PROTOCOL:
+        lines += [f"**Off-protocol**: {protocol.removeprefix('off-protocol: ')}. These numbers cannot be compared "
+                  f"with published ones; `mjtraj rl eval` without --family, --scenarios, --seed and --reps runs "
+                  f"protocol {PROTOCOL}.", ""]
+    else:
+        lines += [f"Protocol {PROTOCOL}.", ""]
     if record["command"]:
         lines += [f"Regenerate: `{record['command']}`", ""]
     lines += [f"Held-out scenarios 0..{record['scenarios'] - 1} of each family ({families}) under seed "

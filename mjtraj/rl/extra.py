@@ -7,7 +7,8 @@ from typing import Any
 
 from mjtraj.exceptions import MissingExtraError
 
-INSTALL_HINT = ("install the rl extra: pip install torch==2.13.0 && pip install 'mjtraj[rl]' (torch first, so that "
+INSTALL_HINT = ("install the rl extra: pip install torch==2.13.0 && pip install 'mjtraj[rl]' (in a checkout: "
+                "pip install '.[rl]'; torch first, so that "
                 "pip takes the CPU build)")
 
 
@@ -40,13 +41,17 @@ def policy_class(algo: str) -> str:
 
 
 def rl_versions() -> dict[str, str]:
-    """Versions of the RL stack that shape a policy's numbers (after mjtraj's own `compare.versions`)."""
+    """Versions of the RL stack that shape a policy's numbers (after mjtraj's own `compare.versions`); a package of
+    the rl extra that is not installed is recorded as "not installed" (scoring a plain callable needs neither)."""
+    import importlib.metadata
     import platform
-
-    import torch
 
     from mjtraj.versions import versions
 
-    sb3 = require_sb3()
-    return {**versions(), "stable_baselines3": sb3.__version__, "torch": torch.__version__,
-            "python": platform.python_version()}
+    found = {}
+    for module, distribution in (("stable_baselines3", "stable_baselines3"), ("torch", "torch")):
+        try:
+            found[module] = importlib.metadata.version(distribution)
+        except importlib.metadata.PackageNotFoundError:
+            found[module] = "not installed"
+    return {**versions(), **found, "python": platform.python_version()}

@@ -1,4 +1,4 @@
-"""Train an SB3 agent on the natively vectorised UR5Track-v0 and record everything about the run.
+"""Train an SB3 agent on the natively vectorised UR5Track env and record everything about the run.
 
 Rules (stated once, recorded in run.json):
 - hyperparameters are Stable-Baselines3's defaults for the algorithm (sb3-contrib's for RecurrentPPO, an LSTM
