@@ -37,9 +37,9 @@ def cli_reference() -> str:
     import os
 
     os.environ["COLUMNS"] = "110"  # argparse wraps to the terminal: the same page on every machine
-    from mjtraj.cli import _parser
+    from mjtraj.cli import build_parser
 
-    parser = _parser()
+    parser = build_parser()
     out = ["```text", parser.format_help().rstrip(), "```"]
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):

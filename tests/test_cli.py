@@ -121,12 +121,12 @@ def test_os_errors_are_one_line(tmp_path, capsys):
 
 
 def test_interrupt_exits_130_with_one_line(monkeypatch, capsys):
-    import mjtraj.cli as cli
+    import mjtraj.cli.gains as gains
 
     def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "_gains", interrupted)
+    monkeypatch.setattr(gains, "run", interrupted)
     assert main(["gains"]) == 130
     assert capsys.readouterr().err == "mjtraj: interrupted; run the same command to continue\n"
 
@@ -139,9 +139,10 @@ def test_a_closed_pipe_is_not_a_traceback(tmp_path):
 
 def test_defaults_leave_tracked_files_alone():
     """Run from a checkout, the commands' default outputs are under results/ (ignored by git)."""
-    from mjtraj.cli import _compare_out, _parser
+    from mjtraj.cli import build_parser
+    from mjtraj.cli.compare import output_folder as _compare_out
 
-    parser = _parser()
+    parser = build_parser()
     assert parser.parse_args(["render"]).out == Path("results/videos")
     assert parser.parse_args(["audit", "x.csv"]).out == Path("results/AUDIT.md")
     assert _compare_out(parser.parse_args(["compare"])) == Path("results")

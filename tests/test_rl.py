@@ -493,7 +493,7 @@ def test_an_unknown_hyperparameter_lists_the_constructors_own(algo, name, some_v
 def test_hyperparameter_overrides_from_a_file_and_flags(tmp_path, monkeypatch, capsys):
     """A file's JSON object, then NAME=VALUE flags (JSON values, else strings), replace the rule's defaults; a file
     that is not a JSON object and a value that is not JSON-able are refused."""
-    from mjtraj.cli import _overrides
+    from mjtraj.cli.common import overrides as _overrides
 
     file = tmp_path / "hp.json"
     file.write_text('{"learning_rate": 0.001, "ent_coef": "auto_0.1", "policy_kwargs": {"net_arch": [64, 64]}}')

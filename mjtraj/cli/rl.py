@@ -1,0 +1,238 @@
+"""`mjtraj rl`: train tracking policies, score any policy by the benchmark protocol, and manage the shipped
+baselines (one handler per subcommand)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from mjtraj.cli.common import Parser, Progress, command_line, names, no_progress_option, overrides
+from mjtraj.rl.protocol import PROTOCOL_V1
+
+
+def add(sub: Any, laws: str) -> None:
+    """Declare `mjtraj rl` and its subcommands; a bare `mjtraj rl` lists them."""
+    rl = sub.add_parser("rl", help="RL tracking policies: train on the UR5Track-v1 envs (the rl extra), score any "
+                        "policy by the benchmark protocol beside the planners and control laws")
+    rl.set_defaults(run=lambda args: _list(rl))
+    rl_sub = rl.add_subparsers(dest="rl_command", parser_class=Parser)
+    p = rl_sub.add_parser("train", help="train an SB3 agent on the vectorised env; checkpoints, learning curve, "
+                          "run.json")
+    p.add_argument("--algo", default="sac", help="sac | ppo | td3 | recurrent_ppo (sb3-contrib's LSTM PPO: "
+                   "memory across an episode) (default sac)")
+    p.add_argument("--action-mode", dest="action_mode", default="residual",
+                   help="residual (added to feedforward + PID) | torque (the whole corrective torque); default "
+                   "residual")
+    p.add_argument("--residual-scale", dest="residual_scale", type=float,
+                   help="N m per unit of action in residual mode (default 6: PID's median per-joint RMS feedback "
+                   "torque on the mismatch family)")
+    p.add_argument("--observe-control", dest="observe_control", action="store_true",
+                   help="the policy also observes the PID integral and the next feedforward torque")
+    p.add_argument("--observe-plant", dest="observe_plant", default="none",
+                   help="none | true: the policy also observes the plant's payload, damping and friction (a "
+                   "privileged teacher, labelled so in rl eval) | estimate: the adaptive law's online estimate of "
+                   "them (deployable; --controller adaptive_computed_torque) (default none)")
+    p.add_argument("--history", type=int, default=0, help="previous observations the policy also sees, latest "
+                   "first (default 0)")
+    p.add_argument("--observation-scaling", dest="observation_scaling", default="running",
+                   help="running (VecNormalize's running statistics) | fixed (errors as the PID torque they make, "
+                   "in units of the residual scale; positions by pi rad, velocities by pi rad/s; docs/design.md) "
+                   "(default running)")
+    p.add_argument("--reward-baseline", dest="reward_baseline", default="none",
+                   help="none | pid: train on the advantage over PID alone on the same episode (a shadow run); "
+                   "validation and evaluation still score J_exec (default none)")
+    p.add_argument("--plant-randomization", dest="plant_randomization", default="none",
+                   help="none | mismatch: train and validate on plants drawn by the mismatch family's rules "
+                   "(default none)")
+    p.add_argument("--planner", default="cubic", help="planner whose references the policy tracks (default cubic)")
+    p.add_argument("--controller", default="pid", help=f"control law the residual acts on: {laws} (or a "
+                   "registered plug-in law; default pid)")
+    p.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
+    p.add_argument("--steps", type=int, default=100_000, help="environment steps (default 100000)")
+    p.add_argument("--seed", type=int, default=0, help="the run's seed, 0 <= seed < 2^32 (default 0)")
+    p.add_argument("--num-envs", dest="num_envs", type=int, help="sub-envs (default: 4 for sac/td3, 8 for ppo)")
+    p.add_argument("--checkpoints", type=int, default=5, help="checkpoints along the run (default 5)")
+    p.add_argument("--evaluations", type=int, default=20, help="validation points of the learning curve (default 20)")
+    p.add_argument("--validation", type=int, default=32, help="validation tasks (default 32)")
+    p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, as in the Python API: "
+                   "small networks run fastest on one, and runs can go side by side; recorded in run.json)")
+    p.add_argument("--hyperparameter", dest="hyperparameter", action="append", default=[], metavar="NAME=VALUE",
+                   help="an SB3 argument replacing the default (VALUE as JSON, else a string); repeat for several")
+    p.add_argument("--hyperparameters", type=Path, metavar="FILE",
+                   help="a JSON object of SB3 arguments replacing the defaults (--hyperparameter wins)")
+    p.add_argument("--out", type=Path, default=Path("runs/rl"), help="output folder (default runs/rl)")
+    p.add_argument("--resume", type=Path, metavar="RUN", help="continue the interrupted run in RUN from its last "
+                   "checkpoint, with the settings its run.json records (the other training flags are not read); on "
+                   "the same machine and thread count it ends with the policy an uninterrupted run would have")
+    p.add_argument("--tensorboard", type=Path, metavar="DIR",
+                   help="also log to TensorBoard event files in DIR (SB3's logger; needs the tensorboard package)")
+    no_progress_option(p)
+    p.set_defaults(run=run_train)
+    p = rl_sub.add_parser("plot", help="redraw a run's learning_curve.png from its learning_curve.csv (also of a run "
+                          "still going or interrupted)")
+    p.add_argument("run", type=Path, help="the folder rl train wrote")
+    p.set_defaults(run=run_plot)
+    p = rl_sub.add_parser("eval", help="the benchmark protocol: any policies beside the planners under every control "
+                          "law on the same held-out scenarios; eval.csv, summary.json, SUMMARY.md, profiles.png")
+    p.add_argument("--policy", dest="policies", action="append", default=[],
+                   help="PATH.zip (rl train's), baseline:NAME (mjtraj rl baselines), MODULE:ATTR or FILE.py:ATTR (a "
+                   "callable or torch module; docs/benchmark.md); repeat for several; none: the classical methods")
+    p.add_argument("--baselines", action="store_true", help="also score every shipped baseline (mjtraj rl baselines)")
+    p.add_argument("--policy-env", dest="policy_env", action="append", default=[], metavar="KEY=VALUE",
+                   help="an env setting for policies that are not zips and do not declare it (planner, controller, "
+                   "action_mode, residual_scale, observe_control, preview, observe_plant, history; default "
+                   "UR5Track-v1's); repeatable")
+    p.add_argument("--family", type=names, default=list(PROTOCOL_V1["families"]),
+                   help="families, comma-separated: nominal, aggressive, mismatch (default all three, protocol v1)")
+    p.add_argument("--scenarios", type=int, default=PROTOCOL_V1["scenarios"],
+                   help="held-out scenarios per family (default 200, protocol v1)")
+    p.add_argument("--seed", type=int, default=PROTOCOL_V1["seed"],
+                   help="the scenarios' seed (default 1, protocol v1: held out from sweeps and training, seed 0); "
+                   "any other family, count, seed or --reps is stamped off-protocol in SUMMARY.md and summary.json")
+    p.add_argument("--planners", type=names, default=["cubic"],
+                   help="planners scored under each control law (cubic, the reference's, always; default cubic)")
+    p.add_argument("--controllers", type=names, default=["pid"],
+                   help=f"control laws the planners run under, comma-separated: {laws} or registered plug-ins "
+                   "(pid always; each policy also runs on its own)")
+    p.add_argument("--tuned-gains", dest="tuned_gains", type=Path,
+                   help="a scenario file from `mjtraj tune --gains`, scored as 'cubic+PID (tuned gains)'")
+    p.add_argument("--floor", action="store_true", help="also compute each scenario's clairvoyant floor and read "
+                   "every method against it and against the strongest classical method (floor.csv; mismatch floors "
+                   "take about 4 s a scenario)")
+    p.add_argument("--reps", type=int, default=PROTOCOL_V1["reps"],
+                   help="bootstrap resamples per interval (default 2000, protocol v1)")
+    p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")
+    p.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
+    no_progress_option(p)
+    p.set_defaults(run=run_eval)
+    p = rl_sub.add_parser("baselines", help="list the shipped trained policies (use them as --policy baseline:NAME)")
+    p.set_defaults(run=run_baselines)
+    p = rl_sub.add_parser("best", help="choose baseline:best on validation scenarios (never evaluation ones) by "
+                             "the stated rule and write it, with every score, into the baselines' BEST.json")
+    p.add_argument("--scenarios", type=int, default=100, help="validation scenarios per family (default 100)")
+    no_progress_option(p)
+    p.set_defaults(run=run_best)
+    p = rl_sub.add_parser("ship", help="ship a run's policy as a baseline: its zip without optimiser states (the same "
+                          "actions, checked), its record and run.json")
+    p.add_argument("run", type=Path, help="the folder rl train wrote")
+    p.add_argument("--name", required=True, help="the baseline's name (letters, digits, _ and -)")
+    p.add_argument("--which", default="best", help="best (selected on validation; default) | policy (the final one)")
+    p.add_argument("--into", type=Path, help="folder of baselines (default: the package's own, mjtraj/rl/baselines)")
+    p.add_argument("--student", action="store_true", help="ship a privileged teacher (--observe-plant true on the "
+                   "adaptive law) as its deployable student: the same weights observing the adaptive law's estimate")
+    p.set_defaults(run=run_ship)
+
+
+def _list(parser: argparse.ArgumentParser) -> int:
+    parser.print_help()
+    return 0
+
+
+def run_plot(args: argparse.Namespace) -> int:
+    """`mjtraj rl plot`."""
+    from mjtraj.rl.train import plot_run
+
+    print(f"wrote {plot_run(args.run)}")
+    return 0
+
+
+def run_train(args: argparse.Namespace) -> int:
+    """`mjtraj rl train`."""
+    from mjtraj.rl.extra import require_sb3
+
+    require_sb3()
+    from mjtraj.rl.train import TrainSettings, resume_training, train
+
+    if args.resume is not None:
+        report = resume_training(args.resume, progress=not args.no_progress, tensorboard=args.tensorboard)
+        print(f"resumed {args.resume} and trained to {report.timesteps} steps; validation mean J_exec "
+              f"{report.final['cost_mean']:.4g}")
+        print(f"wrote {report.policy}")
+        return 0
+
+    extra: dict[str, Any] = {} if args.residual_scale is None else {"residual_scale": args.residual_scale}
+    extra["overrides"] = overrides(args.hyperparameters, args.hyperparameter)
+    extra["observe_control"] = args.observe_control
+    extra["observe_plant"] = args.observe_plant
+    extra["history"] = args.history
+    extra["observation_scaling"] = args.observation_scaling
+    extra["plant_randomization"] = args.plant_randomization
+    extra["reward_baseline"] = args.reward_baseline
+    settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **extra, planner=args.planner,
+                             controller=args.controller, task=args.task,
+                             steps=args.steps, seed=args.seed, num_envs=args.num_envs,
+                             checkpoints=args.checkpoints, evaluations=args.evaluations,
+                             validation=args.validation, threads=args.threads)
+    report = train(settings, args.out, progress=not args.no_progress, tensorboard=args.tensorboard)
+    final = report.final
+    print(f"trained {report.timesteps} steps in {report.wall:.0f} s; validation mean J_exec "
+          f"{final['cost_mean']:.4g} (median {final['cost_median']:.4g}, {final['diverged']} diverged)")
+    print(f"wrote {report.policy}, {report.out / 'best.zip'} (best on validation), "
+          f"{report.out / 'learning_curve.csv'}, {report.out / 'learning_curve.png'}, {report.out / 'run.json'} "
+          f"and {report.out / 'checkpoints'}/")
+    return 0
+
+
+def run_baselines(args: argparse.Namespace) -> int:
+    """`mjtraj rl baselines`."""
+    from mjtraj.rl.baselines import baseline_names, describe
+
+    for name in baseline_names():
+        facts = describe(name)
+        print(f"baseline:{name}  {facts['algo'].upper()} seed {facts['seed']}, {facts['timesteps']} steps, "
+              f"controller {facts['env'].get('controller', 'pid')}, plants {facts['env']['plant_randomization']}")
+    return 0
+
+
+def run_best(args: argparse.Namespace) -> int:
+    """`mjtraj rl best`."""
+    from mjtraj.checks import positive_int
+    from mjtraj.rl.baselines import baseline_names, baselines_folder
+    from mjtraj.rl.best import choose_best
+
+    positive_int("scenarios", args.scenarios)
+    command = command_line(args)
+    with Progress("mjtraj rl best", "baseline", not args.no_progress) as progress:
+        chosen = choose_best(baselines_folder(), baseline_names(), scenarios=args.scenarios, command=command,
+                             progress=progress)
+    for name, scores in chosen["scores"].items():
+        print(f"{name}: " + ", ".join(f"{f} {r if isinstance(r, str) else format(r, '.4g')}"
+                                      for f, r in scores.items()))
+    print(f"baseline:best = {chosen['best']} ({chosen['rule']})")
+    return 0
+
+
+def run_ship(args: argparse.Namespace) -> int:
+    """`mjtraj rl ship`."""
+    from mjtraj.checks import choice
+    from mjtraj.rl.baselines import ship
+
+    choice("which", args.which, ("best", "policy"))
+    print(f"wrote {ship(args.run, args.name, which=args.which, into=args.into, student=args.student)}")
+    return 0
+
+
+def run_eval(args: argparse.Namespace) -> int:
+    """`mjtraj rl eval`."""
+    from mjtraj.rl.evaluate import REFERENCE, evaluate
+
+    command = command_line(args)
+    policies = list(args.policies)
+    if args.baselines:
+        from mjtraj.rl.baselines import baseline_names
+
+        policies += [f"baseline:{name}" for name in baseline_names()]
+    evaluation = evaluate(policies, families=tuple(args.family), scenarios=args.scenarios, seed=args.seed,
+                          planners=tuple(args.planners), controllers=tuple(args.controllers),
+                          tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
+                          settings=overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
+                          progress=not args.no_progress, floor=args.floor)
+    print(evaluation.table)
+    print(f"\nIn short (J / {REFERENCE}, then P(improve)):\n")
+    print(evaluation.compact)
+    if evaluation.floor_table:
+        print("\nAgainst the floor and the strongest classical method:\n")
+        print(evaluation.floor_table)
+    print(f"\nwrote {evaluation.csv}, {evaluation.summary_json}, {evaluation.markdown} and {evaluation.figure}")
+    return 0
