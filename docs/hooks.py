@@ -60,4 +60,14 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str
     for marker, make in MARKERS.items():
         if marker in markdown:
             markdown = markdown.replace(marker, make())
+    return site_links(markdown, page.file.src_uri)
+
+
+def site_links(markdown: str, page: str) -> str:
+    """The repository's links as the site serves them: a page at docs/X.md links `../videos/...` and
+    `../AUDIT.md` (right on GitHub and in a checkout), which the site serves beside the page (on_files)."""
+    depth = page.count("/")
+    up = "../" * (depth + 1)
+    for name in (*SHOWN, *SHOWN_FILES):
+        markdown = markdown.replace(f"]({up}{name}", f"]({'../' * depth}{name}")
     return markdown

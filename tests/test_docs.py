@@ -34,3 +34,16 @@ def test_the_benchmark_pages_example_policy_is_scored(tmp_path):
     report = evaluate([f"{tmp_path / 'mypolicy.py'}:policy"], scenarios=2, seed=1, reps=10, out=tmp_path / "out")
     (method,) = [m for m in report.summaries["nominal"] if m.endswith("mypolicy.py:policy")]
     assert report.summaries["nominal"][method].failures == 0
+
+
+def test_every_relative_link_of_the_readme_and_the_docs_resolves_in_the_repository():
+    """A link the Markdown files give (outside code blocks) points at a file that exists, as GitHub and a checkout
+    read them; `mkdocs build --strict` checks the built site's own links (CI runs both)."""
+    broken = []
+    for page in [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]:
+        text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+        for link in re.findall(r"\]\(([^)\s]+)\)", text):
+            path = link.split("#")[0]
+            if path and not re.match(r"[a-z]+:", path) and not (page.parent / path).exists():
+                broken.append(f"{page.relative_to(ROOT)}: {link}")
+    assert broken == []
