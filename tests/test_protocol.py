@@ -128,6 +128,7 @@ def test_the_cli_scores_a_users_file_beside_the_classical_methods(tmp_path, caps
                               "nominal,aggressive,mismatch); scenarios 3 (v1: 200); reps 20 (v1: 2000). ")
     assert "\nRegenerate: `mjtraj rl eval --policy " in summary
     assert "By payload on the mismatch family" in summary and (out / "profiles.png").stat().st_size > 10_000
+    assert (out / "intervals.png").stat().st_size > 10_000
     record = json.loads((out / "summary.json").read_text())
     assert record["controllers"] == ["pid", "computed_torque"] and record["reference"] == "cubic+PID"
 
@@ -244,3 +245,36 @@ def test_a_run_off_the_published_protocol_says_so(tmp_path):
     summary = (tmp_path / "SUMMARY.md").read_text().splitlines()
     assert summary[0] == "# Benchmark summary (OFF-PROTOCOL)"
     assert summary[2].startswith("**Off-protocol**: families nominal (v1: nominal,aggressive,mismatch); ")
+
+
+def test_every_method_keeps_one_colour_and_policies_never_share_one():
+    """Classical methods take their law's fixed colour in every run; policies get distinct colours, the same for
+    the same list of methods."""
+    from mjtraj.rl.protocol_stats import LAW_COLORS, method_colors
+
+    policies = [f"cubic+PID+residual SAC seed {k}" for k in range(20)]
+    methods = ["cubic+PID", "cubic+CT", "cubic+adaptive CT", "cubic+MPC", "cubic+PID (tuned gains)", *policies]
+    colors = method_colors(methods)
+    assert colors["cubic+PID"] == LAW_COLORS["PID"] and colors["cubic+MPC"] == LAW_COLORS["MPC"]
+    assert method_colors(["cubic+CT"])["cubic+CT"] == colors["cubic+CT"]  # whatever else the run holds
+    assert len({colors[m] for m in methods}) == len(methods)
+    assert method_colors(methods) == colors
+
+
+def test_figures_are_written_in_every_format_asked_for(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from mjtraj.exceptions import InvalidInputError
+    from mjtraj.study import save_figure
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1])
+    paths = save_figure(fig, tmp_path / "f.png", ("png", "svg", "pdf"))
+    assert [p.name for p in paths] == ["f.png", "f.svg", "f.pdf"]
+    assert paths[1].read_text().lstrip().startswith("<?xml") and paths[2].read_bytes().startswith(b"%PDF")
+    with pytest.raises(InvalidInputError, match=r"^figure_format: unknown value 'jpg'"):
+        save_figure(fig, tmp_path / "g.png", ("jpg",))
+    plt.close(fig)

@@ -68,7 +68,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.argv = words
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        return int(args.run(args))
+        return int(args.handler(args))
     except MjtrajError as e:
         print(f"mjtraj: error: {e}", file=sys.stderr)
         return 2

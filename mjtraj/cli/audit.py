@@ -7,6 +7,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from mjtraj.cli.common import figure_format_option
+
 
 def add(sub: Any, laws: str) -> None:
     """Declare `mjtraj audit`."""
@@ -19,7 +21,8 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--no-tasks", action="store_true", help="skip the paper task, its reverse and the weight frontier "
                    "(computed at audit time from each file's settings)")
     p.add_argument("--no-progress", action="store_true", help="no progress display")
-    p.set_defaults(run=run)
+    figure_format_option(p)
+    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,7 +36,8 @@ def run(args: argparse.Namespace) -> int:
             bar.set_description_str(f"mjtraj audit: {name}")
             bar.update(1)
 
-        text = write_audit(args.sweeps, args.out, partial=args.partial, tasks=not args.no_tasks, progress=stage)
+        text = write_audit(args.sweeps, args.out, partial=args.partial, tasks=not args.no_tasks, progress=stage,
+                           figure_formats=tuple(args.figure_format))
     verdicts = text.split("## Verdicts", 1)[1].split("\n\nVerdict rule")[0]
     print(verdicts.strip())
     print(f"\nwrote {args.out}")

@@ -40,7 +40,7 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--stages", default="csv,jsonl,sqlite,audit",
                    help="store: what to time, comma-separated: csv, jsonl, sqlite (export to them), audit "
                    "(default all)")
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def store_stages(text: str) -> list[str]:

@@ -24,7 +24,7 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
     figure_format_option(p)
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def output_folder(args: argparse.Namespace) -> Path:

@@ -11,7 +11,7 @@ def add(sub: Any, laws: str) -> None:
     """Declare `mjtraj doctor`."""
     p = sub.add_parser("doctor", help="which OpenGL backends render here, and the library versions")
 
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

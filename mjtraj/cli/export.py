@@ -17,7 +17,7 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--workers", type=int, help="processes that export a store in parts (default: one per CPU, at "
                    "most 4 and one per 100,000 rows; the output is the same)")
     no_progress_option(p)
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -25,7 +25,7 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--out", type=Path, help="also write every record to this CSV file")
     p.add_argument("--json", action="store_true", help="print the records and the summary as JSON")
     no_progress_option(p)
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

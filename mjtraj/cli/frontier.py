@@ -7,7 +7,16 @@ import json
 from pathlib import Path
 from typing import Any
 
-from mjtraj.cli.common import Progress, arm_options, floats, json_safe, no_progress_option, scenario_of, task_options
+from mjtraj.cli.common import (
+    Progress,
+    arm_options,
+    figure_format_option,
+    floats,
+    json_safe,
+    no_progress_option,
+    scenario_of,
+    task_options,
+)
 from mjtraj.exceptions import InvalidInputError
 
 
@@ -27,8 +36,9 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
     p.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     p.add_argument("--no-figures", action="store_true", help="skip the frontier figure")
+    figure_format_option(p)
     no_progress_option(p)
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -53,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_figures:
         from mjtraj.study.plots import frontier_figure
 
-        figure = frontier_figure(result, args.out / f"{name}.png")
+        figure = frontier_figure(result, args.out / f"{name}.png", formats=tuple(args.figure_format))
     if args.json:
         print(json.dumps(record, indent=2))
     else:

@@ -11,7 +11,7 @@ def add(sub: Any, laws: str) -> None:
     """Declare `mjtraj gains`."""
     p = sub.add_parser("gains", help="derive the default PID gains and optimal weights by their stated rules")
     p.add_argument("--config", type=Path, help="scenario TOML whose task to use (default: the paper scenario)")
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

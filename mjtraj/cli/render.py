@@ -27,7 +27,7 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--out", type=Path, default=Path("results/videos"), help="output folder (default: "
                    "results/videos/)")
     no_progress_option(p)
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

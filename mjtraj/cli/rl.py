@@ -7,7 +7,15 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from mjtraj.cli.common import Parser, Progress, command_line, names, no_progress_option, overrides
+from mjtraj.cli.common import (
+    Parser,
+    Progress,
+    command_line,
+    figure_format_option,
+    names,
+    no_progress_option,
+    overrides,
+)
 from mjtraj.rl.protocol import PROTOCOL_V1
 
 
@@ -15,7 +23,7 @@ def add(sub: Any, laws: str) -> None:
     """Declare `mjtraj rl` and its subcommands; a bare `mjtraj rl` lists them."""
     rl = sub.add_parser("rl", help="RL tracking policies: train on the UR5Track-v1 envs (the rl extra), score any "
                         "policy by the benchmark protocol beside the planners and control laws")
-    rl.set_defaults(run=lambda args: _list(rl))
+    rl.set_defaults(handler=lambda args: _list(rl))
     rl_sub = rl.add_subparsers(dest="rl_command", parser_class=Parser)
     p = rl_sub.add_parser("train", help="train an SB3 agent on the vectorised env; checkpoints, learning curve, "
                           "run.json")
@@ -68,13 +76,16 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--tensorboard", type=Path, metavar="DIR",
                    help="also log to TensorBoard event files in DIR (SB3's logger; needs the tensorboard package)")
     no_progress_option(p)
-    p.set_defaults(run=run_train)
+    p.set_defaults(handler=run_train)
     p = rl_sub.add_parser("plot", help="redraw a run's learning_curve.png from its learning_curve.csv (also of a run "
                           "still going or interrupted)")
     p.add_argument("run", type=Path, help="the folder rl train wrote")
-    p.set_defaults(run=run_plot)
+    figure_format_option(p)
+    p.set_defaults(handler=run_plot)
     p = rl_sub.add_parser("eval", help="the benchmark protocol: any policies beside the planners under every control "
-                          "law on the same held-out scenarios; eval.csv, summary.json, SUMMARY.md, profiles.png")
+                          "law on the same held-out scenarios; eval.csv, summary.json, SUMMARY.md, profiles.png, "
+                          "intervals.png")
+    figure_format_option(p)
     p.add_argument("--policy", dest="policies", action="append", default=[],
                    help="PATH.zip (rl train's), baseline:NAME (mjtraj rl baselines), MODULE:ATTR or FILE.py:ATTR (a "
                    "callable or torch module; docs/benchmark.md); repeat for several; none: the classical methods")
@@ -105,14 +116,14 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")
     p.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
     no_progress_option(p)
-    p.set_defaults(run=run_eval)
+    p.set_defaults(handler=run_eval)
     p = rl_sub.add_parser("baselines", help="list the shipped trained policies (use them as --policy baseline:NAME)")
-    p.set_defaults(run=run_baselines)
+    p.set_defaults(handler=run_baselines)
     p = rl_sub.add_parser("best", help="choose baseline:best on validation scenarios (never evaluation ones) by "
                              "the stated rule and write it, with every score, into the baselines' BEST.json")
     p.add_argument("--scenarios", type=int, default=100, help="validation scenarios per family (default 100)")
     no_progress_option(p)
-    p.set_defaults(run=run_best)
+    p.set_defaults(handler=run_best)
     p = rl_sub.add_parser("ship", help="ship a run's policy as a baseline: its zip without optimiser states (the same "
                           "actions, checked), its record and run.json")
     p.add_argument("run", type=Path, help="the folder rl train wrote")
@@ -121,7 +132,7 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--into", type=Path, help="folder of baselines (default: the package's own, mjtraj/rl/baselines)")
     p.add_argument("--student", action="store_true", help="ship a privileged teacher (--observe-plant true on the "
                    "adaptive law) as its deployable student: the same weights observing the adaptive law's estimate")
-    p.set_defaults(run=run_ship)
+    p.set_defaults(handler=run_ship)
 
 
 def _list(parser: argparse.ArgumentParser) -> int:
@@ -133,7 +144,7 @@ def run_plot(args: argparse.Namespace) -> int:
     """`mjtraj rl plot`."""
     from mjtraj.rl.train import plot_run
 
-    print(f"wrote {plot_run(args.run)}")
+    print(f"wrote {plot_run(args.run, formats=tuple(args.figure_format))}")
     return 0
 
 
@@ -227,12 +238,14 @@ def run_eval(args: argparse.Namespace) -> int:
                           planners=tuple(args.planners), controllers=tuple(args.controllers),
                           tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
                           settings=overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
-                          progress=not args.no_progress, floor=args.floor)
+                          progress=not args.no_progress, floor=args.floor,
+                          figure_formats=tuple(args.figure_format))
     print(evaluation.table)
     print(f"\nIn short (J / {REFERENCE}, then P(improve)):\n")
     print(evaluation.compact)
     if evaluation.floor_table:
         print("\nAgainst the floor and the strongest classical method:\n")
         print(evaluation.floor_table)
-    print(f"\nwrote {evaluation.csv}, {evaluation.summary_json}, {evaluation.markdown} and {evaluation.figure}")
+    figures = f"{evaluation.figure}" + (f" and {evaluation.intervals}" if evaluation.intervals else "")
+    print(f"\nwrote {evaluation.csv}, {evaluation.summary_json}, {evaluation.markdown}, {figures}")
     return 0

@@ -39,7 +39,7 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--workers", type=int, help="local worker processes, or CPUs of a local Ray (default: all)")
     p.add_argument("--ray-address", help="Ray cluster HOST:PORT, ray://HOST:PORT or auto (default: a local Ray)")
     no_progress_option(p)
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def sweep_settings(args: argparse.Namespace):  # noqa: ANN202

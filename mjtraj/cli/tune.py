@@ -30,7 +30,7 @@ def add(sub: Any, laws: str) -> None:
     no_progress_option(p)
     p.add_argument("--out", type=Path, default=Path("tuned.toml"), help="the tuned scenario file (default "
                    "tuned.toml)")
-    p.set_defaults(run=run)
+    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from mjtraj.files import atomic_path
-from mjtraj.study import append_rows, numeric, read_rows
+from mjtraj.study import append_rows, numeric, read_rows, save_figure
 
 COLUMNS = ("timesteps", "wall_s", "episodes", "train_return_mean", "train_diverged", "val_cost_mean",
            "val_cost_median", "val_rms_err_mean", "val_diverged", "pid_cost_mean", "pid_rms_err_mean")
@@ -43,9 +43,10 @@ class CurveFile:
         append_rows(self.path, list(COLUMNS), [row])
 
 
-def plot_curve(csv_path: Path, out: Path, *, title: str) -> Path:
+def plot_curve(csv_path: Path, out: Path, *, title: str, formats: Sequence[str] = ("png",)) -> Path:
     """learning_curve.png: validation J_exec of the policy against planner + PID, the training return, and how
-    many episodes diverged (a diverged episode has no J_exec: a gap in the upper panels)."""
+    many episodes diverged (a diverged episode has no J_exec: a gap in the upper panels). Written in each of
+    `formats` (png, pdf, svg); returns the first path."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -75,7 +76,6 @@ def plot_curve(csv_path: Path, out: Path, *, title: str) -> Path:
     bottom.set_xlabel("environment steps")
     bottom.legend(fontsize=8)
     fig.tight_layout()
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, dpi=120)
+    written = save_figure(fig, out, formats, dpi=120)
     plt.close(fig)
-    return out
+    return written[0]

@@ -38,6 +38,7 @@ from mjtraj.rl.protocol_stats import (
     FloorSummary,
     MethodSummary,
     improvement,
+    interval_figure,
     profile_figure,
     ratio_of_means,
     summarize,
@@ -46,6 +47,7 @@ from mjtraj.rl.protocol_stats import (
 from mjtraj.rl.streams import VALIDATION_STREAM, check_seed, family_entropies, shared_streams
 from mjtraj.study import (
     FAMILIES,
+    FIGURE_FORMATS,
     ORACLE_LABEL,
     PAYLOAD_MASS,
     SWEPT,
@@ -102,6 +104,8 @@ class EvalReport:
     """The short table: ratio of means and probability of improvement per family."""
     floor_table: str = ""
     """The table against the floor (with `floor=True`)."""
+    intervals: Path | None = None
+    """rliable's interval estimates of IQM improvement and P(improve) (intervals.png)."""
 
 
 def _labels(policies: Sequence[ScoredPolicy]) -> list[str]:
@@ -202,9 +206,11 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
              planners: Sequence[str] = ("cubic",), controllers: Sequence[str] = ("pid",),
              tuned_gains: str | Path | None = None, settings: Mapping[str, Any] | None = None,
              out: str | Path = "rl_eval", batch: int = 250, reps: int = PROTOCOL_V1["reps"],
-             threads: int | None = 1, command: str = "", progress: bool = False, floor: bool = False) -> EvalReport:
+             threads: int | None = 1, command: str = "", progress: bool = False, floor: bool = False,
+             figure_formats: Sequence[str] = ("png",)) -> EvalReport:
     """Score `policies` beside the `planners` under every law of `controllers` on scenarios 0..scenarios-1 of each
-    of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md and profiles.png into `out`. The defaults
+    of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md, profiles.png and intervals.png (in each
+    of `figure_formats`: png, pdf, svg) into `out`. The defaults
     are protocol v1 (PROTOCOL_V1); other scenarios are stamped off-protocol.
 
     Args:
@@ -233,6 +239,8 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
             import torch
 
             torch.set_num_threads(threads)
+    for kind in figure_formats:
+        choice("figure_formats", kind, FIGURE_FORMATS)
     for family in families:
         choice("family", family, FAMILIES)
     if not families:
@@ -308,10 +316,12 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
     write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS, *extra], rows))
     groups = configurations(loaded, labels)
     costs = {family: method_costs(rows, groups, family) for family in families}
-    with _stage(progress, f"intervals: {reps} bootstrap resamples per method and family, and the figure"):
+    with _stage(progress, f"intervals: {reps} bootstrap resamples per method and family, and the figures"):
         summaries, scores = summarise(costs, reps=reps)
         against = {family: against_floor(costs[family], floors[family], groups, reps=reps) for family in floors}
-        figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps)
+        figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps,
+                                formats=figure_formats)
+        intervals = interval_figure(summaries, out / "intervals.png", reference=REFERENCE, formats=figure_formats)
     table = summary_table(summaries, families)
     compact = compact_table(summaries, families)
     payload = payload_table(rows, costs["mismatch"]) if "mismatch" in families else ""
@@ -330,7 +340,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
     md_path = out / "SUMMARY.md"
     floors_md = floor_table(against, families) if against else ""
     write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded, compact, floors_md))
-    return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md)
+    return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals)
 
 
 FLOOR_COLUMNS = ("floor", "cost_over_floor")

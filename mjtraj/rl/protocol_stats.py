@@ -21,8 +21,9 @@ seeds (task_bootstrap). The reference is one deterministic run per scenario, res
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -157,10 +158,56 @@ def summarize(cost: NDArray[np.float64], ref: NDArray[np.float64], *, reps: int 
     return MethodSummary(S, K, int(np.sum(np.isinf(x))), int(np.sum(np.isinf(y))), ratio, mid, poi, wins)
 
 
+LAW_COLORS = {"PID": "black", "CT": "tab:blue", "adaptive CT": "tab:green", "MPC": "tab:red",
+              "adaptive MPC": "tab:purple"}
+"""The colour of a classical method planner+LAW in every figure, by its law's label (mjtraj.rl.LAW_LABELS)."""
+OTHER_COLORS = {"(tuned gains)": "0.55", "oracle": "tab:olive"}
+"""The colour of a method whose label contains the key: tuned PID gains, the adaptive law's oracle."""
+
+
+def classical_color(method: str) -> str | None:
+    """The fixed colour of a classical method (LAW_COLORS, OTHER_COLORS), None for any other (a policy)."""
+    other = next((c for key, c in OTHER_COLORS.items() if key in method), None)
+    return other if other is not None else LAW_COLORS.get(method.split("+", 1)[1] if "+" in method else "")
+
+
+def method_colors(methods: Sequence[str]) -> dict[str, Any]:
+    """One colour per method, the same in every figure of a run: classical methods by LAW_COLORS and OTHER_COLORS
+    (fixed across runs); each other method (a policy) a colour of tab20 and Dark2 chosen from its name (crc32) and
+    moved to the next free one where two would share it, in the order of `methods`."""
+    import zlib
+
+    import matplotlib
+
+    palette = [matplotlib.colors.to_hex(c) for name in ("tab20", "Dark2")
+               for c in matplotlib.colormaps[name].colors]  # type: ignore[attr-defined]
+    fixed = {matplotlib.colors.to_hex(c) for c in (*LAW_COLORS.values(), *OTHER_COLORS.values())}
+    free = [c for c in palette if c not in fixed]
+    out: dict[str, str] = {}
+    for m in methods:
+        color = classical_color(m)
+        if color is not None:
+            out[m] = color
+    taken = {matplotlib.colors.to_hex(c) for c in out.values()}
+    for m in methods:
+        if m in out:
+            continue
+        k = zlib.crc32(m.encode()) % len(free)
+        for step in range(len(free)):
+            if free[(k + step) % len(free)] not in taken:
+                k = (k + step) % len(free)
+                break
+        out[m] = free[k]
+        taken.add(free[k])
+    return out
+
+
 def profile_figure(scores: dict[str, dict[str, NDArray[np.float64]]], path: Any, *, reference: str,
-                   reps: int = 2000, seed: int = BOOTSTRAP_SEED) -> Any:
+                   reps: int = 2000, seed: int = BOOTSTRAP_SEED, formats: Sequence[str] = ("png",)) -> Path:
     """rliable's performance profiles, one panel per family: the share of (seed, scenario) episodes whose
-    improvement over `reference` exceeds tau, with 95 % bootstrap bands; `scores` family -> method -> (S, K)."""
+    improvement d = 1 - J / J_ref over `reference` exceeds tau, with 95 % bootstrap bands; `scores` family -> method
+    -> (S, K). tau spans where the episodes' d lie (their 1st to 99th percentiles, within [-1, 1]); policies are
+    dashed; the legend stands beside the panels. Written in each of `formats`; returns the first path."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -168,26 +215,72 @@ def profile_figure(scores: dict[str, dict[str, NDArray[np.float64]]], path: Any,
     from rliable import library as rly
     from rliable import plot_utils
 
-    taus = np.linspace(-1.0, 1.0, 41)
+    from mjtraj.study import save_figure
+
     families = list(scores)
-    fig, axes = plt.subplots(1, len(families), figsize=(4.6 * len(families), 3.8), squeeze=False)
     methods = list(dict.fromkeys(m for family in families for m in scores[family]))
-    cmap = plt.get_cmap("tab10" if len(methods) <= 10 else "tab20")
-    colors = {m: cmap(i % cmap.N) for i, m in enumerate(methods)}
+    colors = method_colors(methods)
+    styles = {m: "-" if classical_color(m) is not None else "--" for m in methods}
+    fig, axes = plt.subplots(1, len(families), figsize=(4.2 * len(families), 3.6), squeeze=False)
     for ax, family in zip(axes[0], families, strict=True):
+        d = np.concatenate([np.ravel(v) for v in scores[family].values()])
+        d = d[np.isfinite(d)]
+        low, high = (np.percentile(d, [1, 99]) if d.size else (-1.0, 1.0))
+        low, high = max(-1.0, float(low)), min(1.0, float(high))
+        pad = 0.05 * max(high - low, 1e-3)
+        taus = np.linspace(low - pad, high + pad, 61)
         with seeded_global_rng(seed):
             profiles, bands = rly.create_performance_profile(scores[family], taus, reps=reps)
         plot_utils.plot_performance_profiles(profiles, taus, performance_profile_cis=bands, colors=colors,
-                                             xlabel=r"$\tau$ (improvement $d = 1 - J / J_{ref}$)",
+                                             linestyles=styles, xlabel=r"$\tau$ (improvement $d = 1 - J / J_{ref}$)",
                                              ylabel=r"share of episodes with $d > \tau$", ax=ax,
                                              labelsize="medium", ticklabelsize="small")
-        ax.set_title(f"{family} scenarios, against {reference}", fontsize="medium")
-    handles = [plt.Line2D([], [], color=colors[m], lw=2, label=m) for m in methods]
-    fig.legend(handles=handles, loc="lower center", ncol=2, fontsize="small", frameon=False)
-    fig.tight_layout(rect=(0, 0.06 * (1 + len(methods) // 2), 1, 1))
-    fig.savefig(path, dpi=110)
+        ax.set_title(f"{family}, against {reference}", fontsize="medium")
+    handles = [plt.Line2D([], [], color=colors[m], ls=styles[m], lw=2, label=m) for m in methods]
+    fig.legend(handles=handles, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="small", frameon=False)
+    fig.tight_layout()
+    written = save_figure(fig, Path(path), formats, dpi=130, tight=True)
     plt.close(fig)
-    return path
+    return written[0]
+
+
+def interval_figure(summaries: Mapping[str, Mapping[str, Any]], path: Any, *, reference: str,
+                    formats: Sequence[str] = ("png",)) -> Path | None:
+    """rliable's interval estimates: per family, the IQM of the improvement over `reference` and P(improve), each
+    method's point estimate (black tick) and 95 % interval (bar), in the colours of `method_colors`; a method absent
+    from a family is left blank there. `summaries` family -> method -> MethodSummary. Returns the first path, or
+    None (nothing written) when the reference is the only method."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from rliable import plot_utils
+
+    from mjtraj.study import save_figure
+
+    families = list(summaries)
+    methods = [m for m in dict.fromkeys(m for f in families for m in summaries[f]) if m != reference]
+    if not methods:
+        return None
+    names = [f"{f}: {what}" for f in families for what in ("IQM improvement", f"P(improve over {reference})")]
+    points, intervals = {}, {}
+    for m in methods:
+        values = []
+        for f in families:
+            s = summaries[f].get(m)
+            values += [s.iqm, s.probability_of_improvement] if s is not None else [None, None]
+        points[m] = np.array([np.nan if v is None else v.value for v in values])
+        intervals[m] = np.array([[np.nan if v is None else v.low for v in values],
+                                 [np.nan if v is None else v.high for v in values]])
+    fig, axes = plot_utils.plot_interval_estimates(points, intervals, names, algorithms=methods,
+                                                   colors=method_colors(methods), xlabel="", subfigure_width=3.6,
+                                                   row_height=0.42)
+    for ax, name in zip(np.ravel(axes), names, strict=True):
+        ax.tick_params(labelsize="small")
+        ax.set_title(name.replace(": ", "\n"), fontsize="medium")
+    written = save_figure(fig, Path(path), formats, dpi=130, tight=True)
+    plt.close(fig)
+    return written[0]
 
 
 @dataclass(frozen=True)

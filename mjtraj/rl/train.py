@@ -25,6 +25,7 @@ import dataclasses
 import json
 import shutil
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -492,15 +493,16 @@ def _title(settings: TrainSettings) -> str:
             f"task={settings.task}{plant}{scaling}, seed {settings.seed}")
 
 
-def plot_run(run: str | Path) -> Path:
-    """Redraw `run`/learning_curve.png from its CSV and run.json; returns the PNG's path."""
+def plot_run(run: str | Path, *, formats: Sequence[str] = ("png",)) -> Path:
+    """Redraw `run`/learning_curve.png from its CSV and run.json, in each of `formats` (png, pdf, svg); returns
+    the first path."""
     run = Path(run)
     record, curve = run / "run.json", run / "learning_curve.csv"
     for path in (record, curve):
         if not path.is_file():
             raise InvalidInputError(f"run: {path} not found; expected a folder written by mjtraj rl train")
     settings = TrainSettings(**json.loads(record.read_text())["settings"])
-    return plot_curve(curve, run / "learning_curve.png", title=_title(settings))
+    return plot_curve(curve, run / "learning_curve.png", title=_title(settings), formats=formats)
 
 
 def _resolved(model: Any) -> dict[str, Any]:

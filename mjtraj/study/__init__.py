@@ -9,6 +9,8 @@ from typing import TYPE_CHECKING
 from mjtraj._lazy import lazy_exports
 
 _EXPORTS = {
+    "FIGURE_FORMATS": "mjtraj.study.plots",
+    "save_figure": "mjtraj.study.plots",
     "Scenario": "mjtraj.study.scenario",
     "load_scenario": "mjtraj.study.scenario",
     "scenario_text": "mjtraj.study.scenario",
@@ -119,6 +121,7 @@ if TYPE_CHECKING:
         one_line,
         plan_failure,
     )
+    from mjtraj.study.plots import FIGURE_FORMATS, save_figure
     from mjtraj.study.report import format_report, results_csv
     from mjtraj.study.rows import EXTRA_METRICS, Row
     from mjtraj.study.runner import SweepReport, run_sweep
@@ -149,7 +152,7 @@ if TYPE_CHECKING:
     )
 
 __all__ = [
-    "Floor", "family_floors", "floor_of",
+    "FIGURE_FORMATS", "Floor", "family_floors", "floor_of",
     "Actor", "ActorSpec", "BACKENDS", "Comparison", "Condition", "DEFAULT_PLANNERS", "EXTRA_METRICS", "FAMILIES",
     "FAMILY_ID", "FamilyScenario", "Job", "ORACLE_LABEL", "Outcome", "PAPER_TABLE", "PAYLOAD_MASS", "PairedRatio",
     "Perturbation", "ResultsFile", "Row", "STATUSES", "SWEPT", "Scenario", "SweepData", "SweepReport",
@@ -158,6 +161,6 @@ __all__ = [
     "draw_perturbation", "draw_scenario", "execute", "execute_batch", "fixed_columns", "format_report",
     "goal_checked", "jobs_for", "load_scenario", "measurement_noise", "no_perturbation", "noise_scale", "numeric",
     "one_line", "paired_ratio", "perturbed_plant", "plan_failure", "plan_scenarios", "planner_names", "plant_fields",
-    "ratio_of_means", "read_rows", "results_csv", "run_sweep", "run_unit", "scenario_for_model", "scenario_from_dict",
-    "scenario_text", "scoring_weights", "true_parameters", "unit_scenarios", "write_audit",
+    "ratio_of_means", "read_rows", "results_csv", "run_sweep", "run_unit", "save_figure", "scenario_for_model",
+    "scenario_from_dict", "scenario_text", "scoring_weights", "true_parameters", "unit_scenarios", "write_audit",
 ]

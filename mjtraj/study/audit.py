@@ -25,7 +25,6 @@ from numpy.typing import NDArray
 
 from mjtraj.core.metrics import GOAL_TOLERANCE, METRIC_NAMES
 from mjtraj.exceptions import InvalidInputError, MjtrajError
-from mjtraj.files import atomic_path
 from mjtraj.study.families import FAMILIES
 from mjtraj.study.fixed_tasks import TASKS, task_rows
 from mjtraj.study.paper import PAPER_TABLE
@@ -405,13 +404,15 @@ def _overall(per_condition: dict[Condition, str]) -> str:
 
 
 def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], *, figures: bool = True,
-                partial: bool = False, tasks: bool = True, progress: Callable[[str], None] | None = None) -> str:
+                partial: bool = False, tasks: bool = True, progress: Callable[[str], None] | None = None,
+                figure_formats: Sequence[str] = ("png",)) -> str:
     """Write the audit of the sweep files `paths` to `out` (Markdown) and its figures beside it; return the text.
 
     An incomplete sweep file is refused unless `partial`, which audits its complete units and says what is missing.
     With `tasks`, each file's planners, controller variants and scenario file are also run on the paper task and its
     reverse (conditions of their own), and the weight frontier on the paper task is computed and drawn.
-    `progress(stage)` is called as each stage begins.
+    `progress(stage)` is called as each stage begins. Each figure is written in every format of `figure_formats`
+    (png, pdf, svg); the Markdown shows the first.
     """
     def stage(name: str) -> None:
         if progress is not None:
@@ -504,7 +505,7 @@ def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[
     lines += _conclusions(data)
     if tasks:
         stage("the weight frontier")
-        lines += _frontier_section(data, out, paths, figures=figures)
+        lines += _frontier_section(data, out, paths, figures=figures, formats=figure_formats)
     lines += _where_it_pays(data)
     lines += _min_effort(data)
     if tasks:
@@ -518,7 +519,7 @@ def write_audit(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[
               "verdict reads only executions that reached their goals.", ""] + summary
     if figures:
         stage("the figures")
-        lines += _figures(data, out)
+        lines += _figures(data, out, figure_formats)
     lines += _definitions(data)
     lines += _paper_note()
     text = "\n".join(lines) + "\n"
@@ -600,8 +601,8 @@ def _conclusions(data: SweepData) -> list[str]:
     return lines + [""] if len(lines) > 4 else []
 
 
-def _frontier_section(data: SweepData, out: Path, paths: Sequence[str | os.PathLike[str]], *, figures: bool
-                      ) -> list[str]:
+def _frontier_section(data: SweepData, out: Path, paths: Sequence[str | os.PathLike[str]], *, figures: bool,
+                      formats: Sequence[str] = ("png",)) -> list[str]:
     """The optimal planner's weight frontier on the paper task of the first file's scenario, in its first controller
     variant: the table, the figure, and where each audited set of weights puts the optimal planner on that task."""
     from mjtraj.study.frontier import frontier
@@ -636,8 +637,9 @@ def _frontier_section(data: SweepData, out: Path, paths: Sequence[str | os.PathL
 
         folder = out.parent / (out.stem + "_figures")
         folder.mkdir(parents=True, exist_ok=True)
-        frontier_figure(result, folder / "frontier_paper_task.png", points=points)
-        lines += [f"![the weight frontier on the paper task]({folder.name}/frontier_paper_task.png)", ""]
+        shown = frontier_figure(result, folder / "frontier_paper_task.png", points=points, formats=formats)
+        if shown is not None:
+            lines += [f"![the weight frontier on the paper task]({folder.name}/{shown.name})", ""]
     return lines
 
 
@@ -771,17 +773,17 @@ METRIC_LABELS = {"rms_err": "RMS tracking error", "int_dtau": "integral of |corr
 """Plain names of the metrics the audit's figures draw."""
 
 
-def _figures(data: SweepData, out: Path) -> list[str]:
+def _figures(data: SweepData, out: Path, formats: Sequence[str] = ("png",)) -> list[str]:
     import matplotlib
 
-    from mjtraj.study.plots import planner_color
+    from mjtraj.study.plots import planner_color, save_figure
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     folder = out.parent / (out.stem + "_figures")
     folder.mkdir(parents=True, exist_ok=True)
-    written = set()
+    written: set[str] = set()
     lines = ["## Figures", ""]
     for c in data.conditions:
         if not data.has(c, "optimal") or c.family in TASKS:  # one motion: no distribution to draw
@@ -806,12 +808,11 @@ def _figures(data: SweepData, out: Path) -> list[str]:
         fig.tight_layout()
         slug = re.sub(r"[^A-Za-z0-9]+", "_", c.weights).strip("_")
         name = f"ratios_{slug + '_' if slug else ''}{c.family}_{c.ff_accel}_{c.gravity_comp}.png"
-        with atomic_path(folder / name) as tmp:
-            fig.savefig(tmp, dpi=150)
+        paths = save_figure(fig, folder / name, formats, dpi=150)
         plt.close(fig)
-        written.add(name)
-        lines.append(f"![{c}]({folder.name}/{name})")
-    for stale in folder.glob("ratios_*.png"):  # the figures of an earlier audit into the same file
+        written.update(path.name for path in paths)
+        lines.append(f"![{c}]({folder.name}/{paths[0].name})")
+    for stale in folder.glob("ratios_*"):  # the figures of an earlier audit into the same file
         if stale.name not in written:
             stale.unlink()
     return lines + [""]

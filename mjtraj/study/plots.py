@@ -73,6 +73,23 @@ FIGURE_FORMATS = ("png", "pdf", "svg")
 """The file formats figures are written in (png by default; pdf and svg for papers, vector graphics)."""
 
 
+def save_figure(fig: Any, path: Path, formats: Sequence[str] = ("png",), *, dpi: int = 120,
+                tight: bool = False) -> list[Path]:
+    """Write the matplotlib figure `fig` as `path` in each of `formats` (FIGURE_FORMATS; the suffix replaced), each
+    atomically; `tight`: crop to the drawn content (a legend outside the axes kept whole). Returns the paths."""
+    from mjtraj.checks import choice
+    from mjtraj.files import atomic_path
+
+    written = []
+    for kind in formats:
+        choice("figure_format", kind, FIGURE_FORMATS)
+        target = Path(path).with_suffix(f".{kind}")
+        with atomic_path(target) as tmp:
+            fig.savefig(tmp, dpi=dpi, format=kind, **({"bbox_inches": "tight"} if tight else {}))
+        written.append(target)
+    return written
+
+
 def write_figures(result: Comparison, out: Path, *, dpi: int = 120, formats: Sequence[str] = ("png",)
                   ) -> list[Path]:
     """Write FIGURES into `out` (each atomically), once per format of `formats` (FIGURE_FORMATS); returns the
@@ -87,7 +104,6 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120, formats: Seq
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from mjtraj.files import atomic_path
     from mjtraj.study.paper import PAPER_TABLE
 
     out.mkdir(parents=True, exist_ok=True)
@@ -102,11 +118,7 @@ def write_figures(result: Comparison, out: Path, *, dpi: int = 120, formats: Seq
     written = []
 
     def save(fig, filename: str) -> None:  # noqa: ANN001
-        for kind in formats:
-            path = (out / filename).with_suffix(f".{kind}")
-            with atomic_path(path) as tmp:
-                fig.savefig(tmp, dpi=dpi, format=kind)
-            written.append(path)
+        written.extend(save_figure(fig, out / filename, formats, dpi=dpi))
         plt.close(fig)
 
     def per_joint(filename: str, series: dict[str, np.ndarray], ylabel: str, times: np.ndarray, *,
@@ -239,10 +251,12 @@ def place_labels(ax: object, labels: Sequence[tuple[int, float, float, str]], co
 
 
 def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
-                    points: dict[str, tuple[float, float]] | None = None) -> Path | None:
+                    points: dict[str, tuple[float, float]] | None = None,
+                    formats: Sequence[str] = ("png",)) -> Path | None:
     """Corrective effort (RMS dtau) against tracking error (RMS error), log-log: the optimal planner's curve over
     alpha for each split, labelled by alpha, every other planner as a point, and `points` (label -> (RMS dtau N m,
-    RMS error rad)) as stars. Written atomically; None (nothing written) when no execution succeeded."""
+    RMS error rad)) as stars. Written atomically in each of `formats`; returns the first path, or None (nothing
+    written) when no execution succeeded."""
     drawable = [(r.metrics["rms_dtau"], r.metrics["rms_err"]) for r in result.rows] + list((points or {}).values())
     if not any(np.isfinite(x) and np.isfinite(y) and x > 0 and y > 0 for x, y in drawable):
         return None
@@ -251,7 +265,6 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from mjtraj.files import atomic_path
 
     s = result.setting
     fig, ax = plt.subplots(figsize=(7.5, 5.4))
@@ -293,7 +306,6 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
     fig.text(0.01, 0.012, textwrap.fill(f"Q = α Q_bryson, R fixed, on {where}; score: {s['score']}; controller: the "
                                         "scenario's (identical for every planner); squares: the other planners", 130),
              fontsize=7, color="0.3")
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi)
+    written = save_figure(fig, path, formats, dpi=dpi)
     plt.close(fig)
-    return path
+    return written[0]
