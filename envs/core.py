@@ -162,8 +162,9 @@ class TrackCore:
         fields = plant_fields(self.plant, [no_perturbation(n)] * num) if self.plant is not None else None
         self.loop = ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields)
         self.shadow = (ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields)
-                       if settings.reward_baseline == "pid" else None)
-        """With reward_baseline='pid': the same episodes under PID alone (no action), stepped alongside."""
+                       if settings.reward_baseline != "none" else None)
+        """With reward_baseline 'controller' (or 'pid', its earlier name): the same episodes under the control law
+        alone (no action), stepped alongside."""
         self.limit = np.tile(settings.action_scale, (num, 1))
         task = settings.fixed_task
         self.fixed = (settings.planner.plan(task, self.model), settings.weights(task)) if task is not None else None

@@ -49,7 +49,9 @@ ENV_FAMILIES = ("none", *FAMILIES)
 RENDER_MODES = ("rgb_array", "depth_array", "human")
 """The single env's; the vector env renders the first two (a window shows one env)."""
 PLANT_RANDOMIZATIONS = ("none", "mismatch")
-REWARD_BASELINES = ("none", "pid")
+REWARD_BASELINES = ("none", "controller", "pid")
+"""none; controller: the reward is the advantage over the configured control law alone (a shadow loop); pid: the
+same, under its earlier name (it always ran the configured law, PID or another), kept so that earlier runs load."""
 OBSERVE_PLANT = ("none", "true", "estimate")
 """What the observation says of the plant: nothing; its true payload, damping and friction (privileged: a teacher);
 or the adaptive law's online estimate of them (deployable; needs controller='adaptive_computed_torque')."""
@@ -90,9 +92,10 @@ class EnvOptions:
                                       choices=PLANT_RANDOMIZATIONS)
     measurement_noise: float = option(0.0, "std of the noise on measured q, rad (sqrt(2) x / dt on qd), drawn per "
                                       "episode; 0 for exact measurements", minimum=0.0)
-    reward_baseline: str = option("none", "none, or pid: the reward is the advantage over the controller alone, "
-                                  "minus (step cost - the same episode's step cost under PID alone, run in a shadow "
-                                  "loop); metrics keep J_exec", choices=REWARD_BASELINES)
+    reward_baseline: str = option("none", "none, or controller: the reward is the advantage over the configured "
+                                  "control law alone, minus (step cost - the same episode's step cost under that law "
+                                  "with no action, run in a shadow loop); metrics keep J_exec ('pid' is its earlier "
+                                  "name)", choices=REWARD_BASELINES)
     width: int = option(640, "image width, px", minimum=1)
     height: int = option(480, "image height, px", minimum=1)
     camera: str = option("front", "a camera of the model (the UR5: front, side, top) or free (framed on the model); "

@@ -120,10 +120,10 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     as sweeps score every scenario: 1/move^2 on positions (move = the largest joint displacement), 1/pi^2 on
     velocities, 1/60^2 on torques; for the paper task these are the paper scenario's weights.
 
-    With `reward_baseline="pid"` the env also runs each episode under PID alone (same task, plant and noise, no
-    action) in a shadow loop and subtracts its step cost: r_k = -(cost_k - cost_k^PID), the advantage over the
-    controller alone. The subtracted term does not depend on the actions, so the optimal policy is unchanged; a
-    whole episode returns J_exec^PID - J_exec, and `info["metrics"]` still holds J_exec.
+    With `reward_baseline="controller"` (earlier named "pid", still accepted) the env also runs each episode under
+    the configured control law alone (same task, plant and noise, no action) in a shadow loop and subtracts its
+    step cost: r_k = -(cost_k - cost_k^law), the advantage over the controller alone. The subtracted term does not depend on the actions, so the optimal policy is unchanged; a
+    whole episode returns J_exec^law - J_exec, and `info["metrics"]` still holds J_exec.
 
     ## Starting State
     The arm rests on the reference's first sample (q0, zero velocity), with the integral of the PID at zero.
@@ -158,7 +158,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
 
     ## Info
     Every step: tau_ff, tau_fb, dtau (N m, shape (3,)), saturated (bool (3,)), e (rad, (3,)), reward_tracking,
-    reward_effort, reward_baseline (minus PID alone's step cost with reward_baseline="pid", else 0; the reward is
+    reward_effort, reward_baseline (the law alone's step cost with a reward baseline, else 0; the reward is
     reward_tracking + reward_effort - reward_baseline). With plant randomisation, reset's info["plant"] describes
     the episode's plant: payload_kg, mass_scale_j, inertia_scale_j, damping_j (N m s/rad), friction_j (N m) for
     joints j = 0..2.
@@ -197,7 +197,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | delay            | 0          | actuation delay in control periods (0 or 1)                             |
     | plant_randomization | "none"  | none, or mismatch: each episode's plant drawn by the mismatch rules     |
     | measurement_noise | 0.0       | std of the noise on measured q, rad (sqrt(2) x / dt on qd); per episode |
-    | reward_baseline  | "none"     | none, or pid: reward = advantage over PID alone on the same episode      |
+    | reward_baseline  | "none"     | none, or controller: reward = advantage over the law alone (pid: old name) |
     | preview          | 0          | future reference samples in the observation                             |
     | observe_control  | False      | append the PID integral and the next feedforward torque (6 values)      |
     | observe_plant    | "none"     | none, true (the plant's parameters: privileged) or estimate (adaptive law's) |

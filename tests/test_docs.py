@@ -47,3 +47,41 @@ def test_every_relative_link_of_the_readme_and_the_docs_resolves_in_the_reposito
             if path and not re.match(r"[a-z]+:", path) and not (page.parent / path).exists():
                 broken.append(f"{page.relative_to(ROOT)}: {link}")
     assert broken == []
+
+
+def test_the_benchmark_pages_torch_module_is_scored_as_the_controller_alone(tmp_path):
+    """The page's torch example starts at a zero residual: it scores exactly cubic+PID."""
+    page = (ROOT / "docs" / "benchmark.md").read_text()
+    code = next(body for lang, body in blocks(page) if lang == "python" and "torch.nn.Module" in body)
+    (tmp_path / "mynet.py").write_text(code)
+    report = evaluate([f"{tmp_path / 'mynet.py'}:policy"], families=("nominal",), scenarios=2, reps=10,
+                      out=tmp_path / "out")
+    (summary,) = [s for m, s in report.summaries["nominal"].items() if m.endswith("mynet.py:policy")]
+    assert summary.ratio_of_means.value == 1.0 and summary.failures == 0
+
+
+def _table(text: str, header: str) -> dict[str, dict[str, str]]:
+    """The Markdown table whose header line starts with `header`: method -> column -> cell."""
+    lines = text.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith(header))
+    columns = [c.strip() for c in lines[start].strip("|").split("|")]
+    rows = {}
+    for line in lines[start + 2:]:
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        rows[cells[0]] = dict(zip(columns, cells, strict=True))
+    return rows
+
+
+def test_the_readmes_result_tables_are_the_cited_summarys_cells():
+    """Every cell of the README's two tables of the control laws is the cell of the same method and column in the
+    SUMMARY.md the README cites (written by the command shown beside them), not typed by hand."""
+    readme = (ROOT / "README.md").read_text()
+    summary = (ROOT / "docs" / "results" / "best" / "SUMMARY.md").read_text()
+    assert "](docs/results/best/SUMMARY.md)" in readme and "--out docs/results/best" in readme
+    for header in ("| method | nominal: J / cubic+PID, P(improve) |", "| method | nominal: J / floor |"):
+        shown, source = _table(readme, header), _table(summary, header)
+        assert shown and set(shown) <= set(source)
+        for method, cells in shown.items():
+            assert cells == {column: source[method][column] for column in cells}, method

@@ -154,11 +154,14 @@ def test_the_vector_env_pickles_after_reset():
     assert np.array_equal(venv.step(a)[0], clone.step(a)[0])
 
 
-@pytest.mark.parametrize("extra", [{}, {"plant_randomization": "mismatch", "measurement_noise": SIGMA}])
-def test_the_pid_baseline_reward_is_the_plain_reward_minus_pid_alones_on_the_same_episode(extra):
-    """Oracle: the plain env with the same actions, and the same episode in pid mode (the controller alone)."""
+@pytest.mark.parametrize(("extra", "name"), [({}, "controller"), ({}, "pid"),
+                                             ({"plant_randomization": "mismatch", "measurement_noise": SIGMA}, "pid"),
+                                             ({"controller": "computed_torque"}, "controller")])
+def test_the_baseline_reward_is_the_plain_reward_minus_the_laws_alone_on_the_same_episode(extra, name):
+    """Oracle: the plain env with the same actions, and the same episode in pid mode (the configured law alone,
+    PID or computed torque); 'pid' is the earlier name of 'controller' and means the same."""
     kwargs = {"task": "random", **extra}
-    advantage = UR5TrackEnv(action_mode="residual", reward_baseline="pid", **kwargs)
+    advantage = UR5TrackEnv(action_mode="residual", reward_baseline=name, **kwargs)
     plain = UR5TrackEnv(action_mode="residual", **kwargs)
     alone = UR5TrackEnv(action_mode="pid", **kwargs)
     actions = np.random.default_rng(1).uniform(-1, 1, (100, 3))
@@ -183,7 +186,7 @@ def run_actions(env, actions, seed):
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
-    ({"reward_baseline": "zero"}, "reward_baseline: unknown value 'zero'; valid: none, pid"),
+    ({"reward_baseline": "zero"}, "reward_baseline: unknown value 'zero'; valid: none, controller, pid"),
     ({"plant_randomization": "payload"}, "plant_randomization: unknown value 'payload'; valid: none, mismatch"),
     ({"measurement_noise": -1e-3}, "measurement_noise: expected a value >= 0, got -0.001"),
     ({"measurement_noise": float("nan")}, "measurement_noise: expected a finite number, got nan"),

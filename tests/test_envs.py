@@ -150,7 +150,7 @@ def test_reward_terms_and_info(scenario):
     assert reward == info["reward_tracking"] + info["reward_effort"]
     assert set(info) == {"tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort",
                          "reward_baseline"}
-    assert info["reward_baseline"] == 0.0  # no baseline unless reward_baseline="pid"
+    assert info["reward_baseline"] == 0.0  # no baseline unless reward_baseline="controller"
     env.close()
 
 

@@ -278,3 +278,34 @@ def test_figures_are_written_in_every_format_asked_for(tmp_path):
     with pytest.raises(InvalidInputError, match=r"^figure_format: unknown value 'jpg'"):
         save_figure(fig, tmp_path / "g.png", ("jpg",))
     plt.close(fig)
+
+
+def test_a_policys_fingerprint_covers_its_file_its_weights_and_the_files_it_declares(tmp_path):
+    """A class instance from FILE.py:ATTR records its file's sha256 (it recorded '' before); a torch module's
+    fingerprint changes with any weight; a declared weights file is covered, and one that is missing is refused."""
+    import hashlib
+
+    import torch
+
+    from mjtraj.rl.adapters import fingerprint, from_object
+
+    source = tmp_path / "mine.py"
+    source.write_text("import numpy as np\n\nclass Damped:\n    files = ['w.npy']\n\n    def __call__(self, obs):\n"
+                      "        return np.zeros(3)\n\npolicy = Damped()\n")
+    np.save(tmp_path / "w.npy", np.zeros(3))
+    first = load_any(f"{source}:policy").sha256
+    assert len(first) == 64
+    np.save(tmp_path / "w.npy", np.ones(3))
+    assert load_any(f"{source}:policy").sha256 not in (first, "")
+    (tmp_path / "w.npy").unlink()
+    with pytest.raises(InvalidInputError, match=r"^policy: its files attribute names 'w.npy', which is not a file"):
+        load_any(f"{source}:policy")
+    plain = tmp_path / "plain.py"
+    plain.write_text("def policy(obs):\n    return obs[:3] * 0\n")
+    assert load_any(f"{plain}:policy").sha256 == hashlib.sha256(plain.read_bytes()).hexdigest()
+
+    net = torch.nn.Linear(19, 3)
+    before = from_object(net).sha256
+    with torch.no_grad():
+        net.weight[0, 0] += 1e-6
+    assert fingerprint(net) != before and len(before) == 64

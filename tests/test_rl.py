@@ -303,7 +303,8 @@ def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
     summary = (tmp_path / "SUMMARY.md").read_text()
     assert summary.count("| cubic+PID+residual SAC (6 N m) | 1 |") == 1
     assert "By payload" not in summary  # no payloads on the aggressive family
-    assert summary.startswith("# Benchmark summary\n\nRegenerate: `mjtraj rl eval --policy ")
+    assert summary.startswith("# Benchmark summary (OFF-PROTOCOL)\n\n**Off-protocol**: families aggressive (v1: ")
+    assert "\nRegenerate: `mjtraj rl eval --policy " in summary
     record = json.loads((tmp_path / "summary.json").read_text())
     got = record["summary"]["aggressive"]["cubic+PID+residual SAC (6 N m)"]
     assert {"failures", "iqm", "probability_of_improvement", "ratio_of_means"} <= set(got)
@@ -452,7 +453,7 @@ def test_ppo_trains_and_reloads(tmp_path):
     (["rl", "train", "--plant-randomization", "payload"],
      "mjtraj: error: plant_randomization: unknown value 'payload'; valid: none, mismatch\n"),
     (["rl", "train", "--reward-baseline", "zero"],
-     "mjtraj: error: reward_baseline: unknown value 'zero'; valid: none, pid\n"),
+     "mjtraj: error: reward_baseline: unknown value 'zero'; valid: none, controller, pid\n"),
     (["rl", "eval", "--policy", "nowhere.zip"], "mjtraj: error: policy: file not found: nowhere.zip\n"),
     (["rl", "eval", "--policy", "p.pt"],
      "mjtraj: error: policy: expected a policy .zip saved by mjtraj rl train, got 'p.pt'\n"),
@@ -643,7 +644,7 @@ def test_a_policy_failing_in_eval_is_recorded_and_eval_goes_on(trained, tmp_path
         raise RuntimeError("policy exploded")
 
     monkeypatch.setattr(PolicyActor, "act", failing)
-    evaluate([trained / "policy.zip"], scenarios=3, reps=20, out=tmp_path)
+    evaluate([trained / "policy.zip"], families=("nominal",), scenarios=3, reps=20, out=tmp_path)
     rows = read_rows(tmp_path / "eval.csv")
     assert [(r["method"], r["status"]) for r in rows] == [("cubic+PID", "ok")] * 3 + [
         ("cubic+PID+residual SAC (6 N m)", "error")] * 3
@@ -696,7 +697,7 @@ def test_eval_summarises_a_configuration_over_its_seeds(trained, tmp_path):
     main(["rl", "train", "--steps", "240", "--seed", "4", "--evaluations", "2", "--checkpoints", "2",
           "--validation", "4", "--out", str(other), "--no-progress"])
     paths = [trained / "policy.zip", other / "policy.zip", trained / "best.zip", other / "best.zip"]
-    report = evaluate(paths, scenarios=6, seed=7, reps=20, out=tmp_path / "eval")
+    report = evaluate(paths, families=("nominal",), scenarios=6, seed=7, reps=20, out=tmp_path / "eval")
     rows = read_rows(report.csv)
     ref = np.array([numeric(r["cost"]) for r in rows if r["method"] == "cubic+PID"])
     lines = report.table.splitlines()[2:]
@@ -750,3 +751,17 @@ def test_a_policy_whose_spaces_this_numpy_cannot_unpickle_loads_from_its_record(
     obs = np.random.default_rng(0).normal(size=(5, normal.model.observation_space.shape[0]))
     np.testing.assert_array_equal(rebuilt.act(obs), normal.act(obs))
     assert rebuilt.model.observation_space == normal.model.observation_space
+
+
+def test_rl_baselines_lists_each_shipped_policy_with_its_checkpoint(capsys):
+    """One line per shipped baseline, naming the checkpoint's steps out of the run's (its record's own numbers)."""
+    from mjtraj.rl.baselines import baseline_names, baseline_path
+
+    assert main(["rl", "baselines"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == len(baseline_names()) > 0
+    for line, name in zip(lines, baseline_names(), strict=True):
+        record = json.loads((baseline_path(name).parent / "policy.json").read_text())
+        assert line.startswith(f"baseline:{name}  ")
+        assert (f"the checkpoint at {record['timesteps']:,} of {record['run']['settings']['steps']:,} trained steps"
+                in line)

@@ -1,8 +1,8 @@
 """The `mjtraj` command: parses, calls the library, writes files. `main(argv) -> exit code`.
 
 One module per command (its parser and its handler together): compare, frontier, tune, gains, floor, render, doctor,
-bench, sweep, export, audit and rl; what they share (value types, the options several take, progress bars, the
-scenario their flags describe) is in `common`.
+bench, sweep, export, audit, reproduce and rl; what they share (value types, the options several take, progress
+bars, the scenario their flags describe) is in `common`.
 """
 
 from __future__ import annotations
@@ -23,13 +23,14 @@ from mjtraj.cli import (
     frontier,
     gains,
     render,
+    reproduce,
     rl,
     sweep,
     tune,
 )
 from mjtraj.exceptions import MjtrajError
 
-COMMANDS = (compare, frontier, tune, bench, sweep, export, audit, render, doctor, rl, gains, floor)
+COMMANDS = (compare, frontier, tune, bench, sweep, export, audit, reproduce, render, doctor, rl, gains, floor)
 """The commands' modules, in the order `mjtraj --help` lists them."""
 
 

@@ -48,8 +48,9 @@ def add(sub: Any, laws: str) -> None:
                    "in units of the residual scale; positions by pi rad, velocities by pi rad/s; docs/design.md) "
                    "(default running)")
     p.add_argument("--reward-baseline", dest="reward_baseline", default="none",
-                   help="none | pid: train on the advantage over PID alone on the same episode (a shadow run); "
-                   "validation and evaluation still score J_exec (default none)")
+                   help="none | controller: train on the advantage over the control law alone on the same episode "
+                   "(a shadow run; 'pid' is its earlier name, whatever the law); validation and evaluation still "
+                   "score J_exec (default none)")
     p.add_argument("--plant-randomization", dest="plant_randomization", default="none",
                    help="none | mismatch: train and validate on plants drawn by the mismatch family's rules "
                    "(default none)")
@@ -191,7 +192,8 @@ def run_baselines(args: argparse.Namespace) -> int:
 
     for name in baseline_names():
         facts = describe(name)
-        print(f"baseline:{name}  {facts['algo'].upper()} seed {facts['seed']}, {facts['timesteps']} steps, "
+        print(f"baseline:{name}  {facts['algo'].upper()} seed {facts['seed']}, the checkpoint at "
+              f"{facts['timesteps']:,} of {facts['settings']['steps']:,} trained steps (best on validation), "
               f"controller {facts['env'].get('controller', 'pid')}, plants {facts['env']['plant_randomization']}")
     return 0
 

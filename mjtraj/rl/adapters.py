@@ -11,7 +11,9 @@ The protocol a user's policy follows (every part optional but the call):
   a nominal scenario): `policy(obs, plant)`, batched `policy(obs, plants)` with a list of dicts; a torch module gets
   a float32 tensor (B, 1 + 4n) in that order;
 - `policy.env = {...}`: the env settings it acts in (ENV_KEYS); missing ones come from the caller's settings, then
-  BENCHMARK_ENV (UR5Track-v1's defaults).
+  BENCHMARK_ENV (UR5Track-v1's defaults);
+- `policy.files = [...]`: files its actions depend on beyond its source (weights it loads), relative to the source
+  file's folder: every row's policy_sha256 covers them (`fingerprint`), as it covers a torch module's weights.
 """
 
 from __future__ import annotations
@@ -52,7 +54,7 @@ class ScoredPolicy:
       kind: sb3-zip, callable or torch.
       env: the ENV_KEYS settings it acts in (a zip: plus everything else its training env set).
       privileged: it receives the plants.
-      sha256: of the zip, or of the callable's source file ('' if none).
+      sha256: of the zip, or the callable's `fingerprint` ('' if none).
       timesteps: training steps (a zip), else ''.
       record: a zip's training record (None otherwise).
     """
@@ -125,12 +127,39 @@ def check_settings(settings: Mapping[str, Any] | None) -> None:
         resolve(**_env_of(None, settings))
 
 
-def _source_sha(obj: Any) -> str:
+def source_file(obj: Any) -> Path | None:
+    """The file that defines the function, class or instance `obj` (None for a built-in or an interactive one)."""
+    target = obj if inspect.isfunction(obj) or inspect.isclass(obj) else type(obj)
+    file = getattr(sys.modules.get(getattr(target, "__module__", ""), None), "__file__", None)
     try:
-        file = inspect.getsourcefile(obj if inspect.isfunction(obj) or inspect.isclass(obj) else type(obj))
+        file = inspect.getsourcefile(target) or file
     except TypeError:
-        return ""
-    return hashlib.sha256(Path(file).read_bytes()).hexdigest() if file and Path(file).is_file() else ""
+        pass
+    return Path(file) if file and Path(file).is_file() else None
+
+
+def fingerprint(obj: Any, file: Path | None = None) -> str:
+    """sha256 of what decides a user's policy's actions, '' when none of it can be read: its source file (`file`,
+    else the file that defines it), then a torch module's weights (every state_dict entry, by name), then each file
+    its `files` attribute names (paths relative to the source file's folder: weights it loads, say)."""
+    file = file if file is not None else source_file(obj)
+    digest, parts = hashlib.sha256(), 0
+    if file is not None:
+        digest.update(file.read_bytes())
+        parts += 1
+    if _is_torch_module(obj):
+        for name, tensor in sorted(obj.state_dict().items()):
+            digest.update(name.encode())
+            digest.update(tensor.detach().cpu().contiguous().numpy().tobytes())
+            parts += 1
+    for declared in getattr(obj, "files", ()) or ():
+        path = Path(declared) if Path(declared).is_absolute() or file is None else file.parent / declared
+        if not path.is_file():
+            raise InvalidInputError(f"policy: its files attribute names {str(declared)!r}, which is not a file "
+                                    f"({path})")
+        digest.update(path.read_bytes())
+        parts += 1
+    return digest.hexdigest() if parts else ""
 
 
 def _is_torch_module(obj: Any) -> bool:
@@ -144,8 +173,9 @@ def plant_vector(plants: Sequence[dict[str, float]]) -> NDArray[np.float32]:
 
 
 def from_object(obj: Any, *, label: str | None = None, source: str | None = None,
-                settings: Mapping[str, Any] | None = None) -> ScoredPolicy:
-    """A user's callable or torch module (see the module docstring for what it may declare).
+                settings: Mapping[str, Any] | None = None, file: Path | None = None) -> ScoredPolicy:
+    """A user's callable or torch module (see the module docstring for what it may declare); `file`: the source
+    file it was loaded from (FILE.py:ATTR), hashed with it (`fingerprint`).
 
     Raises:
       InvalidInputError: not callable, or a bad declaration.
@@ -175,7 +205,7 @@ def from_object(obj: Any, *, label: str | None = None, source: str | None = None
             return y.numpy()
 
         return ScoredPolicy(str(name), source or repr(type(obj).__name__), "torch", env, act_torch, reset,
-                            privileged, _source_sha(obj))
+                            privileged, fingerprint(obj, file))
     if getattr(obj, "batched", False):
         act = obj
     else:
@@ -184,7 +214,8 @@ def from_object(obj: Any, *, label: str | None = None, source: str | None = None
                 return np.stack([np.asarray(obj(o), dtype=np.float64) for o in obs])
             return np.stack([np.asarray(obj(o, p), dtype=np.float64) for o, p in zip(obs, plants, strict=True)])
 
-    return ScoredPolicy(str(name), source or str(name), "callable", env, act, reset, privileged, _source_sha(obj))
+    return ScoredPolicy(str(name), source or str(name), "callable", env, act, reset, privileged,
+                        fingerprint(obj, file))
 
 
 def from_zip_policy(policy: Any, *, label: str | None = None, source: str | None = None) -> ScoredPolicy:
@@ -249,4 +280,6 @@ def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> Score
     module, _, attr = text.rpartition(":")
     short = f"{Path(module).name if module.endswith('.py') else module}:{attr}"  # a file by its name, not its folder
     obj = import_attribute(text)
-    return from_object(obj, label=None if getattr(obj, "name", None) else short, source=text, settings=settings)
+    file = Path(module) if module.endswith(".py") else None
+    return from_object(obj, label=None if getattr(obj, "name", None) else short, source=text, settings=settings,
+                       file=file)

@@ -135,7 +135,7 @@ class Policy:
     def label(self) -> str:
         """How results tables name its configuration: planner+LAW+residual SAC (its scale in N m; LAW is PID, or CT
         for computed torque), or planner+SAC torque; then ', mismatch-trained', ', sees PID' (or CT),
-        ', PID-advantage reward' and ', fixed scales' when it trained under plant randomisation, observed the
+        ', LAW-advantage reward' and ', fixed scales' when it trained under plant randomisation, observed the
         controller's state, was rewarded relative to PID alone or saw fixed observation scales. Runs that differ
         only in their seed share a label."""
         env = self.env_kwargs
@@ -144,7 +144,7 @@ class Policy:
         fixed = self.record["settings"].get("observation_scaling", "running") == "fixed"
         notes = "".join([", mismatch-trained" if env.get("plant_randomization", "none") != "none" else "",
                          f", sees {law}" if env.get("observe_control", False) else "",
-                         ", PID-advantage reward" if env.get("reward_baseline", "none") != "none" else "",
+                         f", {law}-advantage reward" if env.get("reward_baseline", "none") != "none" else "",
                          ", fixed scales" if fixed else "",
                          {"true": ", sees the true plant (privileged)", "estimate": ", sees the adaptive estimate"}
                          .get(env.get("observe_plant", "none"), ""),

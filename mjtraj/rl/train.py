@@ -84,7 +84,8 @@ class TrainSettings:
       observation_scaling: running (VecNormalize's statistics) or fixed (`mjtraj.rl.scaling`'s stated scales).
       plant_randomization: none, or mismatch (each training and validation episode on a plant drawn by the
         mismatch family's rules).
-      reward_baseline: none, or pid (train on the advantage over PID alone; validation and evaluation score J_exec).
+      reward_baseline: none, or controller (train on the advantage over the control law alone; 'pid' is its
+        earlier name; validation and evaluation score J_exec).
       planner: the planner whose references the policy tracks.
       controller: the control law the residual acts on (pid, computed_torque or a plug-in law; LoopConfig's).
       task: paper (always the paper's move) or random (a new random move each episode).
