@@ -121,9 +121,10 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     velocities, 1/60^2 on torques; for the paper task these are the paper scenario's weights.
 
     With `reward_baseline="controller"` (earlier named "pid", still accepted) the env also runs each episode under
-    the configured control law alone (same task, plant and noise, no action) in a shadow loop and subtracts its
-    step cost: r_k = -(cost_k - cost_k^law), the advantage over the controller alone. The subtracted term does not depend on the actions, so the optimal policy is unchanged; a
-    whole episode returns J_exec^law - J_exec, and `info["metrics"]` still holds J_exec.
+    the configured control law alone (same task, plant and noise, no action) in a shadow loop and subtracts its step
+    cost: r_k = -(cost_k - cost_k^law), the advantage over the controller alone. The subtracted term does not depend
+    on the actions, so the optimal policy is unchanged; a whole episode returns J_exec^law - J_exec, and
+    `info["metrics"]` still holds J_exec.
 
     ## Starting State
     The arm rests on the reference's first sample (q0, zero velocity), with the integral of the PID at zero.
