@@ -765,3 +765,33 @@ def test_rl_baselines_lists_each_shipped_policy_with_its_checkpoint(capsys):
         assert line.startswith(f"baseline:{name}  ")
         assert (f"the checkpoint at {record['timesteps']:,} of {record['run']['settings']['steps']:,} trained steps"
                 in line)
+
+
+@pytest.mark.parametrize("name", ["best", "sac_act_history4_100k_s3"])
+def test_a_baseline_loads_to_act_without_building_an_optimiser(name, monkeypatch):
+    """Oracle: SB3's own load (optimisers built) acts the same, bit for bit, on the same observations; with every
+    torch optimiser's construction made to fail, mjtraj's load still succeeds (acting needs none)."""
+    import torch
+
+    from mjtraj.rl.baselines import baseline_path
+    from mjtraj.rl.extra import algorithm
+    from mjtraj.rl.policy import TRAINING_STATE
+
+    path = baseline_path(name)
+    record = json.loads((path.parent / "policy.json").read_text())
+    reference = algorithm(record["run"]["settings"]["algo"]).load(path, device="cpu",
+                                                                   custom_objects=dict.fromkeys(TRAINING_STATE))
+
+    def refuse(self, *args, **kwargs):
+        raise AssertionError("an optimiser was built")
+
+    monkeypatch.setattr(torch.optim.Optimizer, "__init__", refuse)
+    policy = load_policy(path)
+    obs = np.random.default_rng(0).normal(size=(5, policy.normalization.mean.size)).astype(np.float32)
+    mine = policy.model.predict(obs, deterministic=True)[0]
+    theirs = reference.predict(obs, deterministic=True)[0]
+    np.testing.assert_array_equal(mine, theirs)
+    model = policy.model
+    optimizer = model.policy.optimizer if hasattr(model.policy, "optimizer") else model.actor.optimizer
+    with pytest.raises(InvalidInputError, match=r"^policy: loaded to act"):
+        optimizer.step()

@@ -16,7 +16,7 @@ from typing import Any
 
 from mjtraj.cli.common import no_progress_option
 
-MINUTES_ON_TWO_CORES = 12
+MINUTES_ON_TWO_CORES = 6
 """How long `mjtraj reproduce` took at its defaults on the 2-core development machine (docs/results.md), minutes."""
 
 

@@ -7,8 +7,11 @@ the normalisation statistics as exact floats and `act` applies SB3's own formula
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -77,6 +80,61 @@ def trained_observation_space(record: dict[str, Any], clip: float) -> Any:
 
 TRAINING_STATE = ("_last_obs", "_last_original_obs", "_last_episode_starts", "ep_info_buffer", "ep_success_buffer")
 """What an SB3 zip keeps of the training in progress; never read to act, so never unpickled on loading."""
+
+
+@functools.cache
+def inert_optimizer() -> type:
+    """The class that stands in for every optimiser of a policy loaded to act: a torch.optim.Optimizer (as SB3
+    expects) that holds no state and cannot step. Building PyTorch's Adam is the one part of loading that acting never
+    needs, and with PyTorch's CUDA build it imports Triton, whose LLVM crashed the process beside Mesa's
+    (MUJOCO_GL=osmesa) before a single action. Made on first use: plain callables are scored without PyTorch."""
+    import torch
+
+    class InertOptimizer(torch.optim.Optimizer):
+        def __init__(self, params: Any = (), *args: Any, **kwargs: Any) -> None:  # no Optimizer.__init__: inert
+            self.param_groups: list[dict[str, Any]] = []
+            self.state: dict[Any, Any] = {}
+            self.defaults: dict[str, Any] = {}
+
+        def state_dict(self) -> dict[str, Any]:
+            return {"state": {}, "param_groups": []}
+
+        def load_state_dict(self, state_dict: Any) -> None:
+            """An optimiser's saved state is for training on; a policy loaded to act ignores it."""
+
+        def zero_grad(self, set_to_none: bool = True) -> None:
+            """Nothing to clear."""
+
+        def step(self, closure: Any = None) -> None:  # type: ignore[override]
+            raise InvalidInputError("policy: loaded to act (mjtraj.rl.policy.load_policy), it has no optimiser to "
+                                    "train with; resume a run with mjtraj rl train --resume")
+
+    return InertOptimizer
+
+
+@contextmanager
+def _inert_optimizers() -> Iterator[None]:
+    """While an SB3 zip loads: every optimiser SB3 builds by name (torch.optim.Adam, as SAC's entropy coefficient
+    is) is inert (`inert_optimizer`); the policies' own optimiser class is set through their policy_kwargs."""
+    import torch
+
+    real = torch.optim.Adam
+    torch.optim.Adam = inert_optimizer()  # type: ignore[misc]
+    try:
+        yield
+    finally:
+        torch.optim.Adam = real  # type: ignore[misc]
+
+
+def _acting_objects(zip_path: Path) -> dict[str, Any]:
+    """SB3's custom_objects that load a zip to act: its training state left unread, its policy_kwargs with the
+    inert optimiser as the optimiser class (`inert_optimizer`)."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    unread = dict.fromkeys((*TRAINING_STATE, "observation_space", "action_space"))  # what a newer numpy pickled
+    data, _, _ = load_from_zip_file(zip_path, device="cpu", load_data=True, custom_objects=unread)
+    kwargs = dict((data or {}).get("policy_kwargs") or {})
+    return {**dict.fromkeys(TRAINING_STATE), "policy_kwargs": {**kwargs, "optimizer_class": inert_optimizer()}}
 
 
 class Policy:
@@ -218,13 +276,16 @@ def load_policy(path: str | Path) -> Policy:
         raise InvalidInputError(f"policy: unknown algorithm {algo!r} in {meta_path.name}; valid: "
                                 f"{', '.join(ALGORITHMS)}")
     n = body["normalization"]
-    try:
-        model = algorithm(algo).load(zip_path, device="cpu", custom_objects=dict.fromkeys(TRAINING_STATE))
-    except ImportError:  # spaces pickled by a newer numpy (numpy._core) than this one: rebuilt from the record
-        settings = resolve(**env_kwargs(record))
-        model = algorithm(algo).load(zip_path, device="cpu", custom_objects={
-            **dict.fromkeys(TRAINING_STATE), "observation_space": trained_observation_space(record, float(n["clip"])),
-            "action_space": action_space(settings)})  # the weights' shapes still have to fit (torch checks)
+    cls = algorithm(algo)
+    with _inert_optimizers():
+        objects = _acting_objects(zip_path)
+        try:
+            model = cls.load(zip_path, device="cpu", custom_objects=objects)
+        except ImportError:  # spaces pickled by a newer numpy (numpy._core) than this one: rebuilt from the record
+            settings = resolve(**env_kwargs(record))
+            model = cls.load(zip_path, device="cpu", custom_objects={
+                **objects, "observation_space": trained_observation_space(record, float(n["clip"])),
+                "action_space": action_space(settings)})  # the weights' shapes still have to fit (torch checks)
     normalization = Normalization(np.array(n["mean"], dtype=np.float64), np.array(n["var"], dtype=np.float64),
                                   float(n["epsilon"]), float(n["clip"]))
     policy = Policy(model, record, normalization, int(body["timesteps"]), zip_path, sha)
