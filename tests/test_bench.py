@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 
 import numpy as np
@@ -182,3 +183,12 @@ def test_api_timings_time_every_planner_and_the_env():
 
     times = api_timings(repeats=1, slow_repeats=1, env_steps=5)
     assert list(times) == [*PLANNERS, "env.step"] and all(t > 0 for t in times.values())
+
+
+def test_bench_json_prints_the_measurements_alone(capsys):
+    """bench --json: stdout is one JSON object holding what the tables show (here the loop's rows)."""
+    assert main(["bench", "loop", "--sizes", "1,2", "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert [row["scenarios"] for row in record["loop"]] == [1, 2]
+    for row in record["loop"]:
+        assert row["ratio"] == pytest.approx(row["loop_steps_per_s"] / row["raw_steps_per_s"], rel=1e-12)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import signal
 import sqlite3
+import json
 import subprocess
 import sys
 import time
@@ -165,7 +166,14 @@ def test_export_and_audit_read_stores(stored, tmp_path, capsys):
     assert read_rows(tmp_path / "back.csv") == read_rows(csv)
     assert (tmp_path / "back.csv").read_bytes() == csv.read_bytes()
     assert main(["audit", str(store), "--no-tasks", "--out", str(tmp_path / "AUDIT.md")]) == 0
-    assert "nominal" in (tmp_path / "AUDIT.md").read_text()
+    text = (tmp_path / "AUDIT.md").read_text()
+    assert "nominal" in text
+    capsys.readouterr()
+    assert main(["audit", str(store), "--no-tasks", "--json", "--out", str(tmp_path / "AUDIT2.md")]) == 0
+    record = json.loads(capsys.readouterr().out)  # the verdict table as records, nothing else on stdout
+    assert [r["claim"] for r in record["verdicts"]] == [1, 2, 3, 4, 5, 6]
+    for r in record["verdicts"]:  # each record is its row of the Markdown table
+        assert f"| {r['claim']} | {r['text']} | {' | '.join(r['verdicts'].values())} |" in text
 
 
 def test_cells_of_some_columns_are_the_rows_columns_from_a_store_and_a_csv_file(stored):

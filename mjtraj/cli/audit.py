@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,7 @@ def add(sub: Any, laws: str) -> None:
                    "(computed at audit time from each file's settings)")
     p.add_argument("--no-progress", action="store_true", help="no progress display")
     figure_format_option(p)
+    p.add_argument("--json", action="store_true", help="print the verdicts as JSON on stdout (for scripts)")
     p.set_defaults(handler=run)
 
 
@@ -38,7 +40,23 @@ def run(args: argparse.Namespace) -> int:
 
         text = write_audit(args.sweeps, args.out, partial=args.partial, tasks=not args.no_tasks, progress=stage,
                            figure_formats=tuple(args.figure_format))
-    verdicts = text.split("## Verdicts", 1)[1].split("\n\nVerdict rule")[0]
-    print(verdicts.strip())
+    verdicts = text.split("## Verdicts", 1)[1].split("\n\nVerdict rule")[0].strip()
+    if args.json:
+        print(json.dumps({"out": str(args.out), "verdicts": verdict_records(verdicts)}, indent=1))
+        return 0
+    print(verdicts)
     print(f"\nwrote {args.out}")
     return 0
+
+
+def verdict_records(table: str) -> list[dict[str, Any]]:
+    """The audit's verdict table (Markdown) as records: claim number, the paper's claim, and the verdict under each
+    set of weights audited (the table's own column names)."""
+    lines = [line for line in table.splitlines() if line.startswith("|")]
+    columns = [c.strip() for c in lines[0].strip("|").split("|")]
+    records = []
+    for line in lines[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        records.append({"claim": int(cells[0]), "text": cells[1], "verdicts": dict(zip(columns[2:], cells[2:],
+                                                                                        strict=True))})
+    return records

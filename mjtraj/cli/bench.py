@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
+import json
 from pathlib import Path
 from typing import Any
 
-from mjtraj.cli.common import counts
+from mjtraj.cli.common import counts, json_safe
 from mjtraj.exceptions import InvalidInputError
 
 BENCH_ALL = ("plan", "planners", "busy", "loop", "floor", "startup", "env")
@@ -28,6 +31,8 @@ def add(sub: Any, laws: str) -> None:
                    help=f"what to time (default all: {', '.join(BENCH_ALL)}; the minute-long sweep and the store "
                    "run only when named)")
     p.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
+    p.add_argument("--json", action="store_true", help="print every measurement as JSON on stdout instead of the "
+                   "tables (for scripts)")
     p.add_argument("--sizes", type=counts, help="loop batch sizes, comma-separated whole numbers >= 1")
     p.add_argument("--scenarios", type=int, default=10_000, help="sweep: nominal scenarios (default 10000)")
     p.add_argument("--planner-scenarios", type=int, default=12,
@@ -54,10 +59,26 @@ def store_stages(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from mjtraj.bench import LOOP_SIZES, bench_loop, bench_plan
     from mjtraj.study.scenario import load_scenario
 
     scenario = load_scenario(args.config)
+    results: dict[str, Any] = {}
+
+    def record(name: str, value: Any) -> Any:
+        results[name] = value
+        return value
+
+    with contextlib.redirect_stdout(io.StringIO()) if args.json else contextlib.nullcontext():
+        _sections(args, scenario, record)
+    if args.json:
+        print(json.dumps(json_safe(results), indent=1))
+    return 0
+
+
+def _sections(args: argparse.Namespace, scenario: Any, record: Any) -> None:
+    """Run and print what `args.what` names, handing each measurement to `record(name, value)`."""
+    from mjtraj.bench import LOOP_SIZES, bench_loop, bench_plan
+
     if args.what == "all":
         print(f"mjtraj bench: {', '.join(BENCH_ALL)} in turn (about {BENCH_ALL_MINUTES} minutes on two cores; "
               "`mjtraj bench sweep` and `mjtraj bench store` run on their own)", flush=True)
@@ -65,11 +86,11 @@ def run(args: argparse.Namespace) -> int:
         print("optimal planner (linearise + solve; the exact active set on the banded KKT system, OSQP as "
               "fallback), median wall time; target N=100 <= 1 ms, N=800 <= 10 ms")
         print(f"{'N':>6} {'median ms':>10} {'ratio to N=100':>15}")
-        for row in bench_plan(scenario):
+        for row in record("plan", bench_plan(scenario)):
             print(f"{row['N']:>6} {row['median_ms']:>10.2f} {row['ratio_to_first']:>15.2f}")
         from mjtraj.bench import QP_SOLVERS, bench_qp
 
-        qp_rows = bench_qp(scenario)
+        qp_rows = record("qp", bench_qp(scenario))
         print(f"the same QP (N = {scenario.task.steps}), median wall time of the solve alone: mjtraj's banded-KKT "
               f"active set vs {', '.join(QP_SOLVERS)} on the condensed QP (the `bench` extra; those not installed are "
               f"left out); target: mjtraj at least 4 times faster than quadprog")
@@ -81,8 +102,8 @@ def run(args: argparse.Namespace) -> int:
         from mjtraj.bench import bench_new_planners
         from mjtraj.checks import positive_int
 
-        new = bench_new_planners(scenario, scenarios=12 if args.what == "all" else
-                                 positive_int("planner_scenarios", args.planner_scenarios))
+        new = record("planners", bench_new_planners(scenario, scenarios=12 if args.what == "all" else
+                                 positive_int("planner_scenarios", args.planner_scenarios)))
         linear = new["linear_s"]
         print(f"the fair study's planners on the scenario's task (N = {new['steps']}), one process: the linear "
               f"optimal plan takes {1e3 * linear:.2f} ms on one core; the nonlinear planners linearise by "
@@ -122,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
         from mjtraj.bench import bench_tail
 
         nominal = positive_int("tail_tasks", args.tail_tasks)
-        tail = bench_tail(scenario, {"nominal": nominal, "aggressive": max(1, nominal // 2)})
+        tail = record("tail", bench_tail(scenario, {"nominal": nominal, "aggressive": max(1, nominal // 2)}))
         print(f"the tail: each nonlinear planner (default solver) on {tail['tasks']} random tasks of seed "
               f"{tail['seed']} (nominal and aggressive; {tail['skipped']} aggressive tasks the linear plan cannot "
               f"meet left out), multiples of the linear plan of the same task; targets: 90th percentile <= 100, "
@@ -140,20 +161,20 @@ def run(args: argparse.Namespace) -> int:
               f"{HELD_OUT_TASK[0]}, qg = {HELD_OUT_TASK[1]} and per UR5Track-v1 env.step; target: the linear "
               f"plan busy <= 1.2 times quiet")
         print(f"{'call':<22} {'quiet ms':>10} {'busy ms':>10} {'busy / quiet':>13}")
-        for row in bench_busy():
+        for row in record("busy", bench_busy()):
             print(f"{row['call']:<22} {1e3 * row['quiet_s']:>10.3f} {1e3 * row['busy_s']:>10.3f} "
                   f"{row['ratio']:>13.2f}")
     if args.what in ("loop", "all"):
         print("closed loop (FF + PID + plant) vs raw mujoco.batch stepping, same run")
         print(f"{'scenarios':>9} {'raw steps/s':>12} {'loop steps/s':>13} {'ratio':>6}")
-        for row in bench_loop(scenario, tuple(args.sizes) if args.sizes else LOOP_SIZES):
+        for row in record("loop", bench_loop(scenario, tuple(args.sizes) if args.sizes else LOOP_SIZES)):
             print(f"{row['scenarios']:>9} {row['raw_steps_per_s']:>12.0f} {row['loop_steps_per_s']:>13.0f} "
                   f"{row['ratio']:>6.2f}")
     if args.what == "store":
         from mjtraj.bench import bench_store
         from mjtraj.checks import positive_int
 
-        store = bench_store(positive_int("rows", args.rows), store_stages(args.stages))
+        store = record("store", bench_store(positive_int("rows", args.rows), store_stages(args.stages)))
         rows = store["rows"]
         print(f"store: a synthetic nominal sweep store of {rows} rows with the real schema (written in "
               f"{store['write_s']:.1f} s, {rows / store['write_s']:.0f} rows/s), then each stage alone in a fresh "
@@ -167,7 +188,7 @@ def run(args: argparse.Namespace) -> int:
     if args.what == "sweep":
         from mjtraj.bench import bench_sweep
 
-        sweep: dict[str, Any] = bench_sweep(args.scenarios, workers=args.workers)
+        sweep: dict[str, Any] = record("sweep", bench_sweep(args.scenarios, workers=args.workers))
         print(f"sweep: {args.scenarios} nominal scenarios x 4 planners end to end (plan, execute, metrics, write) on "
               f"{sweep['workers']} worker processes; target <= 20 s")
         print(f"{'wall s':>7} {'rows':>7} {'rows/s':>8}")
@@ -186,18 +207,18 @@ def run(args: argparse.Namespace) -> int:
         print("the clairvoyant floor: solve time per scenario on one core (seed 1, cubic reference, four starts); "
               "target median <= 0.2 s")
         print(f"{'family':>11} {'scenarios':>10} {'floored':>8} {'median s':>9} {'p90 s':>7} {'max s':>7}")
-        for row in bench_floor(scenario):
+        for row in record("floor", bench_floor(scenario)):
             print(f"{row['family']:>11} {row['scenarios']:>10} {row['floored']:>8} {row['median_s']:>9.3f} "
                   f"{row['p90_s']:>7.3f} {row['max_s']:>7.3f}")
         print("control laws: one closed-loop period on one simulation (the law and the plant's step), 5 mismatch "
               "scenarios; target mpc median <= 0.5 of the control period")
         print(f"{'law':>25} {'median ms':>10} {'p90 ms':>7} {'of period':>10}")
-        for row in bench_controllers(scenario):
+        for row in record("controllers", bench_controllers(scenario)):
             print(f"{row['law']:>25} {row['median_ms']:>10.3f} {row['p90_ms']:>7.3f} {row['of_period']:>10.3f}")
     if args.what in ("startup", "all"):
         from mjtraj.bench import bench_startup
 
-        start = bench_startup()
+        start = record("startup", bench_startup())
         print("mjtraj compare on the paper scenario (no figures), imports included, vs python -c \"import mujoco, "
               "gymnasium, scipy\" (and with scipy.linalg, which compare needs), fresh interpreters, same run; target "
               "ratio <= 1.5")
@@ -207,7 +228,7 @@ def run(args: argparse.Namespace) -> int:
     if args.what in ("env", "all"):
         from mjtraj.bench import bench_env, bench_render, bench_vector_env
 
-        row = bench_env()
+        row = record("env", bench_env())
         print("UR5Track-v0 env.step in pid mode through gym.make (default wrappers) vs a raw mj_step loop at rest and "
               "replaying the env's own motion (its start state and torques), same run; target ratio >= 0.4")
         print(f"{'raw at rest/s':>14} {'raw replay/s':>13} {'env.step/s':>11} {'ratio':>6} {'to replay':>10}")
@@ -217,7 +238,7 @@ def run(args: argparse.Namespace) -> int:
               "same run; target ratio >= 0.85 at 1024")
         print(f"{'envs':>6} {'raw at rest/s':>14} {'raw replay/s':>13} {'env steps/s':>12} {'ratio':>6} "
               f"{'to replay':>10}")
-        for row in bench_vector_env():
+        for row in record("vector_env", bench_vector_env()):
             print(f"{row['envs']:>6} {row['raw_steps_per_s']:>14.0f} {row['replay_steps_per_s']:>13.0f} "
                   f"{row['env_steps_per_s']:>12.0f} {row['ratio']:>6.2f} {row['ratio_replay']:>10.2f}")
         print("rendering: env.render() frames/s of UR5Track-v0 (executed arm + ghost) at render_quality fast "
@@ -225,7 +246,6 @@ def run(args: argparse.Namespace) -> int:
               "high / Reacher-v5 >= 0.1 at 640x480")
         print(f"{'size':>9} {'backend':>8} {'fast':>7} {'high':>7} {'Reacher-v5':>11} {'fast / R':>9} "
               f"{'high / R':>9}")
-        for f in bench_render():
+        for f in record("render", bench_render()):
             print(f"{f['size']:>9} {f['backend']:>8} {f['fast_fps']:>7.1f} {f['high_fps']:>7.1f} "
                   f"{f['reacher_fps']:>11.1f} {f['ratio']:>9.2f} {f['high_ratio']:>9.2f}")
-    return 0
