@@ -14,7 +14,7 @@ from mjtraj.exceptions import InvalidInputError
 
 BENCH_ALL = ("plan", "planners", "busy", "loop", "floor", "startup", "env")
 """What a bare `mjtraj bench` runs, in order."""
-BENCH_ALL_MINUTES = 9
+BENCH_ALL_MINUTES = 3
 """How long a bare `mjtraj bench` took on the 2-core development machine (docs/speed.md), minutes."""
 TAIL_TASKS = {"nominal": 200, "aggressive": 100}
 """`bench planners`' tail table: random tasks per family (mjtraj.bench.bench_tail)."""
