@@ -5,9 +5,9 @@ settings and foreign files are refused, leaving the store untouched."""
 
 from __future__ import annotations
 
+import json
 import signal
 import sqlite3
-import json
 import subprocess
 import sys
 import time
