@@ -30,6 +30,13 @@ def chain(name: str, links: list[tuple[str, str, float, float]], *, head: str = 
             f'<worldbody>{extra_world}{body}{close}</worldbody>{actuators}{tail}</mujoco>')
 
 
+FINGERS = ('<body name="hand" pos="0 0 0.35"><geom type="box" size="0.04 0.02 0.02" mass="0.3"/>'
+           '<body name="left" pos="0.02 0 0.04"><joint name="finger_left" type="slide" axis="1 0 0" range="0 0.04"/>'
+           '<geom type="box" size="0.005 0.01 0.03" mass="0.05"/></body>'
+           '<body name="right" pos="-0.02 0 0.04"><joint name="finger_right" type="slide" axis="-1 0 0" '
+           'range="0 0.04"/><geom type="box" size="0.005 0.01 0.03" mass="0.05"/></body></body>')
+"""A two-finger gripper of slide joints, as makers ship their arms (coupled by an equality in the files that
+use it)."""
 THREE = [("0 0 1", "-3 3", 0.1, 2.0), ("0 1 0", "-2 2", 0.4, 1.5), ("0 1 0", "-2.5 2.5", 0.35, 1.0)]
 TWO = [("0 1 0", "-2.5 2.5", 0.4, 1.0), ("0 1 0", "-2.5 2.5", 0.3, 0.6)]
 SERVOS = ('<actuator><position name="s0" joint="j0" kp="200" forcerange="-40 40"/>'
@@ -108,11 +115,20 @@ def write_suite(folder: Path) -> list[tuple[str, Path, str | None]]:
         "body_named_payload": (chain("body_named_payload", THREE).replace(
             '<site name="attachment_site"', '<body name="payload" pos="0 0 0.35"><geom type="sphere" size="0.03" '
             'mass="0.2"/></body><site name="attachment_site"'), None),
+        "gripper_fingers": (chain("gripper_fingers", THREE, tail=(
+            '<equality><joint joint1="finger_left" joint2="finger_right"/></equality>'
+            '<keyframe><key name="home" qpos="0 0.3 -0.6 0.02 0.02"/></keyframe>'),
+            actuators='<actuator><position name="grip" joint="finger_left" kp="100" ctrlrange="0 0.04"/></actuator>'
+            ).replace('<site name="attachment_site"', FINGERS + '<site name="attachment_site"'), None),
         "urdf": ("", None),
         # refused
         "slide_joint": (chain("slide_joint", THREE).replace('<joint name="j1" axis="0 1 0"',
                                                             '<joint name="j1" type="slide" axis="0 1 0"'),
                         r"joint 'j1' is a slide joint; mjtraj plans arms of hinge joints only"),
+        "finger_coupled_to_the_arm": (chain("finger_coupled_to_the_arm", THREE, tail=(
+            '<equality><joint joint1="finger_left" joint2="j2"/></equality>')).replace(
+            '<site name="attachment_site"', FINGERS + '<site name="attachment_site"'),
+            r"equality constraint '\(unnamed\)': equality constraints are not supported"),
         "tendon": (chain("tendon", THREE, tail='<tendon><fixed name="coupling"><joint joint="j1" coef="1"/>'
                                                '<joint joint="j2" coef="-1"/></fixed></tendon>'),
                    r"tendon 'coupling': tendons are not supported"),

@@ -380,3 +380,34 @@ def test_a_body_moved_by_two_joints_cannot_be_scaled_one_link_per_joint(tmp_path
                                          r"scales one link per joint, so it runs only on arms with one hinge per "
                                          r"body \(the other families run\)$"):
         perturbed_plant(prepare_arm(two), str(two))
+
+
+def test_a_grippers_fingers_are_held_where_its_home_keyframe_puts_them(tmp_path, capsys):
+    """Oracle: the file itself, compiled by MuJoCo at its 'home' keyframe, puts every body (fingers included)
+    where the prepared arm puts it at the same hinge angles; the fingers' joints, their mimic equality and their
+    actuator are gone, and compare names what it held."""
+    from arm_suite import FINGERS, THREE, chain
+
+    from mjtraj.core.arm import held_joints
+
+    path = tmp_path / "gripper.xml"
+    path.write_text(chain("gripper", THREE, tail=(
+        '<equality><joint joint1="finger_left" joint2="finger_right"/></equality>'
+        '<keyframe><key name="home" qpos="0.2 0.3 -0.6 0.015 0.015"/></keyframe>'),
+        actuators='<actuator><position name="grip" joint="finger_left" kp="100" ctrlrange="0 0.04"/></actuator>'
+        ).replace('<site name="attachment_site"', FINGERS + '<site name="attachment_site"'))
+    original = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(original)
+    mujoco.mj_resetDataKeyframe(original, data, 0)
+    mujoco.mj_kinematics(original, data)
+    model = prepare_arm(path)
+    assert (model.nq, model.nu, model.neq) == (3, 3, 0)
+    assert held_joints(model) == ("finger_left held at 0.015 m (its 'home' keyframe); finger_right held at 0.015 m "
+                                  "(its 'home' keyframe)")
+    mine = mujoco.MjData(model)
+    mine.qpos[:] = data.qpos[:3]
+    mujoco.mj_kinematics(model, mine)
+    for body in ("hand", "left", "right"):
+        np.testing.assert_allclose(mine.xpos[model.body(body).id], data.xpos[original.body(body).id], atol=1e-12)
+    assert main(["compare", "--model", str(path), "--no-figures", "--out", str(tmp_path / "out")]) == 0
+    assert "  held fixed (not planned): finger_left held at 0.015 m" in capsys.readouterr().out

@@ -18,7 +18,10 @@ from mjtraj.checks import positive
 from mjtraj.exceptions import InvalidInputError, ModelError
 
 ARM_RULES = (
-    "every joint must be a hinge, with no tendons or equality constraints (an unnamed hinge is named jointK in "
+    "a gripper's fingers (slide joints on a branch with no hinge below them) are held fixed at their 'home' "
+    "keyframe's value, else at 0 within their range, and the equality constraints, fixed tendons and sensors that "
+    "only concern them go with them (the held joints are named in the output); every other joint must be a hinge, "
+    "with no tendons or equality constraints (an unnamed hinge is named jointK in "
     "mjtraj's copy); each hinge keeps its passive properties (damping, armature, friction loss) and range. The "
     "model's actuators are replaced by one torque motor per hinge (gear 1, set explicitly whatever the file's default"
     " class says) whose control range is the corrective saturation: the torque_limit given (--torque-limit: one value"
@@ -28,6 +31,84 @@ ARM_RULES = (
     "removed and keyframes' ctrl set to zero; every body gets native gravity compensation (gravcomp 1, applied at the"
     " joints); contacts are disabled (the study's plant is the free arm); the integrator is RK4 at the control period"
     " dt")
+
+
+HELD_TEXT = "mjtraj_held"
+"""The name of the custom text element in which a prepared arm lists the joints it holds (`held_joints`)."""
+
+
+def _finger(joint: mujoco.MjsJoint) -> bool:
+    """A slide joint on a branch of its own: no hinge on its body or below it (a gripper's finger, not the arm)."""
+    if joint.type != mujoco.mjtJoint.mjJNT_SLIDE:
+        return False
+    below = joint.parent.find_all(mujoco.mjtObj.mjOBJ_JOINT)
+    return not any(other.type == mujoco.mjtJoint.mjJNT_HINGE for other in below)
+
+
+def _rotate(quat: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    out = np.zeros(3)
+    mujoco.mju_rotVecQuat(out, np.asarray(v, dtype=np.float64), np.asarray(quat, dtype=np.float64))
+    return out
+
+
+def _hold_fingers(spec: mujoco.MjSpec, file: Path) -> list[str]:
+    """Hold every finger (`_finger`) fixed where the file puts it: at its 'home' keyframe's value, else at 0 moved
+    into its range (its lower limit when 0 is below it). The joint is removed and its body moved by that much along
+    the joint's axis; the equality constraints and fixed tendons that couple held fingers only (a gripper's
+    mimic), and sensors of held joints, go with them; keyframes lose their entries. Returns one line per held
+    joint (also stored in the model as the text HELD_TEXT). What couples a held finger to the arm is left for
+    `_hinges` to refuse."""
+    joints = list(spec.joints)
+    fingers = [j for j in joints if _finger(j)]
+    if not fingers:
+        return []
+    names = {j.name for j in fingers if j.name}
+    home = next((key for key in spec.keys if key.name == "home" and len(key.qpos)), None)
+    order = {id(j): k for k, j in enumerate(joints)}
+    lines = []
+    for joint in fingers:
+        if home is not None and len(home.qpos) == len(joints):
+            value, where = float(home.qpos[order[id(joint)]]), "its 'home' keyframe"
+        else:
+            value, where = 0.0, "0"
+        if joint.limited == mujoco.mjtLimited.mjLIMITED_TRUE or (
+                joint.limited == mujoco.mjtLimited.mjLIMITED_AUTO and joint.range[0] < joint.range[1]):
+            low, high = float(joint.range[0]), float(joint.range[1])
+            if not low <= value <= high:
+                value, where = min(max(value, low), high), "its range's nearest end"
+        body = joint.parent
+        body.pos = np.asarray(body.pos, dtype=np.float64) + value * _rotate(body.quat, joint.axis)
+        lines.append(f"{joint.name or '(unnamed slide joint)'} held at {value:g} m ({where})")
+    for equality in list(spec.equalities):
+        if equality.type == mujoco.mjtEq.mjEQ_JOINT and {equality.name1, equality.name2} - {""} <= names:
+            spec.delete(equality)
+    for tendon in list(spec.tendons):
+        wraps = list(tendon.path)
+        if wraps and all(w.type == mujoco.mjtWrap.mjWRAP_JOINT and w.target is not None and w.target.name in names
+                         for w in wraps):
+            spec.delete(tendon)
+    for sensor in list(spec.sensors):
+        if sensor.objtype == mujoco.mjtObj.mjOBJ_JOINT and sensor.objname in names:
+            spec.delete(sensor)
+    kept = [k for k, j in enumerate(joints) if not _finger(j)]
+    for key in spec.keys:
+        if len(key.qpos) == len(joints):
+            key.qpos = np.asarray(key.qpos)[kept]
+        if len(key.qvel) == len(joints):
+            key.qvel = np.asarray(key.qvel)[kept]
+    for joint in fingers:
+        spec.delete(joint)
+    spec.add_text(name=HELD_TEXT, data="; ".join(lines))
+    return lines
+
+
+def held_joints(model: mujoco.MjModel) -> str:
+    """What `arm_spec` held fixed in this model ('' if nothing): one 'NAME held at VALUE m (WHERE)' per joint."""
+    k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, HELD_TEXT)
+    if k < 0:
+        return ""
+    start = int(model.text_adr[k])
+    return bytes(model.text_data[start:start + int(model.text_size[k]) - 1]).decode()
 
 
 def _hinges(spec: mujoco.MjSpec, file: Path) -> list[mujoco.MjsJoint]:
@@ -167,6 +248,7 @@ def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_li
         spec = mujoco.MjSpec.from_file(str(file))
     except ValueError as e:
         raise ModelError(f"cannot load model {file}: {' '.join(str(e).split())}") from e
+    _hold_fingers(spec, file)
     joints = _hinges(spec, file)
     taken = {joint.name for joint in joints}
     for j, joint in enumerate(joints):
