@@ -5,6 +5,7 @@ errors naming the element; `mjtraj compare --model` runs the study on it."""
 
 from __future__ import annotations
 
+import copy
 import json
 
 import mujoco
@@ -12,7 +13,7 @@ import numpy as np
 import pytest
 
 from mjtraj.cli import main
-from mjtraj.core.arm import prepare_arm
+from mjtraj.core.arm import arm_spec, prepare_arm
 from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.dynamics import DynamicsProbe
 from mjtraj.core.feedforward import feedforward
@@ -194,18 +195,22 @@ def test_frontier_takes_a_user_arm(tmp_path, capsys):
     assert "on the scenario's task (planar_2link)" in capsys.readouterr().out
 
 
-def test_a_stiffly_damped_arm_gets_the_substeps_that_keep_rk4_stable(tmp_path):
+def test_a_stiffly_damped_arm_is_integrated_stably_by_every_part_of_the_study(tmp_path):
     """Joint damping of 30 N m s/rad on the planar arm's light second link (about 0.053 kg m^2): RK4 at 0.02 s
-    diverges; the rule's substeps keep the executed arm bounded and tracking."""
+    diverges, one step or ten substeps short of the rule; the prepared arm is integrated by implicitfast in one
+    step per period, and the executed arm, the nonlinear planner's rollouts and the floor's all stay bounded."""
     path = tmp_path / "damped.xml"
     path.write_text(PLANAR.read_text().replace('name="joint2" type="hinge"', 'name="joint2" type="hinge" damping="30"'))
     scenario = scenario_for_model(path)
-    assert scenario.loop.substeps >= 10
+    assert scenario.model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST and scenario.loop.substeps == 1
     reference = make("cubic").plan(scenario.task, scenario.model)
     ok = ClosedLoop(scenario.model, scenario.loop).run([reference])
     assert ok.diverged_step[0] == -1 and np.max(np.abs(ok.e)) < 1e-2
-    single = scenario.replace(loop={"substeps": 1})
-    assert ClosedLoop(single.model, single.loop).run([reference]).diverged_step[0] >= 0
+    bound = make("nonlinear_min_effort").plan(scenario.task, scenario.model)
+    assert np.all(np.isfinite(bound.q)) and np.abs(bound.q[-1] - scenario.task.qg).max() < 1e-6
+    rk4 = copy.copy(scenario.model)
+    rk4.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    assert ClosedLoop(rk4, scenario.loop).run([reference]).diverged_step[0] >= 0
 
 
 def test_a_continuous_joint_is_drawn_within_plus_minus_pi(tmp_path):
@@ -411,3 +416,33 @@ def test_a_grippers_fingers_are_held_where_its_home_keyframe_puts_them(tmp_path,
         np.testing.assert_allclose(mine.xpos[model.body(body).id], data.xpos[original.body(body).id], atol=1e-12)
     assert main(["compare", "--model", str(path), "--no-figures", "--out", str(tmp_path / "out")]) == 0
     assert "  held fixed (not planned): finger_left held at 0.015 m" in capsys.readouterr().out
+
+
+def test_a_stiffly_damped_joint_is_integrated_implicitly(tmp_path, capsys):
+    """A wrist whose damping (20 N m s/rad) over its inertia is ~10^4 1/s: RK4 at the 20 ms period blows up on a
+    1 N m step (MuJoCo resets it); the prepared arm integrates by implicitfast, says why, and the wrist settles at
+    the closed-form speed torque / damping. The UR5 and the lightly damped arms keep RK4 (their numbers unchanged)."""
+    from arm_suite import chain
+
+    from mjtraj.core.arm import integrator_note
+    from mjtraj.core.model import load_model
+
+    links = [("0 0 1", "-3 3", 0.1, 2.0), ("0 1 0", "-2 2", 0.4, 1.5), ("0 1 0", "-2.5 2.5", 0.35, 1.0),
+             ("1 0 0", "-3 3", 0.05, 0.3)]
+    path = tmp_path / "stiff.xml"
+    path.write_text(chain("stiff", links, joint_extra=' damping="20"'))
+    explicit = arm_spec(path, dt=0.02)
+    explicit.option.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    for model, settles in ((explicit.compile(), False), (prepare_arm(path, dt=0.02), True)):
+        data = mujoco.MjData(model)
+        data.ctrl[:] = [0.0, 0.0, 0.0, 1.0]
+        for _ in range(50):
+            mujoco.mj_step(model, data)
+        assert bool(abs(data.qvel[3] - 0.05) < 1e-6) is settles
+    model = prepare_arm(path, dt=0.02)
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    assert integrator_note(model).startswith("implicitfast, not RK4: joint j3's damping x timestep / inertia is ")
+    assert main(["compare", "--model", str(path), "--no-figures", "--out", str(tmp_path / "out")]) == 0
+    assert "  integrator: implicitfast, not RK4: joint j3's" in capsys.readouterr().out
+    for rk4 in (load_model(), prepare_arm(PLANAR, dt=0.02), prepare_arm("ur5_6dof", dt=0.02)):
+        assert rk4.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4 and integrator_note(rk4) == ""

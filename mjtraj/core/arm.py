@@ -30,7 +30,8 @@ ARM_RULES = (
     "else the joint's actuator force range, and never more than that range; sensors of the replaced actuators are "
     "removed and keyframes' ctrl set to zero; every body gets native gravity compensation (gravcomp 1, applied at the"
     " joints); contacts are disabled (the study's plant is the free arm); the integrator is RK4 at the control period"
-    " dt")
+    " dt, or implicitfast where the file's joint damping would make RK4 diverge at that period (damping x dt / "
+    "inertia above 2, RK4's limit being 2.785; the output says so)")
 
 
 HELD_TEXT = "mjtraj_held"
@@ -102,13 +103,61 @@ def _hold_fingers(spec: mujoco.MjSpec, file: Path) -> list[str]:
     return lines
 
 
-def held_joints(model: mujoco.MjModel) -> str:
-    """What `arm_spec` held fixed in this model ('' if nothing): one 'NAME held at VALUE m (WHERE)' per joint."""
-    k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, HELD_TEXT)
+RK4_DAMPING_BOUND = 2.0
+"""RK4 is stable on a joint whose damping over its inertia, times the timestep, stays within 2.785 (its stability
+interval on the negative real axis); past this bound (a margin below it) the arm is integrated by implicitfast."""
+INTEGRATOR_TEXT = "mjtraj_integrator"
+"""The name of the custom text element in which a prepared arm says why it is not integrated by RK4."""
+
+
+def _stiffest_joint(model: mujoco.MjModel) -> tuple[float, int]:
+    """The largest damping x timestep / inertia over the joints (armature included), at the 'home' keyframe and at
+    qpos0, and its joint."""
+    data = mujoco.MjData(model)
+    worst, joint = 0.0, 0
+    poses = [model.qpos0] + [model.key_qpos[k] for k in range(model.nkey) if model.key(k).name == "home"]
+    for q in poses:
+        data.qpos[:] = q
+        mujoco.mj_forward(model, data)
+        inertia = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, inertia)
+        rate = model.dof_damping * model.opt.timestep / np.diag(inertia)
+        if rate.max() > worst:
+            worst, joint = float(rate.max()), int(model.dof_jntid[int(np.argmax(rate))])
+    return worst, joint
+
+
+def _stable_integrator(spec: mujoco.MjSpec, file: Path) -> None:
+    """Integrate by implicitfast (MuJoCo's, damping treated implicitly) where the file's joint damping makes RK4
+    unstable at the timestep (RK4_DAMPING_BOUND), saying why in the text INTEGRATOR_TEXT; RK4 otherwise."""
+    try:
+        probe = spec.compile()
+    except ValueError:
+        return  # the compile error is reported where the arm is compiled
+    rate, joint = _stiffest_joint(probe)
+    if rate > RK4_DAMPING_BOUND:
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        spec.add_text(name=INTEGRATOR_TEXT, data=(
+            f"implicitfast, not RK4: joint {probe.joint(joint).name}'s damping x timestep / inertia is {rate:.3g} "
+            f"(RK4 diverges past 2.785)"))
+
+
+def integrator_note(model: mujoco.MjModel) -> str:
+    """Why this prepared arm is not integrated by RK4 ('' when it is)."""
+    return _text(model, INTEGRATOR_TEXT)
+
+
+def _text(model: mujoco.MjModel, name: str) -> str:
+    k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, name)
     if k < 0:
         return ""
     start = int(model.text_adr[k])
     return bytes(model.text_data[start:start + int(model.text_size[k]) - 1]).decode()
+
+
+def held_joints(model: mujoco.MjModel) -> str:
+    """What `arm_spec` held fixed in this model ('' if nothing): one 'NAME held at VALUE m (WHERE)' per joint."""
+    return _text(model, HELD_TEXT)
 
 
 def _hinges(spec: mujoco.MjSpec, file: Path) -> list[mujoco.MjsJoint]:
@@ -282,6 +331,7 @@ def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_li
     spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     if dt is not None:
         spec.option.timestep = positive("dt", dt)
+    _stable_integrator(spec, file)
     return spec
 
 

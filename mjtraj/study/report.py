@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjtraj.core.arm import held_joints
+from mjtraj.core.arm import held_joints, integrator_note
 from mjtraj.core.controller import CT_RULE
 from mjtraj.core.gains import GAIN_RULE
 from mjtraj.core.metrics import GOAL_TOLERANCE, METRIC_UNITS
@@ -78,6 +78,7 @@ def format_report(result: Comparison) -> str:
         f"Scenario '{s.name}' ({s.source or 'in memory'})" + ("" if s.model_path is None else
                                                                f", model {s.model_path}"),
         *([f"  held fixed (not planned): {held}"] if (held := held_joints(s.model)) else []),
+        *([f"  integrator: {note}"] if (note := integrator_note(s.model)) else []),
         f"  q0 = {fmt(s.task.q0)} rad, qg = {fmt(s.task.qg)} rad, T = {s.task.duration:g} s, dt = {s.task.dt:g} s, "
         f"N = {s.task.steps}",
         f"  controller = {s.loop.controller}, feedforward = {s.loop.feedforward}, ff_accel = {s.loop.ff_accel}, "

@@ -295,7 +295,9 @@ def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any 
     """The study's scenario for the MJCF arm at `path` (prepared by `mjtraj.core.arm.ARM_RULES`): the move `q0` ->
     `qg` (rad, shape (n,)), or ARM_TASK_RULE's for what is not given; `torque_limit` (N m) is every joint's
     corrective saturation (None: from the model). With `workspace` (drawn tasks: sweeps, tune, the env's random
-    tasks) the gains and the integrator steps follow `mjtraj.core.gains.WORKSPACE_RULE`.
+    tasks) the gains and the integrator steps follow `mjtraj.core.gains.WORKSPACE_RULE`. Under RK4 the loop takes
+    ceil(damping x dt / inertia) integrator steps per period on its lightest, most damped joint; an arm prepared
+    with implicitfast (damping too stiff for RK4 at one step, ARM_RULES) takes one.
 
     Raises:
       ModelError: the model cannot be prepared (names the element). InvalidInputError: a bad task.
@@ -318,8 +320,9 @@ def scenario_for_model(path: str | os.PathLike[str], *, q0: Any = None, qg: Any 
     lightest, _ = (free_inertia_at(model, workspace_poses(model, task.q0, task.qg)) if workspace
                    else free_inertia(model, task.q0, task.qg))
     rate = float(np.max(model.dof_damping / lightest)) * dt
+    rk4 = model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4  # else implicit in the damping: one step is stable
     loop = LoopConfig(gain_rule(model, task.q0, task.qg, dt, workspace=workspace),
-                      substeps=max(1, int(np.ceil(rate - 1e-12))))
+                      substeps=max(1, int(np.ceil(rate - 1e-12))) if rk4 else 1)
     where = Path(path)  # a file by its absolute path (a scenario file written from it works from any folder); a
     return Scenario(name=name, task=task, loop=loop, scoring=Scoring(),  # shipped arm by its name
                     model_path=str(where.resolve()) if where.is_file() else str(path),
