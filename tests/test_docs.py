@@ -85,3 +85,21 @@ def test_the_readmes_result_tables_are_the_cited_summarys_cells():
         assert shown and set(shown) <= set(source)
         for method, cells in shown.items():
             assert cells == {column: source[method][column] for column in cells}, method
+
+
+def test_the_env_pages_headline_example_prints_what_the_page_shows(tmp_path, monkeypatch):
+    """docs/env.md's first example (the benchmark env on the paper's move, a video written) prints its pasted
+    output, with no warning that the env is out of date."""
+    import warnings
+
+    page = (ROOT / "docs" / "env.md").read_text()
+    found = blocks(page)
+    k = next(i for i, (lang, body) in enumerate(found) if lang == "python" and 'task="paper"' in body)
+    code, shown = found[k][1], found[k + 1][1]
+    monkeypatch.chdir(tmp_path)
+    out = io.StringIO()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        with contextlib.redirect_stdout(out):
+            exec(compile(code, "env.md", "exec"), {})
+    assert out.getvalue() == shown and (tmp_path / "episode.mp4").stat().st_size > 0
