@@ -7,6 +7,7 @@ the normalisation statistics as exact floats and `act` applies SB3's own formula
 
 from __future__ import annotations
 
+import collections
 import functools
 import hashlib
 import json
@@ -92,9 +93,9 @@ def inert_optimizer() -> type:
 
     class InertOptimizer(torch.optim.Optimizer):
         def __init__(self, params: Any = (), *args: Any, **kwargs: Any) -> None:  # no Optimizer.__init__: inert
-            self.param_groups: list[dict[str, Any]] = []
-            self.state: dict[Any, Any] = {}
-            self.defaults: dict[str, Any] = {}
+            self.param_groups = []
+            self.state = collections.defaultdict(dict)
+            self.defaults = {}
 
         def state_dict(self) -> dict[str, Any]:
             return {"state": {}, "param_groups": []}
@@ -119,7 +120,7 @@ def _inert_optimizers() -> Iterator[None]:
     import torch
 
     real = torch.optim.Adam
-    torch.optim.Adam = inert_optimizer()  # type: ignore[misc]
+    torch.optim.Adam = inert_optimizer()  # type: ignore[misc,assignment]
     try:
         yield
     finally:
