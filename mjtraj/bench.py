@@ -656,3 +656,43 @@ def bench_controllers(scenario: Scenario, *, scenarios: int = 5, seed: int = 1,
         rows.append({"law": law, "median_ms": 1e3 * median, "p90_ms": 1e3 * float(np.percentile(times, 90)),
                      "of_period": median / scenario.task.dt})
     return rows
+
+
+TRAIN_MIXES = (("nominal", "aggressive", "mismatch"), ("nominal", "mismatch"))
+"""The family mixtures `bench_train` times: the default one, and the one without the aggressive family, whose
+variable-length episodes run one sub-env per batch (mjtraj.rl.batched.VARIABLE_LENGTH)."""
+
+
+def bench_train(*, num_envs: int = 512, iterations: int = 2) -> list[dict[str, Any]]:
+    """Env steps per second of batched training (mjtraj.rl.batched: skrl's PPO, every step's act, record and each
+    rollout's update) against the same sub-envs stepped alone with zero actions, in one run, per TRAIN_MIXES; after
+    one untimed iteration each. `minutes_10M` is what 10,000,000 steps take at the training rate."""
+    import tempfile
+    from pathlib import Path
+
+    from mjtraj.rl.batched import MixedFamilies, interact, new_agent
+    from mjtraj.rl.batched_policy import BatchedSettings
+
+    rows = []
+    for families in TRAIN_MIXES:
+        settings = BatchedSettings(num_envs=num_envs, families=families)
+        env = MixedFamilies(settings)
+        with tempfile.TemporaryDirectory() as folder:
+            agent = new_agent(settings, env, Path(folder))
+            total = (iterations + 1) * settings.rollouts
+            obs = env.reset()
+            for t in range(settings.rollouts):  # untimed: the first rollout and update
+                obs = interact(agent, env, obs, t, total)
+            start = time.perf_counter()
+            for t in range(settings.rollouts, total):
+                obs = interact(agent, env, obs, t, total)
+            train = (total - settings.rollouts) * num_envs / (time.perf_counter() - start)
+        zero = np.zeros((num_envs, 3))
+        env.reset()
+        start = time.perf_counter()
+        for _ in range(iterations * settings.rollouts):
+            env.step(zero)
+        alone = iterations * settings.rollouts * num_envs / (time.perf_counter() - start)
+        rows.append({"families": "+".join(families), "envs": num_envs, "train_steps_per_s": train,
+                     "env_steps_per_s": alone, "ratio": train / alone, "minutes_10M": 1e7 / train / 60})
+    return rows

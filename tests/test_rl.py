@@ -455,8 +455,9 @@ def test_ppo_trains_and_reloads(tmp_path):
     (["rl", "train", "--reward-baseline", "zero"],
      "mjtraj: error: reward_baseline: unknown value 'zero'; valid: none, controller, pid\n"),
     (["rl", "eval", "--policy", "nowhere.zip"], "mjtraj: error: policy: file not found: nowhere.zip\n"),
-    (["rl", "eval", "--policy", "p.pt"],
-     "mjtraj: error: policy: expected a policy .zip saved by mjtraj rl train, got 'p.pt'\n"),
+    (["rl", "eval", "--policy", "p.pkl"],
+     "mjtraj: error: policy: expected a policy .zip saved by mjtraj rl train, got 'p.pkl'\n"),
+    (["rl", "eval", "--policy", "p.pt"], "mjtraj: error: policy: file not found: p.pt\n"),
     (["rl", "eval", "--policy", "mypolicy.py"],
      "mjtraj: error: policy: expected FILE.py:ATTR (the file and the name of the policy in it, e.g. "
      "mypolicy.py:policy), got 'mypolicy.py'\n"),

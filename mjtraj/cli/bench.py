@@ -13,7 +13,7 @@ from mjtraj.cli.common import counts, json_safe
 from mjtraj.exceptions import InvalidInputError
 
 BENCH_ALL = ("plan", "planners", "busy", "loop", "floor", "startup", "env")
-"""What a bare `mjtraj bench` runs, in order."""
+"""What a bare `mjtraj bench` runs, in order (`train` needs the rl extra and runs when named)."""
 BENCH_ALL_MINUTES = 3
 """How long a bare `mjtraj bench` took on the 2-core development machine (docs/speed.md), minutes."""
 TAIL_TASKS = {"nominal": 200, "aggressive": 100}
@@ -27,9 +27,9 @@ STORE_STAGE_NAMES = {"csv": "export .csv", "jsonl": "export .jsonl", "sqlite": "
 def add(sub: Any, laws: str) -> None:
     """Declare `mjtraj bench`."""
     p = sub.add_parser("bench", help="speed ratios measured in one run")
-    p.add_argument("what", choices=(*BENCH_ALL, "sweep", "store", "all"), nargs="?", default="all",
-                   help=f"what to time (default all: {', '.join(BENCH_ALL)}; the minute-long sweep and the store "
-                   "run only when named)")
+    p.add_argument("what", choices=(*BENCH_ALL, "train", "sweep", "store", "all"), nargs="?", default="all",
+                   help=f"what to time (default all: {', '.join(BENCH_ALL)}; train (the rl extra), the minute-long "
+                   "sweep and the store run only when named)")
     p.add_argument("--config", type=Path, help="scenario TOML (default: the shipped paper scenario)")
     p.add_argument("--json", action="store_true", help="print every measurement as JSON on stdout instead of the "
                    "tables (for scripts)")
@@ -170,6 +170,17 @@ def _sections(args: argparse.Namespace, scenario: Any, record: Any) -> None:
         for row in record("loop", bench_loop(scenario, tuple(args.sizes) if args.sizes else LOOP_SIZES)):
             print(f"{row['scenarios']:>9} {row['raw_steps_per_s']:>12.0f} {row['loop_steps_per_s']:>13.0f} "
                   f"{row['ratio']:>6.2f}")
+    if args.what == "train":
+        from mjtraj.bench import bench_train
+
+        print("batched training (skrl's PPO on the native vector env, 512 sub-envs, the adaptive law, 32-step "
+              "rollouts and their updates) vs the same sub-envs stepped alone, same run; target 10,000,000 steps "
+              "<= 30 minutes with the default mixture")
+        print(f"{'families':<28} {'envs':>5} {'train steps/s':>14} {'env alone/s':>12} {'ratio':>6} "
+              f"{'10M steps, min':>15}")
+        for row in record("train", bench_train()):
+            print(f"{row['families']:<28} {row['envs']:>5} {row['train_steps_per_s']:>14.0f} "
+                  f"{row['env_steps_per_s']:>12.0f} {row['ratio']:>6.2f} {row['minutes_10M']:>15.1f}")
     if args.what == "store":
         from mjtraj.bench import bench_store
         from mjtraj.checks import positive_int

@@ -55,10 +55,19 @@ def add(sub: Any, laws: str) -> None:
                    help="none | mismatch: train and validate on plants drawn by the mismatch family's rules "
                    "(default none)")
     p.add_argument("--planner", default="cubic", help="planner whose references the policy tracks (default cubic)")
-    p.add_argument("--controller", default="pid", help=f"control law the residual acts on: {laws} (or a "
-                   "registered plug-in law; default pid)")
+    p.add_argument("--batched", action="store_true", help="with --algo ppo: skrl's PPO on hundreds of sub-envs of "
+                   "the native vector env, on a mixture of families (mjtraj.rl.batched; defaults: 10,000,000 steps, "
+                   "512 sub-envs, the adaptive law, --families nominal,aggressive,mismatch); --hyperparameter sets "
+                   "its other settings (rollouts, epochs, minibatches, learning_rate, discount, gae_lambda, hidden)")
+    p.add_argument("--families", type=names, default=["nominal", "aggressive", "mismatch"],
+                   help="with --batched: the families the sub-envs are split over (default all three)")
+    p.add_argument("--initial-std", dest="initial_std", type=float, default=0.1,
+                   help="with --batched: the policy's initial action std, in units of the residual scale (default "
+                   "0.1)")
+    p.add_argument("--controller", help=f"control law the residual acts on: {laws} (or a "
+                   "registered plug-in law; default pid, with --batched adaptive_computed_torque)")
     p.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
-    p.add_argument("--steps", type=int, default=100_000, help="environment steps (default 100000)")
+    p.add_argument("--steps", type=int, help="environment steps (default 100000; with --batched 10000000)")
     p.add_argument("--seed", type=int, default=0, help="the run's seed, 0 <= seed < 2^32 (default 0)")
     p.add_argument("--num-envs", dest="num_envs", type=int, help="sub-envs (default: 4 for sac/td3, 8 for ppo)")
     p.add_argument("--checkpoints", type=int, default=5, help="checkpoints along the run (default 5)")
@@ -153,6 +162,8 @@ def run_train(args: argparse.Namespace) -> int:
     """`mjtraj rl train`."""
     from mjtraj.rl.extra import require_sb3
 
+    if args.batched:
+        return _run_batched(args)
     require_sb3()
     from mjtraj.rl.train import TrainSettings, resume_training, train
 
@@ -172,8 +183,9 @@ def run_train(args: argparse.Namespace) -> int:
     extra["plant_randomization"] = args.plant_randomization
     extra["reward_baseline"] = args.reward_baseline
     settings = TrainSettings(algo=args.algo, action_mode=args.action_mode, **extra, planner=args.planner,
-                             controller=args.controller, task=args.task,
-                             steps=args.steps, seed=args.seed, num_envs=args.num_envs,
+                             controller=args.controller or "pid", task=args.task,
+                             steps=100_000 if args.steps is None else args.steps, seed=args.seed,
+                             num_envs=args.num_envs,
                              checkpoints=args.checkpoints, evaluations=args.evaluations,
                              validation=args.validation, threads=args.threads)
     report = train(settings, args.out, progress=not args.no_progress, tensorboard=args.tensorboard)
@@ -183,6 +195,36 @@ def run_train(args: argparse.Namespace) -> int:
     print(f"wrote {report.policy}, {report.out / 'best.zip'} (best on validation), "
           f"{report.out / 'learning_curve.csv'}, {report.out / 'learning_curve.png'}, {report.out / 'run.json'} "
           f"and {report.out / 'checkpoints'}/")
+    return 0
+
+
+def _run_batched(args: argparse.Namespace) -> int:
+    """`mjtraj rl train --algo ppo --batched`."""
+    from mjtraj.exceptions import InvalidInputError
+    from mjtraj.rl.batched import BatchedSettings, train_batched
+
+    if args.algo != "ppo":
+        raise InvalidInputError(f"batched: trains PPO (skrl's); got --algo {args.algo}")
+    tuned = overrides(args.hyperparameters, args.hyperparameter)
+    allowed = {"rollouts", "epochs", "minibatches", "learning_rate", "discount", "gae_lambda", "hidden"}
+    unknown = sorted(set(tuned) - allowed)
+    if unknown:
+        raise InvalidInputError(f"hyperparameter: unknown name {unknown[0]!r} for --batched; valid: "
+                                f"{', '.join(sorted(allowed))}")
+    if "hidden" in tuned:
+        tuned["hidden"] = tuple(tuned["hidden"]) if isinstance(tuned["hidden"], list) else tuned["hidden"]
+    given = {"steps": args.steps, "num_envs": args.num_envs, "residual_scale": args.residual_scale,
+             "controller": args.controller}
+    settings = BatchedSettings(**{**{k: v for k, v in given.items() if v is not None}, **tuned,
+                                  "families": tuple(args.families), "initial_std": args.initial_std,
+                                  "seed": args.seed, "threads": args.threads, "evaluations": args.evaluations,
+                                  "validation": args.validation})
+    report = train_batched(settings, args.out, progress=not args.no_progress, command=command_line(args))
+    point = report.best_point
+    print(f"trained {report.timesteps} steps in {report.wall:.0f} s ({report.timesteps / report.wall:.0f} steps/s); "
+          f"best validation point at {point.get('timesteps', 0):.0f} steps: the worst family's mean J_exec "
+          f"{point.get('worst_ratio', float('nan')):.4f} of the law alone's")
+    print(f"wrote {report.policy}, {report.best} (best on validation), {report.curve} and {report.out / 'run.json'}")
     return 0
 
 

@@ -254,9 +254,9 @@ def import_attribute(spec: str) -> Any:
 
 
 def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> ScoredPolicy:
-    """A policy from what a user names: PATH.zip (rl train's), baseline:NAME (shipped), MODULE:ATTR or FILE.py:ATTR
-    (a callable or torch module), or the object itself. `settings` (ENV_KEYS) apply to policies that are not zips
-    where they do not declare their own.
+    """A policy from what a user names: PATH.zip (rl train's), PATH.pt (rl train --batched's), baseline:NAME
+    (shipped), MODULE:ATTR or FILE.py:ATTR (a callable or torch module), or the object itself. `settings`
+    (ENV_KEYS) apply to policies that are not zips where they do not declare their own.
 
     Raises:
       InvalidInputError: nothing loadable by that name (the message says why).
@@ -275,6 +275,14 @@ def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> Score
     if text.endswith(".py") and ":" not in text:
         raise InvalidInputError(f"policy: expected FILE.py:ATTR (the file and the name of the policy in it, e.g. "
                                 f"{text}:policy), got {text!r}")
+    if text.endswith(".pt") and ":" not in text:  # a batched run's policy (mjtraj.rl.batched)
+        from mjtraj.rl.batched_policy import label, load_batched
+
+        module = load_batched(text)
+        policy = from_object(module, label=label(module.record), source=text)
+        policy.record, policy.path = module.record, Path(text)
+        policy.timesteps = int(module.record.get("timesteps", 0))
+        return policy
     if text.endswith(".zip") or ":" not in text or Path(text).exists():
         return from_zip_policy(load_policy(text), source=text)
     module, _, attr = text.rpartition(":")

@@ -30,6 +30,7 @@ from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl import law_label
 from mjtraj.rl.adapters import ScoredPolicy, check_settings, load_any
+from mjtraj.rl.batched_policy import BATCHED_RUN
 from mjtraj.rl.episodes import PolicyActor
 from mjtraj.rl.extra import rl_versions
 from mjtraj.rl.protocol import PROTOCOL, PROTOCOL_V1, departures
@@ -124,6 +125,8 @@ def _training_settings(record: dict[str, Any]) -> dict[str, Any]:
     before a setting existed group with those that write its default)."""
     from mjtraj.rl.train import TrainSettings
 
+    if record.get("format") == BATCHED_RUN:  # a batched run records every setting it has
+        return dict(record["settings"])
     known = {f.name: f.default for f in dataclasses.fields(TrainSettings)
              if f.default is not dataclasses.MISSING}
     return {**known, **record["settings"]}
@@ -575,8 +578,10 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
                   "", payload, ""]
     lines += ["![performance profiles](profiles.png)", "", "Policies:"]
     for label, p in zip(labels, policies, strict=True):
-        what = (f"{p.record['settings']['algo'].upper()}, {p.timesteps} steps, seed {p.record['settings']['seed']}"
-                if p.record is not None else p.kind)
+        algo = "batched PPO (skrl)" if p.record is not None and p.record.get("format") == BATCHED_RUN else (
+            p.record["settings"]["algo"].upper() if p.record is not None else "")
+        what = (f"{algo}, {p.timesteps} steps, seed {p.record['settings']['seed']}" if p.record is not None
+                else p.kind)
         lines.append(f"- {label}: `{p.source}` ({what}; acts in {json.loads(p.columns()['policy_env'])}"
                      f"{', privileged: sees the plant' if p.sees_plant else ''})")
     return "\n".join(lines) + "\n"

@@ -1,0 +1,328 @@
+"""Batched on-policy training at the field's scale: skrl's PPO on mjtraj's native vector env, hundreds of sub-envs
+stepped as one batch, on a mixture of the benchmark's families.
+
+The recipe (every setting in BatchedSettings, recorded in run.json):
+- the action is a residual on the configured control law (the adaptive law by default), `residual_scale` N m per
+  unit; the policy's mean starts at exactly zero (its last layer zeroed), so the untrained policy is the law alone,
+  and its exploration starts at `initial_std` units (0.1: 0.6 N m), far below what SB3's defaults started at;
+- observations are standardised by running statistics (skrl's RunningStandardScaler), the value target too;
+- the reward is the advantage over the law alone on the same episode (`reward_baseline="controller"`): its sum is
+  J_law - J_exec, so the learner sees only what it can change; validation and evaluation score J_exec;
+- sub-envs are split evenly over `families` (nominal, aggressive and mismatch by default); sub-env i draws its
+  episodes from the training stream [seed, 16, i] (mjtraj.rl.streams), never an evaluation scenario;
+- every `steps / evaluations` steps the deterministic policy runs `validation` tasks per family from the validation
+  stream [seed, 17, i]; the curve records each family's mean J_exec over the law alone's on the same tasks, and the
+  best point by the worst family's ratio is kept as best.pt.
+
+The deployable policy is exported as a `BatchedPolicy` (a torch.nn.Module: the standardisation and the mean
+network, actions clipped to [-1, 1]) in policy.pt and best.pt, which `mjtraj rl eval --policy RUN/best.pt` scores
+(`load_batched`). Training runs PyTorch on `threads` threads (1 by default: small networks run fastest on one).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.files import write_text_atomic
+from mjtraj.rl.batched_policy import BATCHED_RUN, BatchedSettings, batched_policy_class, save_policy
+from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, training_entropies
+
+CURVE_COLUMNS = ("timesteps", "wall_s", "steps_per_s", "train_episodes", "train_advantage_mean")
+"""The learning curve's columns, then per family `<family>_ratio` (validation mean J_exec over the law alone's) and
+`<family>_cost` (the policy's mean J_exec), then `worst_ratio`."""
+
+
+VARIABLE_LENGTH = ("aggressive",)
+"""Families whose episodes differ in length (the aggressive family's T is drawn): the closed loop steps episodes of
+one length per batch, so each of their sub-envs is a vector env of its own (a step of one costs about what a
+sub-env's share of a batched step does)."""
+
+
+class MixedFamilies:
+    """Sub-envs of several families side by side as one batch of `num_envs` (numpy in, numpy out, Gymnasium's
+    SAME_STEP autoreset: an ending step returns the next episode's first observation). The summed rewards of ended
+    episodes are kept in `finished` until read."""
+
+    def __init__(self, settings: BatchedSettings) -> None:
+        from mjtraj.envs import UR5TrackVectorEnv
+
+        self.settings = settings
+        self.envs = []
+        for family, count in zip(settings.families, settings.split(), strict=True):
+            sizes = [1] * count if family in VARIABLE_LENGTH else [count]
+            self.envs += [UR5TrackVectorEnv(size, autoreset_mode="SameStep", **settings.env_kwargs(family))
+                          for size in sizes]
+        self.num_envs = settings.num_envs
+        self.single_observation_space = self.envs[0].single_observation_space
+        self.single_action_space = self.envs[0].single_action_space
+        self._bounds = np.cumsum([0, *(env.num_envs for env in self.envs)])
+        self._returns = np.zeros(self.num_envs)
+        self.finished: list[float] = []
+
+    def reset(self) -> NDArray[np.float64]:
+        """Every sub-env from its training stream (mjtraj.rl.streams.training_entropies)."""
+        seeds: list[int | None] = list(training_entropies(self.settings.seed, self.num_envs))
+        parts = [env.reset(seed=seeds[a:b])[0] for env, a, b in zip(self.envs, self._bounds, self._bounds[1:],
+                                                                   strict=False)]
+        self._returns[:] = 0.0
+        return np.concatenate(parts)
+
+    def step(self, actions: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                                          NDArray[np.bool_], NDArray[np.bool_]]:
+        obs, rewards, terminated, truncated = [], [], [], []
+        for env, a, b in zip(self.envs, self._bounds, self._bounds[1:], strict=False):
+            o, r, te, tr, _ = env.step(actions[a:b])
+            obs.append(o)
+            rewards.append(r)
+            terminated.append(te)
+            truncated.append(tr)
+        reward = np.concatenate(rewards)
+        done = np.concatenate(terminated) | np.concatenate(truncated)
+        self._returns += reward
+        self.finished.extend(self._returns[done].tolist())
+        self._returns[done] = 0.0
+        return np.concatenate(obs), reward, np.concatenate(terminated), np.concatenate(truncated)
+
+
+def _models(settings: BatchedSettings, observation_space: Any, action_space: Any) -> dict[str, Any]:
+    """skrl's policy (Gaussian, its mean's last layer zeroed, log std at log(initial_std)) and value models."""
+    import torch
+    from skrl.models.torch import DeterministicMixin, GaussianMixin, Model
+
+    def mlp(inputs: int, outputs: int) -> Any:
+        layers: list[Any] = []
+        width = inputs
+        for hidden in settings.hidden:
+            layers += [torch.nn.Linear(width, int(hidden)), torch.nn.Tanh()]
+            width = int(hidden)
+        return torch.nn.Sequential(*layers, torch.nn.Linear(width, outputs))
+
+    d, n = observation_space.shape[0], action_space.shape[0]
+
+    class Policy(GaussianMixin, Model):
+        def __init__(self) -> None:
+            Model.__init__(self, observation_space=observation_space, action_space=action_space, device="cpu")
+            GaussianMixin.__init__(self, clip_actions=False)
+            self.net = mlp(d, n)
+            torch.nn.init.zeros_(self.net[-1].weight)
+            torch.nn.init.zeros_(self.net[-1].bias)
+            self.log_std = torch.nn.Parameter(torch.full((n,), float(np.log(settings.initial_std))))
+
+        def compute(self, inputs: dict[str, Any], role: str = "") -> tuple[Any, dict[str, Any]]:
+            return self.net(inputs["observations"]), {"log_std": self.log_std}
+
+    class Value(DeterministicMixin, Model):
+        def __init__(self) -> None:
+            Model.__init__(self, observation_space=observation_space, action_space=action_space, device="cpu")
+            DeterministicMixin.__init__(self)
+            self.net = mlp(d, 1)
+
+        def compute(self, inputs: dict[str, Any], role: str = "") -> tuple[Any, dict[str, Any]]:
+            return self.net(inputs["observations"]), {}
+
+    return {"policy": Policy(), "value": Value()}
+
+
+def _agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
+    """skrl's PPO with the recipe's settings, its memory one rollout of every sub-env."""
+    from skrl.agents.torch.ppo import PPO, PPO_CFG
+    from skrl.memories.torch import RandomMemory
+    from skrl.resources.preprocessors.torch import RunningStandardScaler
+
+    o, a = env.single_observation_space, env.single_action_space
+    cfg = PPO_CFG(rollouts=settings.rollouts, learning_epochs=settings.epochs, mini_batches=settings.minibatches,
+                  discount_factor=settings.discount, gae_lambda=settings.gae_lambda,
+                  learning_rate=settings.learning_rate, observation_preprocessor=RunningStandardScaler,
+                  observation_preprocessor_kwargs={"size": o, "device": "cpu"},
+                  value_preprocessor=RunningStandardScaler, value_preprocessor_kwargs={"size": 1, "device": "cpu"})
+    cfg.experiment.directory = str(out)
+    cfg.experiment.experiment_name = "skrl"
+    cfg.experiment.write_interval = 0
+    cfg.experiment.checkpoint_interval = 0
+    memory = RandomMemory(memory_size=settings.rollouts, num_envs=env.num_envs, device="cpu")
+    agent = PPO(models=_models(settings, o, a), memory=memory, observation_space=o, action_space=a, device="cpu",
+                cfg=cfg)
+    return agent
+
+
+def export_policy(agent: Any, settings: BatchedSettings) -> Any:
+    """The deployable BatchedPolicy of a skrl agent: its policy's mean network and observation standardiser."""
+    policy, scaler = agent.models["policy"], agent._observation_preprocessor
+    first, last = policy.net[0], policy.net[-1]
+    module = batched_policy_class()(first.in_features, last.out_features, settings)
+    module.net.load_state_dict(policy.net.state_dict())
+    module.mean.copy_(scaler.running_mean.float())
+    module.std.copy_(scaler.running_variance.float().sqrt())
+    module.epsilon.fill_(float(scaler.epsilon))
+    module.clip.fill_(float(scaler.clip_threshold))
+    return module
+
+
+def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any], list[Any], list[Any] | None]]:
+    """Per family: (family, its env settings, references, weights, plants or None), `validation` tasks drawn by
+    the env's own rules from the validation stream [seed, 17, k x validation + i] (k the family's position)."""
+    from mjtraj.envs import resolve
+
+    out = []
+    for k, family in enumerate(settings.families):
+        env = resolve(**settings.env_kwargs(family))
+        rngs = [np.random.default_rng([settings.seed, VALIDATION_STREAM, k * settings.validation + i])
+                for i in range(settings.validation)]
+        tasks = [env.sample_task(rng) for rng in rngs]
+        plants = [env.sample_plant(rng) for rng in rngs]
+        references = [env.planner.plan(task, env.model) for task in tasks]
+        out.append((family, env, references, [env.weights(task) for task in tasks], plants if env.perturbs else None))
+    return out
+
+
+def _mean_cost(outcomes: Sequence[Any]) -> float:
+    """Mean J_exec, +inf if any episode failed (the protocol's rule)."""
+    if any(o.status != "ok" for o in outcomes):
+        return float("inf")
+    return float(np.mean([o.metrics["cost"] for o in outcomes]))
+
+
+@dataclass
+class BatchedReport:
+    """What a batched run wrote and how it ended."""
+
+    out: Path
+    policy: Path
+    best: Path
+    curve: Path
+    timesteps: int
+    wall: float
+    best_point: dict[str, float]
+
+
+def interact(agent: Any, env: MixedFamilies, obs: NDArray[np.float64], t: int, total: int) -> NDArray[np.float64]:
+    """One step of every sub-env under skrl's PPO at timestep `t` of `total`: act, step, record the transition,
+    and update once a rollout is full (skrl's post-interaction); returns the next observations."""
+    import torch
+
+    agent.pre_interaction(timestep=t, timesteps=total)
+    with torch.no_grad():
+        x = torch.as_tensor(obs, dtype=torch.float32)
+        actions, _ = agent.act(x, None, timestep=t, timesteps=total)
+        next_obs, reward, terminated, truncated = env.step(actions.numpy().astype(np.float64))
+        agent.record_transition(observations=x, states=None, actions=actions,
+                                rewards=torch.as_tensor(reward, dtype=torch.float32).view(-1, 1),
+                                next_observations=torch.as_tensor(next_obs, dtype=torch.float32), next_states=None,
+                                terminated=torch.as_tensor(terminated).view(-1, 1),
+                                truncated=torch.as_tensor(truncated).view(-1, 1), infos={}, timestep=t,
+                                timesteps=total)
+    agent.post_interaction(timestep=t, timesteps=total)
+    return next_obs
+
+
+def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
+    """skrl's PPO of the recipe, initialised and in training mode, PyTorch on `settings.threads` threads."""
+    import torch
+    from skrl.utils import set_seed
+
+    torch.set_num_threads(settings.threads)
+    set_seed(settings.seed)
+    agent = _agent(settings, env, out)
+    agent.init()
+    agent.enable_training_mode(True)
+    return agent
+
+
+def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool = True,
+                  command: str = "") -> BatchedReport:
+    """Train by the recipe of the module docstring into `out`: run.json, learning_curve.csv, policy.pt (the last
+    policy), best.pt (the best validation point by its worst family) and skrl/ (the agent, for inspection)."""
+    from mjtraj.rl.adapters import from_object
+    from mjtraj.rl.episodes import run_episodes
+    from mjtraj.rl.extra import rl_versions
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env = MixedFamilies(settings)
+    agent = new_agent(settings, env, out)
+    validation = validation_sets(settings)
+    alone = {family: _mean_cost(run_episodes(None, s, refs, w, p)) for family, s, refs, w, p in validation}
+    record: dict[str, Any] = {
+        "format": BATCHED_RUN, "settings": dataclasses.asdict(settings), "command": command,
+        "library": "skrl PPO", "versions": {**rl_versions(), "skrl": _skrl_version()},
+        "streams": {"train": {"stream": TRAIN_STREAM,
+                              "gym_seeds": training_entropies(settings.seed, settings.num_envs)},
+                    "validation": {"stream": VALIDATION_STREAM,
+                                   "count": settings.validation * len(settings.families)}},
+        "law_alone_validation_cost": alone}
+    families = list(settings.families)
+    columns = [*CURVE_COLUMNS, *(f"{f}_{what}" for f in families for what in ("ratio", "cost")), "worst_ratio"]
+    curve_path = out / "learning_curve.csv"
+    rows: list[dict[str, Any]] = []
+    total = settings.iterations * settings.rollouts
+    points = sorted({round(k * settings.iterations / settings.evaluations) * settings.rollouts
+                     for k in range(1, settings.evaluations + 1)})
+    best: dict[str, float] = {"worst_ratio": float("inf")}
+    obs = env.reset()
+    start, wall_steps = time.perf_counter(), 0
+    from tqdm import tqdm
+
+    bar = tqdm(total=total * settings.num_envs, unit="step", desc="rl train --batched", disable=not progress,
+               dynamic_ncols=True)
+    for t in range(total):
+        obs = interact(agent, env, obs, t, total)
+        wall_steps += settings.num_envs
+        bar.update(settings.num_envs)
+        if t + 1 in points:
+            elapsed = time.perf_counter() - start
+            module = export_policy(agent, settings)
+            module.eval()
+            scored = from_object(module, label="batched")
+            advantage = float(np.mean(env.finished)) if env.finished else float("nan")
+            row: dict[str, Any] = {"timesteps": (t + 1) * settings.num_envs, "wall_s": elapsed,
+                                   "steps_per_s": wall_steps / elapsed, "train_episodes": len(env.finished),
+                                   "train_advantage_mean": advantage}
+            env.finished.clear()
+            ratios = []
+            for family, s, refs, w, p in validation:
+                cost = _mean_cost(run_episodes(scored, s, refs, w, p))
+                row[f"{family}_cost"], row[f"{family}_ratio"] = cost, cost / alone[family]
+                ratios.append(cost / alone[family])
+            row["worst_ratio"] = max(ratios)
+            rows.append(row)
+            _write_curve(curve_path, columns, rows)
+            if row["worst_ratio"] < best["worst_ratio"]:
+                best = {k: float(v) for k, v in row.items()}
+                save_policy(module, out / "best.pt", {**record, "timesteps": row["timesteps"], "point": best})
+            bar.set_postfix_str(f"worst family {row['worst_ratio']:.4f} of the law")
+    bar.close()
+    wall = time.perf_counter() - start
+    final = export_policy(agent, settings)
+    record.update(timesteps=total * settings.num_envs, wall_s=wall, steps_per_s=total * settings.num_envs / wall,
+                  best=best)
+    save_policy(final, out / "policy.pt", record)
+    write_text_atomic(out / "run.json", json.dumps(record, indent=1, default=float) + "\n")
+    if not (out / "best.pt").is_file():  # no validation point finished: the last policy stands
+        save_policy(final, out / "best.pt", record)
+    return BatchedReport(out, out / "policy.pt", out / "best.pt", curve_path, total * settings.num_envs, wall, best)
+
+
+def _write_curve(path: Path, columns: Sequence[str], rows: Sequence[dict[str, Any]]) -> None:
+    import io
+
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, columns, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in r.items()} for r in rows)
+    write_text_atomic(path, buffer.getvalue())
+
+
+def _skrl_version() -> str:
+    import importlib.metadata
+
+    return importlib.metadata.version("skrl")

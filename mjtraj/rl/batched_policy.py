@@ -1,0 +1,165 @@
+"""The deployable policy of a batched run (mjtraj.rl.batched) and its settings: what `mjtraj rl eval --policy
+RUN/best.pt` loads, without skrl."""
+
+from __future__ import annotations
+
+import functools
+import io
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mjtraj.checks import choice, positive, positive_int
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.rl.streams import check_seed
+from mjtraj.study import FAMILIES
+
+BATCHED_RUN = "mjtraj-batched-run/1"
+"""The format of a batched run's record (run.json, and inside policy.pt and best.pt)."""
+
+
+@dataclass(frozen=True)
+class BatchedSettings:
+    """One batched training run: the recipe of mjtraj.rl.batched's module docstring, every setting recorded."""
+
+    steps: int = 10_000_000
+    num_envs: int = 512
+    rollouts: int = 32
+    epochs: int = 5
+    minibatches: int = 4
+    learning_rate: float = 3e-4
+    discount: float = 0.99
+    gae_lambda: float = 0.95
+    initial_std: float = 0.1
+    residual_scale: float = 6.0
+    controller: str = "adaptive_computed_torque"
+    families: tuple[str, ...] = ("nominal", "aggressive", "mismatch")
+    hidden: tuple[int, ...] = (64, 64)
+    seed: int = 0
+    threads: int = 1
+    evaluations: int = 20
+    validation: int = 32
+
+    def __post_init__(self) -> None:
+        for name in ("steps", "num_envs", "rollouts", "epochs", "minibatches", "threads", "evaluations",
+                     "validation"):
+            positive_int(name, getattr(self, name))
+        for name in ("learning_rate", "initial_std", "residual_scale"):
+            positive(name, getattr(self, name))
+        for name in ("discount", "gae_lambda"):
+            if not 0.0 < getattr(self, name) <= 1.0:
+                raise InvalidInputError(f"{name}: expected a number in (0, 1], got {getattr(self, name)!r}")
+        if not self.families:
+            raise InvalidInputError("families: expected at least one family, got none")
+        for family in self.families:
+            choice("families", family, FAMILIES)
+        if self.num_envs < len(self.families):
+            raise InvalidInputError(f"num_envs: expected at least one sub-env per family ({len(self.families)}), got "
+                                    f"{self.num_envs}")
+        if not self.hidden or any(int(h) < 1 for h in self.hidden):
+            raise InvalidInputError(f"hidden: expected layer widths >= 1, got {self.hidden!r}")
+        check_seed("seed", self.seed)
+        from mjtraj.core import controller_names
+
+        choice("controller", self.controller, controller_names())
+
+    @property
+    def iterations(self) -> int:
+        """PPO updates: steps / (num_envs x rollouts), rounded up."""
+        return -(-self.steps // (self.num_envs * self.rollouts))
+
+    def split(self) -> list[int]:
+        """Sub-envs per family, as even as possible (the first families take the remainder)."""
+        base, extra = divmod(self.num_envs, len(self.families))
+        return [base + (k < extra) for k in range(len(self.families))]
+
+    def env_kwargs(self, family: str) -> dict[str, Any]:
+        """The UR5Track arguments of the sub-envs of `family`."""
+        return {"action_mode": "residual", "residual_scale": self.residual_scale, "controller": self.controller,
+                "task": "random", "family": family, "reward_baseline": "controller"}
+
+
+@functools.cache
+def batched_policy_class() -> type:
+    """The deployable policy's class: standardise the observation as training did, the mean network, clip to
+    [-1, 1] (made on first use: PyTorch is imported only here)."""
+    import torch
+
+    class BatchedPolicy(torch.nn.Module):
+        batched = True
+
+        def __init__(self, inputs: int, outputs: int, settings: BatchedSettings) -> None:
+            super().__init__()
+            layers: list[Any] = []
+            width = inputs
+            for hidden in settings.hidden:
+                layers += [torch.nn.Linear(width, int(hidden)), torch.nn.Tanh()]
+                width = int(hidden)
+            self.net = torch.nn.Sequential(*layers, torch.nn.Linear(width, outputs))
+            for name in ("mean", "std"):
+                self.register_buffer(name, torch.zeros(inputs))
+            self.register_buffer("epsilon", torch.zeros(()))
+            self.register_buffer("clip", torch.zeros(()))
+            self.env = {"planner": "cubic", "controller": settings.controller, "action_mode": "residual",
+                        "residual_scale": settings.residual_scale}
+
+        def forward(self, obs: Any) -> Any:
+            mean, std, epsilon, clip = self.mean, self.std, self.epsilon, self.clip
+            x = torch.clamp((obs - mean) / (std + epsilon), -clip, clip)  # type: ignore[operator,arg-type]
+            return torch.clamp(self.net(x), -1.0, 1.0)
+
+    return BatchedPolicy
+
+
+POLICY_FORMAT = "mjtraj-batched-policy/1"
+"""What policy.pt and best.pt hold: the BatchedPolicy's state and the run's record."""
+
+
+def save_policy(module: Any, path: Path, record: dict[str, Any]) -> None:
+    """Write a BatchedPolicy and its run's `record` (plain JSON-like values) to `path`, atomically."""
+    import torch
+
+    from mjtraj.files import atomic_path
+
+    buffer = io.BytesIO()
+    torch.save({"format": POLICY_FORMAT, "state": module.state_dict(), "record": record}, buffer)
+    with atomic_path(path) as tmp:
+        Path(tmp).write_bytes(buffer.getvalue())
+
+
+def load_batched(path: str | Path) -> Any:
+    """A BatchedPolicy saved by a batched run (policy.pt or best.pt), with its run's record as `record`.
+
+    Raises:
+      InvalidInputError: not such a file.
+    """
+    import torch
+
+    file = Path(path)
+    if not file.is_file():
+        raise InvalidInputError(f"policy: file not found: {file}")
+    try:
+        saved = torch.load(file, map_location="cpu", weights_only=True)
+    except Exception as e:  # noqa: BLE001 - torch raises many kinds for a file that is not its own
+        raise InvalidInputError(f"policy: {file} is not a policy saved by mjtraj rl train --batched ({e})") from e
+    if not isinstance(saved, dict) or saved.get("format") != POLICY_FORMAT:
+        raise InvalidInputError(f"policy: {file} is not a policy saved by mjtraj rl train --batched")
+    record = saved["record"]
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in record["settings"].items()}
+    settings = BatchedSettings(**fields)
+    state = saved["state"]
+    module = batched_policy_class()(state["mean"].numel(), state[[k for k in state if k.endswith("bias")][-1]].numel(),
+                                    settings)
+    module.load_state_dict(state)
+    module.record = record
+    return module
+
+
+def label(record: dict[str, Any]) -> str:
+    """How tables name a batched run's configuration (its seeds share it): planner+LAW+residual PPO, the residual
+    scale, the families trained on and the initial std."""
+    from mjtraj.rl import law_label
+
+    s = record["settings"]
+    return (f"cubic+{law_label(s['controller'])}+residual batched PPO ({s['residual_scale']:g} N m, "
+            f"{'+'.join(s['families'])}, std {s['initial_std']:g})")

@@ -1,0 +1,134 @@
+"""Batched training (mjtraj.rl.batched): the untrained policy is the law alone, the exported policy acts as skrl's
+mean action, a tiny run writes what it says and is scored by the protocol."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from mjtraj.cli import main
+from mjtraj.rl.adapters import from_object, load_any
+from mjtraj.rl.batched import MixedFamilies, _agent, export_policy, validation_sets
+from mjtraj.rl.batched_policy import BatchedSettings
+from mjtraj.rl.episodes import run_episodes
+
+TINY = {"steps": 96, "num_envs": 6, "rollouts": 8, "evaluations": 2, "validation": 2, "seed": 3}
+
+
+def test_the_untrained_policy_is_the_law_alone(tmp_path):
+    """Oracle: the law with no policy. The mean's last layer starts at zero, so on every family's validation tasks
+    the exported policy scores exactly what the law scores alone."""
+    settings = BatchedSettings(**TINY)
+    env = MixedFamilies(settings)
+    module = export_policy(_agent(settings, env, tmp_path), settings)
+    obs = torch.as_tensor(np.random.default_rng(0).normal(size=(7, env.single_observation_space.shape[0])),
+                          dtype=torch.float32)
+    assert torch.equal(module(obs), torch.zeros(7, 3))
+    policy = from_object(module)
+    for _, s, refs, weights, plants in validation_sets(settings):
+        mine = [o.metrics["cost"] for o in run_episodes(policy, s, refs, weights, plants)]
+        alone = [o.metrics["cost"] for o in run_episodes(None, s, refs, weights, plants)]
+        assert mine == alone
+
+
+def test_a_tiny_run_writes_its_files_and_its_policy_acts_as_skrls_mean(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["rl", "train", "--algo", "ppo", "--batched", "--steps", "96", "--num-envs", "6", "--evaluations",
+                 "2", "--validation", "2", "--hyperparameter", "rollouts=8", "--seed", "3", "--out", str(out),
+                 "--no-progress"]) == 0
+    assert "trained 96 steps" in capsys.readouterr().out
+    record = json.loads((out / "run.json").read_text())
+    assert record["settings"]["rollouts"] == 8 and record["timesteps"] == 96
+    assert record["streams"]["train"]["gym_seeds"][0] == 3 + 16 * 2**32  # the training stream [3, 16, 0]
+    rows = (out / "learning_curve.csv").read_text().splitlines()
+    assert len(rows) == 3 and rows[0].endswith("worst_ratio")
+    policy = load_any(str(out / "best.pt"))
+    assert policy.label.startswith("cubic+adaptive CT+residual batched PPO (6 N m, nominal+aggressive+mismatch")
+    assert policy.record["streams"] == record["streams"] and len(policy.sha256) == 64
+    # the exported module is skrl's deterministic action: its observation standardiser, then the mean network
+    from mjtraj.rl.batched_policy import load_batched
+
+    module = load_batched(out / "policy.pt")
+    obs = torch.as_tensor(np.random.default_rng(1).normal(size=(5, module.mean.numel())), dtype=torch.float32)
+    expected = torch.clamp(module.net(torch.clamp((obs - module.mean) / (module.std + module.epsilon), -module.clip,
+                                                  module.clip)), -1, 1)
+    assert torch.equal(module(obs), expected) and float(module.clip) == 5.0
+
+
+def test_a_batched_policy_is_scored_by_the_protocol(tmp_path):
+    from mjtraj.rl.evaluate import evaluate
+
+    out = tmp_path / "run"
+    assert main(["rl", "train", "--algo", "ppo", "--batched", "--steps", "96", "--num-envs", "6", "--evaluations",
+                 "1", "--validation", "2", "--hyperparameter", "rollouts=8", "--out", str(out), "--no-progress"]) == 0
+    report = evaluate([str(out / "best.pt")], families=("nominal",), scenarios=2, reps=10, out=tmp_path / "eval")
+    (method,) = [m for m in report.summaries["nominal"] if "batched PPO" in m]
+    assert report.summaries["nominal"][method].failures == 0
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--algo", "sac", "--batched"], "batched: trains PPO (skrl's); got --algo sac"),
+    (["--algo", "ppo", "--batched", "--hyperparameter", "gamma=0.9"],
+     "hyperparameter: unknown name 'gamma' for --batched; valid: discount, epochs, gae_lambda, hidden, "
+     "learning_rate, minibatches, rollouts"),
+    (["--algo", "ppo", "--batched", "--families", "nominal,extreme"],
+     "families: unknown value 'extreme'; valid: nominal, aggressive, mismatch"),
+    (["--algo", "ppo", "--batched", "--num-envs", "2"],
+     "num_envs: expected at least one sub-env per family (3), got 2"),
+    (["--algo", "ppo", "--batched", "--initial-std", "0"], "initial_std: expected a positive number, got 0.0"),
+])
+def test_bad_batched_settings_are_refused_in_one_line(argv, message, capsys, tmp_path):
+    assert main(["rl", "train", *argv, "--out", str(tmp_path / "r"), "--no-progress"]) == 2
+    assert capsys.readouterr().err == f"mjtraj: error: {message}\n"
+
+
+def test_an_aggressive_sub_env_of_its_own_runs_episodes_of_every_length():
+    """Oracle: UR5TrackEnv on the same seed. A one-sub-env vector env of the aggressive family autoresets into
+    episodes of other lengths (the closed loop starts afresh), each as the single env runs it."""
+    import gymnasium as gym
+    from mjtraj.envs import UR5TrackVectorEnv
+
+    kwargs = {"action_mode": "residual", "task": "random", "family": "aggressive"}
+    vector = UR5TrackVectorEnv(1, autoreset_mode="SameStep", **kwargs)
+    single = gym.make("UR5Track-v0", **kwargs)
+    vector.reset(seed=11)
+    single.reset(seed=11)
+    lengths, costs, single_costs = set(), [], []
+    steps = 0
+    while len(costs) < 4:
+        _, _, terminated, truncated, info = vector.step(np.zeros((1, 3)))
+        steps += 1
+        if terminated[0] or truncated[0]:
+            costs.append(info["metrics"]["cost"][0])
+            lengths.add(steps)
+            steps = 0
+    while len(single_costs) < 4:
+        _, _, terminated, truncated, info = single.step(np.zeros(3))
+        if terminated or truncated:
+            single_costs.append(info["metrics"]["cost"])
+            single.reset()
+    assert len(lengths) > 1 and costs == single_costs
+
+
+def test_bench_train_reports_both_rates_and_their_ratio():
+    from mjtraj.bench import TRAIN_MIXES, bench_train
+
+    rows = bench_train(num_envs=6, iterations=1)
+    assert [row["families"] for row in rows] == ["+".join(mix) for mix in TRAIN_MIXES]
+    for row in rows:
+        assert row["train_steps_per_s"] > 0 and row["env_steps_per_s"] > 0
+        assert row["ratio"] == pytest.approx(row["train_steps_per_s"] / row["env_steps_per_s"], rel=1e-12)
+        assert row["minutes_10M"] == pytest.approx(1e7 / row["train_steps_per_s"] / 60, rel=1e-12)
+
+
+def test_a_file_that_is_not_a_batched_policy_is_refused(tmp_path):
+    from mjtraj.exceptions import InvalidInputError
+
+    other = tmp_path / "other.pt"
+    torch.save({"weights": torch.zeros(3)}, other)
+    with pytest.raises(InvalidInputError, match=r"^policy: .*other\.pt is not a policy saved by mjtraj rl train "
+                                                r"--batched$"):
+        load_any(str(other))
