@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.files import write_text_atomic
-from mjtraj.rl.batched_policy import BATCHED_RUN, BatchedSettings, batched_policy_class, save_policy
+from mjtraj.rl.batched_policy import BATCHED_RUN, BatchedSettings, batched_policy_class, mlp, save_policy
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, training_entropies
 
 CURVE_COLUMNS = ("timesteps", "wall_s", "steps_per_s", "train_episodes", "train_advantage_mean")
@@ -99,21 +99,13 @@ def _models(settings: BatchedSettings, observation_space: Any, action_space: Any
     import torch
     from skrl.models.torch import DeterministicMixin, GaussianMixin, Model
 
-    def mlp(inputs: int, outputs: int) -> Any:
-        layers: list[Any] = []
-        width = inputs
-        for hidden in settings.hidden:
-            layers += [torch.nn.Linear(width, int(hidden)), torch.nn.Tanh()]
-            width = int(hidden)
-        return torch.nn.Sequential(*layers, torch.nn.Linear(width, outputs))
-
     d, n = observation_space.shape[0], action_space.shape[0]
 
     class Policy(GaussianMixin, Model):
         def __init__(self) -> None:
             Model.__init__(self, observation_space=observation_space, action_space=action_space, device="cpu")
             GaussianMixin.__init__(self, clip_actions=False)
-            self.net = mlp(d, n)
+            self.net = mlp(d, n, settings.hidden)
             torch.nn.init.zeros_(self.net[-1].weight)
             torch.nn.init.zeros_(self.net[-1].bias)
             self.log_std = torch.nn.Parameter(torch.full((n,), float(np.log(settings.initial_std))))
@@ -125,7 +117,7 @@ def _models(settings: BatchedSettings, observation_space: Any, action_space: Any
         def __init__(self) -> None:
             Model.__init__(self, observation_space=observation_space, action_space=action_space, device="cpu")
             DeterministicMixin.__init__(self)
-            self.net = mlp(d, 1)
+            self.net = mlp(d, 1, settings.hidden)
 
         def compute(self, inputs: dict[str, Any], role: str = "") -> tuple[Any, dict[str, Any]]:
             return self.net(inputs["observations"]), {}

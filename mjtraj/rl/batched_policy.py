@@ -79,6 +79,18 @@ class BatchedSettings:
                 "task": "random", "family": family, "reward_baseline": "controller"}
 
 
+def mlp(inputs: int, outputs: int, hidden: tuple[int, ...]) -> Any:
+    """The networks of a batched run: tanh layers of `hidden` widths, then a linear layer to `outputs`."""
+    import torch
+
+    layers: list[Any] = []
+    width = inputs
+    for size in hidden:
+        layers += [torch.nn.Linear(width, int(size)), torch.nn.Tanh()]
+        width = int(size)
+    return torch.nn.Sequential(*layers, torch.nn.Linear(width, outputs))
+
+
 @functools.cache
 def batched_policy_class() -> type:
     """The deployable policy's class: standardise the observation as training did, the mean network, clip to
@@ -90,12 +102,7 @@ def batched_policy_class() -> type:
 
         def __init__(self, inputs: int, outputs: int, settings: BatchedSettings) -> None:
             super().__init__()
-            layers: list[Any] = []
-            width = inputs
-            for hidden in settings.hidden:
-                layers += [torch.nn.Linear(width, int(hidden)), torch.nn.Tanh()]
-                width = int(hidden)
-            self.net = torch.nn.Sequential(*layers, torch.nn.Linear(width, outputs))
+            self.net = mlp(inputs, outputs, settings.hidden)
             for name in ("mean", "std"):
                 self.register_buffer(name, torch.zeros(inputs))
             self.register_buffer("epsilon", torch.zeros(()))
