@@ -163,7 +163,7 @@ def cli_cases() -> list[Case]:
     cases += [Case("CLI usage", " ".join(a), cli(a)) for a in (
         ["bogus"], ["--bogus"], ["compare", "--bogus"], ["compare", "extra"], ["compare", "--dt"],
         ["sweep", "--out"],
-        ["audit"], ["export", "{tmp}/x.csv"], ["rl"], ["rl", "eval", "--policy"],
+        ["audit"], ["export", "{tmp}/x.csv"], ["rl", "eval", "--policy"],
         ["compare", "--config", "paper", "--model", "x.xml"],
         ["compare", "--torque-limit", "5"])]
     cases += [Case("CLI output paths", f"compare --out {p}", cli(["compare", "--planners", "cubic", "--out", p]))

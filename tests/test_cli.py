@@ -199,3 +199,17 @@ def test_reproduce_runs_the_studys_commands_at_a_small_size(tmp_path, capsys):
                  "AUDIT_effort.md"):
         assert (out / path).stat().st_size > 0, path
     assert "Claim 1" in (out / "AUDIT.md").read_text()
+
+
+def test_bare_rl_and_bench_say_what_they_hold(capsys):
+    """A bare `mjtraj rl` lists its subcommands (exit 0); `bench --help` names what a bare bench runs."""
+    assert main(["rl"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: mjtraj rl [-h] {train,plot,eval,baselines,best,ship}")
+    for command in ("train", "plot", "eval", "baselines", "best", "ship"):
+        assert f"    {command} " in out
+    from mjtraj.cli.bench import BENCH_ALL
+
+    with pytest.raises(SystemExit):
+        main(["bench", "--help"])
+    assert f"default all: {', '.join(BENCH_ALL)}" in " ".join(capsys.readouterr().out.split())
