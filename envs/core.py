@@ -223,10 +223,7 @@ class TrackCore:
                               for e in episodes], axis=1)
         references = [e.reference for e in episodes]
         for loop in loops:
-            # a restart keeps the running N; new episodes of another length on every simulation (the aggressive
-            # family's drawn durations, one sub-env per batch) start the batch afresh
-            everyone = ids is not None and len(rows) == self.num and references[0].steps != loop.steps
-            if ids is None or everyone:
+            if ids is None:
                 loop.start(references, noise=noise)
             else:
                 loop.restart(ids, references, noise=noise)

@@ -99,3 +99,25 @@ def test_the_number_of_periods_is_bounded(scenario):
     with pytest.raises(InvalidInputError, match=rf"^duration, dt: expected at most MAX_STEPS = {MAX_STEPS} control "
                                                 r"periods, got 2.0 s / 1e-09 s = 2e\+09$"):
         Task.create(scenario.task.q0, scenario.task.qg, 2.0, 1e-9)
+
+
+def test_restarting_every_simulation_on_another_length_starts_the_batch_afresh(model, scenario, rng):
+    """Oracle: a fresh loop started on the same references (in row order). A restart of only some simulations on
+    another length is refused in one line."""
+    refs = [realisable_reference(model, rng, steps=30) for _ in range(3)]
+    longer = [realisable_reference(model, rng, steps=45) for _ in range(3)]
+    loop = ClosedLoop(model, scenario.loop, nsim=3)
+    loop.start(refs)
+    for _ in range(7):
+        loop.step()
+    loop.restart([2, 0, 1], [longer[2], longer[0], longer[1]])
+    fresh = ClosedLoop(model, scenario.loop, nsim=3)
+    fresh.start(longer)
+    assert loop.steps == 45
+    for _ in range(45):
+        loop.step()
+        fresh.step()
+    np.testing.assert_array_equal(loop.rollout().e, fresh.rollout().e)
+    with pytest.raises(InvalidInputError, match=r"^references: a restart needs references of the running N=45, "
+                                                r"got N=30; start all simulations instead$"):
+        loop.restart([0], [refs[0]])

@@ -312,12 +312,18 @@ class ClosedLoop:
     def restart(self, ids: npt.ArrayLike, references: Sequence[Reference], *,
                 noise: npt.ArrayLike | None = None) -> None:
         """Restart simulations `ids` (the vector env's autoreset) on `references` of the running N; the others go on.
+        Restarting every simulation on references of another N starts the batch afresh (`start`).
 
         Args:
           noise: as in `start`, shape (N, len(ids), 2n).
         """
         s = self._running()
         rows = np.asarray(ids, dtype=np.intp).reshape(-1)
+        if (len(references) and references[0].steps != s.steps
+                and np.array_equal(np.sort(rows), np.arange(self.nsim))):
+            order = np.argsort(rows)
+            self.start([references[i] for i in order], noise=None if noise is None else np.asarray(noise)[:, order])
+            return
         q_ref, qd_ref, ff, checked, qdd = self._prepare(references, rows.size, noise)
         if q_ref.shape[0] != s.q_ref.shape[0]:
             raise InvalidInputError(f"references: a restart needs references of the running N={s.steps}, got "
