@@ -127,19 +127,18 @@ def _stiffest_joint(model: mujoco.MjModel) -> tuple[float, int]:
     return worst, joint
 
 
-def _stable_integrator(spec: mujoco.MjSpec, file: Path) -> None:
-    """Integrate by implicitfast (MuJoCo's, damping treated implicitly) where the file's joint damping makes RK4
-    unstable at the timestep (RK4_DAMPING_BOUND), saying why in the text INTEGRATOR_TEXT; RK4 otherwise."""
-    try:
-        probe = spec.compile()
-    except ValueError:
-        return  # the compile error is reported where the arm is compiled
-    rate, joint = _stiffest_joint(probe)
-    if rate > RK4_DAMPING_BOUND:
-        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-        spec.add_text(name=INTEGRATOR_TEXT, data=(
-            f"implicitfast, not RK4: joint {probe.joint(joint).name}'s damping x timestep / inertia is {rate:.3g} "
-            f"(RK4 diverges past 2.785)"))
+def _stable_integrator(spec: mujoco.MjSpec, model: mujoco.MjModel) -> bool:
+    """Where the joint damping of `model` (compiled from `spec`, under RK4) makes RK4 unstable at its timestep
+    (RK4_DAMPING_BOUND), set `spec` to implicitfast (MuJoCo's, damping treated implicitly) and say why in the text
+    INTEGRATOR_TEXT; returns whether it did."""
+    rate, joint = _stiffest_joint(model)
+    if rate <= RK4_DAMPING_BOUND:
+        return False
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.add_text(name=INTEGRATOR_TEXT, data=(
+        f"implicitfast, not RK4: joint {model.joint(joint).name}'s damping x timestep / inertia is {rate:.3g} "
+        f"(RK4 diverges past 2.785)"))
+    return True
 
 
 def integrator_note(model: mujoco.MjModel) -> str:
@@ -248,7 +247,9 @@ def prepare_arm(path: str | os.PathLike[str], *, dt: float | None = None, torque
     Raises:
       ModelError: the file is missing, does not compile, or is not an arm of actuatable hinges (names the element).
     """
-    return compile_arm(arm_spec(path, dt=dt, torque_limit=torque_limit), path)
+    spec = arm_spec(path, dt=dt, torque_limit=torque_limit)
+    model = compile_arm(spec, path)
+    return compile_arm(spec, path) if _stable_integrator(spec, model) else model
 
 
 def compile_arm(spec: mujoco.MjSpec, path: str | os.PathLike[str]) -> mujoco.MjModel:
@@ -287,7 +288,8 @@ def arm_file(path: str | os.PathLike[str]) -> Path:
 
 def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_limit: TorqueLimit = None
              ) -> mujoco.MjSpec:
-    """The MjSpec of the arm at `path` prepared by ARM_RULES, not yet compiled (`prepare_arm` compiles it).
+    """The MjSpec of the arm at `path` prepared by ARM_RULES, not yet compiled, under RK4 (`prepare_arm` compiles
+    it, and changes the integrator where the file's damping is too stiff for RK4).
 
     Raises:
       ModelError: as `prepare_arm`.
@@ -331,7 +333,6 @@ def arm_spec(path: str | os.PathLike[str], *, dt: float | None = None, torque_li
     spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     if dt is not None:
         spec.option.timestep = positive("dt", dt)
-    _stable_integrator(spec, file)
     return spec
 
 

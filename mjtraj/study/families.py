@@ -188,7 +188,7 @@ def perturbed_plant(model: mujoco.MjModel, path: str | None = None,
         spec = mujoco.MjSpec.from_file(str(default_model_path()))
     else:
         spec = arm_spec(path, torque_limit=torque_limit)
-        spec.option.integrator = model.opt.integrator  # the nominal plant's, chosen at its own timestep
+        spec.option.integrator = model.opt.integrator  # the nominal plant's (prepare_arm chose it)
     bodies = model.jnt_bodyid.tolist()
     if len(set(bodies)) != len(bodies):
         shared = next(b for b in bodies if bodies.count(b) > 1)
