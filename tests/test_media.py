@@ -88,6 +88,21 @@ def test_one_planner_gets_no_grid_and_four_get_two_by_two(tmp_path):
     assert grid[:, 48:, 64:, :3].max() == 0  # the missing fourth tile is black
 
 
+def mujoco_frame(model, q, off=()):
+    """MuJoCo's own 160x120 frame of `model` at q from its front camera, with the render flags `off` cleared."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)
+    with mujoco.Renderer(model, 120, 160) as plain:
+        plain.update_scene(data, "front")
+        for flag in off:
+            plain.scene.flags[flag] = False
+        return plain.render()
+
+
 def test_fast_frames_are_the_scene_without_shadows_reflection_skybox_or_fine_facets(model):
     """The fast scene equals MuJoCo's own renderer with those features off, and the caller's model is untouched."""
     import mujoco
@@ -103,17 +118,8 @@ def test_fast_frames_are_the_scene_without_shadows_reflection_skybox_or_fine_fac
     assert model.vis.quality.numslices == 28 and model.vis.quality.numstacks == 16
     coarse = load_model()
     coarse.vis.quality.numslices, coarse.vis.quality.numstacks = FAST_SLICES, FAST_STACKS
-    data = mujoco.MjData(coarse)
-    data.qpos[:] = q
-    mujoco.mj_kinematics(coarse, data)
-    mujoco.mj_camlight(coarse, data)
-    with mujoco.Renderer(coarse, 120, 160) as plain:
-        plain.update_scene(data, "front")
-        plain.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
-        plain.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-        plain.scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
-        want = plain.render()
-    np.testing.assert_array_equal(got, want)
+    off = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION, mujoco.mjtRndFlag.mjRND_SKYBOX)
+    np.testing.assert_array_equal(got, mujoco_frame(coarse, q, off))
     assert np.abs(rich.astype(int) - got).max() > 50  # high keeps the shadows and the reflection
     assert model.light_castshadow.all()  # high casts one shadow on its own copy
 
@@ -122,8 +128,6 @@ def test_high_frames_cast_the_brightest_light_s_shadow_alone(model):
     """High frames equal MuJoCo's renderer on a copy where only the brightest light casts a shadow, at the high
     shadow map's size and clip; a second shadow-casting light changes the image (the setting is not a no-op)."""
     import copy
-
-    import mujoco
 
     from mjtraj.media.render import HIGH_SHADOW_CLIP, HIGH_SHADOW_SIZE
 
@@ -136,13 +140,7 @@ def test_high_frames_cast_the_brightest_light_s_shadow_alone(model):
         plant.vis.quality.shadowsize, plant.vis.map.shadowclip = HIGH_SHADOW_SIZE, HIGH_SHADOW_CLIP
         assert plant.light_diffuse[0].sum() > plant.light_diffuse[1].sum()  # "key" is the brighter
         plant.light_castshadow[:] = cast
-        data = mujoco.MjData(plant)
-        data.qpos[:] = q
-        mujoco.mj_kinematics(plant, data)
-        mujoco.mj_camlight(plant, data)
-        with mujoco.Renderer(plant, 120, 160) as plain:
-            plain.update_scene(data, "front")
-            images.append(plain.render())
+        images.append(mujoco_frame(plant, q))
     np.testing.assert_array_equal(got, images[0])
     assert np.abs(images[1].astype(int) - images[0]).max() > 20
 
