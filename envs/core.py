@@ -6,6 +6,7 @@ loop only through ClosedLoop's public queries.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from typing import Any, NamedTuple
@@ -30,6 +31,7 @@ from mjtraj.core import (
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.study import (
     FamilyScenario,
+    Job,
     Perturbation,
     measurement_noise,
     no_perturbation,
@@ -298,6 +300,24 @@ class TrackCore:
             for name in METRIC_NAMES:
                 out[name][j] = partial[name][0]
         return out
+
+    def floors(self, ids: NDArray[np.intp], costs: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
+        """The clairvoyant floors of the episodes of simulations `ids` (`mjtraj.study.floor.floors_of`: their
+        reference, weights and plant, the laws' executions as starts; measurement noise does not reach a torque
+        sequence), and their J_exec `costs` (len(ids),) over them: "floor" and "cost_over_floor", (len(ids),), NaN
+        where the floor failed."""
+        from mjtraj.study import Floor, floors_of
+
+        jobs = [Job(self.references[i], (self._q_diag[i].copy(), self._r_diag[i].copy()),  # type: ignore[arg-type]
+                    self.plants[i]) for i in ids]
+        moves = [float(np.max(np.abs(self.tasks[i].displacement))) for i in ids]  # type: ignore[union-attr]
+        plant = self.plant if any(job.perturbation is not None for job in jobs) else None
+        if plant is not None:  # a batch is all perturbed or all nominal: a nominal episode is the null perturbation
+            jobs = [job if job.perturbation is not None else dataclasses.replace(job, perturbation=no_perturbation(
+                self.settings.n)) for job in jobs]
+        found = floors_of(self.model, self.settings.loop, jobs, plant=plant, displacements=moves)
+        floor = np.array([f.cost if isinstance(f, Floor) else np.nan for f in found])
+        return {"floor": floor, "cost_over_floor": costs / floor}
 
     def goal_missed(self, ids: NDArray[np.intp], terminal_err: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Whether the episodes of simulations `ids`, ending with `terminal_err` (rad, (len(ids),)), missed their goal

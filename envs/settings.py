@@ -96,6 +96,9 @@ class EnvOptions:
                                   "control law alone, minus (step cost - the same episode's step cost under that law "
                                   "with no action, run in a shadow loop); metrics keep J_exec ('pid' is its earlier "
                                   "name)", choices=REWARD_BASELINES)
+    floor: bool = option(False, "at each episode's end also compute its clairvoyant floor (the least J_exec any "
+                         "controller can score on it) into info['metrics'] as floor and cost_over_floor (about 0.1 s "
+                         "a nominal and 0.4 s a mismatched episode)")
     width: int = option(640, "image width, px", minimum=1)
     height: int = option(480, "image height, px", minimum=1)
     camera: str = option("front", "a camera of the model (the UR5: front, side, top) or free (framed on the model); "
@@ -152,6 +155,8 @@ class TrackSettings:
     """Std of the noise on measured q, rad (0: exact)."""
     reward_baseline: str
     """'none', or 'pid': rewards are advantages over PID alone on the same episode."""
+    floor: bool
+    """Episode metrics also carry the episode's clairvoyant floor."""
     scoring: Scoring
     render_mode: str | None
     width: int
@@ -299,6 +304,9 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
     if own.observe_plant == "estimate" and loop.controller != "adaptive_computed_torque":
         raise InvalidInputError(f"observe_plant: 'estimate' observes the adaptive law's estimate; expected "
                                 f"controller='adaptive_computed_torque', got {loop.controller!r}")
+    if own.floor and (loop.gravity_comp != "native" or loop.substeps != 1):
+        raise InvalidInputError(f"floor: the floor models native gravity compensation at one integrator step per "
+                                f"period; got gravity_comp={loop.gravity_comp!r}, substeps={loop.substeps}")
     planner_name, planner_obj = _planner(planner, paper)
     if render_mode is not None and render_mode not in RENDER_MODES:
         raise InvalidInputError(f"render_mode: unsupported mode {render_mode!r}; valid: None, "
@@ -331,6 +339,6 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          history=own.history, plant_randomization=own.plant_randomization,
                          family=own.family,
                          measurement_noise=own.measurement_noise, reward_baseline=own.reward_baseline,
-                         scoring=scoring,
+                         floor=own.floor, scoring=scoring,
                          render_mode=render_mode, width=width, height=height, camera=camera,
                          render_quality=own.render_quality)

@@ -145,6 +145,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     the truncation with `env.unwrapped.episode_metrics()`: over the k periods run, J_exec summed over them (minus
     the return), terminal_err at the pose reached. The vector env's own `max_episode_steps` puts them in the
     truncating step's info.
+    With `floor=True` the ending step's `info["metrics"]` also holds `floor`, the episode's clairvoyant floor (the
+    least J_exec any controller can score on that task and plant, reaching the goal: docs/floor.md), and
+    `cost_over_floor`; it costs about 0.1 s a nominal and 0.4 s a mismatched episode, NaN where the floor fails.
 
     ## Plant randomisation
     With `plant_randomization="mismatch"` each episode runs on its own plant, drawn from the reset's generator
@@ -199,6 +202,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | plant_randomization | "none"  | none, or mismatch: each episode's plant drawn by the mismatch rules     |
     | measurement_noise | 0.0       | std of the noise on measured q, rad (sqrt(2) x / dt on qd); per episode |
     | reward_baseline  | "none"     | none, or controller: reward = advantage over the law alone (pid: old name) |
+    | floor            | False      | at the episode's end also its clairvoyant floor in info["metrics"] (below) |
     | preview          | 0          | future reference samples in the observation                             |
     | observe_control  | False      | append the PID integral and the next feedforward torque (6 values)      |
     | observe_plant    | "none"     | none, true (the plant's parameters: privileged) or estimate (adaptive law's) |
@@ -300,6 +304,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             out["diverged"] = bool(self._core.loop.diverged[0])
             out["missed_goal"] = bool(self._core.goal_missed(np.zeros(1, np.intp),
                                                              np.array([out["metrics"]["terminal_err"]]))[0])
+            if self._core.settings.floor:
+                floors = self._core.floors(np.zeros(1, np.intp), np.array([out["metrics"]["cost"]]))
+                out["metrics"].update({name: float(value[0]) for name, value in floors.items()})
         if self.render_mode == "human":
             self.render()
         return obs[0], float(reward[0]), done, False, out

@@ -126,6 +126,8 @@ class UR5TrackVectorEnv(VectorEnv):
         if done.any():
             ended = np.flatnonzero(done)
             values = self._core.metrics(ended)
+            if self._core.settings.floor:
+                values.update(self._core.floors(ended, values["cost"]))
             out["metrics"] = {name: np.full(self.num_envs, np.nan) for name in values}
             for name, value in values.items():
                 out["metrics"][name][ended] = value

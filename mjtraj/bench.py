@@ -608,7 +608,7 @@ def bench_store(rows: int = 100_000, timed: Sequence[str] = STORE_STAGES) -> dic
     return {"rows": written, "write_s": write_s, "stages": stages}
 
 
-def bench_floor(scenario: Scenario, *, scenarios: int = 20, mismatch: int = 5, seed: int = 1) -> list[dict[str, Any]]:
+def bench_floor(scenario: Scenario, *, scenarios: int = 20, mismatch: int = 20, seed: int = 1) -> list[dict[str, Any]]:
     """The floor's solve time per scenario (`mjtraj.study.floor.floor_of`, one core) on `scenarios` nominal and
     aggressive scenarios and `mismatch` mismatch ones of `seed`: median, 90th percentile and worst, s."""
     from mjtraj.study.floor import family_floors

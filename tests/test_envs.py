@@ -317,7 +317,7 @@ def test_docstring_arguments_table_matches_the_code():
                "task": s.task_mode, "family": s.family, "observe_control": s.observe_control,
                "observe_plant": s.observe_plant, "history": s.history,
                "plant_randomization": s.plant_randomization, "measurement_noise": s.measurement_noise,
-               "reward_baseline": s.reward_baseline,
+               "reward_baseline": s.reward_baseline, "floor": s.floor,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
                "width": s.width, "height": s.height, "camera": s.camera, "render_quality": s.render_quality,
                "render_mode": s.render_mode,
@@ -387,7 +387,8 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                    r"torque_limit, "
                    r"action_mode, "
                    r"residual_scale, task, family, max_displacement, duration, dt, preview, observe_control, "
-                   r"observe_plant, history, plant_randomization, measurement_noise, reward_baseline, width, height, "
+                   r"observe_plant, history, plant_randomization, measurement_noise, reward_baseline, floor, width, "
+                   r"height, "
                    r"camera, render_quality, "
                    r"controller, "
                    r"feedforward, ff_accel, gravity_comp, anti_windup, adaptation_rate, substeps, divergence_bound, "

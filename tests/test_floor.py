@@ -97,7 +97,8 @@ def test_the_floors_torques_replayed_through_the_closed_loop_give_its_cost_and_e
     fs = draw_scenario(family, 1, 2, model, scenario.task.dt)
     ref = scenario.planner("cubic").plan(fs.task, model)
     job = Job(ref, scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit))
-    floor = floor_of(model, scenario.loop, job, displacement=float(np.max(np.abs(fs.task.displacement))))
+    floor = floor_of(model, scenario.loop, job, displacement=float(np.max(np.abs(fs.task.displacement))),
+                     every_start=True)
     assert floor.cost == pytest.approx(floor.solver_cost, rel=1e-12)
     again = replay(model, scenario.loop, job, floor.torques)
     assert again.status == "ok" and again.metrics["cost"] == floor.cost
@@ -144,3 +145,105 @@ def test_bad_configuration_and_starts_are_refused_by_name(scenario, model):
     with pytest.raises(InvalidInputError, match=r"^starts: expected at least one control law, got none$"):
         floor_of(model, scenario.loop, job, starts=())
     assert GOAL_TOLERANCE == 0.2
+
+
+def _mismatch_problem(scenario, model, index: int) -> tuple[_Problem, np.ndarray]:
+    """The floor's problem on mismatch scenario `index`'s true plant (dry friction, per-link gravity compensation),
+    and the torques PID applies there."""
+    from mjtraj.study.floor import true_plant
+
+    fs = draw_scenario("mismatch", 1, index, model, scenario.task.dt)
+    plant = perturbed_plant(model)
+    ref = scenario.planner("cubic").plan(fs.task, model)
+    job = Job(ref, scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit), fs.perturbation)
+    rollout, _ = execute_batch(model, scenario.loop, [job], plant=plant)
+    truth = true_plant(plant, fs.perturbation)
+    x_ref = np.concatenate([ref.q, ref.qd], axis=1)
+    shooting = Shooting(truth, x_ref[0].copy(), x_ref[-1].copy(), np.zeros((6, 6)), np.zeros((3, 3)), ref.steps,
+                        1e-7, partial=True)
+    return _Problem(shooting, x_ref, np.sqrt(job.weights[0]), np.sqrt(job.weights[1]), 0.05), rollout.dtau[0]
+
+
+def test_on_a_plant_with_dry_friction_and_per_link_gravity_compensation_the_step_jacobians_match_differences(
+        scenario, model):
+    problem, torques = _mismatch_problem(scenario, model, 3)
+    shooting = problem.shooting
+    X = shooting.rollout(torques)
+    A, B = shooting.jacobians(X, torques)
+    counts = shooting.jacobian_counts
+    assert counts["analytic"] >= 0.5 * torques.shape[0] and counts["differenced"] >= 1  # both kinds of sample
+    A_fd, B_fd = shooting.differenced(X, torques)
+    np.testing.assert_allclose(A, A_fd, atol=1e-6)  # forward differences' own error
+    np.testing.assert_allclose(B, B_fd, atol=1e-6)
+
+
+def test_the_gravity_tree_gives_mujocos_gravity_torque_and_its_derivative_matches_differences(scenario, model):
+    from mjtraj.core.planners.rigid_body import RigidBody
+
+    problem, _ = _mismatch_problem(scenario, model, 3)
+    plant = problem.shooting.model
+    assert np.ptp(plant.body_gravcomp[1:]) > 0.0 and np.all(plant.dof_frictionloss > 0.0)
+    assert RigidBody.of(plant) is None  # the planners' rule does not hold it
+    tree = RigidBody.of(plant, plant_forces=True)
+    q = np.random.default_rng(2).uniform(-2.0, 2.0, (5, 3))
+    held, d_held = tree.gravity.gravity(q - tree.qpos0)
+    data = mujoco.MjData(plant)
+    for k in range(5):  # at rest: the bias is gravity, less what the passive gravity compensation carries
+        data.qpos[:], data.qvel[:] = q[k], 0.0
+        mujoco.mj_forward(plant, data)
+        np.testing.assert_allclose(held[k], data.qfrc_bias - data.qfrc_gravcomp, atol=1e-12)
+    step = 1e-6
+    for j in range(3):
+        e = np.eye(3)[j] * step
+        fd = (tree.gravity.gravity(q - tree.qpos0 + e)[0] - tree.gravity.gravity(q - tree.qpos0 - e)[0]) / (2 * step)
+        np.testing.assert_allclose(d_held[:, :, j], fd, atol=1e-8)
+
+
+def test_the_structured_gauss_newton_hessian_and_gradient_equal_the_sensitivities_product(scenario, model):
+    problem, torques = _mismatch_problem(scenario, model, 1)
+    u = torques.ravel()
+    hessian, gradient, _ = problem.linearised(u)
+    U, X, _, S = problem.shooting.evaluate(u)
+    N, n = U.shape
+    flat = (S[1:N] * problem.q_root[None, :, None]).reshape(-1, N * n)
+    residual = ((X - problem.x_ref)[1:N] * problem.q_root).ravel()
+    dense = flat.T @ flat + np.diag(np.tile(problem.r_root**2, N))
+    np.testing.assert_allclose(hessian, dense, rtol=1e-12, atol=1e-12 * np.abs(dense).max())
+    np.testing.assert_allclose(gradient, flat.T @ residual + (U * problem.r_root**2).ravel(), rtol=1e-12,
+                               atol=1e-12 * np.abs(gradient).max())
+
+
+def test_by_default_only_the_best_ranked_start_is_solved_and_every_start_finds_no_higher_floor(scenario, model):
+    fs = draw_scenario("mismatch", 1, 2, model, scenario.task.dt)
+    plant = perturbed_plant(model)
+    ref = scenario.planner("cubic").plan(fs.task, model)
+    job = Job(ref, scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit), fs.perturbation)
+    one = floor_of(model, scenario.loop, job, plant=plant)
+    every = floor_of(model, scenario.loop, job, plant=plant, every_start=True)
+    solved = [name for name, cost in one.starts.items() if not np.isnan(cost)]
+    assert solved == [one.start]
+    assert every.starts[one.start] == one.starts[one.start]  # the same solve, bit for bit
+    assert every.cost <= one.cost
+    assert all(not np.isnan(cost) for cost in every.starts.values())
+
+
+def test_the_env_reports_an_episodes_floor_where_asked_and_it_is_that_episodes_floor(scenario, model):
+    import gymnasium as gym
+
+    import mjtraj  # noqa: F401 - registers the envs
+
+    env = gym.make("UR5Track-v1", floor=True, family="mismatch")
+    env.reset(seed=5)
+    core = env.unwrapped._core
+    job = Job(core.references[0], (core._q_diag[0].copy(), core._r_diag[0].copy()), core.plants[0])
+    move = float(np.max(np.abs(core.tasks[0].displacement)))
+    done = False
+    while not done:
+        _, _, terminated, truncated, info = env.step(np.zeros(3))
+        done = terminated or truncated
+    alone = floor_of(model, core.settings.loop, job, plant=core.plant, displacement=move)
+    metrics = info["metrics"]
+    assert metrics["floor"] == pytest.approx(alone.cost, rel=1e-9)
+    assert metrics["cost_over_floor"] == metrics["cost"] / metrics["floor"] and metrics["cost"] >= metrics["floor"]
+    with pytest.raises(InvalidInputError, match=r"^floor: the floor models native gravity compensation"):
+        gym.make("UR5Track-v1", floor=True, gravity_comp="zoh")

@@ -429,7 +429,7 @@ def test_the_bound_linearises_analytically_and_reaches_the_differenced_plans_opt
     task, _ = effort
     mine = make("nonlinear_min_effort").plan(task, model)
     assert mine.info["analytic_jacobians"] > 0 and mine.info["differenced_jacobians"] == 0
-    monkeypatch.setattr("mjtraj.core.planners.shooting.RigidBody.of", lambda model: None)
+    monkeypatch.setattr("mjtraj.core.planners.shooting.RigidBody.of", lambda model, plant_forces=False: None)
     theirs = make("nonlinear_min_effort").plan(task, model)
     assert theirs.info["analytic_jacobians"] == 0 and theirs.info["differenced_jacobians"] > 0
     assert mine.info["objective"] == pytest.approx(theirs.info["objective"], rel=1e-7)

@@ -92,3 +92,32 @@ def test_variants_run_on_a_tuned_scenario():
                              config="paper_tuned")
     rows = run_unit(settings, ("nominal", 0)).rows
     assert {r["status"] for r in rows} == {"ok"} and len(rows) == 6
+
+
+def test_a_sweep_with_floors_gives_each_row_its_floor_and_no_row_scores_below_it(model):
+    from mjtraj.study.families import perturbed_plant
+    from mjtraj.study.floor import floor_of
+    from mjtraj.study.sweep import jobs_for, plan_scenarios, scoring_weights, unit_scenarios
+
+    settings = SweepSettings(families=("mismatch",), scenarios=2, seed=4, planners=("cubic", "quintic"), floors=True)
+    rows = run_unit(settings, ("mismatch", 0)).rows
+    assert len(rows) == 4 and all(r["sweep_floors"] == 1 for r in rows)
+    for r in rows:
+        assert np.isfinite(r["floor"]) and r["floor"] > 0
+        if r["status"] == "ok":
+            assert r["cost"] >= r["floor"]
+            assert r["cost_over_floor"] == r["cost"] / r["floor"]
+        else:
+            assert np.isnan(r["cost_over_floor"])
+    # the oracle: the floor of the same job computed alone
+    scenarios = unit_scenarios(settings, ("mismatch", 0))
+    plans = plan_scenarios(settings, scenarios)
+    job = jobs_for(settings, scenarios[:1], [plans["quintic"][0]], scoring_weights(settings, scenarios[:1]))[0]
+    alone = floor_of(model, settings.loop_config("sample", "native", mismatch=True), job, plant=perturbed_plant(model),
+                     displacement=float(np.max(np.abs(scenarios[0].task.displacement))))
+    row = next(r for r in rows if r["scenario"] == scenarios[0].index and r["planner"] == "quintic")
+    assert row["floor"] == pytest.approx(alone.cost, rel=1e-9)
+    # without floors the schema is what it was; the setting survives a results row
+    plain = run_unit(SweepSettings(families=("nominal",), scenarios=1, seed=4, planners=("cubic",)), ("nominal", 0))
+    assert "floor" not in plain.rows[0] and "sweep_floors" not in plain.rows[0]
+    assert SweepSettings.from_record({k: str(v) for k, v in rows[0].items()}).floors

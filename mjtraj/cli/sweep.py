@@ -25,6 +25,9 @@ def add(sub: Any, laws: str) -> None:
                    help="gravity compensation modes to run: native and/or zoh (default native)")
     p.add_argument("--model-error", action="store_true",
                    help="also measure the linear model's open-loop prediction error of optimal-type planners")
+    p.add_argument("--floor", action="store_true",
+                   help="also each row's clairvoyant floor and J_exec over it (columns floor, cost_over_floor; the "
+                        "best-ranked start of four per row, about 0.1 s a nominal row and 0.4 s a mismatch row)")
     p.add_argument("--sensor-noise", type=float, default=0.0, help="mismatch: position noise std, rad (default 0)")
     p.add_argument("--delay", type=int, default=0, help="mismatch: actuation delay, control periods, 0 or 1")
     p.add_argument("--batch", type=int, default=250, help="scenarios per unit of work (default 250)")
@@ -49,7 +52,7 @@ def sweep_settings(args: argparse.Namespace):  # noqa: ANN202
                          planners=tuple(args.planners or DEFAULT_PLANNERS), ff_accel=tuple(args.ff_accel),
                          gravity_comp=tuple(args.gravity_comp), batch=args.batch, sensor_noise=args.sensor_noise,
                          delay=args.delay, model_error=args.model_error, config=args.config, model=args.model,
-                         torque_limit=args.torque_limit)
+                         torque_limit=args.torque_limit, floors=args.floor)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -34,6 +34,7 @@ _EXPORTS = {
     "Actor": "mjtraj.study.pipeline",
     "Floor": "mjtraj.study.floor",
     "floor_of": "mjtraj.study.floor",
+    "floors_of": "mjtraj.study.floor",
     "family_floors": "mjtraj.study.floor",
     "ORACLE_LABEL": "mjtraj.study.oracle",
     "TrueParameters": "mjtraj.study.oracle",
@@ -107,7 +108,7 @@ if TYPE_CHECKING:
         perturbed_plant,
         plant_fields,
     )
-    from mjtraj.study.floor import Floor, family_floors, floor_of
+    from mjtraj.study.floor import Floor, family_floors, floor_of, floors_of
     from mjtraj.study.oracle import ORACLE_LABEL, TrueParameters, true_parameters
     from mjtraj.study.paper import PAPER_TABLE
     from mjtraj.study.pipeline import (
@@ -152,7 +153,7 @@ if TYPE_CHECKING:
     )
 
 __all__ = [
-    "FIGURE_FORMATS", "Floor", "family_floors", "floor_of",
+    "FIGURE_FORMATS", "Floor", "family_floors", "floor_of", "floors_of",
     "Actor", "ActorSpec", "BACKENDS", "Comparison", "Condition", "DEFAULT_PLANNERS", "EXTRA_METRICS", "FAMILIES",
     "FAMILY_ID", "FamilyScenario", "Job", "ORACLE_LABEL", "Outcome", "PAPER_TABLE", "PAYLOAD_MASS", "PairedRatio",
     "Perturbation", "ResultsFile", "Row", "STATUSES", "SWEPT", "Scenario", "SweepData", "SweepReport",

@@ -23,6 +23,7 @@ from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
 from mjtraj.core.floor import clairvoyant_floor
 from mjtraj.core.model import JointInfo
 from mjtraj.core.reference import Reference
+from mjtraj.core.scoring import Scoring
 from mjtraj.exceptions import InvalidInputError, MjtrajError
 from mjtraj.study.families import Perturbation, plant_fields
 from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, Outcome, execute_batch, goal_checked, one_line
@@ -109,7 +110,7 @@ def true_plant(plant: mujoco.MjModel, perturbation: Perturbation) -> mujoco.MjMo
 
 
 def floor_of(model: mujoco.MjModel, config: LoopConfig, job: Job, *, plant: mujoco.MjModel | None = None,
-             starts: Sequence[str] = STARTS, displacement: float | None = None) -> Floor:
+             starts: Sequence[str] = STARTS, displacement: float | None = None, every_start: bool = False) -> Floor:
     """The floor of executing `job` (its reference, weights, plant perturbation; noise does not reach a torque
     sequence) under `config`'s saturation, delay and integrator.
 
@@ -117,33 +118,70 @@ def floor_of(model: mujoco.MjModel, config: LoopConfig, job: Job, *, plant: mujo
       model: the nominal model; plant: the perturbed plant model (`perturbed_plant`) when the job is perturbed.
       starts: the control laws whose executions start the solves.
       displacement: the task's largest joint displacement, rad, for the goal rule (default: the reference's).
+      every_start: solve from every start, not only the best-ranked one (`clairvoyant_floor`).
 
     Raises:
       InvalidInputError: a configuration the floor does not model (zoh gravity compensation, substeps), or no start.
       SolverError: no start reached the goal.
       MjtrajError: the replay does not reproduce the solver's cost or misses the goal (a defect).
     """
+    found = floors_of(model, config, [job], plant=plant, starts=starts,
+                      displacements=None if displacement is None else [displacement], every_start=every_start)[0]
+    if isinstance(found, MjtrajError):
+        raise found
+    return found
+
+
+def floors_of(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *, plant: mujoco.MjModel | None = None,
+              starts: Sequence[str] = STARTS, displacements: Sequence[float] | None = None,
+              every_start: bool = False) -> list[Floor | MjtrajError]:
+    """`floor_of` of each of `jobs` (all perturbed or all nominal), each start law executing them as batches of one
+    length (as sweeps execute): the floor, or the error that refused it, per job in order.
+
+    Raises:
+      InvalidInputError: a configuration the floor does not model, or no start (for every job at once).
+    """
     if config.gravity_comp != "native" or config.substeps != 1:
         raise InvalidInputError(f"config: the floor models native gravity compensation at one integrator step per "
                                 f"period; got gravity_comp={config.gravity_comp!r}, substeps={config.substeps}")
     if not starts:
         raise InvalidInputError("starts: expected at least one control law, got none")
+    moves = [_move(job.reference) for job in jobs] if displacements is None else list(displacements)
+    executed: list[dict[str, NDArray[np.float64]]] = [{} for _ in jobs]
+    controllers: list[dict[str, float]] = [{} for _ in jobs]
+    groups: dict[int, list[int]] = {}
+    for i, job in enumerate(jobs):
+        groups.setdefault(job.reference.steps, []).append(i)
+    for law in starts:
+        law_config = dataclasses.replace(config, controller=law)
+        for ids in groups.values():
+            rollout, outcomes = execute_batch(model, law_config, [jobs[i] for i in ids], plant=plant)
+            for b, (i, result) in enumerate(zip(ids, outcomes, strict=True)):
+                if result.status == "ok":  # the torques the plant received (after a delay, if any)
+                    executed[i][law] = rollout.dtau[b]
+                controllers[i][law] = float(result.metrics.get("cost", np.inf))
+    limit = JointInfo.of(model).torque_limit
+    out: list[Floor | MjtrajError] = []
+    for job, move, torques, costs in zip(jobs, moves, executed, controllers, strict=True):
+        try:
+            out.append(_solved(model, config, job, plant, limit, move, torques, costs, every_start))
+        except MjtrajError as e:
+            out.append(e)
+    return out
+
+
+def _solved(model: mujoco.MjModel, config: LoopConfig, job: Job, plant: mujoco.MjModel | None,
+            limit: NDArray[np.float64], displacement: float, executed: dict[str, NDArray[np.float64]],
+            controllers: dict[str, float], every_start: bool) -> Floor:
+    """One job's floor from its start laws' executed torques, replayed through the closed loop as its check."""
     reference = job.reference
-    displacement = _move(reference) if displacement is None else displacement
     radius = GOAL_TOLERANCE * displacement
     truth = model if job.perturbation is None else true_plant(_needs(plant), job.perturbation)
-    executed: dict[str, NDArray[np.float64]] = {}
-    controllers: dict[str, float] = {}
-    for law in starts:
-        rollout, outcomes = execute_batch(model, dataclasses.replace(config, controller=law), [job], plant=plant)
-        if outcomes[0].status == "ok":  # the torques the plant received (after a delay, if any)
-            executed[law] = rollout.dtau[0]
-        controllers[law] = float(outcomes[0].metrics.get("cost", np.inf))
     if not executed:
-        executed["zero"] = np.zeros((reference.steps, reference.n))
-    limit = JointInfo.of(model).torque_limit
+        executed = {"zero": np.zeros((reference.steps, reference.n))}
     solution = clairvoyant_floor(truth, reference.q, reference.qd, job.weights[0], job.weights[1], limit,
-                                 goal_radius=radius, starts=executed, first_fixed=bool(config.delay))
+                                 goal_radius=radius, starts=executed, first_fixed=bool(config.delay),
+                                 every_start=every_start)
     result = replay(model, config, job, solution.torques, plant=plant, displacement=displacement)
     if result.status != "ok":
         raise MjtrajError(f"the floor's torques replayed: {result.status} ({result.reason})")
@@ -175,7 +213,7 @@ def _needs(plant: mujoco.MjModel | None) -> mujoco.MjModel:
 
 
 def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequence[int], planner: str = "cubic",
-                  starts: Sequence[str] = STARTS) -> Iterator[dict[str, Any]]:
+                  starts: Sequence[str] = STARTS, every_start: bool = False) -> Iterator[dict[str, Any]]:
     """One record per scenario of `family` (drawn and scored as sweeps draw and score it, seed `seed`: Bryson's
     weights on each task): the starting laws' J_exec on `planner`'s reference and the floor of that execution. A
     scenario whose planning or floor fails gets its error in 'status' and the run goes on.
@@ -183,9 +221,9 @@ def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequ
     Args:
       scenario: the base scenario (model, controller), as sweeps take it.
       scenarios: the scenario indices.
+      every_start: solve from every start (`clairvoyant_floor`).
     """
     from mjtraj.study.families import draw_scenario, perturbed_plant
-    from mjtraj.study.sweep import SCORING
 
     model = scenario.model
     plant = (perturbed_plant(model, scenario.model_path, scenario.model_torque_limit) if family == "mismatch"
@@ -198,8 +236,9 @@ def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequ
         record: dict[str, Any] = {"family": family, "scenario": index, "planner": planner}
         try:
             reference = scenario.planner(planner).plan(drawn.task, model)
-            job = Job(reference, SCORING.weights(drawn.task, limit), drawn.perturbation)
-            found = floor_of(model, config, job, plant=plant, starts=starts, displacement=move)
+            job = Job(reference, Scoring().weights(drawn.task, limit), drawn.perturbation)  # as sweeps score
+            found = floor_of(model, config, job, plant=plant, starts=starts, displacement=move,
+                             every_start=every_start)
         except MjtrajError as e:
             yield {**record, "status": one_line(e)}
             continue

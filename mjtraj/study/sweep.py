@@ -80,6 +80,9 @@ class SweepSettings:
       model: an MJCF arm instead (its scenario by the arm rules, `scenario_for_model`); not with `config`.
       torque_limit: with `model`, the corrective saturation, N m: one value for every joint, or one per joint
         (None: from the model).
+      floors: also each row's clairvoyant floor (`mjtraj.study.floor.floors_of`: its planner's reference on its
+        plant under its controller variant) and J_exec over it, columns FLOOR_COLUMNS (NaN where the variant's
+        gravity compensation is not native, which the floor does not model, or the floor failed).
     """
 
     families: tuple[str, ...] = ("nominal",)
@@ -95,6 +98,7 @@ class SweepSettings:
     config: str | None = None
     model: str | None = None
     torque_limit: float | tuple[float, ...] | None = None
+    floors: bool = False
     base: Scenario = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -153,6 +157,7 @@ class SweepSettings:
                 "+".join(repr(v) for v in self.torque_limit) if isinstance(self.torque_limit, tuple) else
                 self.torque_limit,
                 "config_sha256": hashlib.sha256(base.encode()).hexdigest()[:16],
+                **({"sweep_floors": 1} if self.floors else {}),
                 **{name: getattr(self.base.loop, name) for name in option_names(LoopConfig) if name not in SWEPT},
                 "dt": self.base.task.dt,
                 **{f"{name}_{j}": float(v) for name in ("kp", "ki", "kd") for j, v in enumerate(getattr(g, name))}}
@@ -174,7 +179,7 @@ class SweepSettings:
                        delay=int(row["delay"]), model_error=bool(int(row["model_error_measured"])),
                        config=None if config == SHIPPED_CONFIG else config, model=row.get("model") or None,
                        torque_limit=normalized_limit([float(v) for v in row["torque_limit"].split("+")])
-                       if row.get("torque_limit") else None)
+                       if row.get("torque_limit") else None, floors=bool(int(row.get("sweep_floors") or 0)))
         except (KeyError, ValueError) as e:
             raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
 
@@ -324,12 +329,22 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
     references = [ref for b, name in live if isinstance(ref := plans[name][b], Reference)]
     jobs = jobs_for(settings, [scenarios[b] for b, _ in live], references, [weights[b] for b, _ in live])
     outcomes: dict[tuple[int, str, str, str], Outcome] = {}
+    floors: dict[tuple[int, str, str, str], float] = {}
     for ff in settings.ff_accel:
         for gc in settings.gravity_comp:
             config = settings.loop_config(ff, gc, mismatch=mismatch)
             for (b, name), result in zip(live, execute(model, config, jobs, plant=plant, seconds=seconds),
                                          strict=True):
                 outcomes[(b, name, ff, gc)] = result
+            if settings.floors and gc == "native" and config.substeps == 1:
+                from mjtraj.study.floor import Floor, floors_of
+
+                clock = time.perf_counter()
+                moves = [float(np.max(np.abs(scenarios[b].task.displacement))) for b, _ in live]
+                for (b, name), found in zip(live, floors_of(model, config, jobs, plant=plant, displacements=moves),
+                                            strict=True):
+                    floors[(b, name, ff, gc)] = found.cost if isinstance(found, Floor) else float("nan")
+                seconds["floor"] = seconds.get("floor", 0.0) + time.perf_counter() - clock
     rows = []
     fixed = fixed_columns(settings)
     for b, s in enumerate(scenarios):
@@ -343,9 +358,11 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
                         result, extra, solver = outcomes[(b, name, ff, gc)], extras.get((b, name), {}), \
                             str(plan.info.get("solver", ""))
                     result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
+                    more = floor_columns(result, floors.get((b, name, ff, gc), float("nan"))) if settings.floors \
+                        else {}
                     rows.append(Row(family=family, scenario=s.index, unit=u, planner=name, ff_accel=ff,
                                     gravity_comp=gc, outcome=result, extras=extra, solver=solver, task=s.task,
-                                    perturbation=s.perturbation, settings=fixed).columns())
+                                    perturbation=s.perturbation, settings=fixed, more=more).columns())
     ff, gc = settings.ff_accel[0], settings.gravity_comp[0]
     config = settings.loop_config(ff, gc, mismatch=mismatch)
     for spec in actors:
@@ -368,6 +385,17 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
     return rows
 
 
+FLOOR_COLUMNS = ("floor", "cost_over_floor")
+"""A sweep's floor columns (`SweepSettings.floors`): the row's clairvoyant floor and its J_exec over it (NaN where the
+row has no J_exec or no floor)."""
+
+
+def floor_columns(result: Outcome, floor: float) -> dict[str, float]:
+    """FLOOR_COLUMNS of a row whose execution had `result` and whose floor is `floor` (NaN: none)."""
+    cost = result.metrics.get("cost", float("nan")) if result.status == "ok" else float("nan")
+    return {"floor": floor, "cost_over_floor": cost / floor if np.isfinite(floor) and floor > 0 else float("nan")}
+
+
 def fixed_columns(settings: SweepSettings) -> dict[str, Any]:
     """The columns every row of a sweep shares: its settings and the versions."""
     return {**settings.record(), **versions()}
@@ -378,5 +406,6 @@ def columns(settings: SweepSettings) -> list[str]:
     probe = draw_scenario("mismatch", settings.seed, 0, settings.base.model, settings.base.task.dt)
     row = Row(family="mismatch", scenario=0, unit=0, planner=settings.planners[0], ff_accel=settings.ff_accel[0],
               gravity_comp=settings.gravity_comp[0], outcome=Outcome("ok"), task=probe.task,
-              perturbation=probe.perturbation, settings=fixed_columns(settings))
+              perturbation=probe.perturbation, settings=fixed_columns(settings),
+              more=floor_columns(Outcome("ok"), float("nan")) if settings.floors else {})
     return list(row.columns())

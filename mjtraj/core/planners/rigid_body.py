@@ -45,6 +45,12 @@ class RigidBody:
       ctrl_low, ctrl_high: each control's range (nu,), -inf/inf where unlimited (MuJoCo clamps ctrl to it).
       damping: each joint's viscous damping (n,), N m s/rad.
       timestep: the RK4 step, s.
+      frictionloss: each joint's dry friction (n,), N m, applied as MuJoCo's solver applies it while the joint
+        slides, -frictionloss sign(qd) (while it sticks the step does not reproduce MuJoCo's, and the caller
+        differences that sample); zero unless made with plant_forces.
+      gravity: where the bodies' gravity compensation differs (plant_forces only), a tree of the same joints whose
+        bodies weigh m_b (1 - gravcomp_b), whose `HingeTree.gravity` is the torque gravity takes, and `tree` then
+        carries no gravity; None where `tree`'s uniform gravity holds it.
     """
 
     tree: HingeTree
@@ -54,38 +60,60 @@ class RigidBody:
     ctrl_high: NDArray[np.float64]
     damping: NDArray[np.float64]
     timestep: float
+    frictionloss: NDArray[np.float64] | None = None
+    gravity: HingeTree | None = None
 
     @classmethod
-    def of(cls, model: mujoco.MjModel) -> RigidBody | None:
-        """`model` as Pinocchio models it, or None where the conversion does not hold it (see `unsupported`)."""
-        if unsupported(model) is not None:
+    def of(cls, model: mujoco.MjModel, *, plant_forces: bool = False) -> RigidBody | None:
+        """`model` as Pinocchio models it, or None where the conversion does not hold it (see `unsupported`).
+
+        plant_forces: also hold dry friction and gravity compensation that differs between bodies (the forces of
+        the benchmark's mismatched plants, for the floor's solves). Without it such models are not held, and the
+        planners' and `mpc`'s Jacobians of the models they plan on are what they were."""
+        if unsupported(model, plant_forces=plant_forces) is not None:
             return None
-        body = pinocchio_model(model)
+        body, weight, moment = _built(model)
+        per_body = (plant_forces and model.nbody > 1 and np.ptp(model.body_gravcomp[1:]) > 0.0
+                    and not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+        if per_body:
+            body.gravity.linear[:] = 0.0
         actuation = np.zeros((model.nv, model.nu))
         actuation[model.jnt_dofadr[model.actuator_trnid[:, 0]], np.arange(model.nu)] = (model.actuator_gear[:, 0]
                                                                                          * model.actuator_gainprm[:, 0])
         joints = range(1, body.njoints)
-        tree = HingeTree(np.array([body.parents[j] - 1 for j in joints]),
-                         np.array([body.jointPlacements[j].rotation for j in joints]),
-                         np.array([body.jointPlacements[j].translation for j in joints]),
-                         np.array([body.joints[j].extract().axis for j in joints]),
-                         np.array([body.inertias[j].mass for j in joints]),
+        frames = (np.array([body.parents[j] - 1 for j in joints]),
+                  np.array([body.jointPlacements[j].rotation for j in joints]),
+                  np.array([body.jointPlacements[j].translation for j in joints]),
+                  np.array([body.joints[j].extract().axis for j in joints]))
+        tree = HingeTree(*frames, np.array([body.inertias[j].mass for j in joints]),
                          np.array([body.inertias[j].lever for j in joints]),
                          np.array([body.inertias[j].inertia for j in joints]), np.array(body.armature),
                          np.array(body.gravity.linear))
+        gravity = None
+        if per_body:  # a weightless body's lever is never used: its first moment is zero
+            lever = np.divide(moment, weight[:, None], out=np.zeros_like(moment), where=weight[:, None] != 0.0)
+            gravity = HingeTree(*frames, weight, lever, np.zeros((model.nv, 3, 3)), np.zeros(model.nv),
+                                np.array(model.opt.gravity))
+        friction = model.dof_frictionloss.copy() if plant_forces and np.any(model.dof_frictionloss != 0.0) else None
         return cls(tree, model.qpos0.copy(), actuation, *control_range(model), model.dof_damping.copy(),
-                   float(model.opt.timestep))
+                   float(model.opt.timestep), friction, gravity)
 
     def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
         """A_k (N, 2n, 2n) and B_k (N, 2n, nu) of the RK4 step at each (x_k, u_k) of the rollout X (N+1, 2n) under U
         (N, nu), or None where the tree's step misses MuJoCo's X[k+1] by more than TRANSITION_TOL. A control outside
         its range has no effect (MuJoCo clamps it), one on its end the effect from inside."""
+        A, B, reproduced = self.jacobians_where(X, U)
+        return (A, B) if np.all(reproduced) else None
+
+    def jacobians_where(self, X: NDArray[np.float64], U: NDArray[np.float64]
+                        ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """`jacobians` sample by sample: (A, B, reproduced (N,)), A_k and B_k valid where reproduced[k], where the
+        tree's step gives MuJoCo's X[k+1] within TRANSITION_TOL."""
         after, jacobian = self.step(X[:-1], U)
-        if np.any(np.abs(after - X[1:]) > TRANSITION_TOL * (1.0 + np.abs(X[1:]))):
-            return None
+        reproduced = np.all(np.abs(after - X[1:]) <= TRANSITION_TOL * (1.0 + np.abs(X[1:])), axis=1)
         n = self.qpos0.size
-        return jacobian[:, :, :2 * n], jacobian[:, :, 2 * n:]
+        return jacobian[:, :, :2 * n], jacobian[:, :, 2 * n:], reproduced
 
     def step(self, x: NDArray[np.float64], U: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The tree's RK4 step from each state x (M, 2n) under U (M, nu) and its Jacobian: (x' (M, 2n),
@@ -105,7 +133,15 @@ class RigidBody:
             stage = x + (h * along) * slope
             d_stage = lift + (h * along) * d_slope
             q, v = stage[:, :n] - self.qpos0, stage[:, n:]
-            acceleration, da_dq, da_dv, inverse_mass = self.tree.derivatives(q, v, tau - v * self.damping)
+            passive = tau - v * self.damping
+            if self.frictionloss is not None:  # constant while sliding: no derivative
+                passive = passive - self.frictionloss * np.sign(v)
+            if self.gravity is not None:
+                held, d_held = self.gravity.gravity(q)
+                passive = passive - held
+            acceleration, da_dq, da_dv, inverse_mass = self.tree.derivatives(q, v, passive)
+            if self.gravity is not None:
+                da_dq = da_dq - inverse_mass @ d_held
             F[:, n:, :n] = da_dq
             F[:, n:, n:] = da_dv - inverse_mass * self.damping  # the damping torque -D v
             G[:, n:] = inverse_mass
@@ -136,10 +172,10 @@ class RigidBody:
         return 0.5 * (hessian + hessian.transpose(0, 2, 1))  # type: ignore[no-any-return]
 
 
-def unsupported(model: mujoco.MjModel) -> str | None:
+def unsupported(model: mujoco.MjModel, *, plant_forces: bool = False) -> str | None:
     """Why `RigidBody.of` does not hold `model`, or None: it needs the RK4 integrator, one hinge joint per moving body,
     motors on joints (fixed gain, no bias or dynamics), one gravity compensation for every body, and no joint
-    stiffness, dry friction or fluid forces."""
+    stiffness, dry friction or fluid forces (plant_forces: gravity compensation may differ and dry friction act)."""
     if model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4:
         return "the integrator is not RK4"
     if (model.njnt != model.nv or model.nu != model.nv or np.any(model.jnt_type != mujoco.mjtJoint.mjJNT_HINGE)
@@ -150,9 +186,9 @@ def unsupported(model: mujoco.MjModel) -> str | None:
             or np.any(model.actuator_gaintype != mujoco.mjtGain.mjGAIN_FIXED)
             or np.any(model.actuator_biastype != mujoco.mjtBias.mjBIAS_NONE)):
         return "an actuator is not a motor on a joint"
-    if model.nbody > 1 and np.ptp(model.body_gravcomp[1:]) > 0.0:
+    if not plant_forces and model.nbody > 1 and np.ptp(model.body_gravcomp[1:]) > 0.0:
         return "the bodies' gravity compensation differs"
-    if np.any(model.jnt_stiffness != 0.0) or np.any(model.dof_frictionloss != 0.0):
+    if np.any(model.jnt_stiffness != 0.0) or (not plant_forces and np.any(model.dof_frictionloss != 0.0)):
         return "a joint has stiffness or dry friction"
     if model.opt.density != 0.0 or model.opt.viscosity != 0.0 or np.any(model.opt.wind != 0.0):
         return "the medium exerts fluid forces"
@@ -163,10 +199,18 @@ def pinocchio_model(model: mujoco.MjModel) -> Any:
     """Pinocchio's model of the hinge tree `model` (one `unsupported` holds): the bodies, hinge axes and inertias
     (welded bodies lumped into their joint's), armature, and gravity as MuJoCo applies it after gravity compensation;
     Pinocchio's angles are qpos - qpos0. Damping and the input map are left to the caller (`RigidBody`)."""
+    return _built(model)[0]
+
+
+def _built(model: mujoco.MjModel) -> tuple[Any, NDArray[np.float64], NDArray[np.float64]]:
+    """(`pinocchio_model`, then each joint's weight under gravity compensation: sum over the bodies moving with it
+    of m_b (1 - gravcomp_b) (n,), kg, and of m_b (1 - gravcomp_b) c_b, c_b the body's centre of mass in the
+    joint's frame (n, 3), kg m)."""
     import pinocchio as pin  # here, not at import: only the nonlinear planners need it (0.1 to 0.2 s)
     body = pin.Model()
     joint_of = {0: 0}  # MuJoCo body -> the Pinocchio joint it moves with
     frame_of = {0: pin.SE3.Identity()}  # MuJoCo body frame in that joint's frame
+    weight, moment = np.zeros(model.nv + 1), np.zeros((model.nv + 1, 3))
     for b in range(1, model.nbody):
         parent = int(model.body_parentid[b])
         in_parent = frame_of[parent] * _pose(pin, model.body_quat[b], model.body_pos[b])
@@ -182,12 +226,15 @@ def pinocchio_model(model: mujoco.MjModel) -> Any:
         inertia = rotation @ np.diag(model.body_inertia[b]) @ rotation.T
         body.appendBodyToJoint(joint_of[b], pin.Inertia(float(model.body_mass[b]), model.body_ipos[b].copy(),
                                                         inertia), frame_of[b])
+        weighed = float(model.body_mass[b]) * (1.0 - float(model.body_gravcomp[b]))
+        weight[joint_of[b]] += weighed
+        moment[joint_of[b]] += weighed * frame_of[b].act(np.array(model.body_ipos[b], dtype=np.float64))
     gravity = np.zeros(3)
     if not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
         gravity = (1.0 - float(model.body_gravcomp[1:].max(initial=0.0))) * model.opt.gravity
     body.gravity.linear[:] = gravity
     body.armature[:] = model.dof_armature
-    return body
+    return body, weight[1:], moment[1:]
 
 
 def _pose(pin: Any, quaternion: NDArray[np.float64], position: NDArray[np.float64]) -> Any:

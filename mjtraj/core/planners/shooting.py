@@ -50,6 +50,10 @@ class Shooting:
     R: NDArray[np.float64]
     steps: int
     eps: float
+    partial: bool = False
+    """Difference only the samples the hinge tree does not reproduce, and hold the plant's dry friction and
+    per-body gravity compensation in the tree (`RigidBody.of(plant_forces=True)`): the floor's solves on the true
+    plants. The planners keep the tree for every sample or for none, as their published plans were made."""
     _cache: dict[str, Any] = field(default_factory=dict)
     _states: dict[bytes, NDArray[np.float64]] = field(default_factory=dict)
 
@@ -66,7 +70,7 @@ class Shooting:
         # each control's upper end (inf where unlimited): MuJoCo clamps ctrl there, so `jacobians` differences a
         # torque on it backwards (a forward difference would see no effect)
         self._ctrl_high = control_range(self.model)[1]
-        self._rigid_body = RigidBody.of(self.model)
+        self._rigid_body = RigidBody.of(self.model, plant_forces=self.partial)
         self.jacobian_counts = {"analytic": 0, "differenced": 0}
         # the state `_simulate` starts from, as mujoco.rollout takes it, and where qpos and qvel sit in a state
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -155,6 +159,14 @@ class Shooting:
         rollout's own steps X[k+1]; backward for a torque within eps of its control's upper end, which MuJoCo clamps
         (a forward difference there sees no effect, and a plan's torques sit on their bound). `jacobian_counts`
         counts the two kinds."""
+        if self._rigid_body is not None and self.partial:
+            A, B, reproduced = self._rigid_body.jacobians_where(X, U)
+            missed = np.flatnonzero(~reproduced)
+            if missed.size:
+                A[missed], B[missed] = self.differenced(X, U, missed)
+            self.jacobian_counts["analytic"] += int(reproduced.sum())
+            self.jacobian_counts["differenced"] += missed.size
+            return A, B
         if self._rigid_body is not None:
             found = self._rigid_body.jacobians(X, U)
             if found is not None:
@@ -163,27 +175,32 @@ class Shooting:
         self.jacobian_counts["differenced"] += 1
         return self.differenced(X, U)
 
-    def differenced(self, X: NDArray[np.float64], U: NDArray[np.float64]
+    def differenced(self, X: NDArray[np.float64], U: NDArray[np.float64], samples: NDArray[np.intp] | None = None
                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """`jacobians` by forward differences of MuJoCo's step alone (all N (3n) perturbed steps in one batch)."""
-        n, N = self.n, self.steps
-        point = np.concatenate([X[:-1], U], axis=1)
+        """`jacobians` by forward differences of MuJoCo's step alone (all N (3n) perturbed steps in one batch), at
+        every sample or at `samples` only (their A_k, B_k in that order)."""
+        n = self.n
+        samples = np.arange(self.steps) if samples is None else samples
+        N = samples.size
+        point = np.concatenate([X[samples], U[samples]], axis=1)
         steps = np.full((N, 3 * n), self.eps)
-        steps[:, 2 * n:] = np.where(U + self.eps > self._ctrl_high, -self.eps, self.eps)
+        steps[:, 2 * n:] = np.where(U[samples] + self.eps > self._ctrl_high, -self.eps, self.eps)
         z = (point[:, None, :] + steps[:, :, None] * np.eye(3 * n)[None]).reshape(-1, 3 * n)
         batch, (qpos, qvel, ctrl), reset_state = self._differencer
-        batch.state[:] = reset_state  # Batch.reset's rows, without the call
-        qpos[:], qvel[:], ctrl[:] = z[:, :n], z[:, n:2 * n], z[:, 2 * n:]
-        batch.step(None, 1)
-        after = np.concatenate([qpos, qvel], axis=1).reshape(N, 3 * n, 2 * n)
-        jac = ((after - X[1:, None, :]) / steps[:, :, None]).transpose(0, 2, 1)
+        rows = slice(0, N * 3 * n)
+        batch.state[rows] = reset_state  # Batch.reset's rows, without the call
+        qpos[rows], qvel[rows], ctrl[rows] = z[:, :n], z[:, n:2 * n], z[:, 2 * n:]
+        batch.step(None if N == self.steps else np.arange(N * 3 * n), 1)
+        after = np.concatenate([qpos[rows], qvel[rows]], axis=1).reshape(N, 3 * n, 2 * n)
+        jac = ((after - X[samples + 1, None, :]) / steps[:, :, None]).transpose(0, 2, 1)
         return jac[:, :, :2 * n], jac[:, :, 2 * n:]
 
     @cached_property
     def _differencer(self) -> tuple[Batch, tuple[NDArray[np.float64], ...], NDArray[np.float64]]:
         """The batch of N (3n) simulations `differenced` steps, its qpos, qvel and ctrl, and a simulation's state as
-        reset; made on first use (about 0.6 ms: a plan whose Jacobians are all analytic never needs it)."""
-        batch = Batch(self._stepped, self.steps * 3 * self.n, nthread=0)
+        reset; made on first use (about 0.6 ms: a plan whose Jacobians are all analytic never needs it). On every
+        CPU, but on one for the floor (`partial`), whose parallelism is across scenarios."""
+        batch = Batch(self._stepped, self.steps * 3 * self.n, nthread=1 if self.partial else 0)
         batch.reset([0], stage=mujoco.mjtStage.mjSTAGE_NONE)
         return batch, (batch.bind("qpos"), batch.bind("qvel"), batch.bind("ctrl")), batch.state[0].copy()
 

@@ -221,6 +221,58 @@ def _newton_euler_tangents(parents: Any, below: Any, R: Any, t: Any, axes: Any, 
             _add_force_to_parent(R, t, i, scratch_l, scratch_w, 2, flt, fwt, p * T + i)
 
 
+@_inline
+def _rotations(placement_R: Any, axes: Any, q: Any, R: Any) -> None:
+    """R_i = placement_R_i Rot(axis_i, q_i) for every joint (Rodrigues)."""
+    for i in range(q.shape[0]):
+        a0, a1, a2 = axes[i, 0], axes[i, 1], axes[i, 2]
+        c, s = np.cos(q[i]), np.sin(q[i])
+        C = 1.0 - c
+        r00, r01, r02 = c + a0 * a0 * C, a0 * a1 * C - a2 * s, a0 * a2 * C + a1 * s
+        r10, r11, r12 = a1 * a0 * C + a2 * s, c + a1 * a1 * C, a1 * a2 * C - a0 * s
+        r20, r21, r22 = a2 * a0 * C - a1 * s, a2 * a1 * C + a0 * s, c + a2 * a2 * C
+        for r in range(3):
+            p0, p1, p2 = placement_R[i, r, 0], placement_R[i, r, 1], placement_R[i, r, 2]
+            R[i, r, 0] = p0 * r00 + p1 * r10 + p2 * r20
+            R[i, r, 1] = p0 * r01 + p1 * r11 + p2 * r21
+            R[i, r, 2] = p0 * r02 + p1 * r12 + p2 * r22
+
+
+@numba.njit(cache=True)
+def _gravity_derivatives(parents: Any, below: Any, placement_R: Any, placement_t: Any, axes: Any, mass: Any,
+                         lever: Any, gravity: Any, q: Any, torque: Any, d_torque: Any) -> None:
+    """`HingeTree.gravity`, compiled: `_newton_euler` and its tangents at qd = 0, qdd = 0 with the base accelerating
+    at -gravity. Angular accelerations and their tangents along q stay zero there, so a body's rotational inertia
+    never enters (it is passed as zeros) and only mass times lever, the body's first moment, does."""
+    P, n = q.shape
+    T = 2 * n
+    R = np.empty((n, 3, 3))
+    inertia = np.zeros((n, 3, 3))
+    vl, vw, al, aw = np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3))
+    pl, pw, fl, fw = np.empty((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 3))
+    rows = (n + 1) * T
+    vlt, vwt, alt, awt = np.zeros((rows, 3)), np.zeros((rows, 3)), np.zeros((rows, 3)), np.zeros((rows, 3))
+    flt, fwt = np.empty((rows, 3)), np.empty((rows, 3))
+    scratch_l, scratch_w = np.empty((3, 3)), np.empty((3, 3))
+    still = np.zeros(n)
+    tau, dtau = np.empty(n), np.empty((n, T))
+    for k in range(P):
+        _rotations(placement_R, axes, q[k], R)
+        al[n, 0], al[n, 1], al[n, 2] = -gravity[0], -gravity[1], -gravity[2]
+        vlt[:, :] = 0.0
+        vwt[:, :] = 0.0
+        alt[:, :] = 0.0
+        awt[:, :] = 0.0
+        _newton_euler(parents, R, placement_t, axes, mass, lever, inertia, still, still, vl, vw, pl, pw, al, aw, fl,
+                      fw, scratch_l, scratch_w, tau)
+        _newton_euler_tangents(parents, below, R, placement_t, axes, mass, lever, inertia, still, vl, vw, pl, pw,
+                               fl, fw, vlt, vwt, alt, awt, flt, fwt, scratch_l, scratch_w, dtau)
+        for i in range(n):
+            torque[k, i] = tau[i]
+            for j in range(n):
+                d_torque[k, i, j] = dtau[i, j]
+
+
 @numba.njit(cache=True)
 def _derivatives(parents: Any, below: Any, placement_R: Any, placement_t: Any, axes: Any, mass: Any, lever: Any,
                  inertia: Any, armature: Any, gravity: Any, q: Any, qd: Any, tau: Any, acceleration: Any, da_dq: Any,
@@ -239,18 +291,7 @@ def _derivatives(parents: Any, below: Any, placement_R: Any, placement_t: Any, a
     column, bias, still = np.empty(n), np.empty(n), np.zeros(n)
     dtau = np.empty((n, T))
     for k in range(P):
-        for i in range(n):  # R_i = placement_R_i Rot(axis_i, q_i) (Rodrigues)
-            a0, a1, a2 = axes[i, 0], axes[i, 1], axes[i, 2]
-            c, s = np.cos(q[k, i]), np.sin(q[k, i])
-            C = 1.0 - c
-            r00, r01, r02 = c + a0 * a0 * C, a0 * a1 * C - a2 * s, a0 * a2 * C + a1 * s
-            r10, r11, r12 = a1 * a0 * C + a2 * s, c + a1 * a1 * C, a1 * a2 * C - a0 * s
-            r20, r21, r22 = a2 * a0 * C - a1 * s, a2 * a1 * C + a0 * s, c + a2 * a2 * C
-            for r in range(3):
-                p0, p1, p2 = placement_R[i, r, 0], placement_R[i, r, 1], placement_R[i, r, 2]
-                R[i, r, 0] = p0 * r00 + p1 * r10 + p2 * r20
-                R[i, r, 1] = p0 * r01 + p1 * r11 + p2 * r21
-                R[i, r, 2] = p0 * r02 + p1 * r12 + p2 * r22
+        _rotations(placement_R, axes, q[k], R)
         for j in range(n):
             _mass_column(j, parents, below, R, placement_t, axes, mass, lever, inertia, al, aw, fl, fw, column)
             M[:, j] = column
@@ -329,3 +370,14 @@ class HingeTree:
         _derivatives(self._parents, self._below, placement_R, placement_t, axes, mass, lever, inertia, armature,
                      gravity, q, qd, tau, acceleration, da_dq, da_dqd, inverse_mass)
         return acceleration, da_dq, da_dqd, inverse_mass
+
+
+    def gravity(self, q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """At P points q (P, n), rad: the joint torques that hold the tree still against its gravity, G(q) (P, n),
+        N m, and dG/dq (P, n, n). Only the bodies' masses and centres of mass enter (the tree's inertias do not)."""
+        P, n = q.shape[0], self.n
+        torque, d_torque = np.empty((P, n)), np.empty((P, n, n))
+        placement_R, placement_t, axes, mass, lever, _, _, gravity = self._arrays
+        _gravity_derivatives(self._parents, self._below, placement_R, placement_t, axes, mass, lever, gravity,
+                             np.ascontiguousarray(q, dtype=np.float64), torque, d_torque)
+        return torque, d_torque
