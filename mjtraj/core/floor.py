@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+import scipy.linalg
 from numpy.typing import NDArray
 
 from mjtraj.checks import frozen
@@ -119,6 +120,7 @@ class _Problem:
         U, X, A, S = self.shooting.evaluate(u)
         N, n = U.shape
         W = self.q_root**2
+        weights = np.diag(W)
         error = (X - self.x_ref) * W
         hessian = np.zeros((N * n, N * n))
         P = np.zeros((2 * n, 2 * n))
@@ -126,7 +128,7 @@ class _Problem:
         gradient = np.empty(N * n)
         for j in range(N - 1, -1, -1):  # P and lambda at j + 1, then column block j
             if j + 1 < N:
-                P = np.diag(W) + A[j + 1].T @ P @ A[j + 1]
+                P = weights + A[j + 1].T @ P @ A[j + 1]
                 adjoint = error[j + 1] + A[j + 1].T @ adjoint
             B = S[j + 1, :, j * n:(j + 1) * n]
             column = S[j + 1, :, :(j + 1) * n].T @ (P @ B)
@@ -139,6 +141,32 @@ class _Problem:
         size = max(float(np.linalg.norm(miss)), 1e-12 * self.radius)
         terminal = (miss @ S[N, :n]) / (size * self.radius)
         return hessian, gradient, terminal
+
+
+def _step(hessian: NDArray[np.float64], gradient: NDArray[np.float64], terminal: NDArray[np.float64],
+          constraint: float, low: NDArray[np.float64], high: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """argmin 1/2 d^T H d + g^T d s.t. terminal^T d <= -constraint, low <= d <= high: (d, the terminal row's
+    multiplier). Where the box is not active the one inequality is solved in closed form on H's Cholesky factor
+    (0.5 ms at 300 torques); else by DAQP (`mjtraj.core.planners.sqp._qp`, 1.5 ms)."""
+    try:
+        factor = scipy.linalg.cho_factor(hessian, lower=True, check_finite=False)
+    except np.linalg.LinAlgError as e:
+        raise SolverError("the floor's Gauss-Newton Hessian is not positive definite") from e
+    free = -scipy.linalg.cho_solve(factor, gradient, check_finite=False)
+    excess = constraint + float(terminal @ free)
+    multiplier = 0.0
+    if excess > 0.0:  # the linearised goal row binds: step back along H^-1 terminal onto it
+        along = scipy.linalg.cho_solve(factor, terminal, check_finite=False)
+        multiplier = excess / float(terminal @ along)
+        free = free - multiplier * along
+    if np.all(free >= low) and np.all(free <= high):
+        return free, multiplier
+    solved = _qp(hessian, gradient, np.zeros((0, gradient.size)), np.zeros(0), -terminal[None], np.array([-constraint]),
+                 low, high, True)
+    if solved is None:
+        raise SolverError("the floor's QP has no solution within the torque box")
+    step, multipliers = solved
+    return step, float(np.abs(multipliers).max(initial=0.0))
 
 
 def _merit(cost: float, constraint: float, weight: float) -> float:
@@ -168,12 +196,8 @@ def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], 
             diagonal = hessian.diagonal().copy()
         damped = hessian.copy()
         damped[np.diag_indices_from(damped)] = diagonal + damping * scale
-        solved = _qp(damped, gradient, np.zeros((0, u.size)), np.zeros(0), -terminal[None], np.array([-constraint]),
-                     low - u, high - u, True)
-        if solved is None:
-            raise SolverError("the floor's QP has no solution within the torque box")
-        step, multipliers = solved
-        weight = max(weight, 2.0 * float(np.abs(multipliers).max(initial=0.0)) + 1e-12)
+        step, multiplier = _step(damped, gradient, terminal, constraint, low - u, high - u)
+        weight = max(weight, 2.0 * multiplier + 1e-12)
         predicted = (-(2.0 * float(gradient @ step) + float(step @ hessian @ step))
                      + weight * (max(0.0, constraint) - max(0.0, constraint + float(terminal @ step))))
         trial = np.clip(u + step, low, high)
