@@ -10,13 +10,16 @@ on the true plant, among executions that reach the goal (the benchmark's goal ru
 with Q, R the scenario's scoring weights (J_exec's; x_N is not scored, hence the terminal constraint). It is a
 nonlinear least-squares problem with a box and one smooth inequality. It is solved by a Gauss-Newton SQP on the
 residual vector [sqrt(Q) (x_k - x_ref,k); sqrt(R) u_k]: the states' sensitivities to the torques come from the
-nonlinear planners' single-shooting machinery (`mjtraj.core.planners.shooting`, analytic step Jacobians where the
-plant's hinge tree reproduces MuJoCo's step, else forward differences), each QP (the box, the linearised terminal
-constraint) by DAQP, an Armijo line search on the l1 merit. Several starts (the executed torques of the controllers)
-are run and the lowest goal-reaching result kept. The problem is not convex: on a smooth plant (nominal, aggressive)
-the starts agree to solver precision; with dry friction (the mismatch plants) the objective is not smooth and the
-best found is an upper estimate of the true floor. The caller replays the torques through the one closed loop
-(`mjtraj.study.floor`), which is the floor's own check.
+nonlinear planners' single-shooting machinery (`mjtraj.core.planners.shooting` with `partial`: analytic step
+Jacobians of the plant's hinge tree, its dry friction and per-link gravity compensation included, at every sample
+whose step the tree reproduces, forward differences of MuJoCo's step at the others), the Gauss-Newton Hessian is
+accumulated along the chain, each step's QP (the box, the linearised terminal constraint) is solved in closed form
+where the box is not active and by DAQP where it is, and a Levenberg-Marquardt trust region on the l1 merit accepts
+the steps. The starts (the executed torques of the controllers) are ranked and the best solved, or every one
+(`every_start`), the lowest goal-reaching result kept. The problem is not convex: on a smooth plant (nominal,
+aggressive) the starts agree to solver precision; with dry friction (the mismatch plants) the objective is not
+smooth and the best found is an upper estimate of the true floor. The caller replays the torques through the one
+closed loop (`mjtraj.study.floor`), which is the floor's own check.
 """
 
 from __future__ import annotations
@@ -236,10 +239,11 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
       starts: name -> applied torques (N, n) to start a solve from (clipped into the box).
       first_fixed: the first period's torque is zero (a one-period actuation delay).
       every_start: solve from every start and keep the least result (the check that the starts agree). By default
-        the starts are ranked by their own l1 merit (J_exec, the goal's miss penalised) and only the first is solved,
-        the next where it fails to reach the goal: on smooth plants every start reaches the same floor, and on
-        the mismatched plants (dry friction) solving all four lowered the floor by a mean 1 to 2 % at four times
-        the time (docs/floor.md).
+        the starts are ranked, those that reach the goal first by their J_exec, the others after them by their l1
+        merit, and only the first is solved (the next where it fails to reach the goal). The solve accepts only
+        decreases of the merit, so the floor is never above a start that reached the goal. On smooth plants every
+        start reaches the same floor; on the mismatched plants (dry friction) solving all of them lowers it a little
+        at four times the time (docs/floor.md).
 
     Raises:
       InvalidInputError: shapes disagree, or there is no start.
@@ -273,8 +277,8 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
         except MjtrajError:
             found[name] = float("inf")
             continue
-        ranked.append((_merit(cost, constraint, 10.0 * max(cost, 1e-12)), name, start))
-    for _, name, start in sorted(ranked, key=lambda r: r[0]):
+        ranked.append((constraint > REACHED, _merit(cost, constraint, 10.0 * max(cost, 1e-12)), name, start))
+    for _, _, name, start in sorted(ranked, key=lambda r: r[:2]):
         try:
             u, cost, constraint, iterations, converged = _solve(problem, start, low, high)
         except MjtrajError:

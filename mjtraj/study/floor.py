@@ -33,9 +33,9 @@ if TYPE_CHECKING:
 
 STARTS = ("pid", "computed_torque", "adaptive_computed_torque", "mpc")
 """The control laws whose executed torques start the floor's solves (each one's execution of the same job). The
-line search only accepts decreases, so the floor is never above a start that reached the goal: with `mpc` among
-them, on the mismatch plants (where the solves stop in local minima) it is never above the predictive law's score,
-which it was on some scenarios from the classical laws' starts alone."""
+solve starts from the least of them that reached the goal and accepts only decreases, so the floor is never above
+any of these laws' scores: with `mpc` among them, on the mismatch plants (where the solves stop in local minima) it
+is never above the predictive law's score, which it was on some scenarios from the classical laws' starts alone."""
 REPLAY_TOLERANCE = 1e-6
 """The replay's J_exec and the solver's agree to this relative difference (the same steps; MuJoCo's warm start of
 a friction-loss constraint may differ in the last bits)."""
