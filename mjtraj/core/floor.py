@@ -41,7 +41,7 @@ from mjtraj.threads import single_blas_thread
 
 MAX_ITER = 60
 """Gauss-Newton iterations per start at most."""
-STALL = 1e-10
+STALL = 1e-6
 """A start has converged when its feasible cost changes by less than this fraction between iterations."""
 FIRST_DAMPING = 1e-3
 """The Levenberg-Marquardt damping a start begins with, relative to the Gauss-Newton Hessian's mean diagonal."""
