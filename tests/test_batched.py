@@ -73,7 +73,8 @@ def test_a_batched_policy_is_scored_by_the_protocol(tmp_path):
     (["--algo", "sac", "--batched"], "batched: trains PPO (skrl's); got --algo sac"),
     (["--algo", "ppo", "--batched", "--hyperparameter", "gamma=0.9"],
      "hyperparameter: unknown name 'gamma' for --batched; valid: discount, epochs, gae_lambda, hidden, "
-     "learning_rate, minibatches, rollouts"),
+     "initial_std, learning_rate, minibatches, observe_control, preview, residual_scale, rollouts"),
+    (["--algo", "ppo", "--batched", "--preview", "-1"], "preview: expected an integer >= 0, got -1"),
     (["--algo", "ppo", "--batched", "--families", "nominal,extreme"],
      "families: unknown value 'extreme'; valid: nominal, aggressive, mismatch"),
     (["--algo", "ppo", "--batched", "--num-envs", "2"],
@@ -132,3 +133,52 @@ def test_a_file_that_is_not_a_batched_policy_is_refused(tmp_path):
     with pytest.raises(InvalidInputError, match=r"^policy: .*other\.pt is not a policy saved by mjtraj rl train "
                                                 r"--batched$"):
         load_any(str(other))
+
+
+def test_a_run_that_sees_the_preview_stops_on_patience_and_its_policy_observes_the_same(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["rl", "train", "--algo", "ppo", "--batched", "--steps", "192", "--num-envs", "6", "--evaluations",
+                 "8", "--validation", "2", "--hyperparameter", "rollouts=4", "--preview", "3", "--observe-control",
+                 "--patience", "1", "--out", str(out), "--no-progress"]) == 0
+    record = json.loads((out / "run.json").read_text())
+    rows = (out / "learning_curve.csv").read_text().splitlines()[1:]
+    # patience 1: it stops at the first validation point that is not a new best (the second at the latest)
+    assert record["stopped"].startswith("patience") and record["timesteps"] < 192 and len(rows) <= 2
+    assert f"stopped at {record['timesteps']} steps: patience" in capsys.readouterr().out
+    policy = load_any(str(out / "best.pt"))
+    env_settings = policy.record["settings"]
+    assert (env_settings["preview"], env_settings["observe_control"]) == (3, True)
+    from mjtraj.envs import UR5TrackVectorEnv
+    from mjtraj.rl.batched_policy import load_batched
+
+    module = load_batched(out / "best.pt")
+    env = UR5TrackVectorEnv(2, **{**module.env, "task": "random"})
+    assert module.mean.numel() == env.single_observation_space.shape[0]  # the policy reads the env it was trained on
+    env.close()
+
+
+@pytest.mark.slow
+def test_a_search_writes_its_trials_and_best_continues_its_study_and_trains_with_its_best(tmp_path, capsys):
+    out = tmp_path / "search"
+    argv = ["rl", "search", "--steps", "96", "--num-envs", "6", "--evaluations", "2", "--validation", "2",
+            "--out", str(out), "--no-progress"]
+    assert main([*argv, "--trials", "2"]) == 0
+    first = json.loads((out / "best.json").read_text())
+    import pandas as pd
+
+    trials = pd.read_csv(out / "trials.csv")
+    assert first["trials"] == 2 and first["best"]["value"] > 0
+    assert first["budget"]["training_steps"] == trials["user_attrs_timesteps"].sum() >= 192  # rollouts round up
+    assert first["budget"]["training_episodes"] == trials["user_attrs_episodes"].sum()
+    # validation points x tasks x families
+    assert first["budget"]["validation_episodes"] == trials["user_attrs_validation_points"].sum() * 2 * 3 > 0
+    assert main([*argv, "--trials", "1"]) == 0  # the study continues from its SQLite file
+    again = json.loads((out / "best.json").read_text())
+    assert again["trials"] == 3 and len((out / "trials.csv").read_text().splitlines()) == 4
+    run = tmp_path / "run"
+    assert main(["rl", "train", "--algo", "ppo", "--batched", "--steps", "96", "--num-envs", "6", "--evaluations",
+                 "1", "--validation", "2", "--hyperparameters", str(out / "best.json"), "--out", str(run),
+                 "--no-progress"]) == 0
+    settings = json.loads((run / "run.json").read_text())["settings"]
+    best = again["best"]
+    assert all(settings[name] == best[name] for name in best if name not in ("value", "trial"))

@@ -4,6 +4,7 @@ baselines (one handler per subcommand)."""
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 from typing import Any
 
@@ -61,9 +62,14 @@ def add(sub: Any, laws: str) -> None:
                    "its other settings (rollouts, epochs, minibatches, learning_rate, discount, gae_lambda, hidden)")
     p.add_argument("--families", type=names, default=["nominal", "aggressive", "mismatch"],
                    help="with --batched: the families the sub-envs are split over (default all three)")
-    p.add_argument("--initial-std", dest="initial_std", type=float, default=0.1,
+    p.add_argument("--initial-std", dest="initial_std", type=float,
                    help="with --batched: the policy's initial action std, in units of the residual scale (default "
                    "0.1)")
+    p.add_argument("--preview", type=int, help="with --batched: future reference samples the policy observes "
+                   "(default 0)")
+    p.add_argument("--patience", type=int, default=0,
+                   help="with --batched: stop once this many validation points in a row have not improved the best "
+                   "(default 0: run every step)")
     p.add_argument("--controller", help=f"control law the residual acts on: {laws} (or a "
                    "registered plug-in law; default pid, with --batched adaptive_computed_torque)")
     p.add_argument("--task", default="random", help="random (a new move each episode) | paper (default random)")
@@ -87,6 +93,22 @@ def add(sub: Any, laws: str) -> None:
                    help="also log to TensorBoard event files in DIR (SB3's logger; needs the tensorboard package)")
     no_progress_option(p)
     p.set_defaults(handler=run_train)
+    p = rl_sub.add_parser("search", help="Optuna's search over the batched PPO recipe's settings on the training "
+                          "and validation streams: study.db (resumable), trial_K/, trials.csv, best.json")
+    p.add_argument("--trials", type=int, default=12, help="trials to run now (default 12; more continue the study)")
+    p.add_argument("--steps", type=int, default=1_000_000, help="env steps per trial (default 1,000,000)")
+    p.add_argument("--num-envs", dest="num_envs", type=int, help="sub-envs per trial (default 512)")
+    p.add_argument("--controller", help="the law the residual acts on (default adaptive_computed_torque)")
+    p.add_argument("--families", type=names, default=["nominal", "aggressive", "mismatch"],
+                   help="the families trained and validated on (default all three)")
+    p.add_argument("--seed", type=int, default=0, help="the trials' training seed and the sampler's (default 0)")
+    p.add_argument("--evaluations", type=int, default=5, help="validation points per trial (default 5; the pruner "
+                   "compares trials there)")
+    p.add_argument("--validation", type=int, default=32, help="validation tasks per family (default 32)")
+    p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1)")
+    p.add_argument("--out", type=Path, default=Path("runs/search"), help="output folder (default runs/search)")
+    no_progress_option(p)
+    p.set_defaults(handler=run_search)
     p = rl_sub.add_parser("plot", help="redraw a run's learning_curve.png from its learning_curve.csv (also of a run "
                           "still going or interrupted)")
     p.add_argument("run", type=Path, help="the folder rl train wrote")
@@ -206,25 +228,58 @@ def _run_batched(args: argparse.Namespace) -> int:
     if args.algo != "ppo":
         raise InvalidInputError(f"batched: trains PPO (skrl's); got --algo {args.algo}")
     tuned = overrides(args.hyperparameters, args.hyperparameter)
-    allowed = {"rollouts", "epochs", "minibatches", "learning_rate", "discount", "gae_lambda", "hidden"}
+    if {"study", "best"} <= set(tuned):  # a search's best.json: its best trial's settings
+        from mjtraj.rl.search import best_settings
+
+        tuned = {**best_settings(args.hyperparameters), **overrides(None, args.hyperparameter)}
+    allowed = {"rollouts", "epochs", "minibatches", "learning_rate", "discount", "gae_lambda", "hidden",
+               "initial_std", "residual_scale", "preview", "observe_control"}
     unknown = sorted(set(tuned) - allowed)
     if unknown:
         raise InvalidInputError(f"hyperparameter: unknown name {unknown[0]!r} for --batched; valid: "
                                 f"{', '.join(sorted(allowed))}")
     if "hidden" in tuned:
         tuned["hidden"] = tuple(tuned["hidden"]) if isinstance(tuned["hidden"], list) else tuned["hidden"]
-    given = {"steps": args.steps, "num_envs": args.num_envs, "residual_scale": args.residual_scale,
-             "controller": args.controller}
+    given = {"steps": args.steps, "num_envs": args.num_envs, "controller": args.controller}
+    flags = {"residual_scale": args.residual_scale, "initial_std": args.initial_std, "preview": args.preview,
+             "observe_control": args.observe_control or None}
     settings = BatchedSettings(**{**{k: v for k, v in given.items() if v is not None}, **tuned,
-                                  "families": tuple(args.families), "initial_std": args.initial_std,
-                                  "seed": args.seed, "threads": args.threads, "evaluations": args.evaluations,
-                                  "validation": args.validation})
+                                  **{k: v for k, v in flags.items() if v is not None},
+                                  "families": tuple(args.families), "seed": args.seed, "threads": args.threads,
+                                  "evaluations": args.evaluations, "validation": args.validation,
+                                  "patience": args.patience})
     report = train_batched(settings, args.out, progress=not args.no_progress, command=command_line(args))
     point = report.best_point
     print(f"trained {report.timesteps} steps in {report.wall:.0f} s ({report.timesteps / report.wall:.0f} steps/s); "
           f"best validation point at {point.get('timesteps', 0):.0f} steps: the worst family's mean J_exec "
           f"{point.get('worst_ratio', float('nan')):.4f} of the law alone's")
+    if report.stopped:
+        print(f"stopped at {report.timesteps} steps: {report.stopped}")
     print(f"wrote {report.policy}, {report.best} (best on validation), {report.curve} and {report.out / 'run.json'}")
+    return 0
+
+
+def run_search(args: argparse.Namespace) -> int:
+    """`mjtraj rl search`."""
+    from mjtraj.rl.batched_policy import BatchedSettings
+    from mjtraj.rl.search import search
+
+    base = BatchedSettings(**{k: v for k, v in {"steps": args.steps, "num_envs": args.num_envs,
+                                                "controller": args.controller}.items() if v is not None},
+                           families=tuple(args.families), seed=args.seed, threads=args.threads,
+                           evaluations=args.evaluations, validation=args.validation)
+
+    def line(trial: dict[str, object]) -> None:
+        value = trial["value"]
+        shown = f"{value:.4f}" if isinstance(value, float) else "-"
+        print(f"trial {trial['number']:>3} {trial['state']:<8} worst family {shown} of the law alone, "
+              f"{trial['timesteps']} steps: {json.dumps(trial['settings'])}", flush=True)
+
+    report = search(base, args.out, trials=args.trials, progress=not args.no_progress, on_trial=line)
+    print(f"{report.trials} trials in the study ({report.episodes} training and {report.validation_episodes} "
+          f"validation episodes in all); best: {json.dumps(report.best)}")
+    print(f"wrote {report.out / 'trials.csv'} and {report.out / 'best.json'}; train with it: mjtraj rl train --algo "
+          f"ppo --batched --hyperparameters {report.out / 'best.json'}")
     return 0
 
 

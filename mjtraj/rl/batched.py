@@ -25,7 +25,7 @@ import csv
 import dataclasses
 import json
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -195,6 +195,10 @@ class BatchedReport:
     timesteps: int
     wall: float
     best_point: dict[str, float]
+    stopped: str = ""
+    """Why training stopped before its steps ('' where it ran them all)."""
+    episodes: int = 0
+    """Training episodes the sub-envs finished."""
 
 
 def interact(agent: Any, env: MixedFamilies, obs: NDArray[np.float64], t: int, total: int) -> NDArray[np.float64]:
@@ -231,9 +235,13 @@ def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
 
 
 def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool = True,
-                  command: str = "") -> BatchedReport:
+                  command: str = "", on_validation: Callable[[int, float], bool] | None = None) -> BatchedReport:
     """Train by the recipe of the module docstring into `out`: run.json, learning_curve.csv, policy.pt (the last
-    policy), best.pt (the best validation point by its worst family) and skrl/ (the agent, for inspection)."""
+    policy), best.pt (the best validation point by its worst family) and skrl/ (the agent, for inspection).
+
+    Training stops early once `settings.patience` validation points in a row have not improved the best point, or
+    when `on_validation(timesteps, worst_ratio)`, called at every validation point, returns True (a search's
+    pruner); run.json records where and why ("stopped")."""
     from mjtraj.rl.adapters import from_object
     from mjtraj.rl.episodes import run_episodes
     from mjtraj.rl.extra import rl_versions
@@ -266,6 +274,7 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
 
     bar = tqdm(total=total * settings.num_envs, unit="step", desc="rl train --batched", disable=not progress,
                dynamic_ncols=True)
+    stopped, since_best, episodes = "", 0, 0
     for t in range(total):
         obs = interact(agent, env, obs, t, total)
         wall_steps += settings.num_envs
@@ -279,6 +288,7 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
             row: dict[str, Any] = {"timesteps": (t + 1) * settings.num_envs, "wall_s": elapsed,
                                    "steps_per_s": wall_steps / elapsed, "train_episodes": len(env.finished),
                                    "train_advantage_mean": advantage}
+            episodes += len(env.finished)
             env.finished.clear()
             ratios = []
             for family, s, refs, w, p in validation:
@@ -288,20 +298,28 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
             row["worst_ratio"] = max(ratios)
             rows.append(row)
             _write_curve(curve_path, columns, rows)
+            since_best += 1
             if row["worst_ratio"] < best["worst_ratio"]:
-                best = {k: float(v) for k, v in row.items()}
+                best, since_best = {k: float(v) for k, v in row.items()}, 0
                 save_policy(module, out / "best.pt", {**record, "timesteps": row["timesteps"], "point": best})
             bar.set_postfix_str(f"worst family {row['worst_ratio']:.4f} of the law")
+            if settings.patience and since_best >= settings.patience:
+                stopped = f"patience: {since_best} validation points without a better worst family"
+            elif on_validation is not None and on_validation(row["timesteps"], row["worst_ratio"]):
+                stopped = "pruned by the search"
+            if stopped:
+                break
     bar.close()
     wall = time.perf_counter() - start
     final = export_policy(agent, settings)
-    record.update(timesteps=total * settings.num_envs, wall_s=wall, steps_per_s=total * settings.num_envs / wall,
-                  best=best)
+    done, episodes = wall_steps, episodes + len(env.finished)
+    record.update(timesteps=done, wall_s=wall, steps_per_s=done / wall, best=best, stopped=stopped,
+                  train_episodes=episodes)
     save_policy(final, out / "policy.pt", record)
     write_text_atomic(out / "run.json", json.dumps(record, indent=1, default=float) + "\n")
     if not (out / "best.pt").is_file():  # no validation point finished: the last policy stands
         save_policy(final, out / "best.pt", record)
-    return BatchedReport(out, out / "policy.pt", out / "best.pt", curve_path, total * settings.num_envs, wall, best)
+    return BatchedReport(out, out / "policy.pt", out / "best.pt", curve_path, done, wall, best, stopped, episodes)
 
 
 def _write_curve(path: Path, columns: Sequence[str], rows: Sequence[dict[str, Any]]) -> None:

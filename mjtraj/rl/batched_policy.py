@@ -39,11 +39,20 @@ class BatchedSettings:
     threads: int = 1
     evaluations: int = 20
     validation: int = 32
+    preview: int = 0
+    """Future reference samples the policy observes (the env's `preview`)."""
+    observe_control: bool = False
+    """The policy also observes the law's integral state and the next feedforward torque (the env's option)."""
+    patience: int = 0
+    """Stop once this many validation points in a row have not improved the best worst-family ratio (0: never)."""
 
     def __post_init__(self) -> None:
         for name in ("steps", "num_envs", "rollouts", "epochs", "minibatches", "threads", "evaluations",
                      "validation"):
             positive_int(name, getattr(self, name))
+        for name in ("preview", "patience"):
+            if not isinstance(getattr(self, name), int) or getattr(self, name) < 0:
+                raise InvalidInputError(f"{name}: expected an integer >= 0, got {getattr(self, name)!r}")
         for name in ("learning_rate", "initial_std", "residual_scale"):
             positive(name, getattr(self, name))
         for name in ("discount", "gae_lambda"):
@@ -76,7 +85,8 @@ class BatchedSettings:
     def env_kwargs(self, family: str) -> dict[str, Any]:
         """The UR5Track arguments of the sub-envs of `family`."""
         return {"action_mode": "residual", "residual_scale": self.residual_scale, "controller": self.controller,
-                "task": "random", "family": family, "reward_baseline": "controller"}
+                "task": "random", "family": family, "reward_baseline": "controller", "preview": self.preview,
+                "observe_control": self.observe_control}
 
 
 def mlp(inputs: int, outputs: int, hidden: tuple[int, ...]) -> Any:
@@ -108,7 +118,8 @@ def batched_policy_class() -> type:
             self.register_buffer("epsilon", torch.zeros(()))
             self.register_buffer("clip", torch.zeros(()))
             self.env = {"planner": "cubic", "controller": settings.controller, "action_mode": "residual",
-                        "residual_scale": settings.residual_scale}
+                        "residual_scale": settings.residual_scale, "preview": settings.preview,
+                        "observe_control": settings.observe_control}
 
         def forward(self, obs: Any) -> Any:
             mean, std, epsilon, clip = self.mean, self.std, self.epsilon, self.clip
