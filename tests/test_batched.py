@@ -149,6 +149,7 @@ def test_a_run_that_sees_the_preview_stops_on_patience_and_its_policy_observes_t
     env_settings = policy.record["settings"]
     assert (env_settings["preview"], env_settings["observe_control"]) == (3, True)
     from mjtraj.envs import UR5TrackVectorEnv
+
     from mjtraj.rl.batched_policy import load_batched
 
     module = load_batched(out / "best.pt")
