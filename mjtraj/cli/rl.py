@@ -142,7 +142,7 @@ def add(sub: Any, laws: str) -> None:
                    help="a scenario file from `mjtraj tune --gains`, scored as 'cubic+PID (tuned gains)'")
     p.add_argument("--floor", action="store_true", help="also compute each scenario's clairvoyant floor and read "
                    "every method against it and against the strongest classical method (floor.csv; mismatch floors "
-                   "take about 4 s a scenario)")
+                   "take about 0.15 s a scenario)")
     p.add_argument("--reps", type=int, default=PROTOCOL_V1["reps"],
                    help="bootstrap resamples per interval (default 2000, protocol v1)")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")

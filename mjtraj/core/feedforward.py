@@ -1,4 +1,5 @@
-"""Feedforward torque from the nominal model: ID(q_ref, qd_ref, qdd_ref) - G(q_ref), as mj_inverse computes it."""
+"""Feedforward torque from the nominal model: ID(q_ref, qd_ref, qdd_ref) - G(q_ref), as mj_inverse computes it, and the
+model's dry friction while the reference moves."""
 
 from __future__ import annotations
 
@@ -31,7 +32,8 @@ def feedforward_many(model: mujoco.MjModel, references: Sequence[Reference], *, 
     Args:
       references: B references of one length N.
       mode: 'inverse' = ID(q_ref,k, qd_ref,k, qdd_ref,k) - G(q_ref,k) on the nominal `model` (mj_inverse's
-        qfrc_inverse - qfrc_gravcomp); 'planned' = the planner's own u_plan; 'none' = 0.
+        qfrc_inverse - qfrc_gravcomp without constraint forces) + frictionloss sign(qd_ref,k), the model's dry
+        friction while the reference moves (Coulomb compensation); 'planned' = the planner's own u_plan; 'none' = 0.
       accel: qdd_ref,k used by 'inverse': 'sample' = qdd_ref(t_k), 'step_average' = (qd_ref,k+1 - qd_ref,k)/dt,
         the acceleration a zero-order-held torque produces over the period.
       probe: a DynamicsProbe of `model` to evaluate on (one is made if None).
@@ -52,7 +54,11 @@ def feedforward_many(model: mujoco.MjModel, references: Sequence[Reference], *, 
     qd = np.stack([ref.qd[:N] for ref in references], axis=1)
     qdd = reference_accelerations(references, accel)
     probe = DynamicsProbe(model, size=N * B) if probe is None else probe
-    return probe.inverse(q.reshape(-1, n), qd.reshape(-1, n), qdd.reshape(-1, n)).reshape(N, B, n)
+    torque = probe.inverse(q.reshape(-1, n), qd.reshape(-1, n), qdd.reshape(-1, n)).reshape(N, B, n)
+    friction = model.dof_frictionloss
+    if np.any(friction != 0.0):  # the model's dry friction while the reference moves (none on the UR5: its bits)
+        torque = torque + friction * np.sign(qd)
+    return torque
 
 
 def feedforward(model: mujoco.MjModel, reference: Reference, *, mode: str = "inverse",
