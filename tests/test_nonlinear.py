@@ -4,6 +4,7 @@ the small-move limit, the effort bound below every other plan, and one-line erro
 from __future__ import annotations
 
 import copy
+from types import SimpleNamespace
 
 import mujoco
 import numpy as np
@@ -14,6 +15,7 @@ from mjtraj.core.model import JointInfo
 from mjtraj.core.planners import default_names, make
 from mjtraj.core.planners.nonlinear import _Metric
 from mjtraj.core.planners.shooting import PathLimits, Shooting
+from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, SolverError
 
 
@@ -804,3 +806,20 @@ def test_a_model_whose_geoms_can_touch_keeps_its_collision_detection():
     model.geom_conaffinity[:] = 0
     free = _collision_free(model)
     assert free is not model and free.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+
+
+def test_above_the_torque_cap_auto_refuses_without_slsqp(model, monkeypatch):
+    """Where the SQP does not converge on a plan of more than SLSQP_MAX_TORQUES torques, 'auto' refuses with the
+    reason and never runs SLSQP (on a 7-hinge arm one failed SLSQP solve took 200 s)."""
+    from mjtraj.core.planners import nonlinear
+    from mjtraj.exceptions import SolverError
+
+    planner = make("nonlinear_min_effort")
+    monkeypatch.setattr(type(planner), "_sqp", lambda self, *a: (SimpleNamespace(u=a[2], iterations=40, rows=0),
+                                                                 "no convergence in 40 iterations"))
+    monkeypatch.setattr(type(planner), "_restored", lambda self, *a: [])
+    monkeypatch.setattr(type(planner), "_slsqp", lambda self, *a: pytest.fail("SLSQP ran"))
+    monkeypatch.setattr(nonlinear, "SLSQP_MAX_TORQUES", 299)
+    task = Task.create([0.0, -1.57, 0.0], [0.5, -1.0, 0.5], 2.0, 0.02)
+    with pytest.raises(SolverError, match=r"SLSQP, the fallback, is not run on more than 299 torques \(N n = 300"):
+        planner.plan(task, model)

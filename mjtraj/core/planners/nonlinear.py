@@ -110,6 +110,11 @@ class _Metric:
         return scipy.linalg.solve_triangular(self.L, jac.T, lower=True).T  # type: ignore[no-any-return]
 
 
+SLSQP_MAX_TORQUES = 400
+"""'auto' turns to SLSQP only where the plan has at most this many torques (N n; the UR5's tasks of up to 2.66 s at
+the paper's period): SLSQP factors a dense matrix of them every iteration, and on a 7-hinge arm (700 torques) one
+failed solve of nonlinear_min_effort took 200 s. Above it a plan the Gauss-Newton SQP does not converge is refused
+with that reason, within the SQP's own iteration caps."""
 SOLVERS = ("auto", "sqp", "slsqp")
 """The nonlinear planners' solvers (see NonlinearOptimal.solver). The Gauss-Newton SQP ignores the dynamics' second
 derivatives; with the paper's state weight Q they are small against Q and it converges in about 8 iterations to
@@ -277,6 +282,10 @@ class NonlinearOptimal(Planner):
             failure = "; ".join(failures)
             if self.solver == "sqp":
                 raise SolverError(f"{self.name}: the Gauss-Newton SQP stopped {failure}")
+            if problem.steps * problem.n > SLSQP_MAX_TORQUES:
+                raise SolverError(f"{self.name}: the Gauss-Newton SQP stopped {failure}; SLSQP, the fallback, is not "
+                                  f"run on more than {SLSQP_MAX_TORQUES} torques (N n = {problem.steps * problem.n}: "
+                                  f"it factors a dense matrix of them every iteration; solver='slsqp' runs it anyway)")
             try:
                 u, name, rounds, iterations, rows, retried = self._slsqp(problem, limits, starts)
             except (InfeasibleError, SolverError) as e:
