@@ -176,8 +176,8 @@ def _merit(cost: float, constraint: float, weight: float) -> float:
     return cost + weight * max(0.0, constraint)
 
 
-def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
-           max_iter: int = MAX_ITER) -> tuple[NDArray[np.float64], float, float, int, bool]:
+def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
+           ) -> tuple[NDArray[np.float64], float, float, int, bool]:
     """Gauss-Newton SQP from u with a Levenberg-Marquardt trust region: (u, cost, constraint, iterations,
     converged). Each trial step is the QP's at the current damping, taken whole and accepted where the l1 merit
     falls by at least ACCEPT of what the QP's model predicts; the damping follows the ratio (Nielsen's rule), and a
@@ -191,8 +191,8 @@ def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], 
     linearised = None
     while True:
         if linearised is None:
-            if iteration == max_iter:
-                return u, cost, constraint, max_iter, False
+            if iteration == MAX_ITER:
+                return u, cost, constraint, MAX_ITER, False
             iteration += 1
             hessian, gradient, terminal = linearised = problem.linearised(u)
             scale = float(np.mean(np.diag(hessian)))
