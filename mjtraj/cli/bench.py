@@ -216,7 +216,7 @@ def _sections(args: argparse.Namespace, scenario: Any, record: Any) -> None:
         from mjtraj.bench import bench_controllers, bench_floor
 
         print("the clairvoyant floor: solve time per scenario on one core (seed 1, cubic reference, the best-ranked of "
-              "four starts; every start: mjtraj floor --every-start); target median <= 0.2 s")
+              "the laws' starts; every start: mjtraj floor --every-start); target median <= 0.2 s")
         print(f"{'family':>11} {'scenarios':>10} {'floored':>8} {'median s':>9} {'p90 s':>7} {'max s':>7}")
         for row in record("floor", bench_floor(scenario)):
             print(f"{row['family']:>11} {row['scenarios']:>10} {row['floored']:>8} {row['median_s']:>9.3f} "
