@@ -309,3 +309,27 @@ def test_a_policys_fingerprint_covers_its_file_its_weights_and_the_files_it_decl
     with torch.no_grad():
         net.weight[0, 0] += 1e-6
     assert fingerprint(net) != before and len(before) == 64
+
+
+def test_every_method_is_paired_against_the_named_one_and_an_unknown_name_is_refused(tmp_path):
+    """Oracles: the ratio is the ratio of the two methods' mean J_exec in eval.csv; a method against itself is
+    1 [1, 1], better with probability one half."""
+    import pandas as pd
+
+    report = evaluate([], families=("nominal",), scenarios=4, seed=3, reps=20, controllers=("pid", "computed_torque"),
+                      out=tmp_path, versus="cubic+CT")
+    record = json.loads(report.summary_json.read_text())["versus"]
+    assert record["method"] == "cubic+CT"
+    rows = pd.read_csv(report.csv)
+    mean = rows.groupby("method")["cost"].mean()
+    pid = record["nominal"]["cubic+PID"]
+    assert pid["ratio"]["value"] == pytest.approx(mean["cubic+PID"] / mean["cubic+CT"], rel=1e-12)
+    assert pid["ratio"]["low"] <= pid["ratio"]["value"] <= pid["ratio"]["high"]
+    itself = record["nominal"]["cubic+CT"]
+    assert (itself["ratio"]["value"], itself["ratio"]["low"], itself["ratio"]["high"]) == (1.0, 1.0, 1.0)
+    assert itself["beats"]["value"] == 0.5
+    assert "Paired against cubic+CT" in report.markdown.read_text()
+    with pytest.raises(InvalidInputError, match=r"^versus: expected a method of one run in this evaluation, one of "
+                                                r"cubic\+PID, cubic\+CT; got 'cubic\+MPC'$"):
+        evaluate([], families=("nominal",), scenarios=2, seed=3, reps=20, controllers=("pid", "computed_torque"),
+                 out=tmp_path / "b", versus="cubic+MPC")

@@ -143,6 +143,8 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--floor", action="store_true", help="also compute each scenario's clairvoyant floor and read "
                    "every method against it and against the strongest classical method (floor.csv; mismatch floors "
                    "take about 0.15 s a scenario)")
+    p.add_argument("--versus", metavar="METHOD", help="also pair every method against this one of the evaluation "
+                   "(e.g. \"cubic+adaptive CT\"): J / its J and P(better), with intervals, in SUMMARY.md")
     p.add_argument("--reps", type=int, default=PROTOCOL_V1["reps"],
                    help="bootstrap resamples per interval (default 2000, protocol v1)")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")
@@ -338,7 +340,7 @@ def run_eval(args: argparse.Namespace) -> int:
                           tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
                           settings=overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
                           progress=not args.no_progress, floor=args.floor,
-                          figure_formats=tuple(args.figure_format))
+                          figure_formats=tuple(args.figure_format), versus=args.versus)
     print(evaluation.table)
     print(f"\nIn short (J / {REFERENCE}, then P(improve)):\n")
     print(evaluation.compact)

@@ -37,9 +37,11 @@ from mjtraj.rl.protocol import PROTOCOL, PROTOCOL_V1, departures
 from mjtraj.rl.protocol_stats import (
     FAILURE_RULE,
     FloorSummary,
+    Interval,
     MethodSummary,
     improvement,
     interval_figure,
+    paired_against,
     profile_figure,
     ratio_of_means,
     summarize,
@@ -210,7 +212,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
              tuned_gains: str | Path | None = None, settings: Mapping[str, Any] | None = None,
              out: str | Path = "rl_eval", batch: int = 250, reps: int = PROTOCOL_V1["reps"],
              threads: int | None = 1, command: str = "", progress: bool = False, floor: bool = False,
-             figure_formats: Sequence[str] = ("png",)) -> EvalReport:
+             figure_formats: Sequence[str] = ("png",), versus: str | None = None) -> EvalReport:
     """Score `policies` beside the `planners` under every law of `controllers` on scenarios 0..scenarios-1 of each
     of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md, profiles.png and intervals.png (in each
     of `figure_formats`: png, pdf, svg) into `out`. The defaults
@@ -230,6 +232,9 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
         execution, which the reference and every policy on cubic track): rows gain the columns floor and
         cost_over_floor, floor.csv holds the floors, and the summary reads every method against the floor and the
         strongest classical method (FloorSummary).
+      versus: a method of this evaluation (e.g. "cubic+adaptive CT"): every method is also paired against it on
+        each family (mean J / its mean J, P(better), with intervals), a table of SUMMARY.md and "versus" in
+        summary.json.
 
     Raises:
       InvalidInputError: bad arguments, an unreadable policy, or scenarios not held out from a policy's training.
@@ -325,6 +330,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
         figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps,
                                 formats=figure_formats)
         intervals = interval_figure(summaries, out / "intervals.png", reference=REFERENCE, formats=figure_formats)
+    paired = versus_all(costs, versus, reps=reps) if versus is not None else {}
     table = summary_table(summaries, families)
     compact = compact_table(summaries, families)
     payload = payload_table(rows, costs["mismatch"]) if "mismatch" in families else ""
@@ -337,12 +343,17 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
               "configurations": groups, "versions": rl_versions(), "command": command,
               "torch_threads": _torch_threads(),
               "summary": {family: {m: s.as_dict() for m, s in per.items()} for family, per in summaries.items()},
-              "floor": {family: {m: s.as_dict() for m, s in per.items()} for family, per in against.items()}}
+              "floor": {family: {m: s.as_dict() for m, s in per.items()} for family, per in against.items()},
+              "versus": {"method": versus, **{family: {m: {"ratio": v.as_dict(), "beats": b.as_dict()}
+                                                       for m, (v, b) in per.items()}
+                                              for family, per in paired.items()}} if versus is not None else {}}
     json_path = out / "summary.json"
     write_text_atomic(json_path, json.dumps(record, indent=1) + "\n")
     md_path = out / "SUMMARY.md"
     floors_md = floor_table(against, families) if against else ""
-    write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded, compact, floors_md))
+    versus_md = versus_table(paired, families, versus) if versus is not None else ""
+    write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded, compact, floors_md,
+                                                versus_md))
     return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals)
 
 
@@ -409,6 +420,38 @@ def floor_table(against: Mapping[str, Mapping[str, FloorSummary]], families: Seq
                 continue
             cells += [_cell(s.ratio_to_floor), _cell(s.headroom_closed, ".2f"),
                       f"{_cell(s.versus_best)}, {s.beats_best.value:.2f}"]
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def versus_all(costs: Mapping[str, tuple[NDArray[np.float64], Mapping[str, NDArray[np.float64]]]], versus: str, *,
+               reps: int) -> dict[str, dict[str, tuple[Interval, Interval]]]:
+    """Per family, every method paired against the method `versus` (`protocol_stats.paired_against`).
+
+    Raises:
+      InvalidInputError: `versus` is not a method of the evaluation (or a configuration of several seeds)."""
+    out = {}
+    for family, (_, by_method) in costs.items():
+        other = by_method.get(versus)
+        if other is None or other.shape[0] != 1:
+            raise InvalidInputError(f"versus: expected a method of one run in this evaluation, one of "
+                                    f"{', '.join(m for m, c in by_method.items() if c.shape[0] == 1)}; got {versus!r}")
+        out[family] = {m: paired_against(c, other[0], reps=reps) for m, c in by_method.items()}
+    return out
+
+
+def versus_table(paired: Mapping[str, Mapping[str, tuple[Interval, Interval]]], families: Sequence[str],
+                 versus: str) -> str:
+    """Markdown: per family and method, mean J / `versus`'s mean J and P(better than it), with 95 % intervals."""
+    present = [f for f in families if f in paired]
+    methods = list(dict.fromkeys(m for f in present for m in paired[f]))
+    lines = ["| method | " + " | ".join(f"{f}: J / {versus} | {f}: P(better)" for f in present) + " |",
+             "|---|" + "---|---|" * len(present)]
+    for m in methods:
+        cells = []
+        for f in present:
+            ratio, beats = paired[f][m]
+            cells += [_cell(ratio), _cell(beats, ".2f")]
         lines.append(f"| {m} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -538,7 +581,7 @@ def payload_table(rows: Sequence[dict[str, Any]],
 
 
 def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: Sequence[str],
-                     policies: Sequence[ScoredPolicy], compact: str = "", floors: str = "") -> str:
+                     policies: Sequence[ScoredPolicy], compact: str = "", floors: str = "", versus: str = "") -> str:
     """SUMMARY.md: how to regenerate it, the protocol in brief, the table, the by-payload table, the policies."""
     families = ", ".join(record["families"])
     protocol = record.get("protocol", PROTOCOL)
@@ -570,9 +613,13 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
                   "classical method of each family (least mean J_exec among planner+law and tuned gains). J / floor "
                   "is the ratio of means; headroom closed (J_ref - J) / (J_ref - J_floor) with J_ref "
                   f"{REFERENCE}'s (0: the reference, 1: the floor); 95 % intervals as above. On the mismatch family "
-                  "the floor is the best found from several starts on a plant with dry friction: an upper estimate "
-                  "of the true floor. Methods on other planners than cubic track another reference, whose floor "
-                  "differs.", "", floors, ""]
+                  "the floor is the best found from the least of the control laws' executions on a plant with dry "
+                  "friction: an upper estimate of the true floor. Methods on other planners than cubic track another "
+                  "reference, whose floor differs.", "", floors, ""]
+    if versus:
+        lines += [f"Paired against {record['versus']['method']} on the same scenarios: the ratio of mean J_exec and "
+                  "the probability that an episode scores below its (ties one half), 95 % intervals as above.", "",
+                  versus, ""]
     if payload:
         lines += ["By payload on the mismatch family (J / reference, seeds pooled; scenarios per bin in brackets):",
                   "", payload, ""]

@@ -43,6 +43,9 @@ class Interval:
     low: float
     high: float
 
+    def as_dict(self) -> dict[str, Any]:
+        return _json_ready(asdict(self))  # type: ignore[no-any-return]
+
 
 @dataclass(frozen=True)
 class MethodSummary:
@@ -304,6 +307,24 @@ class FloorSummary:
 
     def as_dict(self) -> dict[str, Any]:
         return _json_ready(asdict(self))
+
+
+def paired_against(cost: NDArray[np.float64], other: NDArray[np.float64], *, reps: int = 2000,
+                   seed: int = BOOTSTRAP_SEED) -> tuple[Interval, Interval]:
+    """A method's costs (S, K; NaN = failed) against another method's on the same scenarios ((K,) or (S, K)):
+    (mean J / mean J_other, P(J < J_other), ties one half), each with its 95 % interval, the bootstrap as in
+    `summarize` (scenarios, then seeds; pairs kept): FloorSummary's versus_best and beats_best for any method."""
+    from rliable.library import StratifiedBootstrap
+
+    cost = np.asarray(cost, dtype=np.float64)
+    others = np.broadcast_to(np.asarray(other, dtype=np.float64), cost.shape).copy()
+    x, y = -failed_as_inf(cost), -failed_as_inf(others)
+    with seeded_global_rng(seed):
+        versus = _interval(ratio_of_means(cost, others), StratifiedBootstrap(cost, others, task_bootstrap=True),
+                           ratio_of_means, reps)
+        beats = _interval(probability_of_improvement(x, y), StratifiedBootstrap(x, y, task_bootstrap=True),
+                          probability_of_improvement, reps)
+    return versus, beats
 
 
 def headroom_closed(cost: NDArray[np.float64], ref: NDArray[np.float64], floor: NDArray[np.float64]
