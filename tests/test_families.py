@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+import pytest
 
 from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.planners import make
@@ -46,3 +47,36 @@ def test_the_payload_sits_at_the_flange(model):
         mujoco.mj_forward(plant, data)
         np.testing.assert_allclose(data.xipos[plant.body("mjtraj_payload").id],
                                    data.site_xpos[plant.site("attachment_site").id], atol=1e-12)
+
+
+def test_the_heaviest_payload_of_a_weak_arm_is_one_it_can_hold_and_the_ur5s_range_is_unchanged(model, tmp_path):
+    """Oracle: MuJoCo's own bias force of the arm carrying that payload (`with_point_mass`) at the workspace poses:
+    holding it takes at most HOLD_FRACTION of a joint's saturation, exactly that on the binding joint."""
+    from arm_suite import THREE, chain
+
+    from mjtraj.core.gains import workspace_poses
+    from mjtraj.core.model import JointInfo
+    from mjtraj.core.payload import with_point_mass
+    from mjtraj.study.families import HOLD_FRACTION, PAYLOAD_MASS, arm_scales
+    from mjtraj.study.scenario import scenario_for_model
+
+    assert arm_scales(model)[0] == 1.0  # the UR5 holds more than its range: its draws are unchanged
+    path = tmp_path / "weak.xml"
+    path.write_text(chain("weak", THREE))
+    weak = scenario_for_model(path, torque_limit=5.0).model
+    scale, _ = arm_scales(weak)
+    mass = scale * PAYLOAD_MASS[1]
+    assert mass < float(np.sum(weak.body_mass[1:])) / 17.05 * PAYLOAD_MASS[1]  # the cap binds on this arm
+    loaded = with_point_mass(weak, mass)
+    limit = JointInfo.of(weak).torque_limit
+    worst = np.zeros(weak.nv)
+    for q in workspace_poses(weak, weak.qpos0, weak.qpos0):
+        torque = []
+        for m in (weak, loaded):
+            data = mujoco.MjData(m)
+            data.qpos[:] = q
+            mujoco.mj_forward(m, data)
+            torque.append(data.qfrc_bias.copy())
+        worst = np.maximum(worst, np.abs(torque[1] - torque[0]))
+    assert np.all(worst <= HOLD_FRACTION * limit * (1 + 1e-9))
+    assert np.max(worst / limit) == pytest.approx(HOLD_FRACTION, rel=1e-6)

@@ -22,6 +22,7 @@ Rules (stated once, used by every sweep):
 from __future__ import annotations
 
 import functools
+import weakref
 from dataclasses import dataclass
 
 import mujoco
@@ -115,7 +116,12 @@ UR5_TORQUE = 60.0
 """N m: the UR5's corrective saturation, the torque the damping and friction ranges are stated for."""
 ARM_SCALE_RULE = ("on another arm the ranges scale with it: the payload's by the arm's total body mass over the "
                   "shipped UR5's, each joint's damping and friction by its corrective saturation over the UR5's 60 N "
-                  "m (the UR5's own scales are exactly 1)")
+                  "m (the UR5's own scales are exactly 1); and the heaviest payload a draw can give is one the arm can "
+                  "hold still at any pose of its workspace with at most 80 % of each joint's saturation "
+                  "(HOLD_FRACTION; the UR5 holds 6.0 kg so, above its 5 kg range: its draws are unchanged)")
+HOLD_FRACTION = 0.8
+"""The share of a joint's corrective saturation that the heaviest payload of the mismatch range may take to hold
+still (its weight is not gravity compensated), at the workspace's worst pose (`holding_torque`)."""
 
 
 def arm_scales(model: mujoco.MjModel) -> tuple[float, NDArray[np.float64]]:
@@ -125,7 +131,41 @@ def arm_scales(model: mujoco.MjModel) -> tuple[float, NDArray[np.float64]]:
 
     shipped, mass = _shipped_mass(), float(np.sum(model.body_mass[1:]))
     limits = JointInfo.of(model).torque_limit
-    return mass / shipped, limits / UR5_TORQUE  # exactly 1 on the UR5 itself (x / x), so its draws are unchanged
+    holdable = HOLD_FRACTION * float(np.min(limits / np.maximum(holding_torque(model), 1e-12)))
+    # exactly 1 on the UR5 itself (x / x, and it holds more than its range), so its draws are unchanged
+    return min(mass / shipped, holdable / PAYLOAD_MASS[1]), limits / UR5_TORQUE
+
+
+_HOLDING: weakref.WeakKeyDictionary[mujoco.MjModel, NDArray[np.float64]] = weakref.WeakKeyDictionary()
+"""`holding_torque` of each model already asked (about 19 ms each; every scenario draw asks it)."""
+
+
+def holding_torque(model: mujoco.MjModel) -> NDArray[np.float64]:
+    """Each joint's largest torque, N m per kg, to hold a point mass at the flange (FLANGE_RULE) still against
+    gravity, over the workspace poses the gain rule sizes gains over (`mjtraj.core.gains.workspace_poses`); shape
+    (n,); computed once per model."""
+    known = _HOLDING.get(model)
+    if known is None:
+        known = _HOLDING[model] = _holding_torque(model)
+    return known
+
+
+def _holding_torque(model: mujoco.MjModel) -> NDArray[np.float64]:
+    from mjtraj.core.gains import workspace_poses
+    from mjtraj.core.payload import flange
+
+    body, point = flange(model)
+    data = mujoco.MjData(model)
+    jacobian = np.zeros((3, model.nv))
+    worst = np.zeros(model.nv)
+    for q in workspace_poses(model, model.qpos0, model.qpos0):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        world = data.xpos[body] + data.xmat[body].reshape(3, 3) @ point
+        mujoco.mj_jac(model, data, jacobian, None, world, body)
+        worst = np.maximum(worst, np.abs(jacobian.T @ model.opt.gravity))
+    return worst
 
 
 @functools.cache
