@@ -38,6 +38,27 @@ FINGERS = ('<body name="hand" pos="0 0 0.35"><geom type="box" size="0.04 0.02 0.
 """A two-finger gripper of slide joints, as makers ship their arms (coupled by an equality in the files that
 use it)."""
 THREE = [("0 0 1", "-3 3", 0.1, 2.0), ("0 1 0", "-2 2", 0.4, 1.5), ("0 1 0", "-2.5 2.5", 0.35, 1.0)]
+SIX = [*THREE, ("0 1 0", "-3 3", 0.1, 0.6), ("0 0 1", "-3 3", 0.1, 0.4), ("0 1 0", "-3 3", 0.08, 0.3)]
+SEVEN = [("0 0 1", "-3 3", 0.15, 3.0), ("0 1 0", "-2 2", 0.1, 3.0), ("0 0 1", "-3 3", 0.3, 2.0),
+         ("0 1 0", "-2.5 2.5", 0.1, 1.5), ("0 0 1", "-3 3", 0.25, 1.0), ("0 1 0", "-2 2", 0.08, 0.5),
+         ("0 0 1", "-3 3", 0.06, 0.3)]
+
+
+def _servos(links: list[tuple[str, str, float, float]], kind: str) -> str:
+    """Position servos on every joint as makers write them: `general` (an affine bias, gain kp, bias -kp q - kv
+    qd), `dampratio` (`position` with kp and a damping ratio) or `inheritrange` (`position` whose control range is
+    the joint's); force ranges of 40 N m on the first three joints, 10 on the wrist."""
+    out = "<actuator>"
+    for k in range(len(links)):
+        force = 40 if k < 3 else 10
+        if kind == "general":
+            out += (f'<general name="a{k}" joint="j{k}" gaintype="fixed" biastype="affine" gainprm="200" '
+                    f'biasprm="0 -200 -20" forcerange="-{force} {force}"/>')
+        elif kind == "dampratio":
+            out += f'<position name="a{k}" joint="j{k}" kp="200" dampratio="1" forcerange="-{force} {force}"/>'
+        else:
+            out += f'<position name="a{k}" joint="j{k}" kp="200" inheritrange="1" forcerange="-{force} {force}"/>'
+    return out + "</actuator>"
 TWO = [("0 1 0", "-2.5 2.5", 0.4, 1.0), ("0 1 0", "-2.5 2.5", 0.3, 0.6)]
 SERVOS = ('<actuator><position name="s0" joint="j0" kp="200" forcerange="-40 40"/>'
           '<position name="s1" joint="j1" kp="200" forcerange="-40 40"/>'
@@ -121,6 +142,30 @@ def write_suite(folder: Path) -> list[tuple[str, Path, str | None]]:
             actuators='<actuator><position name="grip" joint="finger_left" kp="100" ctrlrange="0 0.04"/></actuator>'
             ).replace('<site name="attachment_site"', FINGERS + '<site name="attachment_site"'), None),
         "urdf": ("", None),
+        # in the conventions of makers' files (Menagerie and their own): servos, friction, damping, 6 and 7 hinges
+        "maker_general_affine_six": (chain("maker_general_affine_six", SIX, joint_extra=' armature="0.05"',
+                                           actuators=_servos(SIX, "general")), None),
+        "maker_position_dampratio": (chain("maker_position_dampratio", THREE, joint_extra=' armature="0.02"',
+                                           actuators=_servos(THREE, "dampratio")), None),
+        "maker_inheritrange": (chain("maker_inheritrange", THREE, joint_extra=' armature="0.02"',
+                                     actuators=_servos(THREE, "inheritrange")), None),
+        "maker_seven_actuatorfrcrange": (chain("maker_seven_actuatorfrcrange", SEVEN,
+                                               joint_extra=' armature="0.03" damping="0.5"'), None),
+        "maker_friction_one_newton": (chain("maker_friction_one_newton", SIX,
+                                            joint_extra=' armature="0.05" damping="1" frictionloss="1"',
+                                            actuators=_servos(SIX, "general")), None),
+        "maker_heavy_damping_light_links": (chain("maker_heavy_damping_light_links", [
+            *THREE, ("1 0 0", "-2 2", 0.08, 0.2), ("0 1 0", "-2 2", 0.06, 0.1)], joint_extra=' damping="20"'), None),
+        "maker_seven_gripper": (chain("maker_seven_gripper", SEVEN, joint_extra=' armature="0.03" frictionloss="1"',
+                                      tail=('<equality><joint joint1="finger_left" joint2="finger_right"/></equality>'
+                                            '<keyframe><key name="home" qpos="0 0.3 0 -0.6 0 0.4 0 0.02 0.02"/>'
+                                            '</keyframe>'),
+                                      actuators=_servos(SEVEN, "general")[:-len("</actuator>")]
+                                      + '<position name="grip" joint="finger_left" kp="100" ctrlrange="0 0.04"/>'
+                                        '</actuator>').replace('<site name="attachment_site"',
+                                                               FINGERS + '<site name="attachment_site"'), None),
+        "maker_continuous_wrist": (chain("maker_continuous_wrist", [*SIX[:5], ("0 0 1", "", 0.05, 0.2)],
+                                         joint_extra=' armature="0.05" frictionloss="1"'), None),
         # refused
         "slide_joint": (chain("slide_joint", THREE).replace('<joint name="j1" axis="0 1 0"',
                                                             '<joint name="j1" type="slide" axis="0 1 0"'),

@@ -16,7 +16,8 @@ GAIN_RULE = (
     "its least is J_min and its largest J_max. Tune the lightest case to natural frequency w = 2 pi/(20 dt) (a "
     "twentieth of the sampling rate) with damping ratio 1, and put the integral corner a decade below the lowest "
     "natural frequency the joint reaches along the move, w_low = w sqrt(J_min/J_max): kp = J_min w^2, "
-    "kd = 2 J_min w, ki = kp w_low/10")
+    "kd = 2 J_min w, ki = kp w_low/10; where the joint's own damping b dominates its inertia at w (b > J_min w), "
+    "kp = b w instead, the bandwidth w of a joint that responds as b qd = kp e")
 
 
 def mass_matrix(model: mujoco.MjModel, q: npt.ArrayLike) -> NDArray[np.float64]:
@@ -77,7 +78,8 @@ def workspace_poses(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike,
 def gain_rule(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, dt: float, *,
               bandwidth: float | None = None, damping: float = 1.0, integral_ratio: float = 0.1,
               workspace: bool = False) -> PIDGains:
-    """The default gains (GAIN_RULE): kp = J_min w^2, kd = 2 zeta J_min w, ki = kp w_low integral_ratio.
+    """The default gains (GAIN_RULE): kp = max(J_min w^2, b w) (b the joint's damping), kd = 2 zeta J_min w,
+    ki = kp w_low integral_ratio.
 
     Args:
       q0, qg: the move, shape (n,), rad. dt: control period, s.
@@ -90,5 +92,7 @@ def gain_rule(model: mujoco.MjModel, q0: npt.ArrayLike, qg: npt.ArrayLike, dt: f
     lightest, heaviest = (free_inertia_at(model, workspace_poses(model, q0, qg)) if workspace
                           else free_inertia(model, q0, qg))
     w_low = w * np.sqrt(lightest / heaviest)
-    kp = lightest * w**2
+    # a joint whose own damping dominates its inertia at w (b > J w) responds as b qd = kp e: kp = b w gives it the
+    # bandwidth w (zero damping, as on the UR5: kp = J w^2 exactly)
+    kp = np.maximum(lightest * w**2, model.dof_damping * w)
     return PIDGains.create(kp, kp * ratio * w_low, 2 * zeta * lightest * w, model.nv)
