@@ -2,8 +2,8 @@
 (nominal and mismatch), frontier, tune and ArmTrack-v0 (make, reset, step, render, pickle, check_env). Oracles: no
 NaN where a row is ok, its peak corrective torque within the saturation and its terminal error within the goal rule
 (0.2 of the move); every planner of every nominal compare reaches its goal under the default gains; on the nominal
-plant the cubic ends within 5 % of every nominal task's move (RMS error within 5 %), friction arms included; the
-files that must be refused are refused in one line matching what is unsupported.
+plant the cubic reaches the goal of every nominal task, within 2 % of its move (RMS error within 5 %) on arms without
+dry friction; the files that must be refused are refused in one line matching what is unsupported.
 `python -m pytest tests/test_arm_suite.py -m slow -s` prints the table of arms x commands."""
 
 from __future__ import annotations
@@ -92,8 +92,9 @@ def test_every_arm_through_every_command(suite, tmp_path, capsys):
             else:
                 assert r["reason"], (name, r)
             if r["family"] == "nominal" and r["planner"] == "cubic":
-                assert r["status"] == "ok", (name, r["reason"])
-                assert float(r["terminal_err"]) < 0.05 * move and float(r["rms_err"]) < 0.05 * move, name
+                assert r["status"] == "ok", (name, r["reason"])  # friction arms too: the goal rule holds
+                if "friction" not in name:  # and without friction, close to the goal
+                    assert float(r["terminal_err"]) < 0.02 * move and float(r["rms_err"]) < 0.05 * move, name
         row["sweep"] = "ok" if all(r["status"] == "ok" for r in rows) else \
             ", ".join(sorted({r["status"] for r in rows}))
         code, _, err = run(["frontier", "--model", str(path), "--alphas", "0,1", "--splits", "0.5", "--out",
