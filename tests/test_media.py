@@ -312,3 +312,40 @@ def test_strobe_draws_earlier_poses_paler(model):
     assert only_a.sum() > 500
     assert np.median(first_a[only_a]) > np.median(last_a[only_a]) + 60
     assert np.mean(last_a[only_a] == alone_a[only_a]) > 0.9  # the last pose is drawn as it is (bar edges)
+
+
+def test_the_free_camera_frames_the_motion_and_every_pose_of_it_stays_in_view(tmp_path):
+    """An arm without cameras in a scene wider than its reach: framed on its motion (as the videos are), the arm's
+    pixels (its geoms', not the floor's or a shelf's) never touch the image's border at any pose of the motion and span at
+    least a third of it at some pose; framed on the model at rest they filled less."""
+    from arm_suite import THREE, chain
+
+    from mjtraj.media.videos import motion_poses
+    from mjtraj.study import compare, scenario_for_model
+
+    path = tmp_path / "swing.xml"  # a scene's wide floor makes the model's extent, and the rest framing, large
+    path.write_text(chain("swing", THREE, extra_world='<geom name="floor" type="plane" size="6 6 0.1"/>'
+                                                      '<body name="shelf" pos="3 3 0"><geom type="box" '
+                                                      'size="0.2 0.2 0.5"/></body>'))
+    scenario = scenario_for_model(path, q0=[0.0, -1.5, 0.0], qg=[1.0, 1.5, 1.0])
+    result = compare(scenario, planners=("cubic",))
+    shelf = scenario.model.body("shelf").id
+    poses = motion_poses(result)
+
+    def spans(renderer: ArmRenderer) -> tuple[bool, float]:
+        touched, widest = False, 0.0
+        for q in poses:
+            seen = renderer.geoms(q)
+            arm = (seen >= 0) & (scenario.model.geom_bodyid[np.maximum(seen, 0)] > 0)
+            arm &= scenario.model.geom_bodyid[np.maximum(seen, 0)] != shelf
+            touched |= bool(arm[0].any() or arm[-1].any() or arm[:, 0].any() or arm[:, -1].any())
+            rows, cols = np.flatnonzero(arm.any(axis=1)), np.flatnonzero(arm.any(axis=0))
+            widest = max(widest, (np.ptp(rows) + 1) / arm.shape[0], (np.ptp(cols) + 1) / arm.shape[1])
+        return touched, widest
+
+    with ArmRenderer(scenario.model, width=96, height=72, camera="free") as renderer:
+        at_rest = spans(renderer)
+        renderer.frame_motion(poses)
+        framed = spans(renderer)
+    assert not framed[0] and framed[1] >= 1 / 3
+    assert framed[1] > 2 * at_rest[1]  # at rest, framed with the scene: 0.15 here, against 0.75

@@ -222,6 +222,16 @@ class ArmRenderer:
                 scene.geoms[i].size[:] *= GHOST_SCALE
         return self._renderer.render()
 
+    def frame_motion(self, poses: npt.ArrayLike) -> None:
+        """Aim the free camera (`camera="free"`, or a model without the camera asked for) at everything the arm's
+        moving geoms sweep through at `poses` (P, nq), rad, framed as the snapshot strip is (`framing_camera`),
+        instead of at the whole model at rest (its scene included): the arm stays in view and fills the frame. A
+        camera of the model is left as it is."""
+        if self.camera != FREE_CAMERA:
+            return
+        points = np.vstack([self.body_positions(pose, moving=True) for pose in np.asarray(poses, dtype=np.float64)])
+        self._view = framing_camera(points, float(self.model.vis.global_.fovy), self.width / self.height)
+
     def strobe(self, poses: npt.ArrayLike, executed_path: npt.ArrayLike, reference_path: npt.ArrayLike,
                reference_marks: npt.ArrayLike, *, frame: npt.ArrayLike | None = None) -> NDArray[np.uint8]:
         """A stroboscopic frame for a paper figure: the arm at each of `poses` (P, nq) rad in one image, the last
@@ -281,13 +291,16 @@ class ArmRenderer:
         body, point = flange(self.model)
         return self._ghost.xpos[body] + self._ghost.xmat[body].reshape(3, 3) @ point  # type: ignore[no-any-return]
 
-    def body_positions(self, q: npt.ArrayLike) -> NDArray[np.float64]:
+    def body_positions(self, q: npt.ArrayLike, *, moving: bool = False) -> NDArray[np.float64]:
         """The corners of the bounding boxes of the model's geoms but planes at q (rad), in the world, shape
-        (8 K, 3), m: what a frame of the arm must show; for an arm without such geoms (a URDF of inertias only)
-        the origins of its bodies, shape (B - 1, 3)."""
+        (8 K, 3), m: what a frame of the arm must show (`moving`: only the geoms the joints move, not the scene's);
+        for an arm without such geoms (a URDF of inertias only) the origins of its bodies, shape (B - 1, 3)."""
         self._ghost.qpos[:] = vector("q", q, self.model.nq)
         mujoco.mj_kinematics(self.model, self._ghost)
-        solid = np.flatnonzero(self.model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE)
+        keep = self.model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE
+        if moving:
+            keep &= self.model.body_weldid[self.model.geom_bodyid] != 0
+        solid = np.flatnonzero(keep)
         signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
         if solid.size == 0:
             return self._ghost.xpos[1:].copy()  # type: ignore[no-any-return]
@@ -321,6 +334,20 @@ class ArmRenderer:
             return self._renderer.render()
         finally:
             self._renderer.disable_depth_rendering()
+
+    def geoms(self, q: npt.ArrayLike) -> NDArray[np.int32]:
+        """The geom seen at each pixel with the arm at q (rad), no ghost: its id, -1 where none; shape (height,
+        width): a mask of any part of the scene (the arm's bodies: `model.geom_bodyid[ids] > 0`)."""
+        self._data.qpos[:] = vector("q", q, self.model.nq)
+        mujoco.mj_kinematics(self.model, self._data)
+        mujoco.mj_camlight(self.model, self._data)
+        self._renderer.update_scene(self._data, self._view)
+        self._renderer.enable_segmentation_rendering()
+        try:
+            seen = self._renderer.render()
+        finally:
+            self._renderer.disable_segmentation_rendering()
+        return np.where(seen[:, :, 1] == int(mujoco.mjtObj.mjOBJ_GEOM), seen[:, :, 0], -1).astype(np.int32)
 
     def close(self) -> None:
         """Free the GL context (OSMesa complains at interpreter exit otherwise)."""

@@ -81,6 +81,17 @@ def frames(result: Comparison, planner: str, renderer: ArmRenderer, *, every: in
     return images
 
 
+def motion_poses(result: Comparison, samples: int = 20) -> NDArray[np.float64]:
+    """About `samples` poses of every planner's reference and execution, evenly spaced in time, ends included;
+    shape (P, nq), rad: what the videos' free camera frames."""
+    poses = []
+    for b, planner in enumerate(result.planners):
+        ref = result.references[planner]
+        for k in np.unique(np.linspace(0, ref.steps, samples).round().astype(int)):
+            poses += [ref.q[k], executed_pose(result, b, int(k))]
+    return np.array(poses)
+
+
 def _write(path: Path, images: Sequence[NDArray[np.uint8]], fps: float) -> None:
     """Write a video or image atomically (a failure leaves no partial file)."""
     import imageio.v3 as iio
@@ -123,6 +134,7 @@ def render_all(result: Comparison, out: Path, *, formats: Sequence[str] = ("mp4"
     written: list[Path] = []
     clips = {}
     with ArmRenderer(plant, width=width, height=height, camera=camera, quality=quality) as renderer:
+        renderer.frame_motion(motion_poses(result))
         for planner in result.planners:
             clips[planner] = frames(result, planner, renderer, every=every)
             if progress:
