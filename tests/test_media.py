@@ -316,8 +316,8 @@ def test_strobe_draws_earlier_poses_paler(model):
 
 def test_the_free_camera_frames_the_motion_and_every_pose_of_it_stays_in_view(tmp_path):
     """An arm without cameras in a scene wider than its reach: framed on its motion (as the videos are), the arm's
-    pixels (its geoms', not the floor's or a shelf's) never touch the image's border at any pose of the motion and span at
-    least a third of it at some pose; framed on the model at rest they filled less."""
+    pixels (its geoms', not the floor's or a shelf's) never touch the image's border at any pose of the motion and
+    span at least a third of it at some pose; framed on the model at rest they filled less."""
     from arm_suite import THREE, chain
 
     from mjtraj.media.videos import motion_poses
