@@ -213,6 +213,7 @@ def test_the_structured_gauss_newton_hessian_and_gradient_equal_the_sensitivitie
                                atol=1e-12 * np.abs(gradient).max())
 
 
+@pytest.mark.slow
 def test_by_default_only_the_best_ranked_start_is_solved_and_every_start_finds_no_higher_floor(scenario, model):
     fs = draw_scenario("mismatch", 1, 2, model, scenario.task.dt)
     plant = perturbed_plant(model)

@@ -94,6 +94,7 @@ def test_variants_run_on_a_tuned_scenario():
     assert {r["status"] for r in rows} == {"ok"} and len(rows) == 6
 
 
+@pytest.mark.slow
 def test_a_sweep_with_floors_gives_each_row_its_floor_and_no_row_scores_below_it(model):
     from mjtraj.study.families import perturbed_plant
     from mjtraj.study.floor import floor_of
