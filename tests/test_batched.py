@@ -45,6 +45,8 @@ def test_a_tiny_run_writes_its_files_and_its_policy_acts_as_skrls_mean(tmp_path,
     assert record["streams"]["train"]["gym_seeds"][0] == 3 + 16 * 2**32  # the training stream [3, 16, 0]
     rows = (out / "learning_curve.csv").read_text().splitlines()
     assert len(rows) == 3 and rows[0].endswith("worst_ratio")
+    (out / "learning_curve.png").unlink()  # the run draws its curve, and `rl plot` draws it again
+    assert main(["rl", "plot", str(out)]) == 0 and (out / "learning_curve.png").stat().st_size > 0
     policy = load_any(str(out / "best.pt"))
     assert policy.label.startswith("cubic+adaptive CT+residual batched PPO (6 N m, nominal+aggressive+mismatch")
     assert policy.record["streams"] == record["streams"] and len(policy.sha256) == 64

@@ -236,8 +236,8 @@ def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
 
 def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool = True,
                   command: str = "", on_validation: Callable[[int, float], bool] | None = None) -> BatchedReport:
-    """Train by the recipe of the module docstring into `out`: run.json, learning_curve.csv, policy.pt (the last
-    policy), best.pt (the best validation point by its worst family) and skrl/ (the agent, for inspection).
+    """Train by the recipe of the module docstring into `out`: run.json, learning_curve.csv and .png, policy.pt (the
+    last policy), best.pt (the best validation point by its worst family) and skrl/ (the agent, for inspection).
 
     Training stops early once `settings.patience` validation points in a row have not improved the best point, or
     when `on_validation(timesteps, worst_ratio)`, called at every validation point, returns True (a search's
@@ -317,6 +317,11 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
                   train_episodes=episodes)
     save_policy(final, out / "policy.pt", record)
     write_text_atomic(out / "run.json", json.dumps(record, indent=1, default=float) + "\n")
+    if rows:
+        from mjtraj.rl.batched_policy import label
+        from mjtraj.rl.curve import plot_batched_curve
+
+        plot_batched_curve(curve_path, out / "learning_curve.png", title=f"{label(record)}, seed {settings.seed}")
     if not (out / "best.pt").is_file():  # no validation point finished: the last policy stands
         save_policy(final, out / "best.pt", record)
     return BatchedReport(out, out / "policy.pt", out / "best.pt", curve_path, done, wall, best, stopped, episodes)

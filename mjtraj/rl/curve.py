@@ -79,3 +79,38 @@ def plot_curve(csv_path: Path, out: Path, *, title: str, formats: Sequence[str] 
     written = save_figure(fig, out, formats, dpi=120)
     plt.close(fig)
     return written[0]
+
+
+def plot_batched_curve(csv_path: Path, out: Path, *, title: str, formats: Sequence[str] = ("png",)) -> Path:
+    """learning_curve.png of a batched run (`mjtraj.rl.batched`): each family's validation mean J_exec over the law
+    alone's on the same tasks (1: the law; below: better) and the worst family's, which picks best.pt, against env
+    steps; below, the training advantage over the law. Written in each of `formats`; returns the first path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = read_rows(csv_path)
+    families = [c.removesuffix("_ratio") for c in rows[0] if c.endswith("_ratio") and c != "worst_ratio"]
+    t = np.array([numeric(r["timesteps"]) for r in rows])
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
+    for family in families:
+        top.plot(t, [numeric(r[f"{family}_ratio"]) for r in rows], "o-", ms=3, label=family)
+    worst = np.array([numeric(r["worst_ratio"]) for r in rows])
+    top.plot(t, worst, "k--", lw=1, label="worst family (picks best.pt)")
+    best = int(np.argmin(worst))
+    top.plot(t[best], worst[best], "k*", ms=12, label=f"best.pt, at {t[best]:,.0f} steps")
+    top.axhline(1.0, color="0.5", lw=0.8)
+    top.set_ylabel("validation J_exec / the law alone's")
+    top.legend(fontsize=8)
+    top.set_title(textwrap.fill(title, 85), fontsize=9)
+    bottom.plot(t, [numeric(r["train_advantage_mean"]) for r in rows], "o-", ms=3, color="C1",
+                label="training episodes: mean advantage over the law (J_law - J_exec)")
+    bottom.axhline(0.0, color="0.5", lw=0.8)
+    bottom.set_ylabel("advantage")
+    bottom.set_xlabel("environment steps")
+    bottom.legend(fontsize=8)
+    fig.tight_layout()
+    written = save_figure(fig, out, formats, dpi=120)
+    plt.close(fig)
+    return written[0]

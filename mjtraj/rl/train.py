@@ -49,6 +49,7 @@ from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl import ACTION_MODES, ALGORITHM_NAMES, ALGORITHMS
 from mjtraj.rl.adapters import from_zip_policy
+from mjtraj.rl.batched_policy import BATCHED_RUN
 from mjtraj.rl.curve import CurveFile, plot_curve
 from mjtraj.rl.episodes import run_episodes
 from mjtraj.rl.extra import algorithm, policy_class, require_sb3, rl_versions
@@ -502,7 +503,14 @@ def plot_run(run: str | Path, *, formats: Sequence[str] = ("png",)) -> Path:
     for path in (record, curve):
         if not path.is_file():
             raise InvalidInputError(f"run: {path} not found; expected a folder written by mjtraj rl train")
-    settings = TrainSettings(**json.loads(record.read_text())["settings"])
+    recorded = json.loads(record.read_text())
+    if recorded.get("format") == BATCHED_RUN:
+        from mjtraj.rl.batched_policy import label
+        from mjtraj.rl.curve import plot_batched_curve
+
+        title = f"{label(recorded)}, seed {recorded['settings']['seed']}"
+        return plot_batched_curve(curve, run / "learning_curve.png", title=title, formats=formats)
+    settings = TrainSettings(**recorded["settings"])
     return plot_curve(curve, run / "learning_curve.png", title=_title(settings), formats=formats)
 
 
