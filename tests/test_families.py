@@ -80,3 +80,25 @@ def test_the_heaviest_payload_of_a_weak_arm_is_one_it_can_hold_and_the_ur5s_rang
         worst = np.maximum(worst, np.abs(torque[1] - torque[0]))
     assert np.all(worst <= HOLD_FRACTION * limit * (1 + 1e-9))
     assert np.max(worst / limit) == pytest.approx(HOLD_FRACTION, rel=1e-6)
+
+
+def test_the_drawn_damping_and_friction_add_to_the_arms_own_and_the_ur5s_plants_are_the_draws(model, tmp_path):
+    """A file's own joint damping and friction stay in its mismatch plants (they had been replaced by the draws, so
+    an arm integrated implicitly for its stiff damping lost it and diverged); the UR5 declares none, so its plants'
+    fields are the draws bit for bit."""
+    from arm_suite import THREE, chain
+
+    from mjtraj.study.scenario import scenario_for_model
+
+    draw = draw_scenario("mismatch", 0, 3, model, 0.02).perturbation
+    fields = plant_fields(perturbed_plant(model), [draw])
+    assert np.array_equal(fields["dof_damping"][0], draw.damping)
+    assert np.array_equal(fields["dof_frictionloss"][0], draw.friction)
+    path = tmp_path / "damped.xml"
+    path.write_text(chain("damped", THREE, joint_extra=' damping="20" frictionloss="1"'))
+    arm = scenario_for_model(path, workspace=True)
+    plant = perturbed_plant(arm.model, str(path))
+    other = draw_scenario("mismatch", 0, 3, arm.model, 0.02).perturbation
+    fields = plant_fields(plant, [other])
+    np.testing.assert_array_equal(fields["dof_damping"][0], 20.0 + other.damping)
+    np.testing.assert_array_equal(fields["dof_frictionloss"][0], 1.0 + other.friction)

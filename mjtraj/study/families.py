@@ -11,7 +11,8 @@ Rules (stated once, used by every sweep):
   nominal one): a point payload of U(0, 5) kg at the flange (a 5 cm sphere, not gravity compensated); each link's
   mass and rotational inertia scaled by independent U(0.8, 1.2) factors, its gravity compensation still that of
   the nominal mass (body_gravcomp = 1/scale); joint viscous damping U(0, 1) N m s/rad and Coulomb friction
-  U(0, 3) N m (2 % of the UR5's rated 150 N m) per joint. The links are the bodies the joints move, one per
+  U(0, 3) N m (2 % of the UR5's rated 150 N m) per joint, added to what the arm's file declares (the UR5's: none).
+  The links are the bodies the joints move, one per
   joint; the flange is the site `attachment_site` (the UR5's, and MuJoCo Menagerie's name for a tool flange),
   or on an arm without one the centre of mass of the last joint's body (FLANGE_RULE). On another arm the payload,
   damping and friction ranges scale with it (ARM_SCALE_RULE).
@@ -256,7 +257,9 @@ def perturbed_plant(model: mujoco.MjModel, path: str | None = None,
 
 
 def plant_fields(plant: mujoco.MjModel, perturbations: list[Perturbation]) -> dict[str, NDArray[np.float64]]:
-    """Per-simulation model fields of `plant` (from `perturbed_plant`) for `perturbations`, one per simulation."""
+    """Per-simulation model fields of `plant` (from `perturbed_plant`) for `perturbations`, one per simulation: the
+    links' masses and inertias scaled, the payload's mass, and the drawn damping and friction added to the joints'
+    own."""
     links = plant.jnt_bodyid.tolist()
     payload = plant.body(PAYLOAD_BODY).id
     S = len(perturbations)
@@ -272,6 +275,7 @@ def plant_fields(plant: mujoco.MjModel, perturbations: list[Perturbation]) -> di
         mass[b, payload] = p.payload
         inertia[b, payload] = 0.4 * p.payload * PAYLOAD_RADIUS**2
         comp[b, payload] = 0.0
-        damping[b], friction[b] = p.damping, p.friction
+        # added to the file's own (the UR5 has none: its plants are the draws exactly)
+        damping[b], friction[b] = plant.dof_damping + p.damping, plant.dof_frictionloss + p.friction
     return {"body_mass": mass, "body_inertia": inertia, "body_gravcomp": comp, "dof_damping": damping,
             "dof_frictionloss": friction}
