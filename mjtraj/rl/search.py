@@ -71,7 +71,8 @@ def search(base: BatchedSettings, out: str | Path, *, trials: int, progress: boo
            on_trial: Callable[[dict[str, Any]], None] | None = None) -> SearchReport:
     """Run `trials` more trials of the search into `out` (study.db, trial_K/ per trial, trials.csv, best.json),
     each `base` with SPACE's names sampled; `base.steps` is each trial's budget and `base.seed` seeds both the
-    trials' training and the sampler. `on_trial` gets each finished trial's record (number, state, value, settings).
+    trials' training and the sampler. `on_trial` gets each finished trial's record (number, state, value, settings);
+    `progress` shows Optuna's bar over the trials.
 
     Raises:
       InvalidInputError: trials < 1.
@@ -114,7 +115,8 @@ def search(base: BatchedSettings, out: str | Path, *, trials: int, progress: boo
                       "timesteps": trial.user_attrs.get("timesteps"), "settings": trial.params})
         _write(study, base, out)
 
-    study.optimize(objective, n_trials=trials, callbacks=[finished], gc_after_trial=True)
+    study.optimize(objective, n_trials=trials, callbacks=[finished], gc_after_trial=True,
+                   show_progress_bar=progress)
     return _write(study, base, out, time.perf_counter() - clock)
 
 
