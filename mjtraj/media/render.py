@@ -204,12 +204,16 @@ class ArmRenderer:
                 self._renderer.scene.flags[flag] = False
         _LIVE.add(self)
 
-    def frame(self, q: npt.ArrayLike, q_ref: npt.ArrayLike | None = None) -> NDArray[np.uint8]:
-        """The image, shape (height, width, 3) uint8, of the arm at q (rad) and the ghost at q_ref (if given)."""
+    def _scene_at(self, q: npt.ArrayLike) -> None:
+        """The renderer's scene: the arm at q (rad), seen through this renderer's view."""
         self._data.qpos[:] = vector("q", q, self.model.nq)
         mujoco.mj_kinematics(self.model, self._data)
         mujoco.mj_camlight(self.model, self._data)
         self._renderer.update_scene(self._data, self._view)
+
+    def frame(self, q: npt.ArrayLike, q_ref: npt.ArrayLike | None = None) -> NDArray[np.uint8]:
+        """The image, shape (height, width, 3) uint8, of the arm at q (rad) and the ghost at q_ref (if given)."""
+        self._scene_at(q)
         if q_ref is not None:
             self._ghost.qpos[:] = vector("q_ref", q_ref, self.model.nq)
             mujoco.mj_kinematics(self.model, self._ghost)
@@ -325,10 +329,7 @@ class ArmRenderer:
 
     def depth(self, q: npt.ArrayLike) -> NDArray[np.float32]:
         """The depth image of the arm at q (rad), no ghost: distances from the camera, shape (height, width), m."""
-        self._data.qpos[:] = vector("q", q, self.model.nq)
-        mujoco.mj_kinematics(self.model, self._data)
-        mujoco.mj_camlight(self.model, self._data)
-        self._renderer.update_scene(self._data, self._view)
+        self._scene_at(q)
         self._renderer.enable_depth_rendering()
         try:
             return self._renderer.render()
@@ -338,10 +339,7 @@ class ArmRenderer:
     def geoms(self, q: npt.ArrayLike) -> NDArray[np.int32]:
         """The geom seen at each pixel with the arm at q (rad), no ghost: its id, -1 where none; shape (height,
         width): a mask of any part of the scene (the arm's bodies: `model.geom_bodyid[ids] > 0`)."""
-        self._data.qpos[:] = vector("q", q, self.model.nq)
-        mujoco.mj_kinematics(self.model, self._data)
-        mujoco.mj_camlight(self.model, self._data)
-        self._renderer.update_scene(self._data, self._view)
+        self._scene_at(q)
         self._renderer.enable_segmentation_rendering()
         try:
             seen = self._renderer.render()

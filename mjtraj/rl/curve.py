@@ -75,10 +75,7 @@ def plot_curve(csv_path: Path, out: Path, *, title: str, formats: Sequence[str] 
     bottom.set_ylabel("diverged")
     bottom.set_xlabel("environment steps")
     bottom.legend(fontsize=8)
-    fig.tight_layout()
-    written = save_figure(fig, out, formats, dpi=120)
-    plt.close(fig)
-    return written[0]
+    return _saved(fig, out, formats)
 
 
 def plot_batched_curve(csv_path: Path, out: Path, *, title: str, formats: Sequence[str] = ("png",)) -> Path:
@@ -110,6 +107,13 @@ def plot_batched_curve(csv_path: Path, out: Path, *, title: str, formats: Sequen
     bottom.set_ylabel("advantage")
     bottom.set_xlabel("environment steps")
     bottom.legend(fontsize=8)
+    return _saved(fig, out, formats)
+
+
+def _saved(fig: Any, out: Path, formats: Sequence[str]) -> Path:
+    """Lay `fig` out, write it in each of `formats` beside `out` and close it; the first path."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     written = save_figure(fig, out, formats, dpi=120)
     plt.close(fig)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import json
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -407,21 +407,13 @@ def floor_table(against: Mapping[str, Mapping[str, FloorSummary]], families: Seq
     """Markdown: per family and method, J / floor, the share of the headroom closed and the paired comparison with
     the strongest classical method, each with its 95 % interval."""
     present = [f for f in families if f in against]
-    methods = list(dict.fromkeys(m for f in present for m in against[f]))
     head = "| method | " + " | ".join(f"{f}: J / floor | {f}: headroom closed | {f}: J / {_best(against[f])}, "
                                       f"P(better)" for f in present) + " |"
-    lines = [head, "|---|" + "---|---|---|" * len(present)]
-    for m in methods:
-        cells = []
-        for f in present:
-            s = against[f].get(m)
-            if s is None:
-                cells += ["-"] * 3
-                continue
-            cells += [_cell(s.ratio_to_floor), _cell(s.headroom_closed, ".2f"),
-                      f"{_cell(s.versus_best)}, {s.beats_best.value:.2f}"]
-        lines.append(f"| {m} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+    def cells(s: FloorSummary) -> list[str]:
+        return [_cell(s.ratio_to_floor), _cell(s.headroom_closed, ".2f"),
+                f"{_cell(s.versus_best)}, {s.beats_best.value:.2f}"]
+
+    return "\n".join([head, "|---|" + "---|---|---|" * len(present), *_method_rows(against, present, 3, cells)])
 
 
 def versus_all(costs: Mapping[str, tuple[NDArray[np.float64], Mapping[str, NDArray[np.float64]]]], versus: str, *,
@@ -444,16 +436,22 @@ def versus_table(paired: Mapping[str, Mapping[str, tuple[Interval, Interval]]], 
                  versus: str) -> str:
     """Markdown: per family and method, mean J / `versus`'s mean J and P(better than it), with 95 % intervals."""
     present = [f for f in families if f in paired]
-    methods = list(dict.fromkeys(m for f in present for m in paired[f]))
-    lines = ["| method | " + " | ".join(f"{f}: J / {versus} | {f}: P(better)" for f in present) + " |",
-             "|---|" + "---|---|" * len(present)]
-    for m in methods:
-        cells = []
-        for f in present:
-            ratio, beats = paired[f][m]
-            cells += [_cell(ratio), _cell(beats, ".2f")]
-        lines.append(f"| {m} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+
+    def cells(pair: tuple[Interval, Interval]) -> list[str]:
+        return [_cell(pair[0]), _cell(pair[1], ".2f")]
+
+    return "\n".join(["| method | " + " | ".join(f"{f}: J / {versus} | {f}: P(better)" for f in present) + " |",
+                      "|---|" + "---|---|" * len(present), *_method_rows(paired, present, 2, cells)])
+
+
+def _method_rows(per_family: Mapping[str, Mapping[str, Any]], families: Sequence[str], width: int,
+                 cells: Callable[[Any], list[str]]) -> list[str]:
+    """Markdown rows, one per method of any of `families` in first-seen order: per family the `width` cells of its
+    entry (`cells`), or "-" where the family has none."""
+    methods = list(dict.fromkeys(m for f in families for m in per_family[f]))
+    return [f"| {m} | " + " | ".join(cell for f in families for cell in
+                                     (cells(per_family[f][m]) if m in per_family[f] else ["-"] * width)) + " |"
+            for m in methods]
 
 
 def _best(per: Mapping[str, FloorSummary]) -> str:

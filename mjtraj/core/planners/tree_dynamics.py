@@ -238,6 +238,20 @@ def _rotations(placement_R: Any, axes: Any, q: Any, R: Any) -> None:
             R[i, r, 2] = p0 * r02 + p1 * r12 + p2 * r22
 
 
+@_inline
+def _workspace(n: int) -> Any:
+    """The arrays the Newton-Euler passes and their tangents fill, for a tree of n joints: the frames R (n, 3, 3);
+    each joint's velocity, acceleration, its parent's acceleration and its force (rows 0..n-1; row n the base), and
+    their tangents along the 2n directions (row i 2n + d). The velocities, accelerations and tangents start at zero:
+    a row a pass never writes (the base's; a joint's tangent along a direction it does not move with) stays zero
+    from one point to the next, so they are never cleared again."""
+    rows = (n + 1) * 2 * n
+    return (np.empty((n, 3, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)),
+            np.zeros((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 3)),
+            np.empty((n + 1, 3)), np.zeros((rows, 3)), np.zeros((rows, 3)), np.zeros((rows, 3)), np.zeros((rows, 3)),
+            np.empty((rows, 3)), np.empty((rows, 3)), np.empty((3, 3)), np.empty((3, 3)))
+
+
 @numba.njit(cache=True)
 def _gravity_derivatives(parents: Any, below: Any, placement_R: Any, placement_t: Any, axes: Any, mass: Any,
                          lever: Any, gravity: Any, q: Any, torque: Any, d_torque: Any) -> None:
@@ -245,24 +259,13 @@ def _gravity_derivatives(parents: Any, below: Any, placement_R: Any, placement_t
     at -gravity. Angular accelerations and their tangents along q stay zero there, so a body's rotational inertia
     never enters (it is passed as zeros) and only mass times lever, the body's first moment, does."""
     P, n = q.shape
-    T = 2 * n
-    R = np.empty((n, 3, 3))
     inertia = np.zeros((n, 3, 3))
-    vl, vw, al, aw = np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3))
-    pl, pw, fl, fw = np.empty((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 3))
-    rows = (n + 1) * T
-    vlt, vwt, alt, awt = np.zeros((rows, 3)), np.zeros((rows, 3)), np.zeros((rows, 3)), np.zeros((rows, 3))
-    flt, fwt = np.empty((rows, 3)), np.empty((rows, 3))
-    scratch_l, scratch_w = np.empty((3, 3)), np.empty((3, 3))
+    R, vl, vw, al, aw, pl, pw, fl, fw, vlt, vwt, alt, awt, flt, fwt, scratch_l, scratch_w = _workspace(n)
     still = np.zeros(n)
-    tau, dtau = np.empty(n), np.empty((n, T))
+    tau, dtau = np.empty(n), np.empty((n, 2 * n))
     for k in range(P):
         _rotations(placement_R, axes, q[k], R)
         al[n, 0], al[n, 1], al[n, 2] = -gravity[0], -gravity[1], -gravity[2]
-        vlt[:, :] = 0.0
-        vwt[:, :] = 0.0
-        alt[:, :] = 0.0
-        awt[:, :] = 0.0
         _newton_euler(parents, R, placement_t, axes, mass, lever, inertia, still, still, vl, vw, pl, pw, al, aw, fl,
                       fw, scratch_l, scratch_w, tau)
         _newton_euler_tangents(parents, below, R, placement_t, axes, mass, lever, inertia, still, vl, vw, pl, pw,
@@ -280,13 +283,7 @@ def _derivatives(parents: Any, below: Any, placement_R: Any, placement_t: Any, a
     """`derivatives`, compiled; parents here use n for the base; below[j, i]: joint i is joint j or beyond it."""
     P, n = q.shape
     T = 2 * n
-    R = np.empty((n, 3, 3))
-    vl, vw, al, aw = np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3))
-    pl, pw, fl, fw = np.empty((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 3))
-    rows = (n + 1) * T
-    vlt, vwt, alt, awt = np.zeros((rows, 3)), np.zeros((rows, 3)), np.zeros((rows, 3)), np.zeros((rows, 3))
-    flt, fwt = np.empty((rows, 3)), np.empty((rows, 3))
-    scratch_l, scratch_w = np.empty((3, 3)), np.empty((3, 3))
+    R, vl, vw, al, aw, pl, pw, fl, fw, vlt, vwt, alt, awt, flt, fwt, scratch_l, scratch_w = _workspace(n)
     M, L, Mi = np.empty((n, n)), np.zeros((n, n)), np.empty((n, n))
     column, bias, still = np.empty(n), np.empty(n), np.zeros(n)
     dtau = np.empty((n, T))
