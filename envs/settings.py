@@ -235,7 +235,7 @@ class TrackSettings:
     def sample_plant(self, rng: np.random.Generator) -> Perturbation | None:
         """The next episode's plant: None for the nominal one, else (plant randomisation or the mismatch family) a
         mismatch plant drawn from `rng` (after the task) by the sweeps' mismatch rules."""
-        return draw_perturbation(rng, self.n, arm_scales(self.model)) if self.perturbs else None
+        return draw_perturbation(rng, self.n, arm_scales(self.model, self.dt)) if self.perturbs else None
 
     def sample_noise(self, rng: np.random.Generator) -> NDArray[np.float64] | None:
         """The next episode's measurement noise on [q; qd], shape (N, 2n), drawn from `rng` after the plant; None

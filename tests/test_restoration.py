@@ -87,3 +87,27 @@ def test_a_search_that_does_not_converge_leaves_the_verdict_to_slsqp(model, impo
                                           r"start: .*; from the tracked start: .*; the least violation's search from "
                                           r"the linear start's last iterate did not converge in \d rollouts$"):
         make("nonlinear_min_effort", speed_limit=0.5, solver="sqp").plan(task, model)
+
+
+def test_a_large_problem_searches_without_the_dense_svd_and_within_its_cap(model, impossible, monkeypatch):
+    """LARGE_TORQUES cut to 0, so the UR5's impossible move takes the path of a 6- or 7-hinge arm: scipy's 'lsmr'
+    subproblems approach the dense search's stationary point (the same positive violation, the projected gradient
+    small) within MAX_EVALUATIONS_LARGE rollouts, which bound the search."""
+    import scipy.optimize
+
+    from mjtraj.core.planners import restoration
+
+    task, planner = impossible
+    problem, limits, starts = planner.problem(task, model)
+    dense = least_violation(problem, limits, starts.get("linear"))
+    monkeypatch.setattr(restoration, "LARGE_TORQUES", 0)
+    seen = []
+    real = scipy.optimize.least_squares
+    monkeypatch.setattr(scipy.optimize, "least_squares", lambda *a, **k: seen.append(k) or real(*a, **k))
+    large = least_violation(problem, limits, starts.get("linear"))
+    assert seen[-1]["tr_solver"] == "lsmr" and seen[-1]["max_nfev"] == restoration.MAX_EVALUATIONS_LARGE
+    assert not large.feasible and large.optimality < 1e-4 and large.evaluations <= restoration.MAX_EVALUATIONS_LARGE
+    assert 0.5 * np.sum(large.residual ** 2) == pytest.approx(0.5 * np.sum(dense.residual ** 2), rel=1e-3)
+    monkeypatch.setattr(restoration, "MAX_EVALUATIONS_LARGE", 3)
+    capped = least_violation(problem, limits, starts.get("linear"))
+    assert not capped.converged and capped.evaluations <= 4

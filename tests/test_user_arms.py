@@ -240,22 +240,35 @@ def test_shipped_arms_by_name_and_a_tuned_file_that_works_from_any_folder(tmp_pa
 
 
 def test_the_mismatch_ranges_scale_with_the_arm_and_not_for_the_ur5(arms):
-    """Oracle: the scales by hand (total body mass over the shipped UR5's, saturation over 60 N m); every light-arm
-    draw within its scaled ranges; the UR5's draws are those of the unscaled rule, bit for bit."""
+    """Oracle: the scales by hand from the rule's parts (total body mass over the shipped UR5's; saturation over
+    60 N m; the workspace gain rule's kp over the UR5's least; holding torques from MuJoCo's bias force); every
+    light-arm draw within its scaled ranges; the UR5's draws are those of the unscaled rule, bit for bit, at its
+    20 ms period and at a finer one."""
+    from mjtraj.core.gains import gain_rule
     from mjtraj.study import arm_scales, draw_perturbation, draw_scenario, load_scenario
+    from mjtraj.study.families import HOLD_FRACTION, holding_torque
 
     ur5 = load_scenario().model
     light = scenario_for_model(arms["light"], workspace=True).model
-    mass, torque = arm_scales(light)
-    assert mass == pytest.approx(np.sum(light.body_mass[1:]) / np.sum(ur5.body_mass[1:]), rel=1e-15)
-    np.testing.assert_allclose(torque, light.actuator_ctrlrange[:, 1] / 60.0, rtol=1e-15)
+    mass, torque = arm_scales(light, 0.02)
+    kp = gain_rule(light, light.qpos0, light.qpos0, 0.02, workspace=True).kp
+    kp_ur5 = gain_rule(ur5, ur5.qpos0, ur5.qpos0, 0.02, workspace=True).kp
+    limit = light.actuator_ctrlrange[:, 1]
+    np.testing.assert_allclose(torque, np.minimum(limit / 60.0, kp / kp_ur5.min()), rtol=1e-15)
+    assert np.any(kp / kp_ur5.min() < limit / 60.0)  # the loop's authority binds on this light arm
+    hold, hold_ur5 = holding_torque(light), holding_torque(ur5)
+    stiff = np.min(kp / np.maximum(hold, 1e-12)) / np.min(kp_ur5 / np.maximum(hold_ur5, 1e-12))
+    by_hand = min(np.sum(light.body_mass[1:]) / np.sum(ur5.body_mass[1:]),
+                  HOLD_FRACTION * np.min(limit / np.maximum(hold, 1e-12)) / 5.0, stiff)
+    assert mass == pytest.approx(by_hand, rel=1e-12)
     for i in range(20):
         p = draw_scenario("mismatch", 0, i, light, 0.02).perturbation
         assert 0 <= p.payload <= 5 * mass and np.all(p.friction <= 3 * torque) and np.all(p.damping <= torque)
-    for seed in range(5):
-        a = draw_perturbation(np.random.default_rng(seed), 3, arm_scales(ur5))
-        b = draw_perturbation(np.random.default_rng(seed), 3)
-        assert a.as_dict() == b.as_dict()
+    for dt in (0.02, 0.01):
+        for seed in range(5):
+            a = draw_perturbation(np.random.default_rng(seed), 3, arm_scales(ur5, dt))
+            b = draw_perturbation(np.random.default_rng(seed), 3)
+            assert a.as_dict() == b.as_dict()
 
 
 def test_one_planners_failure_does_not_stop_the_others(capsys, tmp_path):

@@ -109,32 +109,68 @@ def draw_family(rng: np.random.Generator, family: str, model: mujoco.MjModel, dt
     if family == "aggressive":
         duration = round(rng.uniform(*AGGRESSIVE_DURATION) / dt) * dt
     task = random_task(rng, model, max_displacement=MAX_DISPLACEMENT, duration=duration, dt=dt)
-    perturbation = draw_perturbation(rng, model.nv, arm_scales(model)) if family == "mismatch" else None
+    perturbation = draw_perturbation(rng, model.nv, arm_scales(model, dt)) if family == "mismatch" else None
     return task, perturbation
 
 
 UR5_TORQUE = 60.0
 """N m: the UR5's corrective saturation, the torque the damping and friction ranges are stated for."""
-ARM_SCALE_RULE = ("on another arm the ranges scale with it: the payload's by the arm's total body mass over the "
-                  "shipped UR5's, each joint's damping and friction by its corrective saturation over the UR5's 60 N "
-                  "m (the UR5's own scales are exactly 1); and the heaviest payload a draw can give is one the arm can "
-                  "hold still at any pose of its workspace with at most 80 % of each joint's saturation "
-                  "(HOLD_FRACTION; the UR5 holds 6.0 kg so, above its 5 kg range: its draws are unchanged)")
+ARM_SCALE_RULE = ("on another arm the ranges scale with it, never beyond what its own loop overcomes as well as the "
+                  "UR5's loop overcomes the UR5's: each joint's damping and friction range by the least of its "
+                  "corrective saturation over the UR5's 60 N m and its proportional gain over the UR5's least, both "
+                  "gains by the workspace gain rule at the control period (so a joint's friction never stalls it "
+                  "further from its reference than the UR5's can stall the UR5); the payload's range by the least of "
+                  "the arm's total body mass over the shipped UR5's, the payload it holds still at any workspace pose "
+                  "with 80 % of each joint's saturation (HOLD_FRACTION), and its least ratio of proportional gain to "
+                  "the holding torque per kg over the UR5's (so the payload's sag, in rad, is at most the UR5's). "
+                  "The UR5's own factors are exactly 1 at its 20 ms period: its draws are unchanged")
 HOLD_FRACTION = 0.8
 """The share of a joint's corrective saturation that the heaviest payload of the mismatch range may take to hold
 still (its weight is not gravity compensated), at the workspace's worst pose (`holding_torque`)."""
+UR5_DT = 0.02
+"""s: the control period the UR5's reference gains (ARM_SCALE_RULE) are taken at."""
 
 
-def arm_scales(model: mujoco.MjModel) -> tuple[float, NDArray[np.float64]]:
-    """ARM_SCALE_RULE's factors of `model` (a prepared arm): the payload's, and each joint's damping and friction
-    factor, shape (n,)."""
+def arm_scales(model: mujoco.MjModel, dt: float = UR5_DT) -> tuple[float, NDArray[np.float64]]:
+    """ARM_SCALE_RULE's factors of `model` (a prepared arm) at control period `dt` (s): the payload's, and each
+    joint's damping and friction factor, shape (n,)."""
     from mjtraj.core.model import JointInfo
 
     shipped, mass = _shipped_mass(), float(np.sum(model.body_mass[1:]))
     limits = JointInfo.of(model).torque_limit
-    holdable = HOLD_FRACTION * float(np.min(limits / np.maximum(holding_torque(model), 1e-12)))
+    holding = np.maximum(holding_torque(model), 1e-12)
+    holdable = HOLD_FRACTION * float(np.min(limits / holding))
+    kp = loop_stiffness(model, dt)
+    reference = _ur5_reference()
+    stiffness = float(np.min(kp / holding)) / reference[1]
     # exactly 1 on the UR5 itself (x / x, and it holds more than its range), so its draws are unchanged
-    return min(mass / shipped, holdable / PAYLOAD_MASS[1]), limits / UR5_TORQUE
+    return (min(mass / shipped, holdable / PAYLOAD_MASS[1], stiffness),
+            np.minimum(limits / UR5_TORQUE, kp / reference[0]))
+
+
+_STIFFNESS: weakref.WeakKeyDictionary[mujoco.MjModel, dict[float, NDArray[np.float64]]] = weakref.WeakKeyDictionary()
+"""`loop_stiffness` of each model and period already asked (every scenario draw asks it)."""
+
+
+def loop_stiffness(model: mujoco.MjModel, dt: float) -> NDArray[np.float64]:
+    """Each joint's proportional gain by the workspace gain rule (`mjtraj.core.gains.WORKSPACE_RULE`, around the
+    model's qpos0) at control period `dt`, N m/rad, shape (n,); computed once per model and period."""
+    from mjtraj.core.gains import gain_rule
+
+    known = _STIFFNESS.setdefault(model, {})
+    if dt not in known:
+        known[dt] = gain_rule(model, model.qpos0, model.qpos0, dt, workspace=True).kp
+    return known[dt]
+
+
+@functools.cache
+def _ur5_reference() -> tuple[float, float]:
+    """The shipped UR5's least proportional gain (N m/rad) and least gain over holding torque per kg, at UR5_DT."""
+    from mjtraj.core.model import load_model
+
+    ur5 = load_model()
+    kp = loop_stiffness(ur5, UR5_DT)
+    return float(np.min(kp)), float(np.min(kp / np.maximum(holding_torque(ur5), 1e-12)))
 
 
 _HOLDING: weakref.WeakKeyDictionary[mujoco.MjModel, NDArray[np.float64]] = weakref.WeakKeyDictionary()

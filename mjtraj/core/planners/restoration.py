@@ -25,6 +25,12 @@ FEASIBLE = 1e-9
 MAX_EVALUATIONS = 3000
 """Rollouts per search; on the six aggressive tasks of the study's effort sweep that the SQP could not plan, the
 searches from both starts converged in 326 to 1,873 (1 to 4 s on one core)."""
+LARGE_TORQUES = 400
+"""Above this many torques (N n; every UR5 task of up to 2.66 s is below it) the search solves its trust-region
+subproblems iteratively (scipy's 'lsmr') instead of by an SVD of the dense Jacobian, and stops after
+MAX_EVALUATIONS_LARGE rollouts: on a 6-hinge arm (600 torques) an SVD took 0.24 s and 3,000 rollouts 10 minutes."""
+MAX_EVALUATIONS_LARGE = 300
+"""Rollouts per search above LARGE_TORQUES (about 10 s on a 6-hinge arm)."""
 DIVERGED = 1e3
 """r's every component at a trial point whose rollout diverged."""
 TOLERANCE = 1e-12
@@ -34,8 +40,8 @@ TOLERANCE = 1e-12
 @dataclass(frozen=True)
 class LeastViolation:
     """u (N n,): the search's last point; residual: r there (2n terminal, then 4 N n path components); converged:
-    whether scipy's tests stopped it (else MAX_EVALUATIONS did); optimality: its first-order optimality (the
-    projected gradient's largest component); evaluations: its rollouts of r."""
+    whether scipy's tests stopped it (else MAX_EVALUATIONS, or MAX_EVALUATIONS_LARGE, did); optimality: its
+    first-order optimality (the projected gradient's largest component); evaluations: its rollouts of r."""
 
     u: NDArray[np.float64]
     residual: NDArray[np.float64]
@@ -87,8 +93,10 @@ def least_violation(problem: Shooting, limits: PathLimits, u: NDArray[np.float64
             return np.full(2 * problem.n + rows, DIVERGED)  # the trust region shrinks
 
     residual(problem, limits, u)  # raises where the start's rollout diverges
-    found = scipy.optimize.least_squares(trial, np.clip(u, -u_max, u_max),
-                                         jac=jacobian, bounds=(-u_max, u_max), method="trf", ftol=TOLERANCE,
-                                         xtol=TOLERANCE, gtol=TOLERANCE, max_nfev=MAX_EVALUATIONS)
+    large = problem.steps * problem.n > LARGE_TORQUES
+    options = {"tr_solver": "lsmr", "max_nfev": MAX_EVALUATIONS_LARGE} if large else {"max_nfev": MAX_EVALUATIONS}
+    found = scipy.optimize.least_squares(trial, np.clip(u, -u_max, u_max), jac=jacobian, bounds=(-u_max, u_max),
+                                         method="trf", ftol=TOLERANCE, xtol=TOLERANCE, gtol=TOLERANCE,
+                                         **options)  # type: ignore[arg-type]
     return LeastViolation(np.asarray(found.x, dtype=np.float64), residual(problem, limits, found.x),
                           bool(found.status > 0), float(found.optimality), int(found.nfev))
