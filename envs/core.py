@@ -50,7 +50,7 @@ def observe(loop: ClosedLoop, preview: int, control: bool = False) -> NDArray[np
     `control` the PID integral (rad s) and the next period's feedforward torque (N m)."""
     q, qd = loop.positions, loop.velocities
     q_ref, qd_ref = loop.reference()
-    parts = [q, qd, q_ref, qd_ref, q_ref - q, qd_ref - qd, (loop.periods / loop.steps)[:, None]]
+    parts = [q, qd, q_ref, qd_ref, q_ref - q, qd_ref - qd, (loop.periods / loop.ends)[:, None]]
     for offset in range(1, preview + 1):
         parts += loop.reference(offset)
     if control:
@@ -190,7 +190,8 @@ class TrackCore:
         else:
             task, plant = s.sample_episode(rng)
             reference, weights = s.planner.plan(task, self.model), s.weights(task)
-        return Episode(reference, weights, plant, s.sample_noise(rng), task if task is not None else s.fixed_task)
+        return Episode(reference, weights, plant, s.sample_noise(rng, reference.steps),
+                       task if task is not None else s.fixed_task)
 
     def replay(self, scenario: FamilyScenario) -> Episode:
         """The episode of a sweep scenario, as sweeps run it: its task planned by this env's planner, Bryson's
@@ -221,8 +222,11 @@ class TrackCore:
         noise = None
         if any(e.noise is not None for e in episodes):
             n2 = 2 * self.settings.n
-            noise = np.stack([e.noise if e.noise is not None else np.zeros((e.reference.steps, n2))
-                              for e in episodes], axis=1)
+            longest = max(e.reference.steps for e in episodes)  # a shorter episode's noise padded (never read)
+            noise = np.zeros((longest, len(episodes), n2))
+            for b, e in enumerate(episodes):
+                if e.noise is not None:
+                    noise[:e.reference.steps, b] = e.noise
         references = [e.reference for e in episodes]
         for loop in loops:
             if ids is None:
@@ -284,13 +288,23 @@ class TrackCore:
     def metrics(self, ids: NDArray[np.intp]) -> dict[str, NDArray[np.float64]]:
         """The episode Metrics of simulations `ids` (NaN for a diverged one): name -> shape (len(ids),). An episode
         cut short (a time limit) is scored over the periods it ran: J_exec summed over them (so it equals minus its
-        return), terminal_err at the pose it reached against the reference's sample there."""
+        return), terminal_err at the pose it reached against the reference's sample there. Episodes of several
+        lengths (the aggressive family's) are scored a length at a time."""
+        ends = self.loop.ends[ids]
+        if np.any(ends != ends[0]):
+            parts = {int(end): np.flatnonzero(ends == end) for end in np.unique(ends)}
+            merged = {name: np.empty(len(ids)) for name in METRIC_NAMES}
+            for where in parts.values():
+                scored = self.metrics(ids[where])
+                for name in METRIC_NAMES:
+                    merged[name][where] = scored[name]
+            return merged
         rollout = self.loop.rollout(ids)
         arrays = metrics_arrays(rollout, self._q_diag[ids], self._r_diag[ids])  # rms_tau_total: NaN (see pipeline)
         out = {name: np.where(rollout.diverged, np.nan, arrays[name]) for name in METRIC_NAMES}
         periods = self.loop.periods[ids]
         q_ref, _ = self.loop.reference()
-        for j in np.flatnonzero((periods > 0) & (periods < self.loop.steps) & ~rollout.diverged):
+        for j in np.flatnonzero((periods > 0) & (periods < ends) & ~rollout.diverged):
             row, k = ids[j], int(periods[j])
             one = rollout.scenario(int(j))
             q, qd = self.loop.positions[row][None].copy(), self.loop.velocities[row][None].copy()

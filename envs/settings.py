@@ -237,12 +237,13 @@ class TrackSettings:
         mismatch plant drawn from `rng` (after the task) by the sweeps' mismatch rules."""
         return draw_perturbation(rng, self.n, arm_scales(self.model, self.dt)) if self.perturbs else None
 
-    def sample_noise(self, rng: np.random.Generator) -> NDArray[np.float64] | None:
-        """The next episode's measurement noise on [q; qd], shape (N, 2n), drawn from `rng` after the plant; None
-        without noise."""
+    def sample_noise(self, rng: np.random.Generator, steps: int | None = None) -> NDArray[np.float64] | None:
+        """The next episode's measurement noise on [q; qd], shape (steps, 2n) (its reference's N; None: the env's
+        duration's), drawn from `rng` after the plant; None without noise."""
         if self.measurement_noise == 0.0:
             return None
-        return rng.standard_normal((self.steps, 2 * self.n)) * noise_scale(self.n, self.measurement_noise, self.dt)
+        count = self.steps if steps is None else steps
+        return rng.standard_normal((count, 2 * self.n)) * noise_scale(self.n, self.measurement_noise, self.dt)
 
     def sample_task(self, rng: np.random.Generator) -> Task:
         """The next episode's task: the fixed one, or for 'random' a start uniform in the joint ranges and a goal

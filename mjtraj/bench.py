@@ -660,7 +660,7 @@ def bench_controllers(scenario: Scenario, *, scenarios: int = 5, seed: int = 1,
 
 TRAIN_MIXES = (("nominal", "aggressive", "mismatch"), ("nominal", "mismatch"))
 """The family mixtures `bench_train` times: the default one, and the one without the aggressive family, whose
-variable-length episodes run one sub-env per batch (mjtraj.rl.batched.VARIABLE_LENGTH)."""
+episodes of several lengths make the batch leave the closed loop's fast path (mjtraj.rl.batched.VARIABLE_LENGTH)."""
 
 
 def bench_train(*, num_envs: int = 512, iterations: int = 2) -> list[dict[str, Any]]:

@@ -88,32 +88,44 @@ def test_bad_batched_settings_are_refused_in_one_line(argv, message, capsys, tmp
     assert capsys.readouterr().err == f"mjtraj: error: {message}\n"
 
 
-def test_an_aggressive_sub_env_of_its_own_runs_episodes_of_every_length():
-    """Oracle: UR5TrackEnv on the same seed. A one-sub-env vector env of the aggressive family autoresets into
-    episodes of other lengths (the closed loop starts afresh), each as the single env runs it."""
-    import gymnasium as gym
-    from mjtraj.envs import UR5TrackVectorEnv
+@pytest.mark.parametrize("extra", [{}, {"controller": "adaptive_computed_torque", "reward_baseline": "controller",
+                                      "preview": 3, "observe_control": True, "measurement_noise": 1e-4}])
+def test_aggressive_sub_envs_run_episodes_of_every_length_side_by_side(extra):
+    """Oracle: UR5TrackEnv on the same seeds. Four sub-envs of the aggressive family in one vector env autoreset into
+    episodes of other lengths at other times (the closed loop runs references of several lengths side by side):
+    each sub-env's observations, rewards and episode costs are the single env's seeded s + i, bit for bit."""
+    from mjtraj.envs import UR5TrackEnv, UR5TrackVectorEnv
 
-    kwargs = {"action_mode": "residual", "task": "random", "family": "aggressive"}
-    vector = UR5TrackVectorEnv(1, autoreset_mode="SameStep", **kwargs)
-    single = gym.make("UR5Track-v0", **kwargs)
-    vector.reset(seed=11)
-    single.reset(seed=11)
-    lengths, costs, single_costs = set(), [], []
-    steps = 0
-    while len(costs) < 4:
-        _, _, terminated, truncated, info = vector.step(np.zeros((1, 3)))
-        steps += 1
-        if terminated[0] or truncated[0]:
-            costs.append(info["metrics"]["cost"][0])
-            lengths.add(steps)
-            steps = 0
-    while len(single_costs) < 4:
-        _, _, terminated, truncated, info = single.step(np.zeros(3))
-        if terminated or truncated:
-            single_costs.append(info["metrics"]["cost"])
-            single.reset()
-    assert len(lengths) > 1 and costs == single_costs
+    kwargs = {"action_mode": "residual", "task": "random", "family": "aggressive", **extra}
+    vector = UR5TrackVectorEnv(4, autoreset_mode="SameStep", **kwargs)
+    actions = np.random.default_rng(3).uniform(-0.2, 0.2, (130, 4, 3))
+    first, _ = vector.reset(seed=11)
+    observations, rewards, costs, lengths = [first], [], [[] for _ in range(4)], set()
+    for a in actions:
+        obs, reward, terminated, truncated, info = vector.step(a)
+        observations.append(obs)
+        rewards.append(reward)
+        for i in np.flatnonzero(terminated | truncated):
+            costs[i].append(info["metrics"]["cost"][i])
+    assert len(set(vector.loop.ends.tolist())) > 1  # lengths differ across sub-envs at the end
+    for i in range(4):
+        single = UR5TrackEnv(**kwargs)
+        obs, _ = single.reset(seed=11 + i)
+        seen, got, ended, steps = [obs], [], [], 0
+        for a in actions:
+            obs, reward, terminated, truncated, info = single.step(a[i])
+            got.append(reward)
+            steps += 1
+            if terminated or truncated:
+                ended.append(info["metrics"]["cost"])
+                lengths.add(steps)
+                steps = 0
+                obs, _ = single.reset()
+            seen.append(obs)
+        np.testing.assert_array_equal(np.array(observations)[:, i], np.array(seen))
+        np.testing.assert_array_equal(np.array(rewards)[:, i], got)
+        assert costs[i] == ended and len(ended) >= 2
+    assert len(lengths) > 2
 
 
 def test_bench_train_reports_both_rates_and_their_ratio():

@@ -102,8 +102,7 @@ def test_the_number_of_periods_is_bounded(scenario):
 
 
 def test_restarting_every_simulation_on_another_length_starts_the_batch_afresh(model, scenario, rng):
-    """Oracle: a fresh loop started on the same references (in row order). A restart of only some simulations on
-    another length is refused in one line."""
+    """Oracle: a fresh loop started on the same references (in row order)."""
     refs = [realisable_reference(model, rng, steps=30) for _ in range(3)]
     longer = [realisable_reference(model, rng, steps=45) for _ in range(3)]
     loop = ClosedLoop(model, scenario.loop, nsim=3)
@@ -118,6 +117,53 @@ def test_restarting_every_simulation_on_another_length_starts_the_batch_afresh(m
         loop.step()
         fresh.step()
     np.testing.assert_array_equal(loop.rollout().e, fresh.rollout().e)
-    with pytest.raises(InvalidInputError, match=r"^references: a restart needs references of the running N=45, "
-                                                r"got N=30; start all simulations instead$"):
-        loop.restart([0], [refs[0]])
+
+
+@pytest.mark.parametrize("controller", ["pid", "adaptive_computed_torque"])
+def test_references_of_several_lengths_run_side_by_side_as_each_alone(model, scenario, rng, controller):
+    """Oracle: each simulation run alone on its reference. Started on references of 30, 45 and 20 periods, then
+    the shortest restarted on 50 (longer than the arrays were) and another on 25 (shorter): every episode's
+    records, final state and metrics equal its own single-simulation loop's, bit for bit; each ends at its own N
+    (`done`, `ends`); a rollout of simulations of several lengths is refused, one of one length is not."""
+    import dataclasses
+
+    config = dataclasses.replace(scenario.loop, controller=controller)
+    lengths = [30, 45, 20]
+    refs = [realisable_reference(model, rng, steps=n) for n in lengths]
+    later = {2: realisable_reference(model, rng, steps=50), 0: realisable_reference(model, rng, steps=25)}
+    loop = ClosedLoop(model, config, nsim=3)
+    loop.start(refs)
+    np.testing.assert_array_equal(loop.ends, lengths)
+    episodes = []
+    for k in range(70):
+        if k == 20:
+            assert loop.done.tolist() == [False, False, True]
+            episodes.append((refs[2], loop.rollout([2])))
+            loop.restart([2], [later[2]])
+        if k == 30:
+            assert loop.done[0] and not loop.done[1]
+            episodes.append((refs[0], loop.rollout([0])))
+            loop.restart([0], [later[0]])
+        loop.step()
+    assert loop.done.all() and loop.steps == 50  # room for the longest
+    np.testing.assert_array_equal(loop.ends, [25, 45, 50])
+    episodes += [(later[0], loop.rollout([0])), (refs[1], loop.rollout([1])), (later[2], loop.rollout([2]))]
+    with pytest.raises(InvalidInputError, match=r"^ids: expected simulations running references of one length, got "
+                                                r"N from 25 to 50$"):
+        loop.rollout()
+    for ref, got in episodes:
+        alone = ClosedLoop(model, config, nsim=1).run([ref])
+        for name in ("q", "qd", "e", "dtau", "tau_fb", "saturated"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(alone, name), err_msg=name)
+        np.testing.assert_array_equal(got.q_final, alone.q_final)
+        np.testing.assert_array_equal(got.e_final, alone.e_final)
+
+
+def test_a_previewing_law_refuses_references_of_several_lengths(model, scenario, rng):
+    import dataclasses
+
+    config = dataclasses.replace(scenario.loop, controller="mpc")
+    refs = [realisable_reference(model, rng, steps=n) for n in (30, 20)]
+    with pytest.raises(InvalidInputError, match=r"^references: the control law 'mpc' previews the reference; give it "
+                                                r"references of one length per batch, got N from 20 to 30$"):
+        ClosedLoop(model, config, nsim=2).start(refs)

@@ -77,6 +77,9 @@ class _LoopState:
     then).
     sync: the common next period while every simulation is live and in step (the fast path), else None; k:
     (B,) each simulation's next period, kept only while sync is None (read `periods`).
+    ends: (B,) each simulation's own N (references of several lengths run side by side: the arrays above are as long
+    as the longest, a shorter reference padded with its last sample, its records NaN past its end); horizon: the
+    least of them, where the fast path stops.
     """
 
     q_ref: NDArray[np.float64]
@@ -93,10 +96,20 @@ class _LoopState:
     held: NDArray[np.float64] | None = None
     law_state: NDArray[np.float64] | None = None
     sync: int | None = 0
+    ends: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     rows: NDArray[np.intp] = field(init=False)
+    horizon: int = field(init=False)
 
     def __post_init__(self) -> None:
         self.rows = np.arange(self.k.size)
+        if self.ends.size == 0:
+            self.ends = np.full(self.k.size, self.steps, dtype=np.intp)
+        self.horizon = int(self.ends.min())
+
+    @property
+    def uniform(self) -> bool:
+        """Every simulation runs a reference of the arrays' full length."""
+        return self.horizon == self.steps
 
     @property
     def steps(self) -> int:
@@ -105,8 +118,13 @@ class _LoopState:
 
     @property
     def periods(self) -> NDArray[np.intp]:
-        """Each simulation's next control period, shape (B,); N once it has ended or diverged."""
+        """Each simulation's next control period, shape (B,); its N once it has ended or diverged."""
         return np.full(self.k.size, self.sync, dtype=np.intp) if self.sync is not None else self.k.copy()
+
+    def set_ends(self, rows: slice | NDArray[np.intp], steps: int) -> None:
+        """Simulations `rows` now run references of `steps` periods."""
+        self.ends[rows] = steps
+        self.horizon = int(self.ends.min())
 
     def desync(self) -> None:
         """Leave the fast path: write the common period into k."""
@@ -180,8 +198,20 @@ class ClosedLoop:
 
     @property
     def steps(self) -> int:
-        """N, the control periods of the running references."""
+        """N, the control periods of the running references (of the longest, where a restart gave some simulations
+        references of another length: `ends` gives each its own)."""
         return self._running().steps
+
+    @property
+    def previews(self) -> bool:
+        """Whether the control law previews the reference (the model-predictive ones): it runs references of one
+        length per batch."""
+        return getattr(self._law, "track", None) is not None
+
+    @property
+    def ends(self) -> NDArray[np.intp]:
+        """Each simulation's own N, shape (B,) (read-only use)."""
+        return self._running().ends
 
     @property
     def periods(self) -> NDArray[np.intp]:
@@ -193,8 +223,8 @@ class ClosedLoop:
         """Shape (B,): the simulation has run its N periods or diverged."""
         s = self._running()
         if s.sync is not None:
-            return np.full(self.nsim, s.sync >= s.steps)
-        return s.k >= s.steps
+            return np.full(self.nsim, s.sync >= s.steps) if s.uniform else s.sync >= s.ends
+        return s.k >= s.ends
 
     @property
     def diverged(self) -> NDArray[np.bool_]:
@@ -215,21 +245,19 @@ class ClosedLoop:
         """Each simulation's reference sample at its next period + `offset` (held at N): q_ref and qd_ref, shape
         (B, n) each, rad and rad/s (read-only use)."""
         s = self._running()
-        N = s.steps
-        if s.sync is not None:
-            now = min(s.sync + offset, N)
+        if s.sync is not None and s.uniform:
+            now = min(s.sync + offset, s.steps)
             return s.q_ref[now], s.qd_ref[now]
-        ks = np.minimum(s.k + offset, N)
+        ks = np.minimum(s.periods + offset, s.ends)
         return s.q_ref[ks, s.rows], s.qd_ref[ks, s.rows]
 
     def controller_state(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Each simulation's PID integral now (rad s) and the feedforward torque of its next period (N m, held at
         the last period once the reference ends), shape (B, n) each (read-only use)."""
         s = self._running()
-        last = s.tau_ff.shape[0] - 1
-        if s.sync is not None:
-            return s.integral, s.tau_ff[min(s.sync, last)]
-        return s.integral, s.tau_ff[np.minimum(s.k, last), s.rows]
+        if s.sync is not None and s.uniform:
+            return s.integral, s.tau_ff[min(s.sync, s.steps - 1)]
+        return s.integral, s.tau_ff[np.minimum(s.periods, s.ends - 1), s.rows]
 
     def unstable(self) -> NDArray[np.bool_]:
         """Shape (B,): MuJoCo flagged the simulation numerically unstable since its last start."""
@@ -247,12 +275,12 @@ class ClosedLoop:
 
     # -- control -------------------------------------------------------------------------------------------------
 
-    def _check(self, references: Sequence[Reference]) -> None:
+    def _check(self, references: Sequence[Reference], *, one_length: bool = True) -> None:
         if len(references) == 0:
             raise InvalidInputError("references: expected at least one reference, got none")
         shape = (references[0].steps, references[0].n)
         for ref in references:
-            if (ref.steps, ref.n) != shape:
+            if one_length and (ref.steps, ref.n) != shape:
                 raise InvalidInputError(f"references: expected all of shape N={shape[0]}, n={shape[1]}; "
                                         f"{ref.planner!r} has N={ref.steps}, n={ref.n}")
             if ref.n != self.model.nv:
@@ -263,12 +291,52 @@ class ClosedLoop:
 
     def _prepare(self, references: Sequence[Reference], count: int, noise: npt.ArrayLike | None
                  ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None,
-                            NDArray[np.float64] | None]:
+                            NDArray[np.float64] | None, NDArray[np.intp]]:
         """q_ref, qd_ref (N+1, count, n), the feedforward (N, count, n), the checked noise and the reference
-        accelerations (N, count, n; None unless the control law reads them) of `references`."""
-        self._check(references)
+        accelerations (N, count, n; None unless the control law reads them) of `references`, and each one's N,
+        shape (count,). References of several lengths are padded to the longest N (`_LoopState`)."""
+        self._check(references, one_length=False)
         if len(references) != count:
             raise InvalidInputError(f"references: expected {count} (one per simulation), got {len(references)}")
+        lengths = np.array([r.steps for r in references], dtype=np.intp)
+        if np.any(lengths != lengths[0]):
+            if self.previews:
+                raise InvalidInputError(f"references: the control law {self.config.controller!r} previews the "
+                                        "reference; give it references of one length per batch, got N from "
+                                        f"{lengths.min()} to {lengths.max()}")
+            return (*self._prepare_mixed(references, lengths, noise), lengths)
+        return (*self._prepare_one(references, count, noise), lengths)
+
+    def _prepare_mixed(self, references: Sequence[Reference], lengths: NDArray[np.intp], noise: npt.ArrayLike | None
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                  NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        """`_prepare_one` of each length's references, padded to the longest N and put back in order."""
+        longest, count, n = int(lengths.max()), len(references), self.model.nv
+        checked = None
+        if noise is not None:
+            checked = np.asarray(noise, dtype=np.float64)
+            if checked.shape != (longest, count, 2 * n) or not np.all(np.isfinite(checked)):
+                raise InvalidInputError(f"noise: expected finite values of shape ({longest}, {count}, {2 * n}) (the "
+                                        f"longest reference's N), got shape {checked.shape}")
+        parts: list[Any] = [None] * 4
+        for length in np.unique(lengths):
+            rows = np.flatnonzero(lengths == length)
+            q, qd, ff, _, qdd = self._prepare_one([references[i] for i in rows], rows.size, None)
+            for slot, value in enumerate((q, qd, ff, qdd)):
+                if value is None:
+                    continue
+                if parts[slot] is None:
+                    extra = 1 if slot < 2 else 0
+                    parts[slot] = np.zeros((longest + extra, count, n))
+                parts[slot][:value.shape[0], rows] = value
+                parts[slot][value.shape[0]:, rows] = value[-1] if slot != 3 else 0.0  # held; no acceleration
+        q_ref, qd_ref, ff, qdd = parts
+        return q_ref, qd_ref, ff, checked, qdd
+
+    def _prepare_one(self, references: Sequence[Reference], count: int, noise: npt.ArrayLike | None
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        """`_prepare` of references of one length."""
         q_ref = np.stack([r.q for r in references], axis=1)
         qd_ref = np.stack([r.qd for r in references], axis=1)
         unique = {id(r): r for r in references}  # a reference shared by many simulations is computed once
@@ -293,11 +361,12 @@ class ClosedLoop:
         """(Re)start every simulation at its reference's first sample, with I_{-1} = 0.
 
         Args:
-          references: one per simulation, all of one length N and of the model's dt.
-          noise: measurement noise added to [q; qd] before control, shape (N, B, 2n) in rad and rad/s; None for
-            exact measurements.
+          references: one per simulation, of the model's dt; of one length N, or of several for a law that does not
+            preview the reference (each simulation ends at its own N, `ends`).
+          noise: measurement noise added to [q; qd] before control, shape (N, B, 2n) in rad and rad/s (N the
+            longest reference's); None for exact measurements.
         """
-        q_ref, qd_ref, ff, checked, qdd = self._prepare(references, self.nsim, noise)
+        q_ref, qd_ref, ff, checked, qdd, lengths = self._prepare(references, self.nsim, noise)
         N, B, n = ff.shape
         records: dict[str, NDArray[Any]] = {name: np.full((N, B, n), np.nan) for name in RECORDED}
         records["saturated"] = np.zeros((N, B, n), dtype=bool)
@@ -305,17 +374,19 @@ class ClosedLoop:
                                  np.full(B, -1, dtype=np.int64), records, np.full((B, n), np.nan),
                                  np.full((B, n), np.nan), noise=checked,
                                  held=np.zeros((B, n)) if self.config.delay else None,
-                                 law_state=self._initial_law_state(B))
+                                 law_state=self._initial_law_state(B), ends=lengths)
         self._track(slice(None), q_ref, qd_ref, ff)
         self._plant.reset(q_ref[0], qd_ref[0])
 
     def restart(self, ids: npt.ArrayLike, references: Sequence[Reference], *,
                 noise: npt.ArrayLike | None = None) -> None:
-        """Restart simulations `ids` (the vector env's autoreset) on `references` of the running N; the others go on.
-        Restarting every simulation on references of another N starts the batch afresh (`start`).
+        """Restart simulations `ids` (the vector env's autoreset) on `references`; the others go on. Restarting every
+        simulation on references of another N starts the batch afresh (`start`); restarting some on references of
+        another length runs references of several lengths side by side (`start`), which a law that previews the
+        reference refuses.
 
         Args:
-          noise: as in `start`, shape (N, len(ids), 2n).
+          noise: as in `start`, shape (N, len(ids), 2n) (N the longest of `references`).
         """
         s = self._running()
         rows = np.asarray(ids, dtype=np.intp).reshape(-1)
@@ -324,10 +395,15 @@ class ClosedLoop:
             order = np.argsort(rows)
             self.start([references[i] for i in order], noise=None if noise is None else np.asarray(noise)[:, order])
             return
-        q_ref, qd_ref, ff, checked, qdd = self._prepare(references, rows.size, noise)
-        if q_ref.shape[0] != s.q_ref.shape[0]:
-            raise InvalidInputError(f"references: a restart needs references of the running N={s.steps}, got "
+        q_ref, qd_ref, ff, checked, qdd, lengths = self._prepare(references, rows.size, noise)
+        if q_ref.shape[0] != s.q_ref.shape[0] and self.previews:
+            raise InvalidInputError(f"references: the control law {self.config.controller!r} previews the reference; "
+                                    f"a restart needs references of the running N={s.steps}, got "
                                     f"N={q_ref.shape[0] - 1}; start all simulations instead")
+        if q_ref.shape[0] > s.q_ref.shape[0]:
+            _lengthen(s, q_ref.shape[0] - 1)
+        elif q_ref.shape[0] < s.q_ref.shape[0]:
+            q_ref, qd_ref, ff, qdd, checked = _padded(s.steps, q_ref, qd_ref, ff, qdd, checked)
         N, n = s.steps, self.model.nv
         s.desync()
         where = slice(None) if np.array_equal(rows, s.rows) else rows  # all of them, in order: slices are faster
@@ -346,6 +422,8 @@ class ClosedLoop:
             s.held[where] = 0.0
         if s.law_state is not None:
             s.law_state[where] = self._initial_law_state(rows.size)
+        s.ends[where] = lengths
+        s.horizon = int(s.ends.min())
         s.resync()
         self._track(where, q_ref, qd_ref, ff)
         self._plant.reset(q_ref[0], qd_ref[0], rows)
@@ -359,8 +437,8 @@ class ClosedLoop:
         """
         s = self._running()
         plant = self._plant
-        N, n = s.steps, self.model.nv
-        if s.sync is not None and s.sync < N:  # every simulation live and at the same period: views, no masks
+        n = self.model.nv
+        if s.sync is not None and s.sync < s.horizon:  # every simulation live and at one period: views, no masks
             k = s.sync
             rec = s.records
             q, qd = rec["q"][k], rec["qd"][k]
@@ -381,8 +459,12 @@ class ClosedLoop:
             plant.step(out.dtau)
             rec["tau_ff"][k], rec["tau_fb"][k], rec["dtau"][k], rec["saturated"][k] = (
                 out.tau_ff, out.tau_fb, out.dtau, out.saturated)
-            if k + 1 == N:
-                s.q_final[:], s.qd_final[:] = plant.qpos, plant.qvel
+            if k + 1 == s.horizon:
+                if s.uniform:
+                    s.q_final[:], s.qd_final[:] = plant.qpos, plant.qvel
+                else:
+                    last = s.ends == k + 1
+                    s.q_final[last], s.qd_final[last] = plant.qpos[last], plant.qvel[last]
             s.sync = k + 1
             error = s.q_ref[k + 1] - plant.qpos
             if np.abs(error).max() <= self.config.divergence_bound:  # False for NaN too
@@ -392,8 +474,8 @@ class ClosedLoop:
             return Step(q, qd, e, ed, out, s.diverged_step >= 0)
         s.desync()
         q, qd = plant.state()
-        active = (s.diverged_step < 0) & (s.k < N)
-        ks = np.minimum(s.k, N - 1)
+        active = (s.diverged_step < 0) & (s.k < s.ends)
+        ks = np.minimum(s.k, s.ends - 1)
         e = s.q_ref[ks, s.rows] - q
         ed = s.qd_ref[ks, s.rows] - qd
         seen_e, seen_ed = (e, ed) if s.noise is None else (e - s.noise[ks, s.rows, :n], ed - s.noise[ks, s.rows, n:])
@@ -412,10 +494,10 @@ class ClosedLoop:
         for name, value in zip(RECORDED, (q, qd, e, ed, control.tau_ff, control.tau_fb, dtau, control.saturated),
                                strict=True):
             s.records[name][kl, live] = value[active]
-        error = s.q_ref[np.minimum(s.k + 1, N), s.rows] - plant.qpos
+        error = s.q_ref[np.minimum(s.k + 1, s.ends), s.rows] - plant.qpos
         bad = active & ~np.all(np.abs(error) <= self.config.divergence_bound, axis=1)
         s.k[:] = np.where(active, s.k + 1, s.k)
-        ended = active & (s.k == N)
+        ended = active & (s.k == s.ends)
         s.q_final[ended], s.qd_final[ended] = plant.qpos[ended], plant.qvel[ended]
         self._diverge(bad, ks, q, qd)
         s.resync()
@@ -486,17 +568,27 @@ class ClosedLoop:
         s.desync()
         rows = np.flatnonzero(bad)
         s.diverged_step[rows] = k[rows]
-        s.k[rows] = s.steps
+        s.k[rows] = s.ends[rows]
         s.q_final[rows] = s.qd_final[rows] = np.nan
         self._plant.reset(q[rows], np.zeros_like(qd[rows]), rows)
 
     def rollout(self, ids: npt.ArrayLike | None = None) -> Rollout:
-        """What simulations `ids` (all if None) recorded since their start, as a Rollout (rows in `ids` order)."""
+        """What simulations `ids` (all if None) recorded since their start, as a Rollout (rows in `ids` order); they
+        run references of one length.
+
+        Raises:
+          InvalidInputError: `ids` run references of several lengths (read each length's apart: `ends`).
+        """
         s = self._running()
         rows = s.rows if ids is None else np.asarray(ids, dtype=np.intp).reshape(-1)
-        rec = {name: s.records[name].swapaxes(0, 1)[rows] for name in RECORDED}  # one copy each, C-ordered
+        ends = s.ends[rows]
+        N = int(ends[0]) if rows.size else s.steps
+        if np.any(ends != N):
+            raise InvalidInputError(f"ids: expected simulations running references of one length, got N from "
+                                    f"{ends.min()} to {ends.max()}")
+        rec = {name: s.records[name][:N].swapaxes(0, 1)[rows] for name in RECORDED}  # one copy each, C-ordered
         q_final, qd_final = s.q_final[rows].copy(), s.qd_final[rows].copy()
-        return Rollout(**rec, q_final=q_final, qd_final=qd_final, e_final=s.q_ref[s.steps, rows] - q_final,
+        return Rollout(**rec, q_final=q_final, qd_final=qd_final, e_final=s.q_ref[ends, rows] - q_final,
                        diverged_step=s.diverged_step[rows].copy(), dt=self.dt)
 
     def run(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None) -> Rollout:
@@ -504,7 +596,36 @@ class ClosedLoop:
 
         `noise`: measurement noise, shape (N, B, 2n), as in `start`.
         """
+        self._check(references)
         self.start(references, noise=noise)
         for _ in range(self.steps):
             self.step()
         return self.rollout()
+
+
+def _padded(steps: int, q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64], ff: NDArray[np.float64],
+            qdd: NDArray[np.float64] | None, noise: NDArray[np.float64] | None
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None,
+                       NDArray[np.float64] | None]:
+    """Shorter references' arrays padded to `steps` periods: the reference and feedforward held at their last
+    sample, no acceleration, no noise (never read past their end but by queries held there)."""
+    extra = steps - ff.shape[0]
+    q_ref = np.concatenate([q_ref, np.repeat(q_ref[-1:], extra, axis=0)])
+    qd_ref = np.concatenate([qd_ref, np.repeat(qd_ref[-1:], extra, axis=0)])
+    ff = np.concatenate([ff, np.repeat(ff[-1:], extra, axis=0)])
+    if qdd is not None:
+        qdd = np.concatenate([qdd, np.zeros((extra, *qdd.shape[1:]))])
+    if noise is not None:
+        noise = np.concatenate([noise, np.zeros((extra, *noise.shape[1:]))])
+    return q_ref, qd_ref, ff, qdd, noise
+
+
+def _lengthen(s: _LoopState, steps: int) -> None:
+    """Give a running state room for references of `steps` periods (`_padded`; records NaN, not saturated)."""
+    extra = steps - s.steps
+    s.q_ref, s.qd_ref, s.tau_ff, s.qdd_ref, s.noise = _padded(steps, s.q_ref, s.qd_ref, s.tau_ff, s.qdd_ref, s.noise)
+    for name, record in s.records.items():
+        more = (np.zeros((extra, *record.shape[1:]), dtype=bool) if name == "saturated"
+                else np.full((extra, *record.shape[1:]), np.nan))
+        s.records[name] = np.concatenate([record, more])
+    s.horizon = int(s.ends.min())
