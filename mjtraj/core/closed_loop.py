@@ -321,7 +321,7 @@ class ClosedLoop:
         parts: list[Any] = [None] * 4
         for length in np.unique(lengths):
             rows = np.flatnonzero(lengths == length)
-            q, qd, ff, _, qdd = self._prepare_one([references[i] for i in rows], rows.size, None)
+            q, qd, ff, _, qdd = self._prepare_one([references[int(i)] for i in rows], rows.size, None)
             for slot, value in enumerate((q, qd, ff, qdd)):
                 if value is None:
                     continue
