@@ -197,3 +197,44 @@ def test_a_search_writes_its_trials_and_best_continues_its_study_and_trains_with
     settings = json.loads((run / "run.json").read_text())["settings"]
     best = again["best"]
     assert all(settings[name] == best[name] for name in best if name not in ("value", "trial"))
+
+
+def test_an_interrupted_run_resumed_ends_as_the_uninterrupted_one_bit_for_bit(tmp_path, capsys, monkeypatch):
+    """Oracle: the same run uninterrupted. Interrupted after its second validation point (of three), `rl train
+    --resume` goes on from the resume point and writes the same policies and learning curve, bit for bit (but the
+    wall-clock columns); the resume point is gone once the run completes, and resuming a complete run is refused."""
+    from mjtraj.rl import batched
+
+    settings = {**TINY, "steps": 144, "evaluations": 3}
+    batched.train_batched(BatchedSettings(**settings), tmp_path / "whole", progress=False)
+    assert not (tmp_path / "whole" / batched.RESUME_FILE).exists()
+    real, calls = batched.interact, []
+
+    def crash(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 18:  # past the second validation point (after period 16)
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(batched, "interact", crash)
+    with pytest.raises(KeyboardInterrupt):
+        batched.train_batched(BatchedSettings(**settings), tmp_path / "cut", progress=False, command="tiny")
+    assert (tmp_path / "cut" / batched.RESUME_FILE).is_file() and not (tmp_path / "cut" / "run.json").exists()
+    monkeypatch.setattr(batched, "interact", real)
+    assert main(["rl", "train", "--resume", str(tmp_path / "cut"), "--no-progress"]) == 0
+    assert "resumed" in capsys.readouterr().out
+    for name in ("policy.pt", "best.pt"):
+        a = torch.load(tmp_path / "whole" / name, weights_only=False)
+        b = torch.load(tmp_path / "cut" / name, weights_only=False)
+        for key, value in a["state"].items():
+            assert torch.equal(value, b["state"][key]), (name, key)
+    clock = ("wall_s", "steps_per_s")
+    curves = [[{k: v for k, v in zip(rows[0].split(","), line.split(","), strict=True) if k not in clock}
+               for line in rows[1:]] for rows in ((tmp_path / run / "learning_curve.csv").read_text().splitlines()
+                                                  for run in ("whole", "cut"))]
+    assert curves[0] == curves[1] and len(curves[0]) == 3
+    record = json.loads((tmp_path / "cut" / "run.json").read_text())
+    assert record["resumed"] == [{"timesteps": 96}] and record["command"] == "tiny"
+    assert not (tmp_path / "cut" / batched.RESUME_FILE).exists()
+    assert main(["rl", "train", "--batched", "--resume", str(tmp_path / "cut"), "--no-progress"]) == 2
+    assert "holds no resume point of a batched run" in capsys.readouterr().err

@@ -87,8 +87,9 @@ def add(sub: Any, laws: str) -> None:
                    help="a JSON object of SB3 arguments replacing the defaults (--hyperparameter wins)")
     p.add_argument("--out", type=Path, default=Path("runs/rl"), help="output folder (default runs/rl)")
     p.add_argument("--resume", type=Path, metavar="RUN", help="continue the interrupted run in RUN from its last "
-                   "checkpoint, with the settings its run.json records (the other training flags are not read); on "
-                   "the same machine and thread count it ends with the policy an uninterrupted run would have")
+                   "checkpoint (a batched run's: its last validation point, resume.pt), with the settings it "
+                   "recorded (the other training flags are not read); on the same machine and thread count it ends "
+                   "with the policy an uninterrupted run would have")
     p.add_argument("--tensorboard", type=Path, metavar="DIR",
                    help="also log to TensorBoard event files in DIR (SB3's logger; needs the tensorboard package)")
     no_progress_option(p)
@@ -186,7 +187,7 @@ def run_train(args: argparse.Namespace) -> int:
     """`mjtraj rl train`."""
     from mjtraj.rl.extra import require_sb3
 
-    if args.batched:
+    if args.batched or (args.resume is not None and (args.resume / "resume.pt").is_file()):
         return _run_batched(args)
     require_sb3()
     from mjtraj.rl.train import TrainSettings, resume_training, train
@@ -225,8 +226,15 @@ def run_train(args: argparse.Namespace) -> int:
 def _run_batched(args: argparse.Namespace) -> int:
     """`mjtraj rl train --algo ppo --batched`."""
     from mjtraj.exceptions import InvalidInputError
-    from mjtraj.rl.batched import BatchedSettings, train_batched
+    from mjtraj.rl.batched import BatchedSettings, resume_batched, train_batched
 
+    if args.resume is not None:
+        report = resume_batched(args.resume, progress=not args.no_progress)
+        print(f"resumed {args.resume} and trained to {report.timesteps} steps; best validation point: the worst "
+              f"family's mean J_exec {report.best_point.get('worst_ratio', float('nan')):.4f} of the law alone's")
+        print(f"wrote {report.policy}, {report.best} (best on validation), {report.curve} and "
+              f"{report.out / 'run.json'}")
+        return 0
     if args.algo != "ppo":
         raise InvalidInputError(f"batched: trains PPO (skrl's); got --algo {args.algo}")
     tuned = overrides(args.hyperparameters, args.hyperparameter)

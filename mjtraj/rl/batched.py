@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl.batched_policy import BATCHED_RUN, BatchedSettings, batched_policy_class, mlp, save_policy
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, training_entropies
@@ -239,10 +240,78 @@ def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
     return agent
 
 
+RESUME_FILE = "resume.pt"
+"""A batched run's resume point (`save_resume_point`), written at every validation point and removed when the run
+completes."""
+
+
+def save_resume_point(path: Path, agent: Any, env: MixedFamilies, obs: NDArray[np.float64],
+                      progress: dict[str, Any]) -> None:
+    """Everything an interrupted run needs to go on bit for bit from the end of a rollout (its update done, the
+    memory to be refilled): the agent's models, optimiser and standardisers, its rollout count, the sub-envs (their
+    loops, plants and generators, pickled), the next observations, the global generators PyTorch, NumPy and Python
+    draw from, and the training's bookkeeping `progress`. Written atomically."""
+    import pickle
+    import random
+
+    import torch
+
+    from mjtraj.files import atomic_path
+
+    modules = {name: agent._get_internal_value(module) for name, module in agent.checkpoint_modules.items()}
+    state = {"agent": modules, "rollout": agent._rollout, "env": pickle.dumps(env), "obs": obs,
+             "rng": {"torch": torch.get_rng_state(), "numpy": np.random.get_state(),  # noqa: NPY002 (skrl seeds it)
+                     "python": random.getstate()},
+             "progress": progress}
+    with atomic_path(path) as temporary:
+        torch.save(state, temporary)
+
+
+def load_resume_point(path: Path, agent: Any) -> tuple[MixedFamilies, NDArray[np.float64], dict[str, Any]]:
+    """Restore `save_resume_point`'s state into a new `agent` of the same settings; (env, obs, progress)."""
+    import pickle
+    import random
+
+    import torch
+
+    state = torch.load(path, weights_only=False)
+    for name, data in state["agent"].items():
+        agent.checkpoint_modules[name].load_state_dict(data)
+    agent._rollout = state["rollout"]
+    torch.set_rng_state(state["rng"]["torch"])
+    np.random.set_state(state["rng"]["numpy"])  # noqa: NPY002 (the global state skrl's set_seed seeds)
+    random.setstate(state["rng"]["python"])
+    return pickle.loads(state["env"]), state["obs"], state["progress"]
+
+
+def resume_batched(out: str | Path, *, progress: bool = True) -> BatchedReport:
+    """Continue the interrupted batched run in `out` from its last resume point (RESUME_FILE), with the settings it
+    recorded: on the same machine and thread count it ends with the files an uninterrupted run writes, bit for bit
+    (but the wall-clock columns).
+
+    Raises:
+      InvalidInputError: `out` holds no resume point (a complete run, or one stopped before its first validation
+        point).
+    """
+    import torch
+
+    path = Path(out) / RESUME_FILE
+    if not path.is_file():
+        raise InvalidInputError(f"resume: {out} holds no resume point of a batched run ({RESUME_FILE}: written at "
+                                "every validation point, removed when the run completes); start it again in a new "
+                                "folder")
+    record = torch.load(path, weights_only=False)["progress"]["record"]
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in record["settings"].items()}
+    settings = BatchedSettings(**fields)
+    return train_batched(settings, out, progress=progress, command=record["command"], resume=True)
+
+
 def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool = True,
-                  command: str = "", on_validation: Callable[[int, float], bool] | None = None) -> BatchedReport:
+                  command: str = "", on_validation: Callable[[int, float], bool] | None = None,
+                  resume: bool = False) -> BatchedReport:
     """Train by the recipe of the module docstring into `out`: run.json, learning_curve.csv and .png, policy.pt (the
-    last policy), best.pt (the best validation point by its worst family) and skrl/ (the agent, for inspection).
+    last policy), best.pt (the best validation point by its worst family) and skrl/ (the agent, for inspection);
+    RESUME_FILE while it runs (`resume=True` goes on from it: `resume_batched`).
 
     Training stops early once `settings.patience` validation points in a row have not improved the best point, or
     when `on_validation(timesteps, worst_ratio)`, called at every validation point, returns True (a search's
@@ -273,19 +342,26 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
     points = sorted({round(k * settings.iterations / settings.evaluations) * settings.rollouts
                      for k in range(1, settings.evaluations + 1)})
     best: dict[str, float] = {"worst_ratio": float("inf")}
-    obs = env.reset()
-    start, wall_steps = time.perf_counter(), 0
+    first, before, wall_steps, since_best, episodes = 0, 0.0, 0, 0, 0
+    if resume:
+        env, obs, saved = load_resume_point(out / RESUME_FILE, agent)
+        first, before, wall_steps = saved["t"], saved["wall_s"], saved["wall_steps"]
+        rows, best, since_best, episodes = saved["rows"], saved["best"], saved["since_best"], saved["episodes"]
+        record["resumed"] = [*saved["record"].get("resumed", []), {"timesteps": first * settings.num_envs}]
+    else:
+        obs = env.reset()
+    start = time.perf_counter()
     from tqdm import tqdm
 
-    bar = tqdm(total=total * settings.num_envs, unit="step", desc="rl train --batched", disable=not progress,
-               dynamic_ncols=True)
-    stopped, since_best, episodes = "", 0, 0
-    for t in range(total):
+    bar = tqdm(total=total * settings.num_envs, initial=first * settings.num_envs, unit="step",
+               desc="rl train --batched", disable=not progress, dynamic_ncols=True)
+    stopped = ""
+    for t in range(first, total):
         obs = interact(agent, env, obs, t, total)
         wall_steps += settings.num_envs
         bar.update(settings.num_envs)
         if t + 1 in points:
-            elapsed = time.perf_counter() - start
+            elapsed = before + time.perf_counter() - start
             module = export_policy(agent, settings)
             module.eval()
             scored = from_object(module, label="batched")
@@ -314,8 +390,11 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
                 stopped = "pruned by the search"
             if stopped:
                 break
+            save_resume_point(out / RESUME_FILE, agent, env, obs,
+                              {"t": t + 1, "wall_s": elapsed, "wall_steps": wall_steps, "rows": rows, "best": best,
+                               "since_best": since_best, "episodes": episodes, "record": record})
     bar.close()
-    wall = time.perf_counter() - start
+    wall = before + time.perf_counter() - start
     final = export_policy(agent, settings)
     done, episodes = wall_steps, episodes + len(env.finished)
     record.update(timesteps=done, wall_s=wall, steps_per_s=done / wall, best=best, stopped=stopped,
@@ -329,6 +408,7 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
         plot_batched_curve(curve_path, out / "learning_curve.png", title=f"{label(record)}, seed {settings.seed}")
     if not (out / "best.pt").is_file():  # no validation point finished: the last policy stands
         save_policy(final, out / "best.pt", record)
+    (out / RESUME_FILE).unlink(missing_ok=True)
     return BatchedReport(out, out / "policy.pt", out / "best.pt", curve_path, done, wall, best, stopped, episodes)
 
 
