@@ -757,18 +757,24 @@ def test_a_policy_whose_spaces_this_numpy_cannot_unpickle_loads_from_its_record(
 def test_rl_baselines_lists_each_shipped_policy_with_its_checkpoint(capsys):
     """One line per shipped baseline, naming the checkpoint's steps out of the run's (its record's own numbers)."""
     from mjtraj.rl.baselines import baseline_names, baseline_path
+    from mjtraj.rl.batched_policy import load_batched
 
     assert main(["rl", "baselines"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == len(baseline_names()) > 0
     for line, name in zip(lines, baseline_names(), strict=True):
-        record = json.loads((baseline_path(name).parent / "policy.json").read_text())
+        path = baseline_path(name)
+        if path.suffix == ".pt":  # a batched run's module carries its record
+            record = load_batched(path).record
+            steps = record["settings"]["steps"]
+        else:
+            record = json.loads((path.parent / "policy.json").read_text())
+            steps = record["run"]["settings"]["steps"]
         assert line.startswith(f"baseline:{name}  ")
-        assert (f"the checkpoint at {record['timesteps']:,} of {record['run']['settings']['steps']:,} trained steps"
-                in line)
+        assert f"the checkpoint at {record['timesteps']:,} of {steps:,} trained steps" in line
 
 
-@pytest.mark.parametrize("name", ["best", "sac_act_history4_100k_s3"])
+@pytest.mark.parametrize("name", ["rppo_act_100k_s2", "sac_act_history4_100k_s3"])
 def test_a_baseline_loads_to_act_without_building_an_optimiser(name, monkeypatch):
     """Oracle: SB3's own load (optimisers built) acts the same, bit for bit, on the same observations; with every
     torch optimiser's construction made to fail, mjtraj's load still succeeds (acting needs none)."""
@@ -796,3 +802,36 @@ def test_a_baseline_loads_to_act_without_building_an_optimiser(name, monkeypatch
     optimizer = model.policy.optimizer if hasattr(model.policy, "optimizer") else model.actor.optimizer
     with pytest.raises(InvalidInputError, match=r"^policy: loaded to act"):
         optimizer.step()
+
+
+def test_a_batched_run_ships_as_a_baseline_that_acts_as_its_run(tmp_path, monkeypatch, capsys):
+    """Oracle: the run's own best.pt. `rl ship` of a batched run writes policy.pt, run.json and the curve; as
+    baseline:NAME it loads (listed, described) and acts as the run's module, bit for bit; `rl baselines` says what
+    it is."""
+    import torch
+
+    from mjtraj.rl import baselines
+    from mjtraj.rl.adapters import load_any
+    from mjtraj.rl.batched import train_batched
+    from mjtraj.rl.batched_policy import BatchedSettings, load_batched
+
+    run = tmp_path / "run"
+    train_batched(BatchedSettings(steps=96, num_envs=6, rollouts=8, evaluations=2, validation=2, seed=3), run,
+                  progress=False)
+    folder = tmp_path / "baselines"
+    assert main(["rl", "ship", str(run), "--name", "ppo_tiny", "--into", str(folder)]) == 0
+    assert sorted(p.name for p in (folder / "ppo_tiny").iterdir()) == ["learning_curve.csv", "learning_curve.png",
+                                                                     "policy.pt", "run.json"]
+    monkeypatch.setattr(baselines, "baselines_folder", lambda: folder)
+    assert baselines.baseline_names() == ["ppo_tiny"]
+    capsys.readouterr()
+    assert main(["rl", "baselines"]) == 0
+    assert capsys.readouterr().out.startswith("baseline:ppo_tiny  PPO (BATCHED) seed 3, the checkpoint at ")
+    policy = load_any("baseline:ppo_tiny")
+    mine = load_batched(run / "best.pt")
+    obs = np.random.default_rng(2).normal(size=(4, mine.mean.numel()))
+    with torch.no_grad():
+        expected = mine(torch.as_tensor(obs, dtype=torch.float32)).numpy().astype(np.float64)
+    np.testing.assert_array_equal(policy.act(obs), expected)
+    assert json.dumps(policy.record) == json.dumps(mine.record)  # (NaN where no episode had ended)
+    assert policy.source == "baseline:ppo_tiny" and len(policy.sha256) == 64

@@ -253,6 +253,17 @@ def import_attribute(spec: str) -> Any:
         raise InvalidInputError(f"policy: module {module_name!r} has no attribute {attr!r}") from e
 
 
+def _batched(path: Path, *, source: str) -> ScoredPolicy:
+    """A batched run's policy file (mjtraj.rl.batched) as the benchmark scores it, named `source`."""
+    from mjtraj.rl.batched_policy import label, load_batched
+
+    module = load_batched(path)
+    policy = from_object(module, label=label(module.record), source=source)
+    policy.record, policy.path = module.record, path
+    policy.timesteps = int(module.record.get("timesteps", 0))
+    return policy
+
+
 def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> ScoredPolicy:
     """A policy from what a user names: PATH.zip (rl train's), PATH.pt (rl train --batched's), baseline:NAME
     (shipped), MODULE:ATTR or FILE.py:ATTR (a callable or torch module), or the object itself. `settings`
@@ -270,19 +281,15 @@ def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> Score
     if text.startswith("baseline:"):
         from mjtraj.rl.baselines import baseline_path
 
-        name = text.split(":", 1)[1]
-        return from_zip_policy(load_policy(baseline_path(name)), source=text)
+        path = baseline_path(text.split(":", 1)[1])
+        if path.suffix == ".pt":
+            return _batched(path, source=text)
+        return from_zip_policy(load_policy(path), source=text)
     if text.endswith(".py") and ":" not in text:
         raise InvalidInputError(f"policy: expected FILE.py:ATTR (the file and the name of the policy in it, e.g. "
                                 f"{text}:policy), got {text!r}")
     if text.endswith(".pt") and ":" not in text:  # a batched run's policy (mjtraj.rl.batched)
-        from mjtraj.rl.batched_policy import label, load_batched
-
-        module = load_batched(text)
-        policy = from_object(module, label=label(module.record), source=text)
-        policy.record, policy.path = module.record, Path(text)
-        policy.timesteps = int(module.record.get("timesteps", 0))
-        return policy
+        return _batched(Path(text), source=text)
     if text.endswith(".zip") or ":" not in text or Path(text).exists():
         return from_zip_policy(load_policy(text), source=text)
     module, _, attr = text.rpartition(":")

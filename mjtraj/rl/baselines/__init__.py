@@ -1,7 +1,8 @@
 """The trained policies the benchmark's summary reports, shipped so that anyone can score them again.
 
-Each baseline is a folder NAME/ with the SB3 zip and its record (policy.zip, policy.json) and the training run's
-run.json; `baseline:NAME` loads it wherever a policy is accepted, `mjtraj rl baselines` lists them, and
+Each baseline is a folder NAME/ with the SB3 zip and its record (policy.zip, policy.json), or a batched run's
+policy (policy.pt: the torch module with its record; mjtraj.rl.batched), and the training run's run.json;
+`baseline:NAME` loads it wherever a policy is accepted, `mjtraj rl baselines` lists them, and
 TRAINING.md beside this file gives the command that trained each.
 """
 
@@ -28,9 +29,13 @@ def baselines_folder() -> Path:
     return Path(str(resources.files("mjtraj.rl.baselines")))
 
 
+POLICY_FILES = ("policy.zip", "policy.pt")
+"""A baseline's policy: an SB3 zip, or a batched run's module."""
+
+
 def baseline_names() -> list[str]:
     """The shipped baselines, sorted."""
-    return sorted(p.parent.name for p in baselines_folder().glob("*/policy.zip"))
+    return sorted({p.parent.name for name in POLICY_FILES for p in baselines_folder().glob(f"*/{name}")})
 
 
 BEST_FILE = "BEST.json"
@@ -50,22 +55,35 @@ def best_name(folder: Path | None = None) -> str:
 
 
 def baseline_path(name: str) -> Path:
-    """The zip of baseline `name` (best: the one BEST.json names, see mjtraj.rl.best).
+    """The policy file of baseline `name` (policy.zip or policy.pt; best: the one BEST.json names, see
+    mjtraj.rl.best).
 
     Raises:
       InvalidInputError: no such baseline (the message lists them).
     """
     if name == "best":
         name = best_name()
-    path = baselines_folder() / name / "policy.zip"
-    if not name or "/" in name or not path.is_file():
-        raise InvalidInputError(f"policy: no baseline {name!r}; shipped: {', '.join(baseline_names()) or 'none'}")
-    return path
+    if name and "/" not in name:
+        for file in POLICY_FILES:
+            path = baselines_folder() / name / file
+            if path.is_file():
+                return path
+    raise InvalidInputError(f"policy: no baseline {name!r}; shipped: {', '.join(baseline_names()) or 'none'}")
 
 
 def describe(name: str) -> dict[str, Any]:
-    """A baseline's facts from its record: configuration settings, seed, steps, training wall time."""
-    record = json.loads((baseline_path(name).parent / "policy.json").read_text())
+    """A baseline's facts from its record: algorithm, seed, the checkpoint's steps, the env it acts in, the run's
+    settings."""
+    path = baseline_path(name)
+    if path.suffix == ".pt":
+        from mjtraj.rl.batched_policy import load_batched
+
+        record = load_batched(path).record
+        settings = record["settings"]
+        return {"name": name, "algo": "ppo (batched)", "seed": settings["seed"], "timesteps": record["timesteps"],
+                "env": {"controller": settings["controller"],
+                        "plant_randomization": "+".join(settings["families"])}, "settings": settings}
+    record = json.loads((path.parent / "policy.json").read_text())
     run = record["run"]
     return {"name": name, "algo": run["settings"]["algo"], "seed": run["settings"]["seed"],
             "timesteps": record["timesteps"], "env": run["env"], "settings": run["settings"]}
@@ -109,6 +127,8 @@ def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | 
     from mjtraj.rl.policy import load_policy, record_path
 
     run = Path(run)
+    if (run / f"{which}.pt").is_file() and not (run / f"{which}.zip").is_file():
+        return _ship_batched(run, name, which, into)
     source = run / f"{which}.zip"
     if not source.is_file() or not (run / "run.json").is_file():
         raise InvalidInputError(f"run: {source} or {run / 'run.json'} not found; expected a folder of rl train")
@@ -138,3 +158,30 @@ def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | 
     if not np.array_equal(original.act(probe), shipped.act(probe)):
         raise InvalidInputError(f"ship: the stripped zip of {source} acts differently; not shipped")
     return target / "policy.zip"
+
+
+def _ship_batched(run: Path, name: str, which: str, into: str | Path | None) -> Path:
+    """`ship` of a batched run (mjtraj.rl.batched): its module as policy.pt, with run.json and the learning curve;
+    the copy is checked to act as the original, bit for bit."""
+    import numpy as np
+    import torch
+
+    from mjtraj.rl.batched_policy import load_batched
+
+    if not (run / "run.json").is_file():
+        raise InvalidInputError(f"run: {run / 'run.json'} not found; expected a folder of rl train --batched")
+    if not name or not all(c.isalnum() or c in "_-" for c in name):
+        raise InvalidInputError(f"name: expected letters, digits, _ and -, got {name!r}")
+    target = (Path(into) if into is not None else baselines_folder()) / name
+    target.mkdir(parents=True, exist_ok=True)
+    for source, copy in ((f"{which}.pt", "policy.pt"), ("run.json", "run.json"),
+                         ("learning_curve.csv", "learning_curve.csv"), ("learning_curve.png", "learning_curve.png")):
+        if (run / source).is_file():
+            with atomic_path(target / copy) as tmp:
+                shutil.copyfile(run / source, tmp)
+    original, shipped = load_batched(run / f"{which}.pt"), load_batched(target / "policy.pt")
+    probe = torch.as_tensor(np.random.default_rng(0).normal(size=(64, original.mean.numel())) * 2.0,
+                            dtype=torch.float32)
+    if not torch.equal(original(probe), shipped(probe)):
+        raise InvalidInputError(f"ship: the copy of {run / f'{which}.pt'} acts differently; not shipped")
+    return target / "policy.pt"
