@@ -160,7 +160,8 @@ def add(sub: Any, laws: str) -> None:
     no_progress_option(p)
     p.set_defaults(handler=run_best)
     p = rl_sub.add_parser("ship", help="ship a run's policy as a baseline: its zip without optimiser states (the same "
-                          "actions, checked), its record and run.json")
+                          "actions, checked), its record and run.json; a batched run's policy.pt with its run.json "
+                          "and learning curve")
     p.add_argument("run", type=Path, help="the folder rl train wrote")
     p.add_argument("--name", required=True, help="the baseline's name (letters, digits, _ and -)")
     p.add_argument("--which", default="best", help="best (selected on validation; default) | policy (the final one)")
