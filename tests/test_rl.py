@@ -603,10 +603,10 @@ def test_missing_rl_extra_says_how_to_install(monkeypatch, capsys, tmp_path):
                        r"pip install torch==2\.13\.0 && pip install 'mjtraj\[rl\]'"):
         require_sb3()
     monkeypatch.setitem(sys.modules, "sb3_contrib", None)
-    assert main(["rl", "eval", "--policy", "baseline:best"]) == 2  # a zip needs SB3 to act ...
+    assert main(["rl", "eval", "--policy", "baseline:rppo_act_100k_s2"]) == 2  # a zip needs SB3 to act ...
     assert "install the rl extra" in capsys.readouterr().err
     with pytest.raises(MissingExtraError):
-        evaluate(["baseline:best"])
+        evaluate(["baseline:sac_act_history4_100k_s3"])
     # ... a plain callable does not (nor PyTorch: the README's set-up without the rl extra, tried in a fresh venv)
     def zero(obs):
         return np.zeros(3)
@@ -734,7 +734,7 @@ def test_a_policy_whose_spaces_this_numpy_cannot_unpickle_loads_from_its_record(
     import mjtraj.rl.policy as policy_module
     from mjtraj.rl.baselines import baseline_names, baseline_path
 
-    path = baseline_path(baseline_names()[which])
+    path = [baseline_path(n) for n in baseline_names() if baseline_path(n).suffix == ".zip"][which]
     normal = policy_module.load_policy(path)
     real = policy_module.algorithm
 

@@ -121,8 +121,8 @@ class _LoopState:
         """Each simulation's next control period, shape (B,); its N once it has ended or diverged."""
         return np.full(self.k.size, self.sync, dtype=np.intp) if self.sync is not None else self.k.copy()
 
-    def set_ends(self, rows: slice | NDArray[np.intp], steps: int) -> None:
-        """Simulations `rows` now run references of `steps` periods."""
+    def set_ends(self, rows: slice | NDArray[np.intp], steps: NDArray[np.intp]) -> None:
+        """Simulations `rows` now run references of `steps` periods (one each)."""
         self.ends[rows] = steps
         self.horizon = int(self.ends.min())
 
@@ -215,7 +215,7 @@ class ClosedLoop:
 
     @property
     def periods(self) -> NDArray[np.intp]:
-        """Each simulation's next control period, shape (B,); N once it has ended or diverged."""
+        """Each simulation's next control period, shape (B,); its N once it has ended or diverged."""
         return self._running().periods
 
     @property
@@ -422,8 +422,7 @@ class ClosedLoop:
             s.held[where] = 0.0
         if s.law_state is not None:
             s.law_state[where] = self._initial_law_state(rows.size)
-        s.ends[where] = lengths
-        s.horizon = int(s.ends.min())
+        s.set_ends(where, lengths)
         s.resync()
         self._track(where, q_ref, qd_ref, ff)
         self._plant.reset(q_ref[0], qd_ref[0], rows)
