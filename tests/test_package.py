@@ -47,10 +47,14 @@ def test_wheel_contains_model_and_scenario(tmp_path):
     assert {"mjtraj/envs/__init__.py", "mjtraj/envs/ur5_track.py", "mjtraj/core/closed_loop.py"} <= set(names)
     assert "mjtraj/py.typed" in names
     assert not any(n.startswith(("envs/", "tests/")) for n in names)
-    from mjtraj.rl.baselines import baseline_names
+    from mjtraj.rl.baselines import baseline_names, baseline_path
 
-    for name in baseline_names():  # the shipped baselines, zip and record, so that baseline:NAME loads anywhere
-        assert {f"mjtraj/rl/baselines/{name}/policy.zip", f"mjtraj/rl/baselines/{name}/policy.json"} <= set(names)
+    for name in baseline_names():  # the shipped baselines, policy and record, so that baseline:NAME loads anywhere
+        if baseline_path(name).suffix == ".pt":  # a batched run's module carries its record
+            wanted = {f"mjtraj/rl/baselines/{name}/policy.pt", f"mjtraj/rl/baselines/{name}/run.json"}
+        else:
+            wanted = {f"mjtraj/rl/baselines/{name}/policy.zip", f"mjtraj/rl/baselines/{name}/policy.json"}
+        assert wanted <= set(names), name
     assert any(n.endswith("LICENSE") for n in names)
 
 
