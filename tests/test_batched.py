@@ -238,3 +238,12 @@ def test_an_interrupted_run_resumed_ends_as_the_uninterrupted_one_bit_for_bit(tm
     assert not (tmp_path / "cut" / batched.RESUME_FILE).exists()
     assert main(["rl", "train", "--batched", "--resume", str(tmp_path / "cut"), "--no-progress"]) == 2
     assert "holds no resume point of a batched run" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("flag", "value"), [("--trials", "0"), ("--steps", "-5")])
+def test_a_search_refuses_a_bad_budget_in_one_line_and_writes_nothing(flag, value, tmp_path, capsys):
+    out = tmp_path / "search"
+    assert main(["rl", "search", flag, value, "--out", str(out), "--no-progress"]) == 2
+    name = flag.removeprefix("--")
+    assert capsys.readouterr().err == f"mjtraj: error: {name}: expected a whole number >= 1, got {value}\n"
+    assert not out.exists()

@@ -99,6 +99,7 @@ def plot_batched_curve(csv_path: Path, out: Path, *, title: str, formats: Sequen
     top.plot(t[best], worst[best], "k*", ms=12, label=f"best.pt, at {t[best]:,.0f} steps")
     top.axhline(1.0, color="0.5", lw=0.8)
     top.set_ylabel("validation J_exec / the law alone's")
+    top.ticklabel_format(axis="y", useOffset=False)  # ratios near 1 read as themselves, not as "+1" and 1e-4 steps
     top.legend(fontsize=8)
     top.set_title(textwrap.fill(title, 85), fontsize=9)
     bottom.plot(t, [numeric(r["train_advantage_mean"]) for r in rows], "o-", ms=3, color="C1",
