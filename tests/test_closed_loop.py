@@ -167,3 +167,14 @@ def test_a_previewing_law_refuses_references_of_several_lengths(model, scenario,
     with pytest.raises(InvalidInputError, match=r"^references: the control law 'mpc' previews the reference; give it "
                                                 r"references of one length per batch, got N from 20 to 30$"):
         ClosedLoop(model, config, nsim=2).start(refs)
+
+
+def test_noise_of_the_wrong_shape_is_refused_naming_the_shape_expected(model, scenario, rng):
+    refs = [realisable_reference(model, rng, steps=n) for n in (30, 20)]
+    loop = ClosedLoop(model, scenario.loop, nsim=2)
+    with pytest.raises(InvalidInputError, match=r"^noise: expected finite values of shape \(30, 2, 6\) \(the longest "
+                                                r"reference's N\), got shape \(20, 2, 6\)$"):
+        loop.start(refs, noise=np.zeros((20, 2, 6)))
+    with pytest.raises(InvalidInputError, match=r"^noise: expected finite values of shape \(30, 2, 6\), got shape "
+                                                r"\(30, 2, 6\)$"):
+        loop.start([refs[0], refs[0]], noise=np.full((30, 2, 6), np.nan))

@@ -299,44 +299,45 @@ class ClosedLoop:
         if len(references) != count:
             raise InvalidInputError(f"references: expected {count} (one per simulation), got {len(references)}")
         lengths = np.array([r.steps for r in references], dtype=np.intp)
-        if np.any(lengths != lengths[0]):
-            if self.previews:
-                raise InvalidInputError(f"references: the control law {self.config.controller!r} previews the "
-                                        "reference; give it references of one length per batch, got N from "
-                                        f"{lengths.min()} to {lengths.max()}")
-            return (*self._prepare_mixed(references, lengths, noise), lengths)
-        return (*self._prepare_one(references, count, noise), lengths)
-
-    def _prepare_mixed(self, references: Sequence[Reference], lengths: NDArray[np.intp], noise: npt.ArrayLike | None
-                       ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
-                                  NDArray[np.float64] | None, NDArray[np.float64] | None]:
-        """`_prepare_one` of each length's references, padded to the longest N and put back in order."""
-        longest, count, n = int(lengths.max()), len(references), self.model.nv
+        longest, n = int(lengths.max()), self.model.nv
+        mixed = bool(np.any(lengths != lengths[0]))
+        if mixed and self.previews:
+            raise InvalidInputError(f"references: the control law {self.config.controller!r} previews the "
+                                    "reference; give it references of one length per batch, got N from "
+                                    f"{lengths.min()} to {lengths.max()}")
         checked = None
         if noise is not None:
             checked = np.asarray(noise, dtype=np.float64)
             if checked.shape != (longest, count, 2 * n) or not np.all(np.isfinite(checked)):
-                raise InvalidInputError(f"noise: expected finite values of shape ({longest}, {count}, {2 * n}) (the "
-                                        f"longest reference's N), got shape {checked.shape}")
-        parts: list[Any] = [None] * 4
+                which = " (the longest reference's N)" if mixed else ""
+                raise InvalidInputError(f"noise: expected finite values of shape ({longest}, {count}, {2 * n})"
+                                        f"{which}, got shape {checked.shape}")
+        q_ref, qd_ref, ff, qdd = (self._prepare_mixed(references, lengths) if mixed
+                                  else self._prepare_one(references))
+        return q_ref, qd_ref, ff, checked, qdd, lengths
+
+    def _prepare_mixed(self, references: Sequence[Reference], lengths: NDArray[np.intp]
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                  NDArray[np.float64] | None]:
+        """`_prepare_one` of each length's references, padded to the longest N (`_padded`) and put back in order."""
+        longest, count, n = int(lengths.max()), len(references), self.model.nv
+        q_ref, qd_ref = np.empty((longest + 1, count, n)), np.empty((longest + 1, count, n))
+        ff, qdd = np.empty((longest, count, n)), None
         for length in np.unique(lengths):
             rows = np.flatnonzero(lengths == length)
-            q, qd, ff, _, qdd = self._prepare_one([references[int(i)] for i in rows], rows.size, None)
-            for slot, value in enumerate((q, qd, ff, qdd)):
-                if value is None:
-                    continue
-                if parts[slot] is None:
-                    extra = 1 if slot < 2 else 0
-                    parts[slot] = np.zeros((longest + extra, count, n))
-                parts[slot][:value.shape[0], rows] = value
-                parts[slot][value.shape[0]:, rows] = value[-1] if slot != 3 else 0.0  # held; no acceleration
-        q_ref, qd_ref, ff, qdd = parts
-        return q_ref, qd_ref, ff, checked, qdd
+            q, qd, f, a = self._prepare_one([references[int(i)] for i in rows])
+            q, qd, f, a, _ = _padded(longest, q, qd, f, a, None)
+            q_ref[:, rows], qd_ref[:, rows], ff[:, rows] = q, qd, f
+            if a is not None:
+                qdd = np.empty((longest, count, n)) if qdd is None else qdd
+                qdd[:, rows] = a
+        return q_ref, qd_ref, ff, qdd
 
-    def _prepare_one(self, references: Sequence[Reference], count: int, noise: npt.ArrayLike | None
+    def _prepare_one(self, references: Sequence[Reference]
                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
-                                NDArray[np.float64] | None, NDArray[np.float64] | None]:
-        """`_prepare` of references of one length."""
+                                NDArray[np.float64] | None]:
+        """q_ref, qd_ref, the feedforward and the reference accelerations (`_prepare`) of references of one
+        length."""
         q_ref = np.stack([r.q for r in references], axis=1)
         qd_ref = np.stack([r.qd for r in references], axis=1)
         unique = {id(r): r for r in references}  # a reference shared by many simulations is computed once
@@ -346,16 +347,9 @@ class ClosedLoop:
                                      accel=self.config.ff_accel, probe=self._probe)
         column = {key: b for b, key in enumerate(unique)}
         ff = ff_unique[:, [column[id(r)] for r in references]]
-        N, n = ff.shape[0], self.model.nv
-        checked = None
-        if noise is not None:
-            checked = np.asarray(noise, dtype=np.float64)
-            if checked.shape != (N, count, 2 * n) or not np.all(np.isfinite(checked)):
-                raise InvalidInputError(f"noise: expected finite values of shape ({N}, {count}, {2 * n}), "
-                                        f"got shape {checked.shape}")
         reads = self._law.needs_dynamics or self._stateful
         qdd = reference_accelerations(references, self.config.ff_accel) if reads else None
-        return q_ref, qd_ref, ff, checked, qdd
+        return q_ref, qd_ref, ff, qdd
 
     def start(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None) -> None:
         """(Re)start every simulation at its reference's first sample, with I_{-1} = 0.

@@ -132,8 +132,7 @@ def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | 
     source = run / f"{which}.zip"
     if not source.is_file() or not (run / "run.json").is_file():
         raise InvalidInputError(f"run: {source} or {run / 'run.json'} not found; expected a folder of rl train")
-    if not name or not all(c.isalnum() or c in "_-" for c in name):
-        raise InvalidInputError(f"name: expected letters, digits, _ and -, got {name!r}")
+    _check_name(name)
     body = json.loads(record_path(source).read_text())
     if student:
         env = body["run"]["env"]
@@ -160,6 +159,12 @@ def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | 
     return target / "policy.zip"
 
 
+def _check_name(name: str) -> None:
+    """Refuse a baseline name that is not a plain folder name."""
+    if not name or not all(c.isalnum() or c in "_-" for c in name):
+        raise InvalidInputError(f"name: expected letters, digits, _ and -, got {name!r}")
+
+
 def _ship_batched(run: Path, name: str, which: str, into: str | Path | None) -> Path:
     """`ship` of a batched run (mjtraj.rl.batched): its module as policy.pt, with run.json and the learning curve;
     the copy is checked to act as the original, bit for bit."""
@@ -170,8 +175,7 @@ def _ship_batched(run: Path, name: str, which: str, into: str | Path | None) -> 
 
     if not (run / "run.json").is_file():
         raise InvalidInputError(f"run: {run / 'run.json'} not found; expected a folder of rl train --batched")
-    if not name or not all(c.isalnum() or c in "_-" for c in name):
-        raise InvalidInputError(f"name: expected letters, digits, _ and -, got {name!r}")
+    _check_name(name)
     target = (Path(into) if into is not None else baselines_folder()) / name
     target.mkdir(parents=True, exist_ok=True)
     for source, copy in ((f"{which}.pt", "policy.pt"), ("run.json", "run.json"),
