@@ -619,6 +619,24 @@ def test_tracking_gains_reach_the_discrete_riccati_gain_over_a_long_horizon():
     np.testing.assert_allclose(K[-1], np.linalg.solve(R + B.T @ P_last @ B, B.T @ P_last @ A), rtol=1e-12)
 
 
+def test_tracking_gains_are_the_riccati_recursion_on_a_time_varying_system():
+    """Oracle: the recursion written with NumPy's solve and products, on a random time-varying system with a full
+    (not diagonal) positive definite R, 6 states and 3 inputs as on the UR5."""
+    from mjtraj.core.planners.tracking import tracking_gains
+
+    rng = np.random.default_rng(8)
+    N = 60
+    A = np.eye(6) + 0.05 * rng.normal(size=(N, 6, 6))
+    B = 0.05 * rng.normal(size=(N, 6, 3))
+    root = rng.normal(size=(3, 3))
+    Q, R = np.diag(rng.uniform(1, 100, 6)), root @ root.T + 0.1 * np.eye(3)
+    oracle, P = np.empty((N, 3, 6)), Q
+    for k in range(N - 1, -1, -1):
+        oracle[k] = np.linalg.solve(R + B[k].T @ P @ B[k], B[k].T @ P @ A[k])
+        P = Q + A[k].T @ P @ (A[k] - B[k] @ oracle[k])
+    np.testing.assert_allclose(tracking_gains(A, B, Q, R), oracle, rtol=1e-9, atol=1e-12 * np.abs(oracle).max())
+
+
 def test_the_tracked_torques_are_the_feedback_law_and_replay_its_motion(model):
     """Shooting.tracked: u_k = clip(U_k + K_k (X_ref_k - x_k)) on the model's own steps, recomputed here by an
     independent loop, bit for bit; the returned torques replayed open loop give that motion; K = 0 is clip(U)."""
@@ -643,6 +661,8 @@ def test_the_tracked_torques_are_the_feedback_law_and_replay_its_motion(model):
     np.testing.assert_array_equal(mine, np.array(theirs))
     assert np.abs(mine).max() == 30.0  # the bound binds somewhere
     np.testing.assert_array_equal(problem.rollout(mine)[-1], np.concatenate([data.qpos, data.qvel]))
+    tracked = problem.tracked(U, X_ref, K, u_max)
+    np.testing.assert_array_equal(problem.states(tracked.ravel())[1], problem.rollout(tracked))  # served, not rolled
     np.testing.assert_array_equal(problem.tracked(U, X_ref, np.zeros_like(K), u_max), np.clip(U, -u_max, u_max))
 
 
@@ -726,6 +746,99 @@ def test_a_solve_allowed_exactly_the_steps_it_needs_converges(model, effort):
     assert capped.converged and capped.iterations == free.iterations
     np.testing.assert_array_equal(capped.u, free.u)
     assert not short.converged and short.message == f"no convergence in {free.iterations - 1} iterations"
+
+
+def test_the_step_qp_closes_part_of_the_way_where_the_whole_way_is_infeasible(monkeypatch):
+    """sqp._step_qp on two torques in the box [-1, 1] (H = I, g = 0, so d is the least-norm point): a terminal row
+    d1 + d2 = -c the box cannot meet is asked half, then a quarter of the way; a violated path row (h < 0) is scaled
+    with it, a row that holds (h >= 0) is not; where no share admits a step, the path rows go soft; where the
+    terminal row itself cannot be met, there is no step and no soft solve is tried. Oracle: the least-norm
+    solutions by hand."""
+    from mjtraj.core.planners import sqp
+    from mjtraj.core.planners.sqp import RELAXED, _step_qp
+
+    qp = sqp._qp
+
+    assert RELAXED == (0.5, 0.25)
+    H, g, low, high = np.eye(2), np.zeros(2), -np.ones(2), np.ones(2)
+    C, none = np.array([[1.0, 1.0]]), (np.zeros((0, 2)), np.zeros(0))
+
+    def step(c, G=none[0], h=none[1]):
+        return _step_qp(H, g, C, np.array([c]), G, np.array(h, dtype=float), low, high)
+
+    d, _, share, soft = step(1.0)
+    assert (share, soft) == (1.0, False)
+    np.testing.assert_allclose(d, [-0.5, -0.5], atol=1e-12)  # feasible: the whole way
+    d, _, share, soft = step(3.0)
+    assert (share, soft) == (0.5, False)
+    np.testing.assert_allclose(d, [-0.75, -0.75], atol=1e-12)  # d1 + d2 = -1.5
+    d, _, share, soft = step(5.0)
+    assert (share, soft) == (0.25, False)
+    np.testing.assert_allclose(d, [-0.625, -0.625], atol=1e-12)  # d1 + d2 = -1.25
+    G = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    d, _, share, soft = step(0.0, G, [-3.0, 2.0])  # d1 >= 3 (violated), d1 <= 2: a quarter asks d1 >= 0.75
+    assert (share, soft) == (0.25, False)
+    np.testing.assert_allclose(d, [0.75, -0.75], atol=1e-9)
+    d, _, share, soft = step(0.0, G, [-3.0, 0.5])  # d1 <= 0.5 holds at d = 0 and is not scaled: only soft rows
+    assert (share, soft) == (1.0, True)
+    assert d[0] + d[1] == pytest.approx(0.0, abs=1e-9)  # the terminal row stays hard
+    solves = []
+    monkeypatch.setattr(sqp, "_qp", lambda *args: solves.append(args[-1]) or qp(*args))
+    assert step(10.0, G, [-3.0, 0.5]) is None  # |d1 + d2| <= 2 in the box: not even a quarter of 10
+    assert solves == [False, False, False, False]  # the terminal row alone fails: no soft solve
+
+
+def test_a_torque_on_its_bound_stays_there_and_the_sqp_plans_where_slsqp_had_to(model):
+    """Aggressive 39 of seed 1 (`nonlinear_optimal`): its plan saturates a torque at -60 N m from the first sample.
+    An iterate rounded a few ulps past the bound made MuJoCo clamp that torque, so its column of the analytic
+    Jacobian was zero: each QP then moved it 60 N m for free, every trial was refused, and SLSQP planned (0.5 s,
+    objective 25.3219). Iterates now stay on the box: the SQP converges. Oracle: SLSQP alone, whose plan is no
+    lower; the plan's torques never pass the bound."""
+    from mjtraj.study.families import draw_scenario
+    from mjtraj.study.scenario import load_scenario
+
+    task = draw_scenario("aggressive", 1, 39, model, load_scenario(None).task.dt).task
+    plan = make("nonlinear_optimal").plan(task, model)
+    assert plan.info["solver"] == "sqp"
+    assert np.abs(plan.u_plan).max() <= 60.0 and np.abs(plan.u_plan).max() == 60.0
+    slsqp = make("nonlinear_optimal", solver="slsqp").plan(task, model)
+    assert plan.info["objective"] <= slsqp.info["objective"] * (1.0 + 1e-9)
+    check_plan(model, task, plan)
+
+
+def test_slow_gauss_newton_turns_to_newton_early_and_reaches_the_same_plan(model, monkeypatch):
+    """Nominal 145 of seed 1 (`nonlinear_min_effort`, linear start): Gauss-Newton contracts by about 0.5 an
+    iteration. With SLOW the Hessian turns to the Lagrangian's once three slow iterations follow the 8th, not after
+    the 20th; the plan is the same minimum (oracle: the solve without SLOW, to 1e-9), in fewer iterations."""
+    from mjtraj.core.planners import sqp
+    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
+    from mjtraj.study.families import draw_scenario
+    from mjtraj.study.scenario import load_scenario
+
+    task = draw_scenario("nominal", 1, 145, model, load_scenario(None).task.dt).task
+    problem, limits, starts = make("nonlinear_min_effort").problem(task, model)
+    turned: list[int] = []
+    hessian = sqp._lagrangian_hessian
+
+    def counted(problem, *args):
+        turned.append(len(turned))
+        return hessian(problem, *args)
+
+    def solve():
+        turned.clear()
+        result = sqp.gauss_newton_sqp(problem, limits, starts.get("linear"), curvature_scale=SQP_CURVATURE_SCALE,
+                                      shrink=SQP_SHRINK, max_iter=40)
+        assert result.converged
+        return result, result.iterations - len(turned)  # the iterations before the first Newton one
+
+    monkeypatch.setattr(sqp, "_lagrangian_hessian", counted)
+    early, gauss_newton = solve()
+    assert sqp.SLOW[0] <= gauss_newton < sqp.SECOND_ORDER_AFTER
+    monkeypatch.setattr(sqp, "SLOW", (10 ** 6, 3, 0.7))
+    late, gauss_newton = solve()
+    assert gauss_newton == sqp.SECOND_ORDER_AFTER
+    assert early.iterations < late.iterations
+    assert problem.objective(early.u) == pytest.approx(problem.objective(late.u), rel=1e-9)
 
 
 @pytest.mark.slow

@@ -470,8 +470,9 @@ class NonlinearOptimal(Planner):
                        ) -> NDArray[np.float64]:
         """The second start, for a solve that failed from the first: the torques with which the nominal model tracks
         the linear `plan`'s states under time-varying LQR feedback about them (`tracking.bryson_gains` on the model
-        linearised along the plan), clipped to the bound; (N n,). The linear plan's open-loop
-        torques drift away on the nonlinear arm (on some tasks into a joint's end, where the rollout's
+        linearised along the plan: its hinge tree's step Jacobians, 2.8 ms at N = 100, where it has one; else
+        MuJoCo's linearisation by differences, discretised, 9 ms), clipped to the bound; (N n,). The linear plan's
+        open-loop torques drift away on the nonlinear arm (on some tasks into a joint's end, where the rollout's
         sensitivities vanish and the linearised terminal condition cannot be met); tracked, the rollout stays
         near the plan's path and ends near the goal.
 
@@ -479,10 +480,12 @@ class NonlinearOptimal(Planner):
           SolverError: the tracked rollout diverged.
         """
         assert plan.u_plan is not None
-        A, B = linearize_many(problem.model, plan.q[:-1], plan.qd[:-1], plan.u_plan)
-        Ad, Bd = discretize_zoh(A, B, task.dt)
-        K = bryson_gains(Ad, Bd, limits.u_max)
         X_ref = np.concatenate([plan.q, plan.qd], axis=1)
+        found = problem.tree_jacobians(X_ref[:-1], plan.u_plan)
+        if found is None:  # no hinge tree: the continuous linearisation, discretised
+            A, B = linearize_many(problem.model, plan.q[:-1], plan.qd[:-1], plan.u_plan)
+            found = discretize_zoh(A, B, task.dt)
+        K = bryson_gains(*found, limits.u_max)
         return problem.tracked(plan.u_plan, X_ref, K, limits.u_max).ravel()
 
     def _solve(self, problem: Shooting, limits: PathLimits, rows: NDArray[np.intp], u: NDArray[np.float64],

@@ -102,13 +102,17 @@ class Shooting:
                 u_max: NDArray[np.float64]) -> NDArray[np.float64]:
         """The torques (N, n) with which the model tracks the states X_ref (N+1, 2n) from x0 under the feedback
         u_k = clip(U_k + K_k (X_ref_k - x_k), -u_max, u_max), K (N, n, 2n); rolled out step by step, so that their
-        open-loop rollout (`rollout`) is the tracked motion, bit for bit.
+        open-loop rollout (`rollout`) is the tracked motion, bit for bit: `states` of them is that motion, without
+        another rollout.
 
         Raises:
           SolverError: MuJoCo had to reset the simulation (the tracked motion diverged).
         """
-        return self._simulate(U.shape[0], lambda k, x: np.clip(U[k] + K[k] @ (X_ref[k] - x), -u_max, u_max),
-                              "the tracked rollout")[0]
+        torques, X = self._simulate(U.shape[0], lambda k, x: np.clip(U[k] + K[k] @ (X_ref[k] - x), -u_max, u_max),
+                                    "the tracked rollout")
+        self._states.clear()
+        self._states[torques.tobytes()] = X
+        return torques
 
     def _simulate(self, steps: int, control: Callable[[int, NDArray[np.float64]], NDArray[np.float64]], what: str
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -174,6 +178,16 @@ class Shooting:
                 return found
         self.jacobian_counts["differenced"] += 1
         return self.differenced(X, U)
+
+    def tree_jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """A_k (M, 2n, 2n) and B_k (M, 2n, n) of one control period at each (x_k, u_k) (X (M, 2n), U (M, n)) by the
+        model's hinge tree, not checked against MuJoCo's step (for feedback gains about a path that is no rollout of
+        the model); None where the model has no tree."""
+        if self._rigid_body is None:
+            return None
+        _, jacobian = self._rigid_body.step(X, U)
+        return jacobian[:, :, :2 * self.n], jacobian[:, :, 2 * self.n:]
 
     def differenced(self, X: NDArray[np.float64], U: NDArray[np.float64], samples: NDArray[np.intp] | None = None
                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

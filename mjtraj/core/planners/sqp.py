@@ -22,16 +22,18 @@ factor s starts at `curvature_scale` (short first steps, the role of SLSQP's fir
 by `shrink` after every full, corrected or projected step down to 1, where the iteration is Gauss-Newton's: linear
 convergence, fast where the dynamics' second derivatives, weighted by the multipliers, are small against R and Q
 (with the paper's weights: about 8 iterations), slow where they are not (the effort bound's Q = 0; see
-`mjtraj.core.planners.nonlinear.SOLVERS`). So after SECOND_ORDER_AFTER iterations the Hessian becomes the
-Lagrangian's: H_GN plus that curvature, weighted by the last QP's multipliers (`Shooting.second_order`, about 10 ms
-at N = 100), made positive definite on the constraints' null space by an augmented term (AUGMENT) and damped where a
-step is cut (DAMPING): Newton's method, locally quadratic. A solve given the plan of an earlier start (`join`) stops
+`mjtraj.core.planners.nonlinear.SOLVERS`). So once the iteration is seen converging slowly (SLOW), and after
+SECOND_ORDER_AFTER iterations in any case, the Hessian becomes the Lagrangian's: H_GN plus that curvature, weighted
+by the last QP's multipliers (`Shooting.second_order`, about 10 ms at N = 100), made positive definite on the
+constraints' null space by an augmented term (AUGMENT) and damped where a step is cut (DAMPING): Newton's method,
+locally quadratic. A solve given the plan of an earlier start (`join`) stops
 once its iterate comes within JOIN of it: it is converging to the same minimum.
 
-The torque bound is a box on u: iterates never leave it. Path rows are screened as in SLSQP's solve (SCREEN); a
-row left out enters once an iterate nears it. A QP whose linearised constraints cannot all hold is solved again
-with the path rows soft (DAQP's soft constraints), so that the terminal condition still holds and the merit
-decides.
+The torque bound is a box on u: iterates never leave it (each is put back on the box's end that rounding took it a
+few ulps past). Path rows are screened as in SLSQP's solve (SCREEN); a row left out enters once an iterate nears
+it. A QP whose linearised constraints cannot all hold is solved again asking them to close only part of the way
+(RELAXED), then with the path rows soft (DAQP's soft constraints), so that the terminal condition still holds and
+the merit decides.
 """
 
 from __future__ import annotations
@@ -56,12 +58,23 @@ FEASIBLE = 1e-10
 STALL = 1e-10
 """... and the objective changed by at most this fraction over the last step."""
 SECOND_ORDER_AFTER = 20
-"""From the iteration after this, each QP's Hessian adds the dynamics' curvature weighted by the last QP's
+"""From the iteration after this at the latest (SLOW: sooner where the iteration converges slowly), each QP's Hessian
+adds the dynamics' curvature weighted by the last QP's
 multipliers (`Shooting.second_order`): the Lagrangian's Hessian, with which the iteration converges as Newton's
 method does where Gauss-Newton's converges slowly (the effort bound's Q = 0; see the module docstring). Chosen by
 `mjtraj.core.planners.nonlinear.SQP_MAX_ITER`'s validation rule (180 tasks: most plans at SLSQP's optimum or lower,
 then the least mean time) over 5, 10, 20 and never: each had 179, in a mean of 0.53, 0.53, 0.48 and 1.26 s a plan
 (SLSQP planned 3, 3, 2 and 8 of them); with 5, 10 and 20 nominal 92 costs 0.123, 64 % less than SLSQP's 0.344."""
+SLOW = (8, 3, 0.7)
+"""(after, run, contraction): from the iteration after `after`, the Hessian becomes the Lagrangian's once `run`
+iterations in a row were slow: the line search shortened the step (a projected step below t = 1, or a backtracked
+one), or the QP's step was longer than `contraction` times the one before. On the bound's slowest tasks Gauss-Newton
+contracts by 0.5 to 0.8 an iteration for 20 iterations (nominal 92 and 145 of seed 1). Chosen for the tail targets
+of `mjtraj bench planners` (its 298 tasks of seed 1; the study's test tasks are seed 0's and the paper's) by the
+rule: every plan at the optimum known or lower, then the tail targets met (90th percentile <= 100, largest <= 300
+times the linear plan), then the least mean time, over (10, 3, 0.5), (8, 4, 0.6), (8, 3, 0.7), (5, 5, 0.5) and none:
+every one kept every plan within 5e-11 of its optimum; (8, 3, 0.7) alone met both targets (p90 95, largest 289;
+none: 95 and 386; (5, 3, 0.5): 105 and 261), at a mean time within the runs' noise of none's."""
 AUGMENT = 10.0 ** np.arange(8)
 """The Lagrangian's Hessian is indefinite; where it is positive definite on the null space of the terminal rows and
 the last QP's active path rows A, H + rho A^T A is positive definite for a large enough rho, and the QP's solution on
@@ -78,6 +91,14 @@ point on 3 (none of them converged there) and came no closer than 5.8e-2 to the 
 reached the first plan, it crossed 1e-3 a median of 4 iterations before its own convergence test passed (43 % of
 those solves' iterations). With the projected line search, 1e-2 and 1e-3 gave the same plans, bit for bit, on all
 480 validation tasks, in a mean of 0.073 s a plan against 0.078 s."""
+RELAXED = (0.5, 0.25)
+"""Where the linearised constraints admit no step, the QP asks them to close only this share of the way, largest
+first: the terminal residual and each violated path row's violation scaled by it (d = 0 meets the constraints at
+share 0, so a small enough share always admits a step); where neither does, the path rows are made soft. On
+nominal 110 of seed 1 the soft QP's step had raised the merit's penalty to 1.5e7, after which the line search took
+10 steps of 1e-4 to 1e-6 of d (22 iterations, 0.75 s); half the way, once, makes it 16 (0.30 s). Shares down to
+2^-10 kept alive starts whose soft QP fails at once, and the next start is quicker there (nominal 57 and 120: 0.1 s
+became 0.6 s)."""
 DAQP_TOL = 1e-12
 """DAQP's primal and dual tolerances (the QP's rows are of order one)."""
 SENSE_FREE, SENSE_EQUAL, SENSE_SOFT = 0, 5, 8
@@ -154,6 +175,27 @@ def _qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], 
     return to_d(np.asarray(z, dtype=np.float64)), np.asarray(info["lam"], dtype=np.float64)[len(g):]
 
 
+def _step_qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], c: NDArray[np.float64],
+             G: NDArray[np.float64], h: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
+             ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, bool] | None:
+    """The SQP's step QP (`_qp`'s arguments, the constraints C d = -c, G d >= -h): (d, multipliers, share, soft).
+    Where the constraints admit no step, they are asked to close only `share` of the way (RELAXED: c and every
+    negative h scaled by it); where no share does, the rows G are made soft (share 1). None where even that fails,
+    or where the rows C alone admit no step in the box: the soft solve is then not tried (on a dense Hessian DAQP
+    took 0.23 s to give it up, nominal 120 of seed 1 for `nonlinear_optimal`; the check took 0.03 s)."""
+    solved = _qp(H, g, C, c, G, h, low, high, False)
+    if solved is not None:
+        return (*solved, 1.0, False)
+    for share in RELAXED:
+        solved = _qp(H, g, C, share * c, G, np.maximum(h, share * h), low, high, False)
+        if solved is not None:
+            return (*solved, share, False)
+    if _qp(H, g, C, c, G[:0], h[:0], low, high, False) is None:
+        return None  # the terminal rows alone admit no step in the box: no soft path row can change that
+    solved = _qp(H, g, C, c, G, h, low, high, True)
+    return None if solved is None else (*solved, 1.0, True)
+
+
 def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], *, curvature_scale: float,
                      shrink: float, max_iter: int, join: NDArray[np.float64] | None = None,
                      second_order_after: int | None = SECOND_ORDER_AFTER) -> SqpResult:
@@ -174,6 +216,8 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
     last: float | None = None
     rows = np.zeros(0, dtype=np.intp)
     multipliers: tuple[NDArray[np.float64], NDArray[np.intp]] | None = None  # the last QP's, and its path rows
+    slow_after, slow_run, contraction = SLOW
+    slow, last_length = 0, float("inf")  # slow iterations in a row; the last QP step's length
     for iteration in range(1, max_iter + 2):  # the last pass only tests the last step's iterate
         if join is not None and np.linalg.norm(u - join) <= JOIN * np.linalg.norm(join):
             return SqpResult(join, iteration - 1, int(rows.size), True, "joined the plan given", joined=True)
@@ -192,41 +236,48 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         rows = np.union1d(rows, np.flatnonzero(h < (1.0 - SCREEN) * path_scale))
         G = limits.jacobian(S, rows) / path_scale[rows, None]
         H = scale * (problem.gauss_newton(u) if diagonal is None else diagonal)
+        if second_order_after is not None and iteration > slow_after and slow >= slow_run:
+            second_order_after = min(second_order_after, iteration - 1)  # converging slowly: Newton from here on
         newton = None
         if second_order_after is not None and iteration > second_order_after and multipliers is not None:
             newton = _lagrangian_hessian(problem, limits, u, H, *multipliers, path_scale, damping)
             H = H if newton is None else newton
-        soft = False
-        solved = _qp(H, g, S[-1], terminal, G, h[rows] / path_scale[rows], -u_max - u, u_max - u, soft)
-        if solved is None:
-            soft = True
-            solved = _qp(H, g, S[-1], terminal, G, h[rows] / path_scale[rows], -u_max - u, u_max - u, soft)
+        solved = _step_qp(H, g, S[-1], terminal, G, h[rows] / path_scale[rows], -u_max - u, u_max - u)
         if solved is None:
             return SqpResult(u, iteration, int(rows.size), False, "the linearised constraints admit no step")
-        d, lam = solved
+        d, lam, share, soft = solved
         multipliers = (lam, rows)
         penalty = max(penalty, 2.0 * float(np.abs(lam).max(initial=0.0)))
         merit = f + penalty * now
-        slope = float(g @ d) - penalty * now  # the merit's predicted change along d
-        step: NDArray[np.float64] | None = d
+        slope = float(g @ d) - penalty * share * now  # the merit's predicted change along d
+        point: NDArray[np.float64] | None = u + d  # the next iterate, as the line search tried it
+        shortened = False
         if _merit(problem, limits, u + d, penalty) > merit + ARMIJO * slope:
-            step = _second_order(problem, limits, u, d, H, g, S, rows, path_scale, soft)
-            if step is not None and _merit(problem, limits, u + step, penalty) > merit + ARMIJO * slope:
-                step = None
+            correction = None if share < 1.0 else _second_order(problem, limits, u, d, H, g, S, rows, path_scale,
+                                                                soft)
+            point = None if correction is None else u + correction
+            if point is not None and _merit(problem, limits, point, penalty) > merit + ARMIJO * slope:
+                point = None
         if newton is not None:
             low, factor = DAMPING
-            damping = damping / factor if step is not None else max(low, damping * factor)
+            damping = damping / factor if point is not None else max(low, damping * factor)
             damping = damping if damping >= low else 0.0
-        if step is None:
-            step = _projected(problem, limits, u, d, merit, slope, penalty)
-        if step is None:
-            step = _backtrack(problem, limits, u, d, merit, slope, penalty)
-            if step is None:
+        if point is None:
+            projected = _projected(problem, limits, u, d, merit, slope, penalty)
+            if projected is not None:
+                point, t = projected
+                shortened = t < 1.0
+        if point is None:
+            point = _backtrack(problem, limits, u, d, merit, slope, penalty)
+            if point is None:
                 return SqpResult(u, iteration, int(rows.size), False, "the line search found no decrease")
+            shortened = True
         else:
             scale = max(1.0, scale / shrink)  # a full, corrected or projected step: trust the model more
-        last = f
-        u = u + step
+        length = float(np.linalg.norm(d))
+        slow = slow + 1 if shortened or length > contraction * last_length else 0
+        last, last_length = f, length
+        u = np.clip(point, -u_max, u_max)  # u + (-u_max - u) can round a few ulps past the box's end
     return SqpResult(u, max_iter, int(rows.size), False, f"no convergence in {max_iter} iterations")
 
 
@@ -272,19 +323,19 @@ def _merit(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], penalt
 
 def _backtrack(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
                merit: float, slope: float, penalty: float) -> NDArray[np.float64] | None:
-    """t d for the largest t = 1/2, 1/4, ... >= MIN_STEP with enough decrease, else None."""
+    """u + t d for the largest t = 1/2, 1/4, ... >= MIN_STEP with enough decrease, else None."""
     t = 0.5
     while t >= MIN_STEP:
-        if _merit(problem, limits, u + t * d, penalty) <= merit + ARMIJO * t * slope:
-            return t * d
+        trial = u + t * d
+        if _merit(problem, limits, trial, penalty) <= merit + ARMIJO * t * slope:
+            return trial
         t *= 0.5
     return None
 
 
 def _projected(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
-               merit: float, slope: float, penalty: float) -> NDArray[np.float64] | None:
-    """The step to `projector`'s torques for the largest t = 1, 1/2, ... >= MIN_STEP with enough decrease, else
-    None."""
+               merit: float, slope: float, penalty: float) -> tuple[NDArray[np.float64], float] | None:
+    """(`projector`'s torques, t) for the largest t = 1, 1/2, ... >= MIN_STEP with enough decrease, else None."""
     project = projector(problem, limits, u, d)
     t = 1.0
     while t >= MIN_STEP:
@@ -293,7 +344,7 @@ def _projected(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d:
         except SolverError:
             trial = None
         if trial is not None and _merit(problem, limits, trial, penalty) <= merit + ARMIJO * t * slope:
-            return trial - u
+            return trial, t
         t *= 0.5
     return None
 
