@@ -254,9 +254,10 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         penalty = max(penalty, 2.0 * float(np.abs(lam).max(initial=0.0)))
         merit = f + penalty * now
         slope = float(g @ d) - penalty * share * now  # the merit's predicted change along d
-        point: NDArray[np.float64] | None = u + d  # the next iterate, as the line search tried it
+        full = u + d
+        point: NDArray[np.float64] | None = full  # the next iterate, as the line search tried it
         shortened = False
-        if _merit(problem, limits, u + d, penalty) > merit + ARMIJO * slope:
+        if _merit(problem, limits, full, penalty) > merit + ARMIJO * slope:
             correction = None if share < 1.0 else _second_order(problem, limits, u, d, H, g, S, rows, path_scale,
                                                                 soft)
             point = None if correction is None else u + correction
