@@ -110,8 +110,7 @@ class Shooting:
         """
         torques, X = self._simulate(U.shape[0], lambda k, x: np.clip(U[k] + K[k] @ (X_ref[k] - x), -u_max, u_max),
                                     "the tracked rollout")
-        self._states.clear()
-        self._states[torques.tobytes()] = X
+        self._remember(torques.tobytes(), X)
         return torques
 
     def _simulate(self, steps: int, control: Callable[[int, NDArray[np.float64]], NDArray[np.float64]], what: str
@@ -152,9 +151,13 @@ class Shooting:
             U, X, _, _ = self._cache["value"]
             return U, X
         if key not in self._states:
-            self._states.clear()
-            self._states[key] = self.rollout(u.reshape(self.steps, self.n))
+            self._remember(key, self.rollout(u.reshape(self.steps, self.n)))
         return u.reshape(self.steps, self.n), self._states[key]
+
+    def _remember(self, key: bytes, X: NDArray[np.float64]) -> None:
+        """Keep X (N+1, 2n) as the states of the torques whose bytes are `key`: the last trial point's only."""
+        self._states.clear()
+        self._states[key] = X
 
     def jacobians(self, X: NDArray[np.float64], U: NDArray[np.float64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
