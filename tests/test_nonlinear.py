@@ -223,11 +223,10 @@ def test_lowest_keeps_the_least_of_the_starts_plans_and_first_the_first(model, m
 def test_a_start_heading_for_the_first_starts_plan_joins_it(model, monkeypatch):
     """keep='lowest' hands the first start's plan to the second start's solve, which stops once an iterate comes
     within JOIN of it. Oracle: the same solve without `join`, run to its own convergence test, ends at that plan
-    (the same objective to 1e-9, the torques within a tenth of JOIN: the convergence test is on the objective and
-    the constraints, and leaves the torques a few 1e-6 N m apart along the minimum's flat directions), in more
-    iterations."""
+    (the same objective to 1e-9, the torques within 1e-3 of the plan's norm: the convergence
+    test is on the objective and the constraints, and leaves the torques a few 1e-6 N m apart along the minimum's
+    flat directions), in more iterations."""
     from mjtraj.core.planners import nonlinear
-    from mjtraj.core.planners.sqp import JOIN
 
     task = short_task(model, 0.8)
     runs = []
@@ -247,7 +246,7 @@ def test_a_start_heading_for_the_first_starts_plan_joins_it(model, monkeypatch):
     alone = sqp(problem, limits, u, **{**options, "join": None})
     assert alone.converged and not alone.joined and alone.iterations > second.iterations
     assert problem.objective(alone.u) == pytest.approx(problem.objective(first.u), rel=1e-9)
-    assert np.linalg.norm(alone.u - first.u) <= 0.1 * JOIN * np.linalg.norm(first.u)
+    assert np.linalg.norm(alone.u - first.u) <= 1e-3 * np.linalg.norm(first.u)
 
 
 def test_a_diverging_rollout_is_an_error_not_a_reset_state(model, tmp_path, monkeypatch):

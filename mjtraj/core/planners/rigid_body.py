@@ -118,39 +118,9 @@ class RigidBody:
     def step(self, x: NDArray[np.float64], U: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The tree's RK4 step from each state x (M, 2n) under U (M, nu) and its Jacobian: (x' (M, 2n),
         dx'/d(x, u) (M, 2n, 2n + nu)). No check against MuJoCo (see `jacobians`)."""
-        steps, n = U.shape[0], self.qpos0.size
-        h = self.timestep
-        inside = (U >= self.ctrl_low) & (U <= self.ctrl_high)
-        tau = np.clip(U, self.ctrl_low, self.ctrl_high) @ self.actuation.T  # (M, n)
-        width = 2 * n + U.shape[1]
-        lift = np.eye(2 * n, width)  # d(x_k, u_k)/d(x_k, u_k)'s state rows
-        F = np.zeros((steps, 2 * n, 2 * n))  # d f/d x at a stage, f = (v, a)
-        F[:, :n, n:] = np.eye(n)
-        G = np.zeros((steps, 2 * n, n))  # d f/d tau at a stage
-        slope, d_slope = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, width))  # the last stage's f and df/dz
-        total, d_total = np.zeros((steps, 2 * n)), np.zeros((steps, 2 * n, width))
-        for along, weight in RK4:
-            stage = x + (h * along) * slope
-            d_stage = lift + (h * along) * d_slope
-            q, v = stage[:, :n] - self.qpos0, stage[:, n:]
-            passive = tau - v * self.damping
-            if self.frictionloss is not None:  # constant while sliding: no derivative
-                passive = passive - self.frictionloss * np.sign(v)
-            if self.gravity is not None:
-                held, d_held = self.gravity.gravity(q)
-                passive = passive - held
-            acceleration, da_dq, da_dv, inverse_mass = self.tree.derivatives(q, v, passive)
-            if self.gravity is not None:
-                da_dq = da_dq - inverse_mass @ d_held
-            F[:, n:, :n] = da_dq
-            F[:, n:, n:] = da_dv - inverse_mass * self.damping  # the damping torque -D v
-            G[:, n:] = inverse_mass
-            slope = np.concatenate([stage[:, n:], acceleration], axis=1)
-            d_slope = F @ d_stage
-            d_slope[:, :, 2 * n:] += G @ (self.actuation * inside[:, None, :])
-            total += weight * slope
-            d_total += weight * d_slope
-        return x + h * total, lift + h * d_total
+        return self.tree.rk4(x, U, qpos0=self.qpos0, actuation=self.actuation, ctrl_low=self.ctrl_low,
+                             ctrl_high=self.ctrl_high, damping=self.damping, frictionloss=self.frictionloss,
+                             timestep=self.timestep, held_by=self.gravity)
 
     def curvature(self, x: NDArray[np.float64], U: NDArray[np.float64], p: NDArray[np.float64],
                   jacobian: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -13,12 +13,12 @@ path constraints (joint ranges, speed limit, torque bound) as rows h >= 0.
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
 import mujoco
+import numba
 import numpy as np
 from mujoco import rollout as mj_rollout
 from mujoco.batch import Batch
@@ -61,29 +61,23 @@ class Shooting:
         self.n = self.model.nv
         self._stepped = _collision_free(self.model)  # what rollouts and their differences step
         self.data = mujoco.MjData(self._stepped)
-        N, n = self.steps, self.n
-        self._input_hessian = np.zeros((N * n, N * n))
-        self._diagonal = np.zeros((N * n, N * n), dtype=bool)  # the (n, n) blocks on the diagonal
-        blocks = np.arange(N)
-        self._input_hessian.reshape(N, n, N, n)[blocks, :, blocks, :] = self.R
-        self._diagonal.reshape(N, n, N, n)[blocks, :, blocks, :] = True
         # each control's upper end (inf where unlimited): MuJoCo clamps ctrl there, so `jacobians` differences a
         # torque on it backwards (a forward difference would see no effect)
         self._ctrl_high = control_range(self.model)[1]
         self._rigid_body = RigidBody.of(self.model, plant_forces=self.partial)
         self.jacobian_counts = {"analytic": 0, "differenced": 0}
-        # the state `_simulate` starts from, as mujoco.rollout takes it, and where qpos and qvel sit in a state
+        # the state `_start` sets, as mujoco.rollout takes it, and where qpos and qvel sit in a state
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         self._start()
         self._initial_state = np.empty(mujoco.mj_stateSize(self._stepped, spec))
         mujoco.mj_getState(self._stepped, self.data, self._initial_state, spec)
         self._warmstart = np.zeros(self.model.nv)  # mj_resetData's
         start, nq = mujoco.mj_stateSize(self._stepped, mujoco.mjtState.mjSTATE_TIME), self.model.nq
-        self._qpos_qvel = np.concatenate([start + np.arange(nq), start + nq + np.arange(n)])  # time, qpos, qvel, ...
+        self._qpos_qvel = np.concatenate([start + np.arange(nq), start + nq + np.arange(self.n)])  # time, qpos, qvel
 
     def rollout(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
         """States x_0..x_N of the model under U (N, n) from x0; shape (N+1, 2n). MuJoCo's own loop (mujoco.rollout)
-        steps it: the same steps as `_simulate`'s bit for bit (a reset state, no warm start), about 15 % sooner.
+        steps it: the same steps as `tracked`'s bit for bit (a reset state, no warm start), about 15 % sooner.
 
         Raises:
           SolverError: MuJoCo had to reset the simulation (the rollout diverged).
@@ -108,31 +102,25 @@ class Shooting:
         Raises:
           SolverError: MuJoCo had to reset the simulation (the tracked motion diverged).
         """
-        torques, X = self._simulate(U.shape[0], lambda k, x: np.clip(U[k] + K[k] @ (X_ref[k] - x), -u_max, u_max),
-                                    "the tracked rollout")
-        self._remember(torques.tobytes(), X)
-        return torques
-
-    def _simulate(self, steps: int, control: Callable[[int, NDArray[np.float64]], NDArray[np.float64]], what: str
-                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Step the model from x0 for `steps` control periods with u_k = control(k, x_k): (U (steps, n), X (steps+1,
-        2n)).
-
-        Raises:
-          SolverError: MuJoCo had to reset the simulation (`what` diverged).
-        """
-        n, d = self.n, self.data
-        U = np.empty((steps, n))
+        n, d, steps = self.n, self.data, U.shape[0]
+        torques = np.empty((steps, n))
         X = np.empty((steps + 1, 2 * n))
         X[0] = self.x0
         self._start()
-        for k in range(steps):
-            U[k] = control(k, X[k])
-            d.ctrl[:] = U[k]
+        qpos, qvel, ctrl, low = d.qpos, d.qvel, d.ctrl, -u_max
+        error, feedback = np.empty(2 * n), np.empty(n)
+        for k in range(steps):  # in place: allocation and np.clip's wrappers took a fifth of the loop
+            np.subtract(X_ref[k], X[k], out=error)
+            np.matmul(K[k], error, out=feedback)
+            np.add(U[k], feedback, out=feedback)
+            np.minimum(np.maximum(feedback, low, out=feedback), u_max, out=torques[k])  # np.clip's values
+            ctrl[:] = torques[k]
             mujoco.mj_step(self._stepped, d)
-            X[k + 1, :n], X[k + 1, n:] = d.qpos, d.qvel
-        self._check_stable(what)
-        return U, X
+            X[k + 1, :n] = qpos
+            X[k + 1, n:] = qvel
+        self._check_stable("the tracked rollout")
+        self._remember(torques.tobytes(), X)
+        return torques
 
     def _start(self) -> None:
         """Reset `data` (warnings and warm start included) and put it at x0."""
@@ -227,14 +215,11 @@ class Shooting:
         evaluation fills again (1.5 MB at N = 100, n = 3, made once): it is valid until the next point is evaluated."""
         key = u.tobytes()
         if self._cache.get("key") != key:
-            n, N = self.n, self.steps
             U, X = self.states(u)
             analytic = self.jacobian_counts["analytic"]
             A, B = self.jacobians(X, U)
             S = self._sensitivities
-            for k in range(N):  # S_k is zero right of block k - 1 (never written): x_k does not depend on later torques
-                np.matmul(A[k], S[k, :, :k * n], out=S[k + 1, :, :k * n])
-                S[k + 1, :, k * n:(k + 1) * n] = B[k]
+            _propagate(A, B, S)
             self._cache.update(key=key, value=(U, X, A, S), analytic=self.jacobian_counts["analytic"] > analytic)
         return self._cache["value"]  # type: ignore[no-any-return]
 
@@ -247,6 +232,18 @@ class Shooting:
         U, X, _, S = self.evaluate(u)
         d = X[1:] - self.xg
         return (U @ self.R).ravel() + (d @ self.Q.T).ravel() @ S[1:].reshape(-1, S.shape[2])
+
+    @cached_property
+    def _input_hessian(self) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """R's block diagonal (N n, N n), and where its (n, n) blocks sit; made on first use (a plan whose Hessian is
+        diagonal never needs them)."""
+        N, n = self.steps, self.n
+        hessian = np.zeros((N * n, N * n))
+        blocks = np.zeros((N * n, N * n), dtype=bool)
+        on = np.arange(N)
+        hessian.reshape(N, n, N, n)[on, :, on, :] = self.R
+        blocks.reshape(N, n, N, n)[on, :, on, :] = True
+        return hessian, blocks
 
     @cached_property
     def _sensitivities(self) -> NDArray[np.float64]:
@@ -270,7 +267,7 @@ class Shooting:
         """
         _, _, A, S = self.evaluate(u)
         n, N = self.n, self.steps
-        H = self._input_hessian
+        H, diagonal = self._input_hessian
         if not self.Q.any():
             return H.copy()
         Q = 0.5 * (self.Q + self.Q.T)
@@ -280,7 +277,7 @@ class Shooting:
             P[k] = Q + A[k].T @ P[k + 1] @ A[k]
         columns = np.matmul(S[1:].transpose(0, 2, 1), P[1:] @ input_blocks(S))  # (N, N n, n): the upper triangle's
         upper = columns.transpose(1, 0, 2).reshape(N * n, N * n)                # block columns
-        return H + np.where(self._diagonal, upper, upper + upper.T)  # type: ignore[no-any-return]
+        return H + np.where(diagonal, upper, upper + upper.T)  # type: ignore[no-any-return]
 
     def second_order(self, u: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64] | None:
         """The Hessian (N n, N n) of sum_{k=1..N} w_k^T x_k(u), w (N+1, 2n) (w_0 unused): the dynamics' curvature
@@ -314,6 +311,27 @@ class Shooting:
         blocks = np.arange(N)
         H.reshape(N, n, N, n)[blocks, :, blocks, :] += M[:, 2 * n:, 2 * n:] + B.transpose(0, 2, 1) @ PB
         return H  # type: ignore[no-any-return]
+
+
+@numba.njit(cache=True)
+def _propagate(A: NDArray[np.float64], B: NDArray[np.float64], S: NDArray[np.float64]) -> None:
+    """S_{k+1} = A_k S_k + [0 .. B_k .. 0] for k = 0..N-1 into S (N+1, 2n, N n), whose S_0 is zero: only the blocks
+    left of k + 1 are written, the rest stays zero (x_{k+1} does not depend on later torques). Compiled: NumPy's 100
+    small products took 0.23 ms, this 0.09."""
+    N, two_n, n = B.shape
+    for k in range(N):
+        width = k * n
+        for r in range(two_n):
+            row = S[k + 1, r]
+            for c in range(width):
+                row[c] = 0.0
+            for m in range(two_n):
+                a = A[k, r, m]
+                source = S[k, m]
+                for c in range(width):
+                    row[c] += a * source[c]
+            for c in range(n):
+                row[width + c] = B[k, r, c]
 
 
 def input_blocks(S: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -88,13 +88,18 @@ DAMPING = (0.1, 4.0)
 """Levenberg-Marquardt damping of the second-order Hessian, as a multiple of R's diagonal: a step neither full nor
 corrected (projected or backtracked) sets it to at least the first number, or multiplies it by the second; a full
 (or corrected) step divides it by the second, and below the first it is zero."""
-JOIN = 1e-2
+JOIN = 1e-1
 """An iterate within this distance of an earlier start's plan, relative to that plan's norm, joins it. On the 180
 validation tasks of `mjtraj.core.planners.nonlinear.SQP_MAX_ITER`, the bound's second start headed for another
 point on 3 (none of them converged there) and came no closer than 5.8e-2 to the first plan; on the 166 where it
 reached the first plan, it crossed 1e-3 a median of 4 iterations before its own convergence test passed (43 % of
 those solves' iterations). With the projected line search, 1e-2 and 1e-3 gave the same plans, bit for bit, on all
-480 validation tasks, in a mean of 0.073 s a plan against 0.078 s."""
+480 validation tasks, in a mean of 0.073 s a plan against 0.078 s. With the slow switch (SLOW), the second start run
+to its own convergence on those 480 tasks (none joined) reached another point on 7, all converged there (6 lower, so
+kept); none came within 0.31 of the first plan, and no second start that came within 0.2 of it went elsewhere. So
+the threshold was raised to the largest of 2e-2, 5e-2, 1e-1 and 2e-1 below a third of that closest approach, 1e-1:
+the same plans, bit for bit, on the 298 tasks of `mjtraj bench planners`' tail, 1.4 iterations fewer a plan on the
+480 (7 % of the tail's time; its 90th percentile 109 became 101 times the linear plan in a paired run)."""
 RELAXED = (0.5, 0.25)
 """Where the linearised constraints admit no step, the QP asks them to close only this share of the way, largest
 first: the terminal residual and each violated path row's violation scaled by it (d = 0 meets the constraints at

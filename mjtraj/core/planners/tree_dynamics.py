@@ -30,7 +30,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-_inline = numba.njit(cache=True, inline="always")
+_compiled = numba.njit(cache=True, error_model="numpy")
+"""numba's compilation of the kernels: NumPy's error model (a division by zero gives inf or nan, not an exception),
+which leaves out the checks around every division (5 % of `derivatives`' time; the same values, bit for bit)."""
+_inline = numba.njit(cache=True, inline="always", error_model="numpy")
 
 
 @_inline
@@ -104,7 +107,7 @@ def _add_cross(s0: float, s1: float, s2: float, a: Any, r: int, sign: float, out
     out[o, 2] += sign * (s0 * a[r, 1] - s1 * a[r, 0])
 
 
-@numba.njit(cache=True)
+@_compiled
 def _newton_euler(parents: Any, R: Any, t: Any, axes: Any, mass: Any, lever: Any, inertia: Any, qd: Any, qdd: Any,
                   vl: Any, vw: Any, pl: Any, pw: Any, al: Any, aw: Any, fl: Any, fw: Any, scratch_l: Any,
                   scratch_w: Any, tau: Any) -> None:
@@ -137,7 +140,7 @@ def _newton_euler(parents: Any, R: Any, t: Any, axes: Any, mass: Any, lever: Any
             _add_force_to_parent(R, t, i, fl, fw, i, fl, fw, parents[i])
 
 
-@numba.njit(cache=True)
+@_compiled
 def _mass_column(j: int, parents: Any, below: Any, R: Any, t: Any, axes: Any, mass: Any, lever: Any, inertia: Any,
                  al: Any, aw: Any, fl: Any, fw: Any, column: Any) -> None:
     """M's column j (n,): `_newton_euler` with qd = 0, no gravity and qdd = e_j, where only joint j and the joints
@@ -160,7 +163,7 @@ def _mass_column(j: int, parents: Any, below: Any, R: Any, t: Any, axes: Any, ma
             _add_force_to_parent(R, t, i, fl, fw, i, fl, fw, parents[i])
 
 
-@numba.njit(cache=True)
+@_compiled
 def _newton_euler_tangents(parents: Any, below: Any, R: Any, t: Any, axes: Any, mass: Any, lever: Any, inertia: Any,
                            qd: Any, vl: Any, vw: Any, pl: Any, pw: Any, fl: Any, fw: Any, vlt: Any, vwt: Any,
                            alt: Any, awt: Any, flt: Any, fwt: Any, scratch_l: Any, scratch_w: Any, dtau: Any) -> None:
@@ -252,7 +255,7 @@ def _workspace(n: int) -> Any:
             np.empty((rows, 3)), np.empty((rows, 3)), np.empty((3, 3)), np.empty((3, 3)))
 
 
-@numba.njit(cache=True)
+@_compiled
 def _gravity_derivatives(parents: Any, below: Any, placement_R: Any, placement_t: Any, axes: Any, mass: Any,
                          lever: Any, gravity: Any, q: Any, torque: Any, d_torque: Any) -> None:
     """`HingeTree.gravity`, compiled: `_newton_euler` and its tangents at qd = 0, qdd = 0 with the base accelerating
@@ -276,7 +279,7 @@ def _gravity_derivatives(parents: Any, below: Any, placement_R: Any, placement_t
                 d_torque[k, i, j] = dtau[i, j]
 
 
-@numba.njit(cache=True)
+@_compiled
 def _derivatives(parents: Any, below: Any, placement_R: Any, placement_t: Any, axes: Any, mass: Any, lever: Any,
                  inertia: Any, armature: Any, gravity: Any, q: Any, qd: Any, tau: Any, acceleration: Any, da_dq: Any,
                  da_dqd: Any, inverse_mass: Any) -> None:
@@ -334,6 +337,96 @@ def _derivatives(parents: Any, below: Any, placement_R: Any, placement_t: Any, a
                 inverse_mass[k, i, j] = Mi[i, j]
 
 
+RK4_ALONG = (0.0, 0.5, 0.5, 1.0)
+"""The classical Runge-Kutta stages (MuJoCo's mjINT_RK4): each stage's fraction of the step along the previous
+stage's derivative ..."""
+RK4_WEIGHT = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+"""... and its weight in the step."""
+
+
+@_compiled
+def _rk4_steps(parents: Any, below: Any, placement_R: Any, placement_t: Any, axes: Any, mass: Any, lever: Any,
+               inertia: Any, armature: Any, gravity: Any, held_by: Any, qpos0: Any, actuation: Any, ctrl_low: Any,
+               ctrl_high: Any, damping: Any, frictionloss: Any, timestep: float, x: Any, U: Any, after: Any,
+               jacobian: Any) -> None:
+    """`HingeTree.rk4`, compiled: at each of the P states x (P, 2n) under the controls U (P, nu), the RK4 step
+    after (P, 2n) and its Jacobian in (x, u), jacobian (P, 2n, 2n + nu); each stage's dynamics and derivatives at
+    all P points in one `_derivatives` call. held_by: None where the tree's own gravity holds the bodies, else the
+    arrays of the tree whose `HingeTree.gravity` is the torque gravity takes (parents, below, placement_R,
+    placement_t, axes, mass, lever, gravity). frictionloss (n,): zero for none."""
+    P, nu = U.shape
+    n = qpos0.shape[0]
+    width = 2 * n + nu
+    tau, inputs = np.zeros((P, n)), np.empty((P, n, nu))  # the joint torques; per control, zero outside its range
+    for k in range(P):
+        for j in range(nu):
+            inside = ctrl_low[j] <= U[k, j] <= ctrl_high[j]
+            clipped = min(max(U[k, j], ctrl_low[j]), ctrl_high[j])
+            for i in range(n):
+                tau[k, i] += clipped * actuation[i, j]
+                inputs[k, i, j] = actuation[i, j] if inside else 0.0
+    q, v, passive = np.empty((P, n)), np.empty((P, n)), np.empty((P, n))
+    acceleration, da_dq, da_dv, inverse_mass = np.empty((P, n)), np.empty((P, n, n)), np.empty((P, n, n)), \
+        np.empty((P, n, n))
+    held, d_held = np.empty((P, n)), np.empty((P, n, n))
+    slope, total = np.zeros((P, 2 * n)), np.zeros((P, 2 * n))
+    d_slope, d_total = np.zeros((P, 2 * n, width)), np.zeros((P, 2 * n, width))
+    d_stage = np.empty((2 * n, width))
+    for s in range(4):
+        c = timestep * RK4_ALONG[s]
+        for k in range(P):
+            for i in range(n):
+                q[k, i] = x[k, i] + c * slope[k, i] - qpos0[i]
+                v[k, i] = x[k, n + i] + c * slope[k, n + i]
+                passive[k, i] = tau[k, i] - v[k, i] * damping[i] - frictionloss[i] * np.sign(v[k, i])
+        if held_by is not None:
+            h_parents, h_below, h_placement_R, h_placement_t, h_axes, h_mass, h_lever, h_gravity = held_by
+            _gravity_derivatives(h_parents, h_below, h_placement_R, h_placement_t, h_axes, h_mass, h_lever,
+                                 h_gravity, q, held, d_held)
+            for k in range(P):
+                for i in range(n):
+                    passive[k, i] -= held[k, i]
+        _derivatives(parents, below, placement_R, placement_t, axes, mass, lever, inertia, armature, gravity, q, v,
+                     passive, acceleration, da_dq, da_dv, inverse_mass)
+        for k in range(P):
+            F, D, Mi = da_dq[k], da_dv[k], inverse_mass[k]
+            for i in range(n):
+                for m in range(n):
+                    if held_by is not None:
+                        z = 0.0
+                        for j in range(n):
+                            z += Mi[i, j] * d_held[k, j, m]
+                        F[i, m] -= z
+                    D[i, m] -= Mi[i, m] * damping[m]  # the damping torque -D v
+            for r in range(2 * n):
+                for col in range(width):
+                    d_stage[r, col] = (1.0 if r == col else 0.0) + c * d_slope[k, r, col]
+            for i in range(n):  # d f/d z = [[0, I], [F, D]] d_stage + [0; M^-1 inputs] on the controls' columns
+                for col in range(width):
+                    d_slope[k, i, col] = d_stage[n + i, col]
+                    z = 0.0
+                    for m in range(n):
+                        z += F[i, m] * d_stage[m, col] + D[i, m] * d_stage[n + m, col]
+                    d_slope[k, n + i, col] = z
+                for j in range(nu):
+                    z = 0.0
+                    for m in range(n):
+                        z += Mi[i, m] * inputs[k, m, j]
+                    d_slope[k, n + i, 2 * n + j] += z
+            for i in range(n):
+                slope[k, i] = v[k, i]
+                slope[k, n + i] = acceleration[k, i]
+            for r in range(2 * n):
+                total[k, r] += RK4_WEIGHT[s] * slope[k, r]
+                for col in range(width):
+                    d_total[k, r, col] += RK4_WEIGHT[s] * d_slope[k, r, col]
+    for k in range(P):
+        for r in range(2 * n):
+            after[k, r] = x[k, r] + timestep * total[k, r]
+            for col in range(width):
+                jacobian[k, r, col] = (1.0 if r == col else 0.0) + timestep * d_total[k, r, col]
+
+
 class HingeTree:
     """A tree of n hinge joints as the arrays `derivatives` reads, in Pinocchio's conventions (joint i's frame in
     its parent's is placement_R[i], placement_t[i], then a turn of q_i about axes[i]; parents[i] < i, -1 for the
@@ -368,6 +461,22 @@ class HingeTree:
                      gravity, q, qd, tau, acceleration, da_dq, da_dqd, inverse_mass)
         return acceleration, da_dq, da_dqd, inverse_mass
 
+
+    def rk4(self, x: NDArray[np.float64], U: NDArray[np.float64], *, qpos0: NDArray[np.float64],
+            actuation: NDArray[np.float64], ctrl_low: NDArray[np.float64], ctrl_high: NDArray[np.float64],
+            damping: NDArray[np.float64], frictionloss: NDArray[np.float64] | None, timestep: float,
+            held_by: HingeTree | None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The RK4 step of MuJoCo's arm of this tree from each state x (P, 2n) under the controls U (P, nu) and its
+        Jacobian: (x' (P, 2n), dx'/d(x, u) (P, 2n, 2n + nu)), compiled (`_rk4_steps`; see `RigidBody`, whose
+        attributes the arguments are)."""
+        P, n = x.shape[0], self.n
+        after, jacobian = np.empty((P, 2 * n)), np.empty((P, 2 * n, 2 * n + U.shape[1]))
+        held = None if held_by is None else (held_by._parents, held_by._below, *held_by._arrays[:5],
+                                             held_by._arrays[7])
+        _rk4_steps(self._parents, self._below, *self._arrays, held, qpos0, actuation, ctrl_low, ctrl_high, damping,
+                   np.zeros(n) if frictionloss is None else frictionloss, float(timestep),
+                   *(np.ascontiguousarray(a, dtype=np.float64) for a in (x, U)), after, jacobian)
+        return after, jacobian
 
     def gravity(self, q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """At P points q (P, n), rad: the joint torques that hold the tree still against its gravity, G(q) (P, n),
