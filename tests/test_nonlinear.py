@@ -782,7 +782,7 @@ def test_the_step_qp_closes_part_of_the_way_where_the_whole_way_is_infeasible(mo
     assert (share, soft) == (1.0, True)
     assert d[0] + d[1] == pytest.approx(0.0, abs=1e-9)  # the terminal row stays hard
     solves = []
-    monkeypatch.setattr(sqp, "_qp", lambda *args: solves.append(args[-1]) or qp(*args))
+    monkeypatch.setattr(sqp, "_qp", lambda *args: solves.append(args[8]) or qp(*args))
     assert step(10.0, G, [-3.0, 0.5]) is None  # |d1 + d2| <= 2 in the box: not even a quarter of 10
     assert solves == [False, False, False, False]  # the terminal row alone fails: no soft solve
 
@@ -816,20 +816,23 @@ def test_slow_gauss_newton_turns_to_newton_early_and_reaches_the_same_plan(model
 
     task = draw_scenario("nominal", 1, 145, model, load_scenario(None).task.dt).task
     problem, limits, starts = make("nonlinear_min_effort").problem(task, model)
-    turned: list[int] = []
-    hessian = sqp._lagrangian_hessian
+    iterations: list[int] = []  # one entry per iteration (its gradient), then the first Hessian's iteration
+    first: list[int] = []
+    gradient, hessian = problem.gradient, sqp._lagrangian_hessian
 
     def counted(problem, *args):
-        turned.append(len(turned))
+        first.append(len(iterations))
         return hessian(problem, *args)
 
     def solve():
-        turned.clear()
+        iterations.clear()
+        first.clear()
         result = sqp.gauss_newton_sqp(problem, limits, starts.get("linear"), curvature_scale=SQP_CURVATURE_SCALE,
                                       shrink=SQP_SHRINK, max_iter=40)
         assert result.converged
-        return result, result.iterations - len(turned)  # the iterations before the first Newton one
+        return result, first[0] - 1  # the iterations before the first Newton one
 
+    monkeypatch.setattr(problem, "gradient", lambda u: iterations.append(0) or gradient(u))
     monkeypatch.setattr(sqp, "_lagrangian_hessian", counted)
     early, gauss_newton = solve()
     assert sqp.SLOW[0] <= gauss_newton < sqp.SECOND_ORDER_AFTER

@@ -88,6 +88,12 @@ DAMPING = (0.1, 4.0)
 """Levenberg-Marquardt damping of the second-order Hessian, as a multiple of R's diagonal: a step neither full nor
 corrected (projected or backtracked) sets it to at least the first number, or multiplies it by the second; a full
 (or corrected) step divides it by the second, and below the first it is zero."""
+NEWTON_REUSE = 5
+"""The Lagrangian's Hessian (and its factor) is used again for up to this many iterations after the one it was made
+in, while the curvature scale, the damping and the path rows are unchanged (every step full or corrected, no row
+added): near the solution the multipliers and the torques move little, and the Hessian (about 10 ms at N = 100,
+the dynamics' curvature by differences) would be made again for a step of 1e-4. Newton's method with a Hessian so
+reused converges linearly, at a small rate. PLACEHOLDER_RULE"""
 JOIN = 1e-1
 """An iterate within this distance of an earlier start's plan, relative to that plan's norm, joins it. On the 180
 validation tasks of `mjtraj.core.planners.nonlinear.SQP_MAX_ITER`, the bound's second start headed for another
@@ -136,13 +142,13 @@ def violation(problem: Shooting, limits: PathLimits, u: NDArray[np.float64]) -> 
 
 def _qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], c: NDArray[np.float64],
         G: NDArray[np.float64], h: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
-        soft: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        soft: bool, back: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """argmin 1/2 d^T H d + g^T d s.t. C d = -c, G d >= -h, low <= d <= high by DAQP: (d, the multipliers of the
     rows C, G), or None if DAQP finds no solution. H is a matrix, or the diagonal (its 1-d array) of a diagonal one.
     Solved in z = L^T d (H = L L^T), where the Hessian is the identity: DAQP's own factorisation of a dense H of 300
     rows took 5 ms of the 5.5, this takes 2.5 in all. Where H is diagonal (the effort bound's: Q = 0 and a diagonal
     R), L is too and the box stays a box in z: DAQP takes it as simple bounds, not as 300 rows, and the QP solves in
-    about 0.4 ms instead of 3."""
+    about 0.4 ms instead of 3. back: L^-T of a dense H where it is known (`_inverse_factor`)."""
     import daqp  # here, not at import: only the nonlinear planners need it
 
     if H.ndim == 1:
@@ -159,12 +165,7 @@ def _qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], 
         general = np.vstack([C * inverse, G * inverse])
         bounds = (high * root, low * root)  # the box, as simple bounds on z
     else:
-        factor, info = scipy.linalg.lapack.dpotrf(H, lower=1, clean=1)  # H = L L^T
-        if info == 0:
-            factor, info = scipy.linalg.lapack.dtrtri(factor, lower=1)  # L^-1
-        if info != 0:
-            raise SolverError(f"the QP's Hessian is not positive definite (LAPACK info {info})")
-        back = factor.T  # L^-T: d = L^-T z
+        back = _inverse_factor(H) if back is None else back  # L^-T: d = L^-T z
 
         def to_d(z: NDArray[np.float64]) -> NDArray[np.float64]:
             return back @ z  # type: ignore[no-any-return]
@@ -184,24 +185,44 @@ def _qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], 
     return to_d(np.asarray(z, dtype=np.float64)), np.asarray(info["lam"], dtype=np.float64)[len(g):]
 
 
+def _inverse_factor(H: NDArray[np.float64], factor: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """L^-T for the dense H = L L^T (given L, `factor`, where it is known; its upper triangle zero).
+
+    Raises:
+      SolverError: H is not positive definite.
+    """
+    info = 0
+    if factor is None:
+        factor, info = scipy.linalg.lapack.dpotrf(H, lower=1, clean=1)
+    if info == 0:
+        factor, info = scipy.linalg.lapack.dtrtri(factor, lower=1)  # L^-1
+    if info != 0:
+        raise SolverError(f"the QP's Hessian is not positive definite (LAPACK info {info})")
+    return factor.T  # type: ignore[no-any-return]
+
+
 def _step_qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], c: NDArray[np.float64],
-             G: NDArray[np.float64], h: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
+             G: NDArray[np.float64], h: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
+             back: NDArray[np.float64] | None = None
              ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, bool] | None:
     """The SQP's step QP (`_qp`'s arguments, the constraints C d = -c, G d >= -h): (d, multipliers, share, soft).
     Where the constraints admit no step, they are asked to close only `share` of the way (RELAXED: c and every
     negative h scaled by it); where no share does, the rows G are made soft (share 1). None where even that fails,
     or where the rows C alone admit no step in the box: the soft solve is then not tried (on a dense Hessian DAQP
-    took 0.23 s to give it up, nominal 120 of seed 1 for `nonlinear_optimal`; the check took 0.03 s)."""
-    solved = _qp(H, g, C, c, G, h, low, high, False)
+    took 0.23 s to give it up, nominal 120 of seed 1 for `nonlinear_optimal`; the check took 0.03 s). A dense H is
+    factored once for all these solves (`back`: its L^-T where already known)."""
+    if H.ndim == 2 and back is None:
+        back = _inverse_factor(H)  # once for every solve below
+    solved = _qp(H, g, C, c, G, h, low, high, False, back)
     if solved is not None:
         return (*solved, 1.0, False)
     for share in RELAXED:
-        solved = _qp(H, g, C, share * c, G, np.maximum(h, share * h), low, high, False)
+        solved = _qp(H, g, C, share * c, G, np.maximum(h, share * h), low, high, False, back)
         if solved is not None:
             return (*solved, share, False)
-    if _qp(H, g, C, c, G[:0], h[:0], low, high, False) is None:
+    if _qp(H, g, C, c, G[:0], h[:0], low, high, False, back) is None:
         return None  # the terminal rows alone admit no step in the box: no soft path row can change that
-    solved = _qp(H, g, C, c, G, h, low, high, True)
+    solved = _qp(H, g, C, c, G, h, low, high, True, back)
     return None if solved is None else (*solved, 1.0, True)
 
 
@@ -227,6 +248,8 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
     multipliers: tuple[NDArray[np.float64], NDArray[np.intp]] | None = None  # the last QP's, and its path rows
     slow_after, slow_run, contraction = SLOW
     slow, last_length = 0, float("inf")  # slow iterations in a row; the last QP step's length
+    # the last Lagrangian Hessian, its L^-T, what it was made for (scale, damping, path rows), and its reuses
+    lagrangian: tuple[NDArray[np.float64], NDArray[np.float64], tuple[float, float, bytes], int] | None = None
     for iteration in range(1, max_iter + 2):  # the last pass only tests the last step's iterate
         if join is not None and np.linalg.norm(u - join) <= JOIN * np.linalg.norm(join):
             return SqpResult(join, iteration - 1, int(rows.size), True, "joined the plan given", joined=True)
@@ -247,11 +270,17 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         H = scale * (problem.gauss_newton(u) if diagonal is None else diagonal)
         if second_order_after is not None and iteration > slow_after and slow >= slow_run:
             second_order_after = min(second_order_after, iteration - 1)  # converging slowly: Newton from here on
-        newton = None
+        newton, back = False, None
         if second_order_after is not None and iteration > second_order_after and multipliers is not None:
-            newton = _lagrangian_hessian(problem, limits, u, H, *multipliers, path_scale, damping)
-            H = H if newton is None else newton
-        solved = _step_qp(H, g, S[-1], terminal, G, h[rows] / path_scale[rows], -u_max - u, u_max - u)
+            made_for = (scale, damping, rows.tobytes())
+            if lagrangian is None or lagrangian[2] != made_for or lagrangian[3] >= NEWTON_REUSE:
+                made = _lagrangian_hessian(problem, limits, u, H, *multipliers, path_scale, damping)
+                lagrangian = None if made is None else (*made, made_for, 0)
+            else:
+                lagrangian = (*lagrangian[:3], lagrangian[3] + 1)
+            if lagrangian is not None:
+                newton, (H, back) = True, lagrangian[:2]
+        solved = _step_qp(H, g, S[-1], terminal, G, h[rows] / path_scale[rows], -u_max - u, u_max - u, back)
         if solved is None:
             return SqpResult(u, iteration, int(rows.size), False, "the linearised constraints admit no step")
         d, lam, share, soft = solved
@@ -264,11 +293,11 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         shortened = False
         if _merit(problem, limits, full, penalty) > merit + ARMIJO * slope:
             correction = None if share < 1.0 else _second_order(problem, limits, u, d, H, g, S, rows, path_scale,
-                                                                soft)
+                                                                soft, back)
             point = None if correction is None else u + correction
             if point is not None and _merit(problem, limits, point, penalty) > merit + ARMIJO * slope:
                 point = None
-        if newton is not None:
+        if newton:
             low, factor = DAMPING
             damping = damping / factor if point is not None else max(low, damping * factor)
             damping = damping if damping >= low else 0.0
@@ -293,11 +322,11 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
 
 def _lagrangian_hessian(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], H: NDArray[np.float64],
                         lam: NDArray[np.float64], rows: NDArray[np.intp], path_scale: NDArray[np.float64],
-                        damping: float) -> NDArray[np.float64] | None:
-    """The Lagrangian's Hessian at u, (N n, N n): H (the Gauss-Newton Hessian, or its diagonal) plus the dynamics'
-    curvature weighted by the QP multipliers `lam` (the terminal rows', then the path `rows`'), made positive
-    definite by AUGMENT and damped by `damping` times R's diagonal; None where the curvature is not the plant's or
-    no rho of AUGMENT makes it positive definite."""
+                        damping: float) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """The Lagrangian's Hessian at u, (N n, N n), and its L^-T (`_inverse_factor`): H (the Gauss-Newton Hessian, or
+    its diagonal) plus the dynamics' curvature weighted by the QP multipliers `lam` (the terminal rows', then the
+    path `rows`'), made positive definite by AUGMENT and damped by `damping` times R's diagonal; None where the
+    curvature is not the plant's or no rho of AUGMENT makes it positive definite."""
     N, n = problem.steps, problem.n
     U, X, _, S = problem.evaluate(u)
     terminal, path = lam[:2 * n], lam[2 * n:]
@@ -317,9 +346,9 @@ def _lagrangian_hessian(problem: Shooting, limits: PathLimits, u: NDArray[np.flo
     for rho in unit * AUGMENT:
         augmented = hessian + rho * AtA
         augmented[np.diag_indices_from(augmented)] += damped
-        _, info = scipy.linalg.lapack.dpotrf(augmented, lower=1, clean=0)
+        factor, info = scipy.linalg.lapack.dpotrf(augmented, lower=1, clean=1)
         if info == 0:
-            return augmented
+            return augmented, _inverse_factor(augmented, factor)
     return None
 
 
@@ -380,9 +409,10 @@ def projector(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: 
 
 def _second_order(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
                   H: NDArray[np.float64], g: NDArray[np.float64], S: NDArray[np.float64], rows: NDArray[np.intp],
-                  path_scale: NDArray[np.float64], soft: bool) -> NDArray[np.float64] | None:
-    """The second-order correction of a refused step d: the QP again with the constraints' values at u + d
-    linearised back to u (their curvature along d), or None."""
+                  path_scale: NDArray[np.float64], soft: bool, back: NDArray[np.float64] | None
+                  ) -> NDArray[np.float64] | None:
+    """The second-order correction of a refused step d: the QP again (`back`: its Hessian's L^-T where known) with
+    the constraints' values at u + d linearised back to u (their curvature along d), or None."""
     try:
         U, X = problem.states(u + d)
     except SolverError:
@@ -392,5 +422,5 @@ def _second_order(problem: Shooting, limits: PathLimits, u: NDArray[np.float64],
     terminal = X[-1] - problem.xg - S[-1] @ d
     h = limits.values(U, X)[:4 * size][rows] / path_scale[rows] - G @ d
     u_max = np.tile(limits.u_max, problem.steps)
-    solved = _qp(H, g, S[-1], terminal, G, h, -u_max - u, u_max - u, soft)
+    solved = _qp(H, g, S[-1], terminal, G, h, -u_max - u, u_max - u, soft, back)
     return None if solved is None else solved[0]
