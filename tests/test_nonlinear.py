@@ -938,3 +938,53 @@ def test_above_the_torque_cap_auto_refuses_without_slsqp(model, monkeypatch):
     task = Task.create([0.0, -1.57, 0.0], [0.5, -1.0, 0.5], 2.0, 0.02)
     with pytest.raises(SolverError, match=r"SLSQP, the fallback, is not run on more than 299 torques \(N n = 300"):
         planner.plan(task, model)
+
+
+def test_the_compiled_sensitivities_are_the_products_of_their_definition():
+    """shooting._propagate against S_{k+1} = A_k S_k + B_k E_k (E_k selects u_k) as NumPy's products, on random
+    transitions: the same to rounding left of each sample's block, and nothing written right of it (where x_k does
+    not depend on the torques, and `Shooting.evaluate`'s array stays zero)."""
+    from mjtraj.core.planners.shooting import _propagate
+
+    rng = np.random.default_rng(5)
+    N, n = 40, 3
+    A = np.eye(2 * n) + 0.1 * rng.normal(size=(N, 2 * n, 2 * n))
+    B = rng.normal(size=(N, 2 * n, n))
+    S = np.full((N + 1, 2 * n, N * n), np.nan)
+    _propagate(A, B, S)
+    expected = np.zeros((N + 1, 2 * n, N * n))
+    for k in range(N):
+        expected[k + 1] = A[k] @ expected[k]
+        expected[k + 1, :, k * n:(k + 1) * n] += B[k]
+    for k in range(N + 1):
+        np.testing.assert_allclose(S[k, :, :k * n], expected[k, :, :k * n], rtol=1e-12, atol=1e-12)
+        assert np.all(np.isnan(S[k, :, k * n:]))
+
+
+def test_reusing_the_lagrangians_hessian_reaches_the_same_plan_with_fewer_hessians(model, monkeypatch):
+    """Nominal 145 of seed 1 (`nonlinear_min_effort`, linear start): with NEWTON_REUSE the SQP makes fewer Lagrangian
+    Hessians than with a new one every Newton iteration, and reaches the same minimum (oracle: the solve without
+    reuse, Newton's method proper, to 1e-9), every constraint met."""
+    from mjtraj.core.planners import sqp
+    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK, NonlinearOptimal
+    from mjtraj.study.families import draw_scenario
+    from mjtraj.study.scenario import load_scenario
+
+    task = draw_scenario("nominal", 1, 145, model, load_scenario(None).task.dt).task
+    problem, limits, starts = make("nonlinear_min_effort").problem(task, model)
+    made: list[int] = []
+    hessian = sqp._lagrangian_hessian
+    monkeypatch.setattr(sqp, "_lagrangian_hessian", lambda *args: made.append(1) or hessian(*args))
+
+    def solve(reuse: int) -> tuple[sqp.SqpResult, int]:
+        made.clear()
+        monkeypatch.setattr(sqp, "NEWTON_REUSE", reuse)
+        result = sqp.gauss_newton_sqp(problem, limits, starts.get("linear"), curvature_scale=SQP_CURVATURE_SCALE,
+                                      shrink=SQP_SHRINK, max_iter=40)
+        assert result.converged and NonlinearOptimal._unmet(problem, limits, result.u) is None
+        return result, len(made)
+
+    reused, some = solve(sqp.NEWTON_REUSE)
+    newton, every = solve(0)
+    assert 0 < some < every
+    assert problem.objective(reused.u) == pytest.approx(problem.objective(newton.u), rel=1e-9)
