@@ -29,9 +29,6 @@ TRANSITION_TOL = 1e-9
 """The tree's RK4 step must give MuJoCo's next state within this, times (1 + |x|), in every component."""
 CURVATURE_STEP = 1e-6
 """The relative forward-difference step of `RigidBody.curvature` (its error is of this order; rounding's of 1e-10)."""
-RK4 = ((0.0, 1.0 / 6.0), (0.5, 1.0 / 3.0), (0.5, 1.0 / 3.0), (1.0, 1.0 / 6.0))
-"""The classical Runge-Kutta stages, MuJoCo's mjINT_RK4: (the stage's fraction of the step along the previous
-stage's derivative, the stage's weight in the step)."""
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,10 @@ All P points run in one compiled call: Pinocchio's Python API takes one point pe
 RK4 (4 N points per Jacobian) the calls cost more than the arithmetic (about 1.7 ms against 0.72 ms per 400
 points on one core of this machine; a test holds the values to Pinocchio's within 1e-11). The compiled code is
 cached on disk (numba's cache=True): the first call in a new installation compiles it (about 9 s here), later
-processes load it.
+processes load it. `HingeTree.rk4` chains these derivatives through the four stages of an RK4 step of MuJoCo's arm
+(damping, the input map, clamped controls, dry friction, per-body gravity compensation) in the same compiled code:
+the step and its Jacobian in (x, u), 0.79 ms per 100 states where NumPy's chain over the same compiled derivatives
+took 0.99.
 
 Spatial vectors are pairs of 3-vectors (linear, angular), each a row of a (rows, 3) array addressed by its index:
 numba makes a view of an array row at a cost, and the passes take hundreds of them per point. A motion in the
@@ -366,8 +369,8 @@ def _rk4_steps(parents: Any, below: Any, placement_R: Any, placement_t: Any, axe
                 tau[k, i] += clipped * actuation[i, j]
                 inputs[k, i, j] = actuation[i, j] if inside else 0.0
     q, v, passive = np.empty((P, n)), np.empty((P, n)), np.empty((P, n))
-    acceleration, da_dq, da_dv, inverse_mass = np.empty((P, n)), np.empty((P, n, n)), np.empty((P, n, n)), \
-        np.empty((P, n, n))
+    acceleration, inverse_mass = np.empty((P, n)), np.empty((P, n, n))
+    da_dq, da_dv = np.empty((P, n, n)), np.empty((P, n, n))
     held, d_held = np.empty((P, n)), np.empty((P, n, n))
     slope, total = np.zeros((P, 2 * n)), np.zeros((P, 2 * n))
     d_slope, d_total = np.zeros((P, 2 * n, width)), np.zeros((P, 2 * n, width))
@@ -473,9 +476,11 @@ class HingeTree:
         after, jacobian = np.empty((P, 2 * n)), np.empty((P, 2 * n, 2 * n + U.shape[1]))
         held = None if held_by is None else (held_by._parents, held_by._below, *held_by._arrays[:5],
                                              held_by._arrays[7])
-        _rk4_steps(self._parents, self._below, *self._arrays, held, qpos0, actuation, ctrl_low, ctrl_high, damping,
-                   np.zeros(n) if frictionloss is None else frictionloss, float(timestep),
-                   *(np.ascontiguousarray(a, dtype=np.float64) for a in (x, U)), after, jacobian)
+        placement_R, placement_t, axes, mass, lever, inertia, armature, gravity = self._arrays
+        x, U = (np.ascontiguousarray(a, dtype=np.float64) for a in (x, U))
+        _rk4_steps(self._parents, self._below, placement_R, placement_t, axes, mass, lever, inertia, armature, gravity,
+                   held, qpos0, actuation, ctrl_low, ctrl_high, damping,
+                   np.zeros(n) if frictionloss is None else frictionloss, float(timestep), x, U, after, jacobian)
         return after, jacobian
 
     def gravity(self, q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
