@@ -92,7 +92,7 @@ class Shooting:
                              sensordata=np.empty((1, steps, self._stepped.nsensordata)))
         states = states[0]  # (N, nstate): the only batch
         self._check_stable("the rollout of an iterate")
-        X = np.empty((U.shape[0] + 1, 2 * n))
+        X = np.empty((steps + 1, 2 * n))
         X[0] = self.x0
         X[1:] = states[:, self._qpos_qvel]
         return X

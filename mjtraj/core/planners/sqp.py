@@ -216,10 +216,8 @@ def _step_qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float
     Where the constraints admit no step, they are asked to close only `share` of the way (RELAXED: c and every
     negative h scaled by it); where no share does, the rows G are made soft (share 1). None where even that fails,
     or where the rows C alone admit no step in the box: the soft solve is then not tried (on a dense Hessian DAQP
-    took 0.23 s to give it up, nominal 120 of seed 1 for `nonlinear_optimal`; the check took 0.03 s). A dense H is
-    factored once for all these solves (`back`: its L^-T where already known)."""
-    if H.ndim == 2 and back is None:
-        back = _inverse_factor(H)  # once for every solve below
+    took 0.23 s to give it up, nominal 120 of seed 1 for `nonlinear_optimal`; the check took 0.03 s). `back`: a
+    dense H's L^-T where already known (`gauss_newton_sqp` factors it once per step), else each solve factors H."""
     solved = _qp(H, g, C, c, G, h, low, high, False, back)
     if solved is not None:
         return (*solved, 1.0, False)
@@ -287,6 +285,8 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
                 lagrangian = (*lagrangian[:3], lagrangian[3] + 1)
             if lagrangian is not None:
                 newton, (H, back) = True, lagrangian[:2]
+        if H.ndim == 2 and back is None:
+            back = _inverse_factor(H)  # once, for the step's QPs and its second-order correction
         solved = _step_qp(H, g, S[-1], terminal, G, h[rows] / path_scale[rows], -u_max - u, u_max - u, back)
         if solved is None:
             return SqpResult(u, iteration, int(rows.size), False, "the linearised constraints admit no step")
