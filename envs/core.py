@@ -19,14 +19,19 @@ from numpy.typing import NDArray
 from mjtraj.core import (
     METRIC_NAMES,
     RECORDED,
+    SETTLE_METRICS,
     ClosedLoop,
     Reference,
     Rollout,
+    Settle,
     Task,
+    held,
     metrics_arrays,
     missed_goal,
     parameter_bounds,
+    settle_arrays,
     step_cost,
+    unsettled,
 )
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.study import (
@@ -44,11 +49,13 @@ STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "r
 """Keys of every step's info (arrays of shape (B, n), or (B,) for the reward terms)."""
 
 
-def observe(loop: ClosedLoop, preview: int, control: bool = False) -> NDArray[np.float64]:
+def observe(loop: ClosedLoop, preview: int, control: bool = False, measured: bool = False) -> NDArray[np.float64]:
     """Observations of every simulation of a started loop, shape (B, 6n + 1 + 2n preview [+ 2n]): q, qd, q_ref,
     qd_ref, e, ed, the phase k/N, then q_ref and qd_ref of the next `preview` periods (held at N), then with
-    `control` the PID integral (rad s) and the next period's feedforward torque (N m)."""
-    q, qd = loop.positions, loop.velocities
+    `control` the PID integral (rad s) and the next period's feedforward torque (N m). With `measured`, q and qd
+    (and so e, ed) are what the control law measures (`ClosedLoop.measured`: with measurement noise, the noisy
+    ones), else the true state."""
+    q, qd = loop.measured() if measured else (loop.positions, loop.velocities)
     q_ref, qd_ref = loop.reference()
     parts = [q, qd, q_ref, qd_ref, q_ref - q, qd_ref - qd, (loop.periods / loop.ends)[:, None]]
     for offset in range(1, preview + 1):
@@ -61,6 +68,7 @@ def observe(loop: ClosedLoop, preview: int, control: bool = False) -> NDArray[np
 class Observer:
     """Observations of `num` simulations as the env gives them: `observe`'s entries, then with observe_plant the
     plant parameters theta / theta_max (1 + 2n: payload, damping, friction; see mjtraj.core.adaptive), then with
+    observe_task the move (rad) and the time to the motion's end (s, negative in a settle window), then with
     history the `history` previous such observations, the latest first (an episode's first observation fills them).
 
     The env (after reset and every step) and the policy actor of rl eval and validation (before every period) call
@@ -76,24 +84,37 @@ class Observer:
         self._history = np.zeros((num, settings.history, size))
         self._last = np.zeros((num, size))
         self._fresh = np.ones(num, dtype=bool)
+        self._move = np.zeros(num)
+        self._motion = np.zeros(num)
 
-    def start(self, rows: NDArray[np.intp], plants: Sequence[Perturbation | None]) -> None:
-        """Simulations `rows` begin episodes on `plants` (None: nominal): their next observation is their first."""
+    def start(self, rows: NDArray[np.intp], plants: Sequence[Perturbation | None],
+              references: Sequence[Reference] = ()) -> None:
+        """Simulations `rows` begin episodes on `plants` (None: nominal) tracking `references` (needed with
+        observe_task: the move and the motion's periods): their next observation is their first."""
         self._fresh[rows] = True
         if self._bounds is not None:
             self._plants[rows] = true_parameters(list(plants), self.settings.n) / self._bounds
+        if self.settings.observe_task:
+            if len(references) != np.size(rows):
+                raise InvalidInputError(f"references: observe_task needs each episode's reference, expected "
+                                        f"{np.size(rows)}, got {len(references)}")
+            self._move[rows] = [float(np.max(np.abs(r.q[-1] - r.q[0]))) for r in references]
+            self._motion[rows] = [int(r.info.get("motion_steps", r.steps)) for r in references]
 
     def __call__(self, loop: ClosedLoop, rows: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
         """The observations of simulations `rows` (all if None) now, shape (len(rows), obs_size); advances their
         history by one observation."""
         s = self.settings
-        base = observe(loop, s.preview, s.observe_control)
+        base = observe(loop, s.preview, s.observe_control, s.observe_measured)
         if s.observe_plant == "estimate":
             state = loop.law_state()
             assert state is not None and self._bounds is not None
             base = np.concatenate([base, state / self._bounds], axis=1)
         elif s.observe_plant == "true":
             base = np.concatenate([base, self._plants], axis=1)
+        if s.observe_task:
+            left = (self._motion - loop.periods) * s.dt
+            base = np.concatenate([base, self._move[:, None], left[:, None]], axis=1)
         rows = np.arange(self.num) if rows is None else rows
         if not s.history:
             return base[rows]
@@ -169,7 +190,7 @@ class TrackCore:
         alone (no action), stepped alongside."""
         self.limit = np.tile(settings.action_scale, (num, 1))
         task = settings.fixed_task
-        self.fixed = (settings.planner.plan(task, self.model), settings.weights(task)) if task is not None else None
+        self.fixed = (self._planned(task), settings.weights(task)) if task is not None else None
         self.references: list[Reference | None] = [None] * num
         self.plants: list[Perturbation | None] = [None] * num
         """Each simulation's current plant (None: nominal)."""
@@ -179,17 +200,21 @@ class TrackCore:
         self._r_diag = np.zeros((num, n))
         self._observer = Observer(settings, num)
 
+    def _planned(self, task: Task) -> Reference:
+        """The env's planner's reference for `task`, followed by the settle window holding its goal (if any)."""
+        return held(self.settings.planner.plan(task, self.model), self.settings.settle_steps, task.qg)
+
     def plan(self, rng: np.random.Generator, task: Task | None = None) -> Episode:
         """The next episode, drawn from `rng` in a fixed order: the task (unless given, or the env's task is fixed:
         then planned once), then the plant, then the measurement noise."""
         s = self.settings
         if task is not None:
-            reference, weights, plant = s.planner.plan(task, self.model), s.weights(task), s.sample_plant(rng)
+            reference, weights, plant = self._planned(task), s.weights(task), s.sample_plant(rng)
         elif self.fixed is not None:
             (reference, weights), plant = self.fixed, s.sample_plant(rng)
         else:
             task, plant = s.sample_episode(rng)
-            reference, weights = s.planner.plan(task, self.model), s.weights(task)
+            reference, weights = self._planned(task), s.weights(task)
         return Episode(reference, weights, plant, s.sample_noise(rng, reference.steps),
                        task if task is not None else s.fixed_task)
 
@@ -200,8 +225,9 @@ class TrackCore:
         s, task = self.settings, scenario.task
         noise = None
         if scenario.perturbation is not None and s.measurement_noise > 0:
-            noise = measurement_noise([scenario], task.steps, s.n, s.measurement_noise, self.model.opt.timestep)[:, 0]
-        return Episode(s.planner.plan(task, self.model), s.weights(task), scenario.perturbation, noise, task)
+            noise = measurement_noise([scenario], task.steps + s.settle_steps, s.n, s.measurement_noise,
+                                      self.model.opt.timestep)[:, 0]
+        return Episode(self._planned(task), s.weights(task), scenario.perturbation, noise, task)
 
     def reset(self, rngs: Sequence[np.random.Generator], ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
         """Start new episodes on simulations `ids` (all if None), one rng each; their observations (len, d)."""
@@ -233,7 +259,7 @@ class TrackCore:
                 loop.start(references, noise=noise)
             else:
                 loop.restart(ids, references, noise=noise)
-        self._observer.start(rows, [e.plant for e in episodes])
+        self._observer.start(rows, [e.plant for e in episodes], references)
         return self._observer(self.loop, rows)
 
     def start_info(self, ids: NDArray[np.intp]) -> dict[str, dict[str, NDArray[np.float64]]]:
@@ -289,14 +315,16 @@ class TrackCore:
         """The episode Metrics of simulations `ids` (NaN for a diverged one): name -> shape (len(ids),). An episode
         cut short (a time limit) is scored over the periods it ran: J_exec summed over them (so it equals minus its
         return), terminal_err at the pose it reached against the reference's sample there. Episodes of several
-        lengths (the aggressive family's) are scored a length at a time."""
+        lengths (the aggressive family's) are scored a length at a time. With a settle window the metrics cover the
+        whole episode and SETTLE_METRICS follow (NaN for an episode cut short or diverged)."""
+        names = (*METRIC_NAMES, *SETTLE_METRICS) if self.settings.settle_steps else METRIC_NAMES
         ends = self.loop.ends[ids]
         if np.any(ends != ends[0]):
             parts = {int(end): np.flatnonzero(ends == end) for end in np.unique(ends)}
-            merged = {name: np.empty(len(ids)) for name in METRIC_NAMES}
+            merged = {name: np.empty(len(ids)) for name in names}
             for where in parts.values():
                 scored = self.metrics(ids[where])
-                for name in METRIC_NAMES:
+                for name in names:
                     merged[name][where] = scored[name]
             return merged
         rollout = self.loop.rollout(ids)
@@ -313,7 +341,31 @@ class TrackCore:
             partial = metrics_arrays(cut, self._q_diag[row], self._r_diag[row])
             for name in METRIC_NAMES:
                 out[name][j] = partial[name][0]
+        if self.settings.settle_steps:
+            out.update(self._settle_metrics(ids, rollout, periods >= ends))
         return out
+
+    def _settle(self, row: int) -> Settle:
+        """Simulation `row`'s settle window (its task's goal and move, its reference's motion)."""
+        task, reference = self.tasks[row], self.references[row]
+        assert task is not None and reference is not None
+        return Settle(int(reference.info["motion_steps"]), self.settings.settle_steps, task.qg,
+                      float(np.max(np.abs(task.displacement))))
+
+    def _settle_metrics(self, ids: NDArray[np.intp], rollout: Rollout, complete: NDArray[np.bool_]
+                        ) -> dict[str, NDArray[np.float64]]:
+        """SETTLE_METRICS of simulations `ids` (one length, `rollout` theirs): NaN where the episode is not
+        `complete` or diverged."""
+        arrays = settle_arrays(rollout, self._q_diag[ids], self._r_diag[ids], [self._settle(int(i)) for i in ids])
+        keep = complete & ~rollout.diverged
+        return {name: np.where(keep, arrays[name], np.nan) for name in SETTLE_METRICS}
+
+    def settled(self, ids: NDArray[np.intp], values: dict[str, NDArray[np.float64]]) -> list[str]:
+        """Why each ended episode of simulations `ids`, with metrics `values` (name -> (len(ids),)), is not at rest
+        at its goal when its settle window ends ('' where it is; 'diverged' where it diverged)."""
+        return ["diverged" if not np.isfinite(values["end_err"][j]) else
+                unsettled(float(values["end_err"][j]), float(values["end_speed"][j]), self._settle(int(row)))
+                for j, row in enumerate(ids)]
 
     def floors(self, ids: NDArray[np.intp], costs: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
         """The clairvoyant floors of the episodes of simulations `ids` (`mjtraj.study.floor.floors_of`: their

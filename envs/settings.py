@@ -26,6 +26,7 @@ from mjtraj.core import (
     load_model,
     option,
     random_task,
+    window_steps,
 )
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.media import RENDER_QUALITIES, check_render_options
@@ -85,6 +86,14 @@ class EnvOptions:
                                 "bounds (privileged: a teacher); estimate = append the adaptive law's online "
                                 "estimate of them (deployable; controller='adaptive_computed_torque')",
                                 choices=OBSERVE_PLANT)
+    observe_task: bool = option(False, "append the task's move (its largest joint displacement, rad: the score's "
+                                "position scale) and the time to the motion's end (s, negative in the settle window)")
+    observe_measured: bool = option(False, "q, qd, e and ed in the observation are what the control law measures "
+                                    "(with measurement_noise, the noisy ones); False: the true state (privileged "
+                                    "under noise)")
+    settle: float = option(0.0, "settle window, s: the episode goes on this long after the motion, the reference "
+                           "holding the goal, every period scored; its end reports info['settled'] (at rest at the "
+                           "goal) and the settle metrics (protocol v2)", minimum=0.0)
     history: int = option(0, "previous observations appended to each observation, the latest first (an episode's "
                           "first observation fills them)", minimum=0)
     plant_randomization: str = option("none", "none, or mismatch: each episode's plant drawn by the sweeps' mismatch "
@@ -147,6 +156,12 @@ class TrackSettings:
     """'none', 'true' (the plant's parameters, privileged) or 'estimate' (the adaptive law's estimate of them)."""
     history: int
     """Previous observations appended to each one."""
+    observe_task: bool
+    """The observation ends with the move (rad) and the time to the motion's end (s)."""
+    observe_measured: bool
+    """The observation's state is the measured one (noisy under measurement noise)."""
+    settle: float
+    """The settle window, s (0: none)."""
     plant_randomization: str
     """'none' or 'mismatch' (`mjtraj.study.families` rules, drawn per episode)."""
     family: str
@@ -176,10 +191,16 @@ class TrackSettings:
 
     @property
     def obs_size(self) -> int:
-        """(6n + 1 + 2n preview (+ 2n with observe_control) (+ 1 + 2n with observe_plant)) (1 + history)."""
+        """(6n + 1 + 2n preview (+ 2n with observe_control) (+ 1 + 2n with observe_plant) (+ 2 with observe_task))
+        (1 + history)."""
         one = (6 * self.n + 1 + 2 * self.n * self.preview + 2 * self.n * self.observe_control
-               + (1 + 2 * self.n) * (self.observe_plant != "none"))
+               + (1 + 2 * self.n) * (self.observe_plant != "none") + 2 * self.observe_task)
         return one * (1 + self.history)
+
+    @property
+    def settle_steps(self) -> int:
+        """The settle window in control periods (0: none)."""
+        return window_steps(self.settle, self.dt)
 
     @property
     def torque_limit(self) -> NDArray[np.float64]:
@@ -224,6 +245,10 @@ class TrackSettings:
         if family == "mismatch" and not self.perturbs:
             raise InvalidInputError("options: a mismatch scenario runs on a perturbed plant; make the env with "
                                     "family='mismatch' (UR5TrackMismatch-v1) or plant_randomization='mismatch'")
+        if family != "mismatch" and self.measurement_noise > 0:
+            raise InvalidInputError(f"options: a {family} scenario is measured without noise (sweeps draw noise for "
+                                    f"mismatched plants only); make the env with measurement_noise=0 to replay it, "
+                                    f"got measurement_noise={self.measurement_noise}")
         return draw_scenario(family, int(spec["seed"]), int(spec["index"]), self.model, self.dt)
 
     def weights(self, task: Task) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -305,6 +330,10 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
     if own.observe_plant == "estimate" and loop.controller != "adaptive_computed_torque":
         raise InvalidInputError(f"observe_plant: 'estimate' observes the adaptive law's estimate; expected "
                                 f"controller='adaptive_computed_torque', got {loop.controller!r}")
+    window_steps(own.settle, own.dt)  # a whole number of periods
+    if own.floor and own.settle:
+        raise InvalidInputError(f"floor: the clairvoyant floor is derived for episodes without a settle window; got "
+                                f"settle={own.settle}")
     if own.floor and (loop.gravity_comp != "native" or loop.substeps != 1):
         raise InvalidInputError(f"floor: the floor models native gravity compensation at one integrator step per "
                                 f"period; got gravity_comp={loop.gravity_comp!r}, substeps={loop.substeps}")
@@ -337,7 +366,9 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          max_displacement=own.max_displacement,
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,
                          observe_control=own.observe_control, observe_plant=own.observe_plant,
-                         history=own.history, plant_randomization=own.plant_randomization,
+                         history=own.history, observe_task=own.observe_task,
+                         observe_measured=own.observe_measured, settle=own.settle,
+                         plant_randomization=own.plant_randomization,
                          family=own.family,
                          measurement_noise=own.measurement_noise, reward_baseline=own.reward_baseline,
                          floor=own.floor, scoring=scoring,

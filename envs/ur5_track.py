@@ -53,6 +53,10 @@ def observation_space(settings: TrackSettings) -> spaces.Box:
         low, high = [*low, -unbounded], [*high, unbounded]
     if settings.observe_plant != "none":  # theta / theta_max: >= 0; a user's plant may exceed its bound
         low, high = [*low, np.zeros(1 + 2 * settings.n)], [*high, np.full(1 + 2 * settings.n, np.finfo(np.float64).max)]
+    if settings.observe_task:  # the move (rad, within the range widths) and the time to the motion's end (s; a
+        # reset may ask for any duration)
+        low = [*low, np.array([0.0, -settings.settle])]
+        high = [*high, np.array([float(np.max(joints.upper - joints.lower)), np.finfo(np.float64).max])]
     one_low, one_high = np.concatenate(low), np.concatenate(high)
     reps = 1 + settings.history
     return spaces.Box(np.tile(one_low, reps), np.tile(one_high, reps), dtype=np.float64)  # type: ignore[arg-type]
@@ -106,9 +110,13 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | m .. m+2       | observe_control: the PID integral of e             | -max float    | max float    | rad s |
     | m+3 .. m+5     | observe_control: tau_ff of period k+1 (then N)     | -max float    | max float    | N m   |
     | p .. p+6      | observe_plant: payload, damping_j, friction_j over their bounds theta_max | 0 | max float | - |
+    | t              | observe_task: the move, max_i abs(qg_i - q0_i)     | 0             | largest range width | rad |
+    | t+1            | observe_task: time to the motion's end (N - k) dt  | -settle       | max float    | s     |
 
     (m = 19 + 6 preview; max float = the largest finite float64: these two have no a-priori bound. p = m (+ 6
-    with observe_control); theta_max: `mjtraj.core.adaptive.BOUND_RULE`; 'true' gives the episode's plant
+    with observe_control); t = p (+ 7 with observe_plant); N the motion's periods (without the settle window). With
+    observe_measured, q, qd, e and ed are what the control law measures, noisy under measurement_noise (else the
+    true state, which a policy then sees and the law does not); theta_max: `mjtraj.core.adaptive.BOUND_RULE`; 'true' gives the episode's plant
     (privileged), 'estimate' the adaptive law's online estimate. With `history` h the whole observation above,
     of size d, is followed by the h previous ones (latest first, each of size d; an episode's first observation
     fills them): size d (1 + h).)
@@ -168,13 +176,18 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     joints j = 0..2.
 
     ## Arguments
-    The defaults are UR5Track-v0's (kept as it was for earlier numbers). The benchmark envs differ in three:
+    The defaults are UR5Track-v0's (kept as it was for earlier numbers). The benchmark envs differ in these ("-":
+    the default):
 
-    | argument         | UR5Track-v1 | UR5TrackAggressive-v1 | UR5TrackMismatch-v1 |
-    |------------------|-------------|-----------------------|---------------------|
-    | action_mode      | "residual"  | "residual"            | "residual"          |
-    | task             | "random"    | "random"              | "random"            |
-    | family           | "nominal"   | "aggressive"          | "mismatch"          |
+    | argument | UR5Track-v1 | UR5TrackAggressive-v1 | UR5TrackMismatch-v1 | UR5Track-v2 | UR5TrackAggressive-v2 | UR5TrackMismatch-v2 | UR5TrackNoisy-v2 |
+    |---|---|---|---|---|---|---|---|
+    | action_mode | "residual" | "residual" | "residual" | "residual" | "residual" | "residual" | "residual" |
+    | task | "random" | "random" | "random" | "random" | "random" | "random" | "random" |
+    | family | "nominal" | "aggressive" | "mismatch" | "nominal" | "aggressive" | "mismatch" | "mismatch" |
+    | settle | - | - | - | 0.5 | 0.5 | 0.5 | 0.5 |
+    | observe_measured | - | - | - | True | True | True | True |
+    | observe_task | - | - | - | True | True | True | True |
+    | measurement_noise | - | - | - | - | - | - | 0.001 |
 
     | argument         | default    | meaning                                                                 |
     |------------------|------------|-------------------------------------------------------------------------|
@@ -206,6 +219,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | preview          | 0          | future reference samples in the observation                             |
     | observe_control  | False      | append the PID integral and the next feedforward torque (6 values)      |
     | observe_plant    | "none"     | none, true (the plant's parameters: privileged) or estimate (adaptive law's) |
+    | observe_task     | False      | append the move (rad) and the time to the motion's end (s)              |
+    | observe_measured | False      | observe the measured (noisy) state the law gets, not the true one       |
+    | settle           | 0.0        | settle window after the motion, s (protocol v2; info["settled"] at the end) |
     | history          | 0          | previous observations appended, latest first                             |
     | Q_exec           | None       | diag of Q_exec, 6 weights (None: Bryson's rule for each task)           |
     | R_exec           | None       | diag of R_exec, 3 weights (None: Bryson's rule)                         |
@@ -224,9 +240,17 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | UR5Track-v1 | action_mode="residual" (6 N m), task="random", family="nominal" (docs/benchmark.md) | 0.2.0 |
     | UR5TrackAggressive-v1 | as v1 with family="aggressive" (T uniform in [0.5, 1] s) | 0.2.0 |
     | UR5TrackMismatch-v1 | as v1 with family="mismatch" (a perturbed plant each episode) | 0.2.0 |
+    | UR5Track-v2 | as v1 with settle=0.5, observe_measured=True, observe_task=True (protocol v2) | 0.5.0 |
+    | UR5TrackAggressive-v2, UR5TrackMismatch-v2 | as v2 with family="aggressive", "mismatch" | 0.5.0 |
+    | UR5TrackNoisy-v2 | as UR5TrackMismatch-v2 with measurement_noise=0.001 (protocol v2's noisy family) | 0.5.0 |
 
-    v0 is kept unchanged for reproducibility (its dynamics and residual default changed within 0.1.0 before the
-    benchmark was versioned); new work should use v1. `reset(options={"scenario": {"family": F, "seed": S,
+    v0 and v1 are kept unchanged for reproducibility (v0's dynamics and residual default changed within 0.1.0
+    before the benchmark was versioned); new work should use v2. In v2 an episode of N motion periods runs N + 25
+    steps: after the motion the reference holds the goal at rest for the 0.5 s settle window, every period scored
+    with the same weights (the return is minus J_settle), and the last step's info says whether the arm is at rest at
+    the goal (`info["settled"]`: every joint within 2 % of the move and slower than 0.05 rad/s; why not in
+    `info["settle_reason"]`); its metrics add cost_position, cost_velocity, cost_torque, cost_motion (J_exec of
+    the motion alone), end_err, end_speed and settle_time (`mjtraj.core.settle`). `reset(options={"scenario": {"family": F, "seed": S,
     "index": i}})` replays held-out sweep scenario i of family F under seed S (task, duration, plant), bit for bit
     the episode `mjtraj sweep` and `mjtraj rl eval` score; reset's info carries the task (q0, qg, duration) and, on
     perturbed plants, the plant.
@@ -304,6 +328,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             out["diverged"] = bool(self._core.loop.diverged[0])
             out["missed_goal"] = bool(self._core.goal_missed(np.zeros(1, np.intp),
                                                              np.array([out["metrics"]["terminal_err"]]))[0])
+            if self._core.settings.settle:
+                why = self._core.settled(np.zeros(1, np.intp), {k: np.array([v]) for k, v in out["metrics"].items()})
+                out["settled"], out["settle_reason"] = not why[0], why[0]
             if self._core.settings.floor:
                 floors = self._core.floors(np.zeros(1, np.intp), np.array([out["metrics"]["cost"]]))
                 out["metrics"].update({name: float(value[0]) for name, value in floors.items()})

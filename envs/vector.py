@@ -137,6 +137,10 @@ class UR5TrackVectorEnv(VectorEnv):
             missed = np.zeros(self.num_envs, dtype=bool)
             missed[ended] = self._core.goal_missed(ended, values["terminal_err"])
             out["missed_goal"], out["_missed_goal"] = missed, done.copy()
+            if self._core.settings.settle:
+                settled = np.zeros(self.num_envs, dtype=bool)
+                settled[ended] = [not why for why in self._core.settled(ended, values)]
+                out["settled"], out["_settled"] = settled, done.copy()
         if restart.size:
             self._restart(restart, obs, out)
             reward[restart] = 0.0

@@ -79,7 +79,8 @@ def test_the_variants_draw_their_family():
     assert len(durations) > 1 and all(0.5 <= d <= 1.0 for d in durations)
     mismatch = gym.make("UR5TrackMismatch-v1")
     assert mismatch.reset(seed=0)[1]["plant"]["payload_kg"] > 0
-    assert set(BENCHMARK_VARIANTS) == {"UR5Track-v1", "UR5TrackAggressive-v1", "UR5TrackMismatch-v1"}
+    assert set(BENCHMARK_VARIANTS) == {"UR5Track-v1", "UR5TrackAggressive-v1", "UR5TrackMismatch-v1", "UR5Track-v2",
+                                       "UR5TrackAggressive-v2", "UR5TrackMismatch-v2", "UR5TrackNoisy-v2"}
     vec = gym.make_vec("UR5TrackMismatch-v1", num_envs=2, vectorization_mode="vector_entry_point")
     assert vec.unwrapped.settings.family == "mismatch"
     for env in (aggressive, mismatch, vec):

@@ -305,17 +305,20 @@ def test_docstring_arguments_table_matches_the_code():
     documented = {name: value for name, value in rows if name != "argument"}
     code = {name: repr(value).replace("'", '"') for name, value in argument_defaults().items()}
     assert documented == code
-    variants = re.findall(r"^\| (\w+)\s+\| (\S+)\s+\| (\S+)\s+\| (\S+)\s+\|$", benchmark, flags=re.M)
-    ids = [cell.strip() for cell in benchmark.split("\n\n")[1].splitlines()[0].strip("|").split("|")[1:]]
+    lines = [line.strip().strip("|").split("|") for line in benchmark.splitlines()
+             if line.strip().startswith("| ")]
+    ids = [cell.strip() for cell in lines[0][1:]]
     assert ids == list(BENCHMARK_VARIANTS)
+    variants = [[cell.strip() for cell in line] for line in lines[1:]]
     for column, env_id in enumerate(ids, start=1):
-        shown = {row[0]: row[column] for row in variants if row[0] != "argument"}
+        shown = {row[0]: row[column] for row in variants if row[column] != "-"}
         assert shown == {name: repr(value).replace("'", '"') for name, value in BENCHMARK_VARIANTS[env_id].items()}
     env = UR5TrackEnv()  # and those defaults are what an env built without arguments uses
     s = env.settings
     applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,
                "task": s.task_mode, "family": s.family, "observe_control": s.observe_control,
-               "observe_plant": s.observe_plant, "history": s.history,
+               "observe_plant": s.observe_plant, "history": s.history, "observe_task": s.observe_task,
+               "observe_measured": s.observe_measured, "settle": s.settle,
                "plant_randomization": s.plant_randomization, "measurement_noise": s.measurement_noise,
                "reward_baseline": s.reward_baseline, "floor": s.floor,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
@@ -387,7 +390,7 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                    r"torque_limit, "
                    r"action_mode, "
                    r"residual_scale, task, family, max_displacement, duration, dt, preview, observe_control, "
-                   r"observe_plant, history, plant_randomization, measurement_noise, reward_baseline, floor, width, "
+                   r"observe_plant, observe_task, observe_measured, settle, history, plant_randomization, measurement_noise, reward_baseline, floor, width, "
                    r"height, "
                    r"camera, render_quality, "
                    r"controller, "

@@ -30,9 +30,10 @@ def costs(rows, method, family="nominal"):
     return [r["cost"] for r in rows if r["method"] == method and r["family"] == family]
 
 
-def test_a_zero_residual_is_the_controller_alone_bit_for_bit_under_each_law(tmp_path):
+@pytest.mark.parametrize("protocol", ["v1", "v2"])
+def test_a_zero_residual_is_the_controller_alone_bit_for_bit_under_each_law(tmp_path, protocol):
     """A user's callable (one observation), a torch module and a computed-torque callable that add nothing score
-    exactly as cubic+PID and cubic+CT, scenario by scenario."""
+    exactly as cubic+PID and cubic+CT, scenario by scenario, with the same statuses (v2's settle window included)."""
 
     class ZeroModule(torch.nn.Module):
         def forward(self, x):
@@ -46,7 +47,7 @@ def test_a_zero_residual_is_the_controller_alone_bit_for_bit_under_each_law(tmp_
             return np.zeros(3)
 
     report = evaluate([zero, ZeroModule(), ZeroCT()], families=("nominal", "aggressive"), scenarios=4, seed=3,
-                      reps=20, out=tmp_path)
+                      reps=20, out=tmp_path, protocol=protocol)
     rows = read_rows(report.csv)
     for family in ("nominal", "aggressive"):
         pid, ct = costs(rows, "cubic+PID", family), costs(rows, "cubic+CT", family)
@@ -54,6 +55,13 @@ def test_a_zero_residual_is_the_controller_alone_bit_for_bit_under_each_law(tmp_
         assert costs(rows, "zero", family) == pid
         assert costs(rows, "ZeroModule", family) == pid
         assert costs(rows, "zero on CT", family) == ct
+        statuses = {m: [r["status"] for r in rows if r["method"] == m and r["family"] == family]
+                    for m in ("cubic+PID", "zero", "cubic+CT", "zero on CT")}
+        assert statuses["zero"] == statuses["cubic+PID"] and statuses["zero on CT"] == statuses["cubic+CT"]
+    if protocol == "v2":  # the settle window ran: the episode's score is above the motion's J_exec
+        assert all(float(r["cost"]) > float(r["cost_motion"]) for r in rows if r["status"] in ("ok", "not_settled"))
+        assert report.reference == "cubic+adaptive CT"
+        return
     kinds = {r["method"]: (r["policy_kind"], json.loads(r["policy_env"])["controller"]) for r in rows if r["policy"]}
     assert kinds == {"zero": ("callable", "pid"), "ZeroModule": ("torch", "pid"),
                      "zero on CT": ("callable", "computed_torque")}
@@ -116,7 +124,7 @@ def test_the_cli_scores_a_users_file_beside_the_classical_methods(tmp_path, caps
     out = tmp_path / "eval"
     code = main(["rl", "eval", "--policy", f"{tmp_path / 'mine.py'}:policy", "--policy-env", "residual_scale=2",
                  "--family", "nominal,mismatch", "--scenarios", "3", "--controllers", "pid,computed_torque",
-                 "--tuned-gains", str(tuned), "--reps", "20", "--out", str(out), "--no-progress"])
+                 "--tuned-gains", str(tuned), "--reps", "20", "--out", str(out), "--no-progress", "--protocol", "v1"])
     assert code == 0, capsys.readouterr().err
     text = capsys.readouterr().out
     for method in ("cubic+PID", "cubic+CT", "cubic+PID (tuned gains)", "mine.py:policy"):
@@ -229,16 +237,18 @@ def test_a_shipped_baseline_rescores_to_the_summarys_rows_bit_for_bit(tmp_path):
 
 
 def test_a_run_off_the_published_protocol_says_so(tmp_path):
-    """The defaults are protocol v1 (no departure); any other family, count, seed or resample count is named in
-    summary.json's protocol and in SUMMARY.md's title and first lines."""
+    """The default is protocol v2 and each protocol's own settings depart from nothing; any other family, count, seed
+    or resample count is named in summary.json's protocol and in SUMMARY.md's title and first lines."""
     import inspect
 
-    from mjtraj.rl.protocol import PROTOCOL_V1, departures
+    from mjtraj.rl.protocol import PROTOCOL_V1, PROTOCOL_V2, departures
 
     defaults = {k: v.default for k, v in inspect.signature(evaluate).parameters.items()}
-    assert departures(defaults["families"], defaults["scenarios"], defaults["seed"], defaults["reps"]) == []
-    assert departures(*PROTOCOL_V1.values()) == []
-    evaluate([], families=("nominal",), scenarios=2, seed=3, reps=20, out=tmp_path)
+    assert defaults["protocol"] == "v2" and defaults["families"] is None and defaults["reps"] is None
+    assert departures(*PROTOCOL_V1.values()) == [] and departures(*PROTOCOL_V2.values(), protocol="v2") == []
+    assert departures(*PROTOCOL_V1.values(), protocol="v2") == [
+        "families nominal,aggressive,mismatch (v2: nominal,aggressive,mismatch,noisy)"]
+    evaluate([], families=("nominal",), scenarios=2, seed=3, reps=20, out=tmp_path, protocol="v1")
     protocol = json.loads((tmp_path / "summary.json").read_text())["protocol"]
     assert protocol == ("off-protocol: families nominal (v1: nominal,aggressive,mismatch); scenarios 2 (v1: 200); "
                         "seed 3 (v1: 1); reps 20 (v1: 2000)")
@@ -317,7 +327,7 @@ def test_every_method_is_paired_against_the_named_one_and_an_unknown_name_is_ref
     import pandas as pd
 
     report = evaluate([], families=("nominal",), scenarios=4, seed=3, reps=20, controllers=("pid", "computed_torque"),
-                      out=tmp_path, versus="cubic+CT")
+                      out=tmp_path, versus="cubic+CT", protocol="v1")
     record = json.loads(report.summary_json.read_text())["versus"]
     assert record["method"] == "cubic+CT"
     rows = pd.read_csv(report.csv)
@@ -332,4 +342,29 @@ def test_every_method_is_paired_against_the_named_one_and_an_unknown_name_is_ref
     with pytest.raises(InvalidInputError, match=r"^versus: expected a method of one run in this evaluation, one of "
                                                 r"cubic\+PID, cubic\+CT; got 'cubic\+MPC'$"):
         evaluate([], families=("nominal",), scenarios=2, seed=3, reps=20, controllers=("pid", "computed_torque"),
-                 out=tmp_path / "b", versus="cubic+MPC")
+                 out=tmp_path / "b", versus="cubic+MPC", protocol="v1")
+
+
+def test_protocol_v2_scores_the_window_and_its_noisy_family_is_the_sweeps_own(tmp_path):
+    """v2's rows are the sweep's under a 0.5 s window (the noisy family: the mismatch scenarios measured with 1 mrad
+    of noise), bit for bit; the summary names the protocol, its score and reference, and carries the execution
+    table and the rankings under both weightings."""
+    from mjtraj.study.sweep import SweepSettings, run_unit
+
+    report = evaluate([], families=("mismatch", "noisy"), scenarios=2, seed=3, reps=20, out=tmp_path)
+    rows = read_rows(report.csv)
+    for family, noise in (("mismatch", 0.0), ("noisy", 1e-3)):
+        sweep = run_unit(SweepSettings(families=("mismatch",), scenarios=2, seed=3, planners=("cubic",),
+                                       settle=0.5, sensor_noise=noise), ("mismatch", 0)).rows
+        mine = [r for r in rows if r["family"] == family and r["method"] == "cubic+PID"]
+        assert [float(r["cost"]) for r in mine] == [r["cost"] for r in sweep]
+        assert [r["status"] for r in mine] == [r["status"] for r in sweep]
+    assert costs(rows, "cubic+PID", "mismatch") != costs(rows, "cubic+PID", "noisy")
+    record = json.loads(report.summary_json.read_text())
+    assert (record["reference"], record["score"], record["settle"], record["noisy_sigma"]) == (
+        "cubic+adaptive CT", "J_settle", 0.5, 1e-3)
+    assert record["protocol"].startswith("off-protocol: families mismatch,noisy (v2: ")
+    assert set(record["executions"]) == {"mismatch", "noisy"} and "kendall_tau" in record["weightings"]["noisy"]
+    summary = report.markdown.read_text()
+    assert "What the executions did" in summary and "| noisy | cubic+adaptive CT |" in summary
+    assert "Kendall's tau" in summary

@@ -350,7 +350,8 @@ def test_configurations_sharing_a_label_are_told_apart_by_their_settings(trained
 def test_eval_under_mismatch_splits_by_payload(trained, tmp_path):
     """Oracle: each payload bin's ratio of mean J_exec, recomputed from the rows with numpy by the failure rule (a
     row that is not ok, a missed goal included, is +inf; scenarios where the reference failed leave the ratio)."""
-    report = evaluate([trained / "policy.zip"], families=("mismatch",), scenarios=10, seed=5, reps=20, out=tmp_path)
+    report = evaluate([trained / "policy.zip"], families=("mismatch",), scenarios=10, seed=5, reps=20, out=tmp_path,
+                      protocol="v1")
     rows = read_rows(report.csv)
     ref = {int(r["scenario"]): r for r in rows if r["method"] == "cubic+PID"}
     mine = {int(r["scenario"]): r for r in rows if r["policy"]}
@@ -611,7 +612,7 @@ def test_missing_rl_extra_says_how_to_install(monkeypatch, capsys, tmp_path):
     def zero(obs):
         return np.zeros(3)
 
-    report = evaluate([zero], families=("nominal",), scenarios=2, reps=10, out=tmp_path)
+    report = evaluate([zero], families=("nominal",), scenarios=2, reps=10, out=tmp_path, protocol="v1")
     (summary,) = [s for m, s in report.summaries["nominal"].items() if m.endswith("zero")]
     assert summary.ratio_of_means.value == 1.0
 

@@ -17,7 +17,7 @@ from mjtraj.cli.common import (
     no_progress_option,
     overrides,
 )
-from mjtraj.rl.protocol import PROTOCOL_V1
+from mjtraj.rl.protocol import PROTOCOL, PROTOCOL_V2, PROTOCOLS
 
 
 def add(sub: Any, laws: str) -> None:
@@ -127,13 +127,19 @@ def add(sub: Any, laws: str) -> None:
                    help="an env setting for policies that are not zips and do not declare it (planner, controller, "
                    "action_mode, residual_scale, observe_control, preview, observe_plant, history; default "
                    "UR5Track-v1's); repeatable")
-    p.add_argument("--family", type=names, default=list(PROTOCOL_V1["families"]),
-                   help="families, comma-separated: nominal, aggressive, mismatch (default all three, protocol v1)")
-    p.add_argument("--scenarios", type=int, default=PROTOCOL_V1["scenarios"],
-                   help="held-out scenarios per family (default 200, protocol v1)")
-    p.add_argument("--seed", type=int, default=PROTOCOL_V1["seed"],
-                   help="the scenarios' seed (default 1, protocol v1: held out from sweeps and training, seed 0); "
-                   "any other family, count, seed or --reps is stamped off-protocol in SUMMARY.md and summary.json")
+    p.add_argument("--protocol", choices=tuple(PROTOCOLS), default=PROTOCOL,
+                   help=f"the benchmark protocol (default {PROTOCOL}: each episode goes on for a settle window after "
+                   "its motion, scored over it by J_settle and held to the at-rest rule, against cubic+adaptive CT; "
+                   "v1: J_exec over the motion and the goal rule, against cubic+PID; docs/benchmark.md)")
+    p.add_argument("--family", type=names, default=None,
+                   help="families, comma-separated: nominal, aggressive, mismatch, noisy (default the protocol's: "
+                   f"{', '.join(PROTOCOL_V2['families'])} in v2, the first three in v1)")
+    p.add_argument("--scenarios", type=int, default=None,
+                   help=f"held-out scenarios per family (default the protocol's, {PROTOCOL_V2['scenarios']})")
+    p.add_argument("--seed", type=int, default=None,
+                   help=f"the scenarios' seed (default the protocol's, {PROTOCOL_V2['seed']}: held out from sweeps "
+                   "and training, seed 0); any other family, count, seed or --reps is stamped off-protocol in "
+                   "SUMMARY.md and summary.json")
     p.add_argument("--planners", type=names, default=["cubic"],
                    help="planners scored under each control law (cubic, the reference's, always; default cubic)")
     p.add_argument("--controllers", type=names, default=["pid"],
@@ -142,12 +148,12 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--tuned-gains", dest="tuned_gains", type=Path,
                    help="a scenario file from `mjtraj tune --gains`, scored as 'cubic+PID (tuned gains)'")
     p.add_argument("--floor", action="store_true", help="also compute each scenario's clairvoyant floor and read "
-                   "every method against it and against the strongest classical method (floor.csv; mismatch floors "
-                   "take about 0.15 s a scenario)")
+                   "every method against it and against the strongest classical method (floor.csv; protocol v1 "
+                   "only)")
     p.add_argument("--versus", metavar="METHOD", help="also pair every method against this one of the evaluation "
                    "(e.g. \"cubic+adaptive CT\"): J / its J and P(better), with intervals, in SUMMARY.md")
-    p.add_argument("--reps", type=int, default=PROTOCOL_V1["reps"],
-                   help="bootstrap resamples per interval (default 2000, protocol v1)")
+    p.add_argument("--reps", type=int, default=None,
+                   help=f"bootstrap resamples per interval (default the protocol's, {PROTOCOL_V2['reps']})")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")
     p.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
     no_progress_option(p)
@@ -336,7 +342,7 @@ def run_ship(args: argparse.Namespace) -> int:
 
 def run_eval(args: argparse.Namespace) -> int:
     """`mjtraj rl eval`."""
-    from mjtraj.rl.evaluate import REFERENCE, evaluate
+    from mjtraj.rl.evaluate import evaluate
 
     command = command_line(args)
     policies = list(args.policies)
@@ -344,15 +350,21 @@ def run_eval(args: argparse.Namespace) -> int:
         from mjtraj.rl.baselines import baseline_names
 
         policies += [f"baseline:{name}" for name in baseline_names()]
-    evaluation = evaluate(policies, families=tuple(args.family), scenarios=args.scenarios, seed=args.seed,
+    evaluation = evaluate(policies, families=None if args.family is None else tuple(args.family),
+                          scenarios=args.scenarios, seed=args.seed, protocol=args.protocol,
                           planners=tuple(args.planners), controllers=tuple(args.controllers),
                           tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
                           settings=overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
                           progress=not args.no_progress, floor=args.floor,
                           figure_formats=tuple(args.figure_format), versus=args.versus)
+    print(f"Protocol {evaluation.protocol}.\n")
     print(evaluation.table)
-    print(f"\nIn short (J / {REFERENCE}, then P(improve)):\n")
+    print(f"\nIn short (J / {evaluation.reference}, then P(improve)):\n")
     print(evaluation.compact)
+    if evaluation.executions:
+        print("\nWhat the executions did:\n")
+        print(evaluation.executions)
+        print(f"\n{evaluation.weighting}")
     if evaluation.floor_table:
         print("\nAgainst the floor and the strongest classical method:\n")
         print(evaluation.floor_table)

@@ -58,6 +58,16 @@ _EXPORTS = {
     "bryson_weights": "mjtraj.core.scoring",
     "step_cost": "mjtraj.core.scoring",
     "executed_cost": "mjtraj.core.scoring",
+    "Settle": "mjtraj.core.settle",
+    "SETTLE_WINDOW": "mjtraj.core.settle",
+    "SETTLE_BAND": "mjtraj.core.settle",
+    "SETTLE_SPEED": "mjtraj.core.settle",
+    "SETTLE_METRICS": "mjtraj.core.settle",
+    "SETTLE_UNITS": "mjtraj.core.settle",
+    "held": "mjtraj.core.settle",
+    "settle_arrays": "mjtraj.core.settle",
+    "unsettled": "mjtraj.core.settle",
+    "window_steps": "mjtraj.core.settle",
     "JOINT_SPEED_LIMIT": "mjtraj.core.scoring",
     "gain_rule": "mjtraj.core.gains",
     "GAIN_RULE": "mjtraj.core.gains",
@@ -114,6 +124,18 @@ if TYPE_CHECKING:
     from mjtraj.core.reference import Reference
     from mjtraj.core.rollout import Rollout
     from mjtraj.core.scoring import JOINT_SPEED_LIMIT, Scoring, bryson_weights, executed_cost, step_cost
+    from mjtraj.core.settle import (
+        SETTLE_BAND,
+        SETTLE_METRICS,
+        SETTLE_SPEED,
+        SETTLE_UNITS,
+        SETTLE_WINDOW,
+        Settle,
+        held,
+        settle_arrays,
+        unsettled,
+        window_steps,
+    )
     from mjtraj.core.stability import spectral_radii
     from mjtraj.core.task import Task, random_task
 
@@ -122,7 +144,8 @@ __all__ = [
     "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "CONTROLLERS", "ClosedLoop", "ComputedTorque", "CondensedQP",
     "ControlOutput", "Controller", "DynamicsProbe", "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE",
     "GOAL_TOLERANCE", "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS",
-    "Metrics", "missed_goal",
+    "Metrics", "missed_goal", "SETTLE_BAND", "SETTLE_METRICS", "SETTLE_SPEED", "SETTLE_UNITS", "SETTLE_WINDOW",
+    "Settle", "held", "settle_arrays", "unsettled", "window_steps",
     "PID", "PIDGains", "Planner", "QPSolution", "Reference", "Rollout", "Scoring", "Step", "Task", "available",
     "box_lqr", "bryson_weights", "build_qp", "check_name", "check_options", "control_law", "controller_names",
     "declared_options",

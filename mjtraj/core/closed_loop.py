@@ -241,6 +241,18 @@ class ClosedLoop:
         """Joint velocities now, shape (B, n), rad/s (a live view: read it, do not keep or write it)."""
         return self._plant.qvel
 
+    def measured(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """What the control law will measure at each simulation's next period: the positions (rad) and velocities
+        (rad/s) now plus that period's measurement noise (the last period's once the reference ended), shape (B, n)
+        each; without noise, `positions` and `velocities` themselves (read-only use)."""
+        s = self._running()
+        if s.noise is None:
+            return self.positions, self.velocities
+        n = self.model.nv
+        ks = np.minimum(s.periods, s.ends - 1)
+        noise = s.noise[ks, s.rows]
+        return self.positions + noise[:, :n], self.velocities + noise[:, n:]
+
     def reference(self, offset: int = 0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Each simulation's reference sample at its next period + `offset` (held at N): q_ref and qd_ref, shape
         (B, n) each, rad and rad/s (read-only use)."""
@@ -369,7 +381,7 @@ class ClosedLoop:
                                  np.full((B, n), np.nan), noise=checked,
                                  held=np.zeros((B, n)) if self.config.delay else None,
                                  law_state=self._initial_law_state(B), ends=lengths)
-        self._track(slice(None), q_ref, qd_ref, ff)
+        self._track(slice(None), q_ref, qd_ref, ff, references)
         self._plant.reset(q_ref[0], qd_ref[0])
 
     def restart(self, ids: npt.ArrayLike, references: Sequence[Reference], *,
@@ -418,7 +430,7 @@ class ClosedLoop:
             s.law_state[where] = self._initial_law_state(rows.size)
         s.set_ends(where, lengths)
         s.resync()
-        self._track(where, q_ref, qd_ref, ff)
+        self._track(where, q_ref, qd_ref, ff, references)
         self._plant.reset(q_ref[0], qd_ref[0], rows)
 
     def step(self, *, residual: NDArray[np.float64] | None = None,
@@ -511,11 +523,17 @@ class ClosedLoop:
                          residual=residual, override=override, state=law_state, q=q, qd=qd)
 
     def _track(self, rows: slice | NDArray[np.intp], q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64],
-               ff: NDArray[np.float64]) -> None:
+               ff: NDArray[np.float64], references: Sequence[Reference]) -> None:
         """Give a law that previews the reference (one with `track`, the model-predictive ones) the references of
-        simulations `rows`: q_ref, qd_ref (N+1, R, n), the feedforward (N, R, n)."""
+        simulations `rows`: q_ref, qd_ref (N+1, R, n), the feedforward (N, R, n); and, where they end with a settle
+        window (`mjtraj.core.settle.held`), its periods (R,) as `windows`."""
         track = getattr(self._law, "track", None)
-        if track is not None:
+        if track is None:
+            return
+        windows = np.array([int(r.info.get("settle_steps", 0)) for r in references], dtype=np.intp)
+        if windows.any():
+            track(rows, q_ref, qd_ref, ff, windows=windows)
+        else:
             track(rows, q_ref, qd_ref, ff)
 
     def _initial_law_state(self, rows: int) -> NDArray[np.float64] | None:

@@ -38,7 +38,7 @@ class PolicyActor:
               plants: Sequence[Perturbation | None] = ()) -> None:
         self._limit = np.tile(self.settings.action_scale, (loop.nsim, 1))
         self._observer = Observer(self.settings, loop.nsim)
-        self._observer.start(np.arange(loop.nsim), list(plants) or [None] * loop.nsim)
+        self._observer.start(np.arange(loop.nsim), list(plants) or [None] * loop.nsim, references)
         if isinstance(self.policy, ScoredPolicy):
             if self.policy.privileged:  # the plants as the env reports them (the nominal one where none)
                 nominal = no_perturbation(self.settings.n)

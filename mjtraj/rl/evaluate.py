@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.checks import choice, positive_int
-from mjtraj.core import LoopConfig, controller_names
+from mjtraj.core import SETTLE_BAND, SETTLE_SPEED, LoopConfig, controller_names
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl import law_label
@@ -33,7 +33,18 @@ from mjtraj.rl.adapters import ScoredPolicy, check_settings, load_any
 from mjtraj.rl.batched_policy import BATCHED_RUN
 from mjtraj.rl.episodes import PolicyActor
 from mjtraj.rl.extra import rl_versions
-from mjtraj.rl.protocol import PROTOCOL, PROTOCOL_V1, departures
+from mjtraj.rl.practice import execution_table, weighting_agreement
+from mjtraj.rl.protocol import (
+    NOISY_FAMILY,
+    NOISY_SIGMA,
+    PROTOCOL,
+    REFERENCES,
+    SCORE_NAMES,
+    SETTLE,
+    check_protocol,
+    departures,
+    sweep_family,
+)
 from mjtraj.rl.protocol_stats import (
     FAILURE_RULE,
     FloorSummary,
@@ -65,8 +76,13 @@ from mjtraj.study import (
 
 POLICY_COLUMNS = ("method", "policy", "policy_kind", "policy_sha256", "policy_timesteps", "policy_privileged",
                   "policy_env")
-REFERENCE = "cubic+PID"
-"""The reference method of every statistic: the cubic planner under feedforward + PID, the paper's baseline."""
+REFERENCE = REFERENCES["v1"]
+"""Protocol v1's reference method: the cubic planner under feedforward + PID, the paper's baseline (protocol v2's is
+the adaptive law, REFERENCES)."""
+FAMILY_CHOICES = (*FAMILIES, NOISY_FAMILY)
+"""The families an evaluation takes: the sweeps' and protocol v2's noisy one."""
+LAW_OF = {"cubic+PID": "pid", "cubic+adaptive CT": "adaptive_computed_torque"}
+"""The control law each protocol's reference method runs (it always runs, whatever `controllers` says)."""
 LAW_SCENARIOS = {"pid": None, "computed_torque": "paper_computed_torque",
                  "adaptive_computed_torque": "paper_adaptive"}
 """The shipped base scenario of each built-in law (None: paper.toml); a plug-in law runs paper.toml with its
@@ -83,7 +99,7 @@ def check_held_out(policy: Any, family: str, seed: int, scenarios: int) -> None:
     train_seed = int(policy.record["settings"]["seed"])
     used = list(streams["train"]["gym_seeds"]) + [[train_seed, VALIDATION_STREAM, i]
                                                    for i in range(int(streams["validation"]["count"]))]
-    shared = shared_streams(used, family_entropies(family, seed, range(scenarios)))
+    shared = shared_streams(used, family_entropies(sweep_family(family), seed, range(scenarios)))
     if shared:
         raise InvalidInputError(f"seed: {len(shared)} of the {family} scenarios under seed {seed} share a seed stream "
                                 f"with {policy.path}'s training; choose another seed")
@@ -109,6 +125,12 @@ class EvalReport:
     """The table against the floor (with `floor=True`)."""
     intervals: Path | None = None
     """rliable's interval estimates of IQM improvement and P(improve) (intervals.png)."""
+    executions: str = ""
+    """Protocol v2's table of what the executions did (`mjtraj.rl.practice.execution_table`)."""
+    weighting: str = ""
+    """Protocol v2's ranking under J_settle and under a tracking-heavy weighting, with Kendall's tau."""
+    protocol: str = PROTOCOL
+    reference: str = REFERENCES[PROTOCOL]
 
 
 def _labels(policies: Sequence[ScoredPolicy]) -> list[str]:
@@ -206,19 +228,21 @@ def _blank_policy(row: dict[str, Any], method: str) -> dict[str, Any]:
     return {**row, "method": method, **{k: "" for k in POLICY_COLUMNS if k != "method"}}
 
 
-def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["families"],
-             scenarios: int = PROTOCOL_V1["scenarios"], seed: int = PROTOCOL_V1["seed"],
-             planners: Sequence[str] = ("cubic",), controllers: Sequence[str] = ("pid",),
+def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, scenarios: int | None = None,
+             seed: int | None = None, planners: Sequence[str] = ("cubic",), controllers: Sequence[str] = ("pid",),
              tuned_gains: str | Path | None = None, settings: Mapping[str, Any] | None = None,
-             out: str | Path = "rl_eval", batch: int = 250, reps: int = PROTOCOL_V1["reps"],
+             out: str | Path = "rl_eval", batch: int = 250, reps: int | None = None,
              threads: int | None = 1, command: str = "", progress: bool = False, floor: bool = False,
-             figure_formats: Sequence[str] = ("png",), versus: str | None = None) -> EvalReport:
+             figure_formats: Sequence[str] = ("png",), versus: str | None = None,
+             protocol: str = PROTOCOL) -> EvalReport:
     """Score `policies` beside the `planners` under every law of `controllers` on scenarios 0..scenarios-1 of each
     of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md, profiles.png and intervals.png (in each
-    of `figure_formats`: png, pdf, svg) into `out`. The defaults
-    are protocol v1 (PROTOCOL_V1); other scenarios are stamped off-protocol.
+    of `figure_formats`: png, pdf, svg) into `out`. `families`, `scenarios`, `seed` and `reps` default to
+    `protocol`'s (`mjtraj.rl.protocol`); other values are stamped off-protocol.
 
     Args:
+      protocol: 'v2' (the default: each episode with its settle window, scored by J_settle, held to the at-rest
+        rule, against the adaptive law) or 'v1' (J_exec over the motion, the goal rule, against cubic+PID).
       policies: zips from `mjtraj rl train`, "baseline:NAME", "MODULE:ATTR" / "FILE.py:ATTR", or the objects
         themselves (callables, torch modules; see mjtraj.rl.adapters). May be empty: the classical methods alone.
       controllers: control laws the planners run under; each policy runs on its own law (added if missing).
@@ -249,16 +273,25 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
             torch.set_num_threads(threads)
     for kind in figure_formats:
         choice("figure_formats", kind, FIGURE_FORMATS)
+    defaults = check_protocol(protocol)
+    families = tuple(defaults["families"] if families is None else families)
+    scenarios = int(defaults["scenarios"] if scenarios is None else scenarios)
+    seed = int(defaults["seed"] if seed is None else seed)
+    reps = int(defaults["reps"] if reps is None else reps)
     for family in families:
-        choice("family", family, FAMILIES)
+        choice("family", family, FAMILY_CHOICES)
     if not families:
         raise InvalidInputError("family: expected at least one family, got none")
     positive_int("scenarios", scenarios)
     positive_int("reps", reps)
     check_seed("seed", seed)
     check_settings(settings)
+    if floor and SETTLE[protocol]:
+        raise InvalidInputError(f"floor: the clairvoyant floor is derived for protocol v1's score (J_exec over the "
+                                f"motion); use --protocol v1 with --floor, got protocol {protocol}")
+    reference = REFERENCES[protocol]
     planner_list = list(dict.fromkeys(["cubic", *planners]))
-    laws = list(dict.fromkeys(["pid", *controllers]))
+    laws = list(dict.fromkeys(["pid", LAW_OF[reference], *controllers]))
     for law in laws:
         choice("controllers", law, controller_names())
     loaded = [load_any(p, settings=settings) for p in policies]
@@ -270,18 +303,19 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
     out = Path(out)
     configs = {law: _law_config(law, out) for law in laws}
     plans = []
+    window = SETTLE[protocol]
     for family in families:
+        drawn = {"families": (sweep_family(family),), "scenarios": scenarios, "seed": seed, "batch": batch,
+                 "settle": window, "sensor_noise": NOISY_SIGMA if family == NOISY_FAMILY else 0.0}
         for law in laws:
             mine = [(p, label) for p, label in zip(loaded, labels, strict=True) if p.controller == law]
             names = tuple(dict.fromkeys([*planner_list, *(p.planner for p, _ in mine)]))
-            sweep = SweepSettings(families=(family,), scenarios=scenarios, seed=seed, planners=names,
-                                  config=configs[law], batch=batch)
+            sweep = SweepSettings(planners=names, config=configs[law], **drawn)
             for policy, _ in mine:
                 _check_loop(policy, sweep)
             plans.append((family, law, sweep, mine))
         if tuned_gains is not None:
-            tuned = SweepSettings(families=(family,), scenarios=scenarios, seed=seed, planners=("cubic",),
-                                  config=str(tuned_gains), batch=batch)
+            tuned = SweepSettings(planners=("cubic",), config=str(tuned_gains), **drawn)
             if tuned.base.loop.controller != "pid":
                 raise InvalidInputError(f"tuned_gains: {tuned_gains} runs the control law "
                                         f"{tuned.base.loop.controller!r}; expected tuned PID gains (mjtraj tune "
@@ -294,7 +328,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
         from tqdm import tqdm
 
         bar = tqdm(total=len(units), unit="unit", desc="rl eval", dynamic_ncols=True)
-    for (_, law, sweep, mine), unit in units:
+    for (family, law, sweep, mine), unit in units:
         actors = [ActorSpec(label, p.planner, PolicyActor(p, p.settings()), {**p.columns(), "method": label})
                   for p, label in mine]
         if law == "adaptive_computed_torque":
@@ -303,6 +337,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
                                      "policy_privileged": 1}))
         acting = {spec.label for spec in actors}
         for row in run_unit(sweep, unit, actors=actors).rows:
+            row["family"] = family  # the noisy family runs the mismatch family's scenarios
             if row["planner"] in acting:
                 rows.append(row)
             else:
@@ -323,20 +358,24 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
     csv_path = out / "eval.csv"
     write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS, *extra], rows))
     groups = configurations(loaded, labels)
-    costs = {family: method_costs(rows, groups, family) for family in families}
+    costs = {family: method_costs(rows, groups, family, reference) for family in families}
     with _stage(progress, f"intervals: {reps} bootstrap resamples per method and family, and the figures"):
         summaries, scores = summarise(costs, reps=reps)
         against = {family: against_floor(costs[family], floors[family], groups, reps=reps) for family in floors}
-        figure = profile_figure(scores, out / "profiles.png", reference=REFERENCE, reps=reps,
+        figure = profile_figure(scores, out / "profiles.png", reference=reference, reps=reps,
                                 formats=figure_formats)
-        intervals = interval_figure(summaries, out / "intervals.png", reference=REFERENCE, formats=figure_formats)
+        intervals = interval_figure(summaries, out / "intervals.png", reference=reference, formats=figure_formats)
     paired = versus_all(costs, versus, reps=reps) if versus is not None else {}
-    table = summary_table(summaries, families)
-    compact = compact_table(summaries, families)
-    payload = payload_table(rows, costs["mismatch"]) if "mismatch" in families else ""
-    off = departures(families, scenarios, seed, reps)
-    record = {"format": "mjtraj-benchmark-summary/1", "reference": REFERENCE, "failure_rule": FAILURE_RULE,
-              "protocol": f"off-protocol: {'; '.join(off)}" if off else PROTOCOL, "families": list(families),
+    table = summary_table(summaries, families, reference)
+    compact = compact_table(summaries, families, reference)
+    payload = payload_table(rows, costs["mismatch"], reference) if "mismatch" in families else ""
+    executions, execution_record = execution_table(rows, groups, families) if window else ("", {})
+    weighting, weighting_record = weighting_agreement(rows, groups, families) if window else ("", {})
+    off = departures(families, scenarios, seed, reps, protocol)
+    record = {"format": "mjtraj-benchmark-summary/1", "reference": reference, "failure_rule": FAILURE_RULE,
+              "protocol": f"off-protocol: {'; '.join(off)}" if off else protocol,
+              "protocol_base": protocol, "score": SCORE_NAMES[protocol], "settle": window,
+              "noisy_sigma": NOISY_SIGMA if NOISY_FAMILY in families else 0.0, "families": list(families),
               "scenarios": scenarios, "seed": seed, "reps": reps,
               "controllers": laws, "planners": planner_list, "tuned_gains": str(tuned_gains or ""),
               "policies": [{"label": label, **p.columns()} for p, label in zip(loaded, labels, strict=True)],
@@ -346,15 +385,17 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] = PROTOCOL_V1["
               "floor": {family: {m: s.as_dict() for m, s in per.items()} for family, per in against.items()},
               "versus": {"method": versus, **{family: {m: {"ratio": v.as_dict(), "beats": b.as_dict()}
                                                        for m, (v, b) in per.items()}
-                                              for family, per in paired.items()}} if versus is not None else {}}
+                                              for family, per in paired.items()}} if versus is not None else {},
+              "executions": execution_record, "weightings": weighting_record}
     json_path = out / "summary.json"
     write_text_atomic(json_path, json.dumps(record, indent=1) + "\n")
     md_path = out / "SUMMARY.md"
     floors_md = floor_table(against, families) if against else ""
     versus_md = versus_table(paired, families, versus) if versus is not None else ""
     write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded, compact, floors_md,
-                                                versus_md))
-    return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals)
+                                                versus_md, executions, weighting))
+    return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals,
+                      executions, weighting, protocol, reference)
 
 
 FLOOR_COLUMNS = ("floor", "cost_over_floor")
@@ -479,22 +520,23 @@ def _torch_threads() -> int | None:
     return int(sys.modules["torch"].get_num_threads()) if "torch" in sys.modules else None
 
 
-def method_costs(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[str]], family: str
-                 ) -> tuple[NDArray[np.float64], dict[str, NDArray[np.float64]]]:
-    """The reference's J_exec per scenario (K,) and each method's (S, K) (NaN: failed) on `family`; a
-    configuration's seeds are its rows, every other method (planner+law, tuned gains, a user's policy) one row."""
+def method_costs(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[str]], family: str,
+                 reference: str = REFERENCE) -> tuple[NDArray[np.float64], dict[str, NDArray[np.float64]]]:
+    """The `reference` method's score (the rows' cost: J_exec, or J_settle in protocol v2) per scenario (K,) and
+    each method's (S, K) (NaN: failed) on `family`; a configuration's seeds are its rows, every other method
+    (planner+law, tuned gains, a user's policy) one row."""
     by_method: dict[str, dict[int, float]] = {}
     for r in rows:
         if r["family"] == family:
             cost = numeric(r["cost"]) if r["status"] == "ok" else float("nan")
             by_method.setdefault(r["method"], {})[int(r["scenario"])] = cost
-    order = sorted(by_method[REFERENCE])
+    order = sorted(by_method[reference])
     vector = {m: np.array([v[k] for k in order]) for m, v in by_method.items()}
     grouped = {member for members in groups.values() for member in members}
     out = {m: c[None, :] for m, c in vector.items() if m not in grouped}
     for name, members in groups.items():
         out[name] = np.stack([vector[m] for m in members])
-    return vector[REFERENCE], out
+    return vector[reference], out
 
 
 def summarise(costs: Mapping[str, tuple[NDArray[np.float64], Mapping[str, NDArray[np.float64]]]], *, reps: int
@@ -512,11 +554,12 @@ def _cell(i: Any, digits: str = ".3g") -> str:
     return f"{i.value:{digits}} [{i.low:{digits}}, {i.high:{digits}}]"
 
 
-def summary_table(summaries: Mapping[str, Mapping[str, MethodSummary]], families: Sequence[str]) -> str:
-    """Markdown: one row per method, per family the ratio of mean J_exec to the reference's, the IQM of the
+def summary_table(summaries: Mapping[str, Mapping[str, MethodSummary]], families: Sequence[str],
+                  reference: str = REFERENCE) -> str:
+    """Markdown: one row per method, per family the ratio of mean score to the `reference`'s, the IQM of the
     per-episode improvement, the probability of improvement (each with its 95 % interval) and the failures."""
     methods = list(dict.fromkeys(m for family in families for m in summaries[family]))
-    head = "| method | seeds | " + " | ".join(f"{f}: J / {REFERENCE} | {f}: IQM improvement | {f}: P(improve) | "
+    head = "| method | seeds | " + " | ".join(f"{f}: J / {reference} | {f}: IQM improvement | {f}: P(improve) | "
                                               f"{f}: failed" for f in families) + " |"
     lines = [head, "|---|---|" + "---|---|---|---|" * len(families)]
     for m in methods:
@@ -526,8 +569,8 @@ def summary_table(summaries: Mapping[str, Mapping[str, MethodSummary]], families
             s = summaries[f].get(m)
             if s is None:
                 cells += ["-"] * 4
-            elif m == REFERENCE:
-                cells += ["1 (reference)", "0 (reference)", "-", f"{s.failures}"]
+            elif m == reference:
+                cells += ["1 (reference)", "0 (reference)", "-", f"{s.failures} of {s.seeds * s.scenarios}"]
             else:
                 cells += [_cell(s.ratio_of_means), _cell(s.iqm, ".2f"), _cell(s.probability_of_improvement, ".2f"),
                           f"{s.failures} of {s.seeds * s.scenarios}"]
@@ -535,17 +578,18 @@ def summary_table(summaries: Mapping[str, Mapping[str, MethodSummary]], families
     return "\n".join(lines)
 
 
-def compact_table(summaries: Mapping[str, Mapping[str, MethodSummary]], families: Sequence[str]) -> str:
-    """Markdown: one row per method, per family its ratio of mean J_exec to the reference's (failures by
+def compact_table(summaries: Mapping[str, Mapping[str, MethodSummary]], families: Sequence[str],
+                  reference: str = REFERENCE) -> str:
+    """Markdown: one row per method, per family its ratio of mean score to the `reference`'s (failures by
     FAILURE_RULE, so a method that failed anywhere reads inf) and its probability of improvement."""
     methods = list(dict.fromkeys(m for family in families for m in summaries[family]))
-    lines = ["| method | " + " | ".join(f"{f}: J / {REFERENCE}, P(improve)" for f in families) + " |",
+    lines = ["| method | " + " | ".join(f"{f}: J / {reference}, P(improve)" for f in families) + " |",
              "|---|" + "---|" * len(families)]
     for m in methods:
         cells = []
         for f in families:
             s = summaries[f].get(m)
-            cells.append("-" if s is None else "1, -" if m == REFERENCE else
+            cells.append("-" if s is None else "1, -" if m == reference else
                          f"{s.ratio_of_means.value:.3g}, {s.probability_of_improvement.value:.2f}")
         lines.append(f"| {m} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -556,12 +600,13 @@ PAYLOAD_BINS = 5
 
 
 def payload_table(rows: Sequence[dict[str, Any]],
-                  costs: tuple[NDArray[np.float64], Mapping[str, NDArray[np.float64]]]) -> str:
+                  costs: tuple[NDArray[np.float64], Mapping[str, NDArray[np.float64]]],
+                  reference: str = REFERENCE) -> str:
     """Markdown: on the mismatch family, each method's ratio of mean J_exec to the reference's within bins of the
     scenario's payload (its seeds pooled; FAILURE_RULE); `costs` the family's `method_costs`."""
     ref, by_method = costs
     payload = {int(r["scenario"]): numeric(r["payload_kg"]) for r in rows
-               if r["family"] == "mismatch" and r["method"] == REFERENCE}
+               if r["family"] == "mismatch" and r["method"] == reference}
     kg = np.array([payload[k] for k in sorted(payload)])
     edges = np.linspace(*PAYLOAD_MASS, PAYLOAD_BINS + 1)
     bins = np.clip(np.searchsorted(edges, kg, side="right") - 1, 0, PAYLOAD_BINS - 1)
@@ -579,22 +624,36 @@ def payload_table(rows: Sequence[dict[str, Any]],
 
 
 def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: Sequence[str],
-                     policies: Sequence[ScoredPolicy], compact: str = "", floors: str = "", versus: str = "") -> str:
+                     policies: Sequence[ScoredPolicy], compact: str = "", floors: str = "", versus: str = "",
+                     executions: str = "", weighting: str = "") -> str:
     """SUMMARY.md: how to regenerate it, the protocol in brief, the table, the by-payload table, the policies."""
     families = ", ".join(record["families"])
-    protocol = record.get("protocol", PROTOCOL)
-    lines = ["# Benchmark summary" + ("" if protocol == PROTOCOL else " (OFF-PROTOCOL)"), ""]
-    if protocol != PROTOCOL:
+    protocol = record.get("protocol", "v1")
+    base = record.get("protocol_base", "v1")
+    reference = record.get("reference", REFERENCE)
+    score = SCORE_NAMES[base]
+    lines = ["# Benchmark summary" + ("" if protocol == base else " (OFF-PROTOCOL)"), ""]
+    if protocol != base:
         lines += [f"**Off-protocol**: {protocol.removeprefix('off-protocol: ')}. These numbers cannot be compared "
-                  f"with published ones; `mjtraj rl eval` without --family, --scenarios, --seed and --reps runs "
-                  f"protocol {PROTOCOL}.", ""]
+                  f"with published ones; `mjtraj rl eval --protocol {base}` without --family, --scenarios, --seed and "
+                  f"--reps runs protocol {base}.", ""]
     else:
-        lines += [f"Protocol {PROTOCOL}.", ""]
+        lines += [f"Protocol {base}.", ""]
     if record["command"]:
         lines += [f"Regenerate: `{record['command']}`", ""]
+    if record.get("settle"):
+        lines += [f"Every episode goes on for a settle window of {record['settle']:g} s after its motion, the "
+                  f"reference holding the goal, and is scored over the whole episode ({score}: J_exec's weights on "
+                  f"every period of motion and window); it succeeds only if every joint is within {SETTLE_BAND:g} of "
+                  f"the move of the goal and slower than {SETTLE_SPEED:g} rad/s when the window ends (a row that is "
+                  "not fails as not_settled)."
+                  + (f" The {NOISY_FAMILY} family runs the mismatch family's scenarios with measurement noise of "
+                     f"{record['noisy_sigma']:g} rad on q (sqrt(2) sigma / dt on qd), which the control laws and the "
+                     "policies see alike." if record.get("noisy_sigma") else ""), ""]
     lines += [f"Held-out scenarios 0..{record['scenarios'] - 1} of each family ({families}) under seed "
-              f"{record['seed']}; every method on the same scenarios, plants, saturation and score (J_exec, Bryson's "
-              f"weights per task). Reference: {REFERENCE}. Per family: J / {REFERENCE} is the ratio of mean J_exec "
+              f"{record['seed']}; every method on the same scenarios, plants, saturation and score ({score}, "
+              f"Bryson's weights per task). Reference: {reference}. Per family: J / {reference} is the ratio of mean "
+              f"{score} "
               "(seeds pooled); IQM improvement the interquartile mean of 1 - J / J_ref over every (seed, "
               "scenario); P(improve) the probability that an episode beats the reference's (ties one half); "
               f"95 % stratified-bootstrap intervals ({record['reps']} resamples over scenarios and seeds, "
@@ -605,6 +664,13 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
               "others), and each policy configuration (its seeds pooled; `seeds` counts them).", "", table, ""]
     if compact:
         lines += ["In short (J / reference, then P(improve)):", "", compact, ""]
+    if executions:
+        lines += ["What the executions did (means over each method's episodes of the family, failed ones included "
+                  "where they ran; `success` the share at rest at the goal; the score's position, velocity and torque "
+                  "parts; errors, speeds and torques over the whole episode; `settle` the time after the motion's end "
+                  "until every joint stayed within the band, over the episodes that settled):", "", executions, ""]
+    if weighting:
+        lines += [weighting, ""]
     if floors:
         lines += ["Against the floor (the clairvoyant floor of each scenario's cubic reference: the least J_exec any "
                   "controller can score on that plant, reaching the goal; floor.csv) and paired with the strongest "
@@ -615,7 +681,7 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
                   "friction: an upper estimate of the true floor. Methods on other planners than cubic track another "
                   "reference, whose floor differs.", "", floors, ""]
     if versus:
-        lines += [f"Paired against {record['versus']['method']} on the same scenarios: the ratio of mean J_exec and "
+        lines += [f"Paired against {record['versus']['method']} on the same scenarios: the ratio of mean {score} and "
                   "the probability that an episode scores below its (ties one half), 95 % intervals as above.", "",
                   versus, ""]
     if payload:

@@ -20,12 +20,15 @@ from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
 from mjtraj.core.metrics import GOAL_TOLERANCE, METRIC_NAMES, gravity_along, metrics_arrays, missed_goal
 from mjtraj.core.reference import Reference
 from mjtraj.core.rollout import Rollout
+from mjtraj.core.settle import SETTLE_METRICS, Settle, settle_arrays, unsettled
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, MjtrajError
 from mjtraj.study.families import Perturbation, plant_fields
 
-STATUSES = ("ok", "infeasible", "solver_error", "diverged", "unstable", "missed_goal", "error")
+STATUSES = ("ok", "infeasible", "solver_error", "diverged", "unstable", "missed_goal", "not_settled", "error")
 """Every status a row can have: executed (ok), planning failed (infeasible, solver_error), execution failed
-(diverged, unstable, or missed_goal: see GOAL_TOLERANCE, on every family), or an unexpected error (error)."""
+(diverged, unstable, missed_goal: see GOAL_TOLERANCE, on every family; or, in protocol v2's episodes with a settle
+window, not_settled: not at rest at the goal when the window ends, `mjtraj.core.settle`), or an unexpected error
+(error)."""
 
 
 def goal_checked(result: Outcome, displacement: float) -> Outcome:
@@ -57,12 +60,15 @@ class Actor(Protocol):
 @dataclass(frozen=True)
 class Job:
     """One execution to run: a reference, the diagonal weights that score it (Q_exec (2n,), R_exec (n,)), and
-    optionally how the plant differs from the nominal one and the measurement noise on [q; qd] ((N, 2n))."""
+    optionally how the plant differs from the nominal one, the measurement noise on [q; qd] ((N, 2n)) and, for an
+    episode of protocol v2, its settle window (the reference then ends with the window's held goal:
+    `mjtraj.core.settle.held`; the outcome carries SETTLE_METRICS and is not_settled unless at rest at the goal)."""
 
     reference: Reference
     weights: tuple[NDArray[np.float64], NDArray[np.float64]]
     perturbation: Perturbation | None = None
     noise: NDArray[np.float64] | None = None
+    settle: Settle | None = None
 
 
 @dataclass(frozen=True)
@@ -85,13 +91,18 @@ def plan_failure(error: MjtrajError) -> Outcome:
 
 
 def outcome(arrays: dict[str, NDArray[np.float64]], j: int, unstable: bool, diverged_step: int,
-            config: LoopConfig) -> Outcome:
-    """Execution j of a batch: unstable, diverged (no metrics) or ok."""
+            config: LoopConfig, settle: Settle | None = None) -> Outcome:
+    """Execution j of a batch: unstable, diverged (no metrics), not_settled (with a settle window: not at rest at
+    the goal when it ends; metrics kept) or ok."""
     if unstable:
         return Outcome("unstable", "MuJoCo flagged the simulation numerically unstable (bad qacc/qpos/qvel)")
     if diverged_step >= 0:
         return Outcome("diverged", f"|e| > {config.divergence_bound:.4g} rad at step {diverged_step}")
-    return Outcome("ok", "", {m: float(arrays[m][j]) for m in METRIC_NAMES})
+    if settle is None:
+        return Outcome("ok", "", {m: float(arrays[m][j]) for m in METRIC_NAMES})
+    values = {m: float(arrays[m][j]) for m in (*METRIC_NAMES, *SETTLE_METRICS)}
+    why = unsettled(values["end_err"], values["end_speed"], settle)
+    return Outcome("not_settled" if why else "ok", why, values)
 
 
 def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *,
@@ -136,7 +147,12 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
     r_diag = np.array([job.weights[1] for job in jobs])
     arrays = metrics_arrays(rollout, q_diag, r_diag,
                             gravity=gravity_along(model, rollout) if total_torque else None)
-    outcomes = [outcome(arrays, j, bool(unstable[j]), int(rollout.diverged_step[j]), config)
+    settles = [job.settle for job in jobs]
+    if any(settle is not None for settle in settles):
+        if not all(settle is not None for settle in settles):
+            raise InvalidInputError("jobs: a batch is either all with a settle window or all without")
+        arrays.update(settle_arrays(rollout, q_diag, r_diag, settles))  # type: ignore[arg-type]
+    outcomes = [outcome(arrays, j, bool(unstable[j]), int(rollout.diverged_step[j]), config, settles[j])
                 for j in range(len(jobs))]
     if seconds is not None:
         seconds["execute"] = seconds.get("execute", 0.0) + middle - clock

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from mjtraj.core.metrics import METRIC_NAMES
+from mjtraj.core.settle import SETTLE_METRICS
 from mjtraj.core.task import Task
 from mjtraj.study.families import PERTURBATION_FIELDS, Perturbation
 from mjtraj.study.pipeline import Outcome
@@ -33,6 +34,8 @@ class Row:
       task: the motion; perturbation: how the plant differed from the nominal model (None: it did not).
       settings: the columns every row of the file shares (settings and versions).
       more: columns appended after the settings (`mjtraj rl eval`'s policy columns).
+      settle: a row of protocol v2 (an episode with a settle window): SETTLE_METRICS follow the metrics, which
+        cover the whole episode.
     """
 
     family: str
@@ -48,6 +51,7 @@ class Row:
     perturbation: Perturbation | None = None
     settings: Mapping[str, Any]
     more: Mapping[str, Any] = field(default_factory=dict)
+    settle: bool = False
 
     def columns(self) -> dict[str, Any]:
         """Column name -> value (str, int or float; NaN where not measured)."""
@@ -57,6 +61,8 @@ class Row:
                                "gravity_comp": self.gravity_comp, "status": self.outcome.status,
                                "reason": self.outcome.reason}
         row.update({m: self.outcome.metrics.get(m, float("nan")) for m in METRIC_NAMES})
+        if self.settle:
+            row.update({m: self.outcome.metrics.get(m, float("nan")) for m in SETTLE_METRICS})
         row.update({m: float(self.extras.get(m, float("nan"))) for m in EXTRA_METRICS})
         row["solver"] = self.solver
         row.update({"duration": task.duration, "max_displacement": float(np.max(np.abs(task.displacement)))})

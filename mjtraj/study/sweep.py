@@ -34,6 +34,7 @@ from mjtraj.core.options import choices, option_names
 from mjtraj.core.planners import Planner, available, make, plan_all
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
+from mjtraj.core.settle import Settle, held, window_steps
 from mjtraj.exceptions import InvalidInputError, MjtrajError
 from mjtraj.study.families import FAMILIES, FamilyScenario, draw_scenario, measurement_noise, perturbed_plant
 from mjtraj.study.pipeline import Actor, Job, Outcome, execute, goal_checked, one_line, plan_failure
@@ -83,6 +84,9 @@ class SweepSettings:
       floors: also each row's clairvoyant floor (`mjtraj.study.floor.floors_of`: its planner's reference on its
         plant under its controller variant) and J_exec over it, columns FLOOR_COLUMNS (NaN where the variant's
         gravity compensation is not native, which the floor does not model, or the floor failed).
+      settle: the settle window, s (protocol v2, `mjtraj.core.settle`): every execution goes on after its motion
+        for this long, the reference holding the goal, and is scored over the whole episode (J_settle) and held to
+        the at-rest rule; 0 (the default, the paper's study): the motion alone, J_exec.
     """
 
     families: tuple[str, ...] = ("nominal",)
@@ -99,6 +103,7 @@ class SweepSettings:
     model: str | None = None
     torque_limit: float | tuple[float, ...] | None = None
     floors: bool = False
+    settle: float = 0.0
     base: Scenario = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -125,6 +130,12 @@ class SweepSettings:
         object.__setattr__(self, "base", load_scenario(self.config) if self.model is None else
                            scenario_for_model(self.model, torque_limit=self.torque_limit, workspace=True))
         self.loop_config(self.ff_accel[0], self.gravity_comp[0], mismatch=True)  # validates delay
+        window_steps(self.settle, self.base.task.dt)  # validates the window
+
+    @property
+    def settle_steps(self) -> int:
+        """The settle window in control periods (0: none)."""
+        return window_steps(self.settle, self.base.task.dt)
 
     def units(self) -> list[tuple[str, int]]:
         """(family, unit index) of every unit of work, in output order."""
@@ -158,6 +169,7 @@ class SweepSettings:
                 self.torque_limit,
                 "config_sha256": hashlib.sha256(base.encode()).hexdigest()[:16],
                 **({"sweep_floors": 1} if self.floors else {}),
+                **({"settle": self.settle} if self.settle else {}),
                 **{name: getattr(self.base.loop, name) for name in option_names(LoopConfig) if name not in SWEPT},
                 "dt": self.base.task.dt,
                 **{f"{name}_{j}": float(v) for name in ("kp", "ki", "kd") for j, v in enumerate(getattr(g, name))}}
@@ -179,7 +191,8 @@ class SweepSettings:
                        delay=int(row["delay"]), model_error=bool(int(row["model_error_measured"])),
                        config=None if config == SHIPPED_CONFIG else config, model=row.get("model") or None,
                        torque_limit=normalized_limit([float(v) for v in row["torque_limit"].split("+")])
-                       if row.get("torque_limit") else None, floors=bool(int(row.get("sweep_floors") or 0)))
+                       if row.get("torque_limit") else None, floors=bool(int(row.get("sweep_floors") or 0)),
+                       settle=float(row.get("settle") or 0.0))
         except (KeyError, ValueError) as e:
             raise InvalidInputError(f"sweep: a row's settings are malformed ({e}); not a sweep results file") from e
 
@@ -264,15 +277,21 @@ def scoring_weights(settings: SweepSettings, scenarios: Sequence[FamilyScenario]
 
 def jobs_for(settings: SweepSettings, scenarios: Sequence[FamilyScenario], references: Sequence[Reference],
              weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]]) -> list[Job]:
-    """The pipeline's jobs of scenarios[b] tracking references[b]: their perturbation and, for mismatch scenarios
-    under sensor noise, their measurement noise."""
+    """The pipeline's jobs of scenarios[b] tracking references[b]: their perturbation, for mismatch scenarios under
+    sensor noise their measurement noise, and with a settle window the reference holding the task's goal for it
+    (the noise drawn for the whole episode: its first N periods are the motion's draw)."""
     model = settings.base.model
+    window = settings.settle_steps
     out = []
     for s, ref, w in zip(scenarios, references, weights, strict=True):
+        settle = None
+        if window:
+            settle = Settle(ref.steps, window, s.task.qg, float(np.max(np.abs(s.task.displacement))))
+            ref = held(ref, window, s.task.qg)
         noise = None
         if s.perturbation is not None and settings.sensor_noise > 0:
             noise = measurement_noise([s], ref.steps, model.nv, settings.sensor_noise, model.opt.timestep)[:, 0]
-        out.append(Job(ref, w, s.perturbation, noise))
+        out.append(Job(ref, w, s.perturbation, noise, settle))
     return out
 
 
@@ -292,7 +311,8 @@ def run_unit(settings: SweepSettings, unit: tuple[str, int], *, actors: Sequence
         fixed = fixed_columns(settings)
         failed = Outcome("error", one_line(e))
         rows = [Row(family=family, scenario=s.index, unit=u, planner=planner, ff_accel=ff, gravity_comp=gc,
-                    outcome=failed, task=s.task, perturbation=s.perturbation, settings=fixed).columns()
+                    outcome=failed, task=s.task, perturbation=s.perturbation, settings=fixed,
+                    settle=bool(settings.settle)).columns()
                 for s in scenarios
                 for ff in settings.ff_accel for gc in settings.gravity_comp for planner in settings.planners]
     return UnitResult(unit, rows, seconds)
@@ -362,7 +382,8 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
                         else {}
                     rows.append(Row(family=family, scenario=s.index, unit=u, planner=name, ff_accel=ff,
                                     gravity_comp=gc, outcome=result, extras=extra, solver=solver, task=s.task,
-                                    perturbation=s.perturbation, settings=fixed, more=more).columns())
+                                    perturbation=s.perturbation, settings=fixed, more=more,
+                                    settle=bool(settings.settle)).columns())
     ff, gc = settings.ff_accel[0], settings.gravity_comp[0]
     config = settings.loop_config(ff, gc, mismatch=mismatch)
     for spec in actors:
@@ -381,7 +402,7 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
             result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
             rows.append(Row(family=family, scenario=s.index, unit=u, planner=spec.label, ff_accel=ff,
                             gravity_comp=gc, outcome=result, task=s.task, perturbation=s.perturbation,
-                            settings=fixed, more=spec.columns).columns())
+                            settings=fixed, more=spec.columns, settle=bool(settings.settle)).columns())
     return rows
 
 
@@ -407,5 +428,5 @@ def columns(settings: SweepSettings) -> list[str]:
     row = Row(family="mismatch", scenario=0, unit=0, planner=settings.planners[0], ff_accel=settings.ff_accel[0],
               gravity_comp=settings.gravity_comp[0], outcome=Outcome("ok"), task=probe.task,
               perturbation=probe.perturbation, settings=fixed_columns(settings),
-              more=floor_columns(Outcome("ok"), float("nan")) if settings.floors else {})
+              more=floor_columns(Outcome("ok"), float("nan")) if settings.floors else {}, settle=bool(settings.settle))
     return list(row.columns())

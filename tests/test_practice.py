@@ -1,0 +1,56 @@
+"""What a practitioner reads (mjtraj.rl.practice): the execution table and the ranking under a second weighting,
+against hand-made rows with known answers; and protocol v2's noisy family against the sweep's own rows."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mjtraj.rl.practice import TRACKING_SHARE, execution_summary, execution_table, tracking_heavy, weighting_agreement
+
+
+def row(method, status="ok", family="nominal", **values):
+    base = {"cost_position": 0.0, "cost_velocity": 0.0, "cost_torque": 1.0, "rms_err": 0.0, "max_err": 0.0,
+            "end_err": 0.0, "end_speed": 0.0, "settle_time": 0.0, "peak_dtau": 1.0}
+    base.update(values)
+    base["cost"] = base["cost_position"] + base["cost_velocity"] + base["cost_torque"]
+    return {"method": method, "status": status, "family": family, **base}
+
+
+def test_the_summary_counts_successes_and_averages_what_ran():
+    rows = [row("a", end_speed=0.1), row("a", "not_settled", end_speed=0.3), row("a", "diverged")]
+    rows[2].update({k: float("nan") for k in ("cost", "end_speed")})
+    s = execution_summary(rows)
+    assert s["success"] == pytest.approx(1 / 3)
+    assert s["end_speed"] == pytest.approx(0.2)  # the diverged row has no metrics
+    assert s["cost"] == 1.0
+
+
+def test_seeds_of_a_configuration_pool_into_one_line():
+    rows = [row("ppo [s1]", cost_torque=1.0), row("ppo [s2]", cost_torque=3.0), row("cubic+PID", cost_torque=5.0)]
+    text, record = execution_table(rows, {"ppo": ["ppo [s1]", "ppo [s2]"]}, ["nominal"])
+    assert record["nominal"]["ppo"]["cost"] == 2.0 and record["nominal"]["cubic+PID"]["cost"] == 5.0
+    assert text.count("\n| nominal |") == 2
+
+
+def test_the_tracking_heavy_weighting_scales_the_position_part_alone():
+    r = row("a", cost_position=2.0, cost_velocity=3.0, cost_torque=5.0)
+    assert tracking_heavy(r) == 2.0 / TRACKING_SHARE**2 + 8.0
+
+
+def test_kendalls_tau_reads_a_reversal_and_an_agreement():
+    """Method a saves torque and tracks badly, c tracks well: under J_settle a < b < c, under the tracking-heavy
+    weighting c < b < a, tau -1; on the other family the orders agree, tau 1. A method that failed anywhere ranks
+    last under both."""
+    rows = [row("a", cost_position=1e-4, cost_torque=1.0), row("b", cost_position=2e-5, cost_torque=1.1),
+            row("c", cost_position=1e-6, cost_torque=1.2), row("d", "not_settled", cost_torque=0.5)]
+    rows += [row(m, family="aggressive", cost_position=p, cost_torque=t)
+             for m, p, t in (("a", 1e-6, 1.0), ("b", 2e-6, 2.0), ("c", 3e-6, 3.0))]
+    rows.append(row("d", "diverged", family="aggressive"))
+    text, record = weighting_agreement(rows, {}, ["nominal", "aggressive"])
+    nominal = record["nominal"]
+    assert nominal["by_score"] == ["a", "b", "c", "d"] and nominal["by_tracking_heavy"] == ["c", "b", "a", "d"]
+    assert nominal["kendall_tau"] == pytest.approx(0.0)  # a, b, c reversed (3 pairs), d last in both (3 pairs)
+    assert record["aggressive"]["kendall_tau"] == pytest.approx(1.0)
+    assert "| nominal | a < b < c < d | c < b < a < d | 0.00 |" in text
+    assert np.isinf(record["aggressive"]["score"]["d"])
