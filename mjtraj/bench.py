@@ -626,6 +626,49 @@ def bench_floor(scenario: Scenario, *, scenarios: int = 20, mismatch: int = 20, 
     return rows
 
 
+def bench_predictive(scenario: Scenario, *, scenarios: int = 3, seed: int = 1,
+                     laws: Sequence[str] = ("mpc", "adaptive_mpc"), periods: Sequence[float] = (0.02, 0.01)
+                     ) -> list[dict[str, Any]]:
+    """The predictive laws' time per control period on protocol v2's episodes (cubic references followed by the
+    0.5 s settle window, one simulation, one core): per law, control period and family (`scenarios` of each of
+    `seed`), the median, 99th percentile and worst of one `ClosedLoop.step` (the law's solve and the plant's step),
+    ms, and the worst over the period. The 20 ms rows run the shipped scenario; the others the UR5 prepared at that
+    period (`scenario_for_model`, its gains by the workspace rule)."""
+    import dataclasses
+
+    from mjtraj.core import default_model_path, held, window_steps
+    from mjtraj.study.families import FAMILIES, draw_scenario, perturbed_plant, plant_fields
+    from mjtraj.study.scenario import scenario_for_model
+
+    rows = []
+    for dt in periods:
+        base = scenario if abs(dt - scenario.task.dt) < 1e-12 else scenario_for_model(default_model_path(), dt=dt,
+                                                                                      workspace=True)
+        model = base.model
+        plant = perturbed_plant(model, base.model_path, base.model_torque_limit)
+        for law in laws:
+            config = dataclasses.replace(base.loop, controller=law)
+            for family in FAMILIES:
+                times = []
+                for i in range(scenarios):
+                    drawn = draw_scenario(family, seed, i, model, dt)
+                    reference = held(base.planner("cubic").plan(drawn.task, model), window_steps(0.5, dt),
+                                     drawn.task.qg)
+                    perturbation = drawn.perturbation
+                    loop = (ClosedLoop(model, config, plant=plant, plant_fields=plant_fields(plant, [perturbation]))
+                            if perturbation is not None else ClosedLoop(model, config))
+                    loop.start([reference])
+                    for _ in range(loop.steps):
+                        clock = time.perf_counter()
+                        loop.step()
+                        times.append(time.perf_counter() - clock)
+                ms = 1e3 * np.array(times)
+                rows.append({"law": law, "period_ms": 1e3 * dt, "family": family, "median_ms": float(np.median(ms)),
+                             "p99_ms": float(np.percentile(ms, 99)), "max_ms": float(ms.max()),
+                             "worst_of_period": float(ms.max()) / (1e3 * dt)})
+    return rows
+
+
 def bench_controllers(scenario: Scenario, *, scenarios: int = 5, seed: int = 1,
                       laws: Sequence[str] = ("pid", "adaptive_computed_torque", "mpc", "adaptive_mpc")
                       ) -> list[dict[str, Any]]:

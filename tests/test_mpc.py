@@ -116,3 +116,37 @@ def test_an_env_copied_mid_episode_goes_on_bit_for_bit_under_mpc():
     ours = [env.step(np.full(3, 0.1))[1] for _ in range(20)]
     theirs = [twin.step(np.full(3, 0.1))[1] for _ in range(20)]
     assert ours == theirs
+
+
+def test_a_capped_solve_applies_the_linearisations_torques(monkeypatch, scenario, model):
+    """With DAQP's iteration cap at one iteration some solves reach it: those periods apply the torques the law was
+    linearised at (after the first period, its last plan shifted by one period), within the saturation; the others
+    apply their QP's solution. The cap reaches DAQP (a solve that needs more iterations returns None)."""
+    import mjtraj.core.mpc as mpc_module
+    import mjtraj.core.planners.sqp as sqp
+
+    monkeypatch.setattr(mpc_module, "QP_ITERATION_CAP", 1)
+    capped, torques = [], []
+    real_qp, real_linearisation = sqp._qp, ModelPredictive._linearisation
+
+    def qp(*args, **kwargs):
+        assert kwargs["iter_limit"] == 1
+        out = real_qp(*args, **kwargs)
+        capped.append(out is None)
+        return out
+
+    def linearisation(self, b, k, H):
+        out = real_linearisation(self, b, k, H)
+        torques.append(out[1][0].copy())
+        return out
+
+    monkeypatch.setattr(sqp, "_qp", qp)
+    monkeypatch.setattr(ModelPredictive, "_linearisation", linearisation)
+    drawn = draw_scenario("aggressive", 777, 2, model, 0.02)  # 3 of its 31 solves need more than one iteration
+    config = dataclasses.replace(scenario.loop, controller="mpc")
+    loop = ClosedLoop(model, config)
+    rollout = loop.run([scenario.planner("cubic").plan(drawn.task, model)])
+    limit = JointInfo.of(model).torque_limit
+    assert any(capped) and not all(capped) and len(capped) == rollout.dtau.shape[1]
+    for k in np.flatnonzero(capped):
+        assert np.array_equal(rollout.dtau[0, k], np.clip(torques[k], -limit, limit))

@@ -40,17 +40,24 @@ def test_the_tracking_heavy_weighting_scales_the_position_part_alone():
 
 def test_kendalls_tau_reads_a_reversal_and_an_agreement():
     """Method a saves torque and tracks badly, c tracks well: under J_settle a < b < c, under the tracking-heavy
-    weighting c < b < a, tau -1; on the other family the orders agree, tau 1. A method that failed anywhere ranks
-    last under both."""
-    rows = [row("a", cost_position=1e-4, cost_torque=1.0), row("b", cost_position=2e-5, cost_torque=1.1),
-            row("c", cost_position=1e-6, cost_torque=1.2), row("d", "not_settled", cost_torque=0.5)]
-    rows += [row(m, family="aggressive", cost_position=p, cost_torque=t)
-             for m, p, t in (("a", 1e-6, 1.0), ("b", 2e-6, 2.0), ("c", 3e-6, 3.0))]
-    rows.append(row("d", "diverged", family="aggressive"))
+    weighting c < b < a, tau -1; on the other family the orders agree, tau 1. Both are means over the scenarios on
+    which every method ran: a diverged row leaves its scenario out, a row not at rest keeps it."""
+    def two(method, family="nominal", status=("ok", "ok"), **values):
+        return [dict(row(method, s, family, **values), scenario=k) for k, s in enumerate(status)]
+
+    rows = [*two("a", cost_position=1e-4, cost_torque=1.0), *two("b", cost_position=2e-5, cost_torque=1.1),
+            *two("c", cost_position=1e-6, cost_torque=1.2, status=("ok", "not_settled"))]
+    rows += [*two("a", "aggressive", cost_position=1e-6, cost_torque=1.0),
+             *two("b", "aggressive", cost_position=2e-6, cost_torque=2.0),
+             *two("c", "aggressive", ("ok", "diverged"), cost_position=3e-6, cost_torque=3.0)]
+    rows[-1].update(cost=float("nan"), cost_torque=float("nan"), cost_position=float("nan"))
+    (a1,) = [r for r in rows if (r["method"], r["family"], r["scenario"]) == ("a", "aggressive", 1)]
+    a1.update(cost_torque=100.0, cost=100.0)  # left out with c's divergence on that scenario
     text, record = weighting_agreement(rows, {}, ["nominal", "aggressive"])
     nominal = record["nominal"]
-    assert nominal["by_score"] == ["a", "b", "c", "d"] and nominal["by_tracking_heavy"] == ["c", "b", "a", "d"]
-    assert nominal["kendall_tau"] == pytest.approx(0.0)  # a, b, c reversed (3 pairs), d last in both (3 pairs)
+    assert nominal["scenarios"] == 2 and record["aggressive"]["scenarios"] == 1
+    assert nominal["by_score"] == ["a", "b", "c"] and nominal["by_tracking_heavy"] == ["c", "b", "a"]
+    assert nominal["kendall_tau"] == pytest.approx(-1.0)
     assert record["aggressive"]["kendall_tau"] == pytest.approx(1.0)
-    assert "| nominal | a < b < c < d | c < b < a < d | 0.00 |" in text
-    assert np.isinf(record["aggressive"]["score"]["d"])
+    assert record["aggressive"]["score"]["a"] == pytest.approx(1.0 + 1e-6)
+    assert "| nominal | 2 | a < b < c | c < b < a | -1.00 |" in text

@@ -226,6 +226,15 @@ def _sections(args: argparse.Namespace, scenario: Any, record: Any) -> None:
         print(f"{'law':>25} {'median ms':>10} {'p90 ms':>7} {'of period':>10}")
         for row in record("controllers", bench_controllers(scenario)):
             print(f"{row['law']:>25} {row['median_ms']:>10.3f} {row['p90_ms']:>7.3f} {row['of_period']:>10.3f}")
+        from mjtraj.bench import bench_predictive
+
+        print("the predictive laws on protocol v2's episodes (motion and 0.5 s settle window), one simulation on one "
+              "core, 3 scenarios per family; target: the worst period below the control period at 20 ms")
+        print(f"{'law':>13} {'period ms':>10} {'family':>11} {'median ms':>10} {'p99 ms':>7} {'worst ms':>9} "
+              f"{'worst / period':>15}")
+        for row in record("predictive", bench_predictive(scenario)):
+            print(f"{row['law']:>13} {row['period_ms']:>10.0f} {row['family']:>11} {row['median_ms']:>10.2f} "
+                  f"{row['p99_ms']:>7.2f} {row['max_ms']:>9.2f} {row['worst_of_period']:>15.2f}")
     if args.what in ("startup", "all"):
         from mjtraj.bench import bench_startup
 

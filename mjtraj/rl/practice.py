@@ -83,35 +83,43 @@ def tracking_heavy(row: dict[str, Any]) -> float:
             + numeric(row["cost_torque"]))
 
 
-def _mean_score(rows: Sequence[dict[str, Any]], score: Any) -> float:
-    """Mean of `score(row)` over a method's rows, +inf if any failed (the benchmark's failure rule)."""
-    if any(r["status"] != "ok" for r in rows):
-        return float("inf")
-    return float(np.mean([score(r) for r in rows]))
+def _common(methods: Mapping[str, Sequence[dict[str, Any]]]) -> set[int]:
+    """The scenarios on which every method's every row ran (has metrics: ok or not_settled)."""
+    common: set[int] | None = None
+    for rows in methods.values():
+        ran = {int(r["scenario"]) for r in rows if r["status"] in RAN}
+        ran -= {int(r["scenario"]) for r in rows if r["status"] not in RAN}
+        common = ran if common is None else common & ran
+    return common or set()
 
 
 def weighting_agreement(rows: Sequence[dict[str, Any]], groups: Mapping[str, Sequence[str]],
                         families: Sequence[str]) -> tuple[str, dict[str, dict[str, Any]]]:
-    """Per family, the methods ranked by mean J_settle and by mean tracking-heavy score (a method that failed
-    anywhere last, tied), and Kendall's tau-b between the two rankings (NaN with fewer than two methods or no
-    spread): a markdown table and the same as a dict."""
+    """Per family, the methods ranked by mean J_settle and by mean tracking-heavy score, both over the scenarios on
+    which every method ran (whether or not it ended at rest: the success column says that), and Kendall's tau-b
+    between the two rankings (NaN with fewer than two methods or no such scenario): a markdown table and the same
+    as a dict."""
     record: dict[str, dict[str, Any]] = {}
     lines = [f"Rankings under J_settle and under a tracking-heavy weighting (position weight from "
-             f"{TRACKING_SHARE:.0%} of the move, {1 / TRACKING_SHARE**2:,.0f} times J_settle's), best first, and "
-             "Kendall's tau between them (1: the same order; a method that failed anywhere ranks last):", "",
-             "| family | by J_settle | by tracking-heavy J | Kendall's tau |", "|---|---|---|---|"]
+             f"{TRACKING_SHARE:.0%} of the move, {1 / TRACKING_SHARE**2:,.0f} times J_settle's), best first, each "
+             "a mean over the scenarios on which every method ran (at rest or not), and Kendall's tau between them "
+             "(1: the same order, -1: reversed):", "",
+             "| family | scenarios | by J_settle | by tracking-heavy J | Kendall's tau |", "|---|---|---|---|---|"]
     for family in families:
         methods = _by_method(rows, groups, family)
-        bryson = {m: _mean_score(r, lambda row: numeric(row["cost"])) for m, r in methods.items()}
-        heavy = {m: _mean_score(r, tracking_heavy) for m, r in methods.items()}
+        common = _common(methods)
+        shared = {m: [r for r in mine if int(r["scenario"]) in common] for m, mine in methods.items()}
+        nan = float("nan")
+        bryson = {m: float(np.mean([numeric(r["cost"]) for r in r_])) if r_ else nan for m, r_ in shared.items()}
+        heavy = {m: float(np.mean([tracking_heavy(r) for r in r_])) if r_ else nan for m, r_ in shared.items()}
         names = list(methods)
-        tau = float("nan")
-        if len(names) > 1:
+        tau = nan
+        if len(names) > 1 and common:
             with np.errstate(invalid="ignore"):
                 tau = float(kendalltau([bryson[m] for m in names], [heavy[m] for m in names]).statistic)
         first = sorted(names, key=lambda m: bryson[m])
         second = sorted(names, key=lambda m: heavy[m])
-        record[family] = {"by_score": first, "by_tracking_heavy": second, "kendall_tau": tau,
-                          "score": bryson, "tracking_heavy": heavy}
-        lines.append(f"| {family} | {' < '.join(first)} | {' < '.join(second)} | {tau:.2f} |")
+        record[family] = {"scenarios": len(common), "by_score": first, "by_tracking_heavy": second,
+                          "kendall_tau": tau, "score": bryson, "tracking_heavy": heavy}
+        lines.append(f"| {family} | {len(common)} | {' < '.join(first)} | {' < '.join(second)} | {tau:.2f} |")
     return "\n".join(lines), record

@@ -149,13 +149,15 @@ def violation(problem: Shooting, limits: PathLimits, u: NDArray[np.float64]) -> 
 
 def _qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], c: NDArray[np.float64],
         G: NDArray[np.float64], h: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
-        soft: bool, back: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        soft: bool, back: NDArray[np.float64] | None = None, iter_limit: int | None = None
+        ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """argmin 1/2 d^T H d + g^T d s.t. C d = -c, G d >= -h, low <= d <= high by DAQP: (d, the multipliers of the
     rows C, G), or None if DAQP finds no solution. H is a matrix, or the diagonal (its 1-d array) of a diagonal one.
     Solved in z = L^T d (H = L L^T), where the Hessian is the identity: DAQP's own factorisation of a dense H of 300
     rows took 5 ms of the 5.5, this takes 2.5 in all. Where H is diagonal (the effort bound's: Q = 0 and a diagonal
     R), L is too and the box stays a box in z: DAQP takes it as simple bounds, not as 300 rows, and the QP solves in
-    about 0.4 ms instead of 3. back: L^-T of a dense H where it is known (`_inverse_factor`)."""
+    about 0.4 ms instead of 3. back: L^-T of a dense H where it is known (`_inverse_factor`). iter_limit: DAQP's
+    iteration cap (None: its default); a solve that reaches it returns None."""
     import daqp  # here, not at import: only the nonlinear planners need it
 
     if H.ndim == 1:
@@ -185,8 +187,9 @@ def _qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], 
     lower = np.concatenate([bounds[1], -c, -h])
     sense = np.concatenate([np.full(len(g), SENSE_FREE), np.full(len(c), SENSE_EQUAL),
                             np.full(rows, SENSE_SOFT if soft else SENSE_FREE)]).astype(np.intc)
+    capped = {} if iter_limit is None else {"iter_limit": iter_limit}
     z, _, status, info = daqp.solve(np.eye(len(g)), f, general, upper, lower, sense, primal_tol=DAQP_TOL,
-                                    dual_tol=DAQP_TOL)
+                                    dual_tol=DAQP_TOL, **capped)
     if status < 1:
         return None
     return to_d(np.asarray(z, dtype=np.float64)), np.asarray(info["lam"], dtype=np.float64)[len(g):]
