@@ -39,5 +39,10 @@ class PluginError(MjtrajError):
     """An installed plug-in (a planner or controller entry point) cannot be loaded or clashes with another."""
 
 
+class PolicyError(MjtrajError):
+    """A policy being scored raised, or returned actions of the wrong shape or non-finite ones: a bug in the policy,
+    not a bad score (`mjtraj rl eval` stops on it unless told to keep going)."""
+
+
 __all__ = ["BackendError", "InfeasibleError", "InvalidInputError", "MissingExtraError", "MjtrajError", "ModelError",
-           "PluginError", "RenderError", "SolverError"]
+           "PluginError", "PolicyError", "RenderError", "SolverError"]

@@ -368,3 +368,76 @@ def test_protocol_v2_scores_the_window_and_its_noisy_family_is_the_sweeps_own(tm
     summary = report.markdown.read_text()
     assert "What the executions did" in summary and "| noisy | cubic+adaptive CT |" in summary
     assert "Kendall's tau" in summary
+
+
+def _wrong_signature(obs, extra):
+    return np.zeros(3)
+
+
+def _wrong_shape(obs):
+    return np.zeros(2)
+
+
+def _nan_action(obs):
+    return np.full(3, np.nan)
+
+
+def _raises(obs):
+    return np.zeros(3)[obs.size]  # an IndexError, as a bug in a user's policy would raise
+
+
+@pytest.mark.parametrize("policy, message", [
+    (_wrong_signature, r"^policy _wrong_signature: on observation 0 \(shape \(19,\)\) it raised TypeError: "
+                       r"_wrong_signature\(\) missing 1 required positional argument: 'extra'$"),
+    (_wrong_shape, r"^policy _wrong_shape: on observation 0 \(shape \(19,\)\) it returned actions of shape \(2,\); "
+                   r"expected \(3,\) per observation$"),
+    (_nan_action, r"^policy _nan_action: on observation 0 it returned the action \[nan, nan, nan\]; expected finite "
+                  r"values \(values outside \[-1, 1\] are clipped\)$"),
+    (_raises, r"^policy _raises: on observation 0 \(shape \(19,\)\) it raised IndexError: index 19 is out of bounds "
+              r"for axis 0 with size 3$"),
+])
+def test_a_broken_policy_stops_the_evaluation_with_its_error(tmp_path, capsys, policy, message):
+    """Four bugs a user's policy can have are errors, not scores: one line naming the policy, what it did and the
+    observation; the command exits 2. With --keep-going the rows record it and SUMMARY.md counts it."""
+    from mjtraj.exceptions import PolicyError
+
+    with pytest.raises(PolicyError, match=message):
+        evaluate([policy], families=("nominal",), scenarios=2, seed=3, reps=10, out=tmp_path / "a")
+    report = evaluate([policy], families=("nominal",), scenarios=2, seed=3, reps=10, out=tmp_path / "b",
+                      keep_going=True)
+    rows = [r for r in read_rows(report.csv) if r["policy"]]
+    assert {r["status"] for r in rows} == {"error"}
+    summary = report.markdown.read_text()
+    assert "Rows whose evaluation raised (status error), by reason:\n\n- 2 x PolicyError: policy " in summary
+
+
+def test_the_cli_says_a_broken_policy_in_one_line(tmp_path, capsys):
+    (tmp_path / "mine.py").write_text("import numpy as np\n\ndef policy(obs):\n    return np.zeros(4)\n")
+    code = main(["rl", "eval", "--policy", f"{tmp_path / 'mine.py'}:policy", "--family", "nominal", "--scenarios",
+                 "2", "--reps", "10", "--out", str(tmp_path / "out"), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("mjtraj: error: policy ") and "it returned actions of shape (4,); expected (3,)" in err
+
+
+@pytest.mark.slow
+def test_a_plain_sb3_zip_scores_once_its_env_is_named(tmp_path, capsys):
+    """A PPO trained with plain stable-baselines3 on `benchmark_vec_env` and saved by `model.save`: refused without
+    --policy-env by a message that holds the command that scores it; that command scores it, on v2's observation."""
+    from stable_baselines3 import PPO
+
+    from mjtraj.rl.sb3_env import benchmark_vec_env
+
+    model = PPO("MlpPolicy", benchmark_vec_env(2), n_steps=32, batch_size=32, seed=0, device="cpu")
+    model.learn(64)
+    model.save(tmp_path / "plain.zip")
+    args = ["rl", "eval", "--policy", str(tmp_path / "plain.zip"), "--family", "nominal", "--scenarios", "2",
+            "--reps", "10", "--out", str(tmp_path / "out"), "--no-progress"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    command = err.split("e.g. ")[1].strip()
+    assert command == (f"mjtraj rl eval --policy {tmp_path / 'plain.zip'} --policy-env observe_task=true "
+                       "--policy-env observe_measured=true")
+    assert main([*command.split()[1:], *args[4:]]) == 0
+    rows = read_rows(tmp_path / "out" / "eval.csv")
+    assert {r["method"] for r in rows if r["policy"]} == {"plain.zip (PPO)"}

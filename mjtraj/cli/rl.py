@@ -156,6 +156,9 @@ def add(sub: Any, laws: str) -> None:
                    help=f"bootstrap resamples per interval (default the protocol's, {PROTOCOL_V2['reps']})")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")
     p.add_argument("--out", type=Path, default=Path("rl_eval"), help="output folder (default rl_eval/)")
+    p.add_argument("--keep-going", dest="keep_going", action="store_true",
+                   help="a policy that raises or returns actions of the wrong shape or non-finite ones gets error rows "
+                   "(counted in SUMMARY.md) instead of stopping the run with its error (exit 2)")
     no_progress_option(p)
     p.set_defaults(handler=run_eval)
     p = rl_sub.add_parser("baselines", help="list the shipped trained policies (use them as --policy baseline:NAME)")
@@ -356,7 +359,7 @@ def run_eval(args: argparse.Namespace) -> int:
                           tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
                           settings=overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
                           progress=not args.no_progress, floor=args.floor,
-                          figure_formats=tuple(args.figure_format), versus=args.versus)
+                          figure_formats=tuple(args.figure_format), versus=args.versus, keep_going=args.keep_going)
     print(f"Protocol {evaluation.protocol}.\n")
     print(evaluation.table)
     print(f"\nIn short (J / {evaluation.reference}, then P(improve)):\n")

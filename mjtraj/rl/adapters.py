@@ -33,12 +33,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.envs import RESIDUAL_SCALE, TrackSettings, resolve
-from mjtraj.exceptions import InvalidInputError
+from mjtraj.exceptions import InvalidInputError, PolicyError
+from mjtraj.rl import ALGORITHM_NAMES
 
 BENCHMARK_ENV: dict[str, Any] = {"planner": "cubic", "controller": "pid", "action_mode": "residual",
                                  "residual_scale": RESIDUAL_SCALE, "observe_control": False, "preview": 0,
-                                 "observe_plant": "none", "history": 0}
-"""The env settings of a policy that declares none: UR5Track-v1's."""
+                                 "observe_plant": "none", "history": 0, "observe_task": False,
+                                 "observe_measured": False}
+"""The env settings of a policy that declares none: UR5Track-v1's (UR5Track-v2's observation adds observe_task and
+observe_measured)."""
 ENV_KEYS = tuple(BENCHMARK_ENV)
 """The env settings a policy acts in (a zip's come from its training record)."""
 KINDS = ("sb3-zip", "callable", "torch")
@@ -71,6 +74,8 @@ class ScoredPolicy:
     record: dict[str, Any] | None = field(default=None, repr=False)
     path: Path | None = None
     _settings: TrackSettings | None = field(default=None, repr=False)
+    _given: int = field(default=0, repr=False)
+    """Observations given so far (where a failing call's first observation is)."""
 
     def settings(self) -> TrackSettings:
         """The env settings it acts in (resolved once)."""
@@ -97,9 +102,34 @@ class ScoredPolicy:
             self.reset_hook(starts)
 
     def act(self, obs: NDArray[np.float64], plants: Sequence[dict[str, float]] | None = None) -> NDArray[np.float64]:
-        """Actions (B, n) for observations (B, d); `plants` one dict per row for a privileged policy."""
-        out = self.act_batch(obs, plants) if self.privileged else self.act_batch(obs)
-        return np.asarray(out, dtype=np.float64)
+        """Actions (B, n) for observations (B, d); `plants` one dict per row for a privileged policy.
+
+        Raises:
+          PolicyError: the policy raised, or returned actions of another shape than one action (n,) per observation,
+            or non-finite ones; the message names the policy, what went wrong and the index of the first
+            observation of the failing call among those this policy was given (0 the first).
+        """
+        first = self._given
+        self._given += obs.shape[0]
+        n = self.settings().n
+        where = f"policy {self.label}: on observation {first} (shape {obs.shape[1:]})"
+        try:
+            out = self.act_batch(obs, plants) if self.privileged else self.act_batch(obs)
+            actions = np.asarray(out, dtype=np.float64)
+        except Exception as e:  # noqa: BLE001 - a bug in the user's policy: said in one line, with where
+            raise PolicyError(f"{where} it raised {type(e).__name__}: {' '.join(str(e).split())}") from e
+        single = self.kind == "callable" and actions.ndim >= 1 and actions.shape[0] == obs.shape[0]
+        if actions.shape != (obs.shape[0], n):
+            got = actions.shape[1:] if single else actions.shape
+            want = f"({n},) per observation" if single else f"({obs.shape[0]}, {n}) for {obs.shape[0]} observations"
+            raise PolicyError(f"{where} it returned actions of shape {got}; expected {want}")
+        bad = ~np.isfinite(actions).all(axis=1)
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise PolicyError(f"policy {self.label}: on observation {first + row} it returned the action "
+                              f"{actions[row].tolist()}; expected finite values (values outside [-1, 1] are "
+                              "clipped)")
+        return actions
 
     def columns(self) -> dict[str, Any]:
         """What every evaluation row of this policy records about it."""
@@ -218,6 +248,82 @@ def from_object(obj: Any, *, label: str | None = None, source: str | None = None
                         fingerprint(obj, file))
 
 
+SB3_POLICY_MODULES = (("sb3_contrib", "recurrent_ppo"), (".sac.", "sac"), (".td3.", "td3"), ("", "ppo"))
+"""How a plain SB3 zip's algorithm is read from the module of its pickled policy class (the first that matches):
+sb3-contrib's recurrent policies, SAC's, TD3's, else an actor-critic policy, PPO's."""
+
+
+def sb3_algorithm(path: Path) -> str:
+    """The algorithm (mjtraj.rl.ALGORITHMS) of an SB3 zip, from the policy class its `data` records."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+        module = str(data["policy_class"]["__module__"])
+    except (zipfile.BadZipFile, KeyError, TypeError, json.JSONDecodeError) as e:
+        raise InvalidInputError(f"policy: {path} is not a stable-baselines3 zip ({type(e).__name__}: {e})") from e
+    return next(algo for key, algo in SB3_POLICY_MODULES if key in module)
+
+
+def suggested_settings(size: int, n: int = 3) -> dict[str, Any] | None:
+    """Env settings (beyond UR5Track-v1's) whose observation has `size` entries: preview, observe_control and
+    observe_task chosen so (the fewest extras first; with observe_task, UR5Track-v2's observe_measured too); None if
+    none fits."""
+    for task in (False, True):
+        for control in (False, True):
+            rest = size - (6 * n + 1) - 2 * n * control - 2 * task
+            if rest >= 0 and rest % (2 * n) == 0:
+                return {"preview": rest // (2 * n), "observe_control": control, "observe_task": task,
+                        "observe_measured": task}
+    return None
+
+
+def from_plain_zip(path: Path, settings: Mapping[str, Any] | None) -> ScoredPolicy:
+    """A zip saved by stable-baselines3 itself (`model.save`, no mjtraj record beside it), acting in the env
+    `settings` (ENV_KEYS, from `--policy-env`): its deterministic actions on the raw observations (no
+    normalisation: a plain SB3 model has none of its own).
+
+    Raises:
+      InvalidInputError: no settings (the message gives the command that scores it), or the zip's observation or
+        action space is not the env's.
+    """
+    from mjtraj.rl.extra import algorithm
+
+    algo = sb3_algorithm(path)
+    model = algorithm(algo).load(path, device="cpu")
+    size, actions = int(np.prod(model.observation_space.shape)), tuple(model.action_space.shape)
+    if not settings:
+        guess = suggested_settings(size) or {}
+        flags = [f"--policy-env {k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in guess.items()
+                 if v != BENCHMARK_ENV.get(k, False)] or ["--policy-env action_mode=residual"]
+        raise InvalidInputError(f"policy: {path} has no mjtraj record beside it (a zip saved by stable-baselines3 "
+                                f"itself); say which env it acts in (UR5Track-v1's settings unless named), e.g. "
+                                f"mjtraj rl eval --policy {path} {' '.join(flags)}")
+    env = _env_of(None, settings)
+    track = resolve(**env)
+    if size != track.obs_size or actions != (track.n,):
+        raise InvalidInputError(f"policy: {path} acts on observations of {size} entries and actions of shape "
+                                f"{actions}; the env {env} gives {track.obs_size} and takes ({track.n},)")
+    recurrent = algo == "recurrent_ppo"
+    state: dict[str, Any] = {"lstm": None, "starts": None}
+
+    def act(obs: NDArray[np.float64]) -> Any:
+        if not recurrent:
+            return model.predict(np.asarray(obs, dtype=np.float32), deterministic=True)[0]
+        out, state["lstm"] = model.predict(np.asarray(obs, dtype=np.float32), state=state["lstm"],
+                                           episode_start=state["starts"], deterministic=True)
+        state["starts"] = np.zeros(obs.shape[0], dtype=bool)
+        return out
+
+    def reset(starts: NDArray[np.bool_]) -> None:
+        state["starts"] = np.asarray(starts, dtype=bool).copy()
+
+    sha = hashlib.sha256(path.read_bytes()).hexdigest()
+    return ScoredPolicy(f"{path.name} ({ALGORITHM_NAMES[algo]})", str(path), "sb3-zip", env, act,
+                        reset if recurrent else None, False, sha, int(getattr(model, "num_timesteps", 0)))
+
+
 def from_zip_policy(policy: Any, *, label: str | None = None, source: str | None = None) -> ScoredPolicy:
     """A Policy loaded from a zip (mjtraj.rl.policy): its recorded env, batched, not privileged."""
     return ScoredPolicy(label or policy.label, source or str(policy.path), "sb3-zip", dict(policy.env_kwargs),
@@ -291,6 +397,10 @@ def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> Score
     if text.endswith(".pt") and ":" not in text:  # a batched run's policy (mjtraj.rl.batched)
         return _batched(Path(text), source=text)
     if text.endswith(".zip") or ":" not in text or Path(text).exists():
+        from mjtraj.rl.policy import record_path
+
+        if text.endswith(".zip") and Path(text).is_file() and not record_path(Path(text)).is_file():
+            return from_plain_zip(Path(text), settings)
         return from_zip_policy(load_policy(text), source=text)
     module, _, attr = text.rpartition(":")
     short = f"{Path(module).name if module.endswith('.py') else module}:{attr}"  # a file by its name, not its folder

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from mjtraj.checks import choice, positive_int
 from mjtraj.core import SETTLE_BAND, SETTLE_SPEED, LoopConfig, controller_names
-from mjtraj.exceptions import InvalidInputError
+from mjtraj.exceptions import InvalidInputError, PolicyError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl import law_label
 from mjtraj.rl.adapters import ScoredPolicy, check_settings, load_any
@@ -234,7 +234,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
              out: str | Path = "rl_eval", batch: int = 250, reps: int | None = None,
              threads: int | None = 1, command: str = "", progress: bool = False, floor: bool = False,
              figure_formats: Sequence[str] = ("png",), versus: str | None = None,
-             protocol: str = PROTOCOL) -> EvalReport:
+             protocol: str = PROTOCOL, keep_going: bool = False) -> EvalReport:
     """Score `policies` beside the `planners` under every law of `controllers` on scenarios 0..scenarios-1 of each
     of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md, profiles.png and intervals.png (in each
     of `figure_formats`: png, pdf, svg) into `out`. `families`, `scenarios`, `seed` and `reps` default to
@@ -243,6 +243,8 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
     Args:
       protocol: 'v2' (the default: each episode with its settle window, scored by J_settle, held to the at-rest
         rule, against the adaptive law) or 'v1' (J_exec over the motion, the goal rule, against cubic+PID).
+      keep_going: a policy that raises or returns actions of the wrong shape or non-finite ones (PolicyError)
+        becomes its rows' error status, counted in SUMMARY.md, instead of ending the evaluation.
       policies: zips from `mjtraj rl train`, "baseline:NAME", "MODULE:ATTR" / "FILE.py:ATTR", or the objects
         themselves (callables, torch modules; see mjtraj.rl.adapters). May be empty: the classical methods alone.
       controllers: control laws the planners run under; each policy runs on its own law (added if missing).
@@ -262,6 +264,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
 
     Raises:
       InvalidInputError: bad arguments, an unreadable policy, or scenarios not held out from a policy's training.
+      PolicyError: a policy raised or returned unusable actions (unless `keep_going`).
       MissingExtraError: a policy (an SB3 zip, a baseline, a torch module) or `threads` needs the rl extra and it is
         not installed; plain callables need none of it.
     """
@@ -329,7 +332,8 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
 
         bar = tqdm(total=len(units), unit="unit", desc="rl eval", dynamic_ncols=True)
     for (family, law, sweep, mine), unit in units:
-        actors = [ActorSpec(label, p.planner, PolicyActor(p, p.settings()), {**p.columns(), "method": label})
+        actors = [ActorSpec(label, p.planner, PolicyActor(p, p.settings()), {**p.columns(), "method": label},
+                            () if keep_going else (PolicyError,))
                   for p, label in mine]
         if law == "adaptive_computed_torque":
             actors.append(ActorSpec(ORACLE_LABEL, "cubic", TrueParameters(),
@@ -386,7 +390,8 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
               "versus": {"method": versus, **{family: {m: {"ratio": v.as_dict(), "beats": b.as_dict()}
                                                        for m, (v, b) in per.items()}
                                               for family, per in paired.items()}} if versus is not None else {},
-              "executions": execution_record, "weightings": weighting_record}
+              "executions": execution_record, "weightings": weighting_record,
+              "errors": error_counts(rows)}
     json_path = out / "summary.json"
     write_text_atomic(json_path, json.dumps(record, indent=1) + "\n")
     md_path = out / "SUMMARY.md"
@@ -396,6 +401,15 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
                                                 versus_md, executions, weighting))
     return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals,
                       executions, weighting, protocol, reference)
+
+
+def error_counts(rows: Sequence[dict[str, Any]]) -> dict[str, int]:
+    """Each reason of the rows whose status is error, with its count (most frequent first)."""
+    counts: dict[str, int] = {}
+    for row in rows:
+        if row["status"] == "error":
+            counts[row["reason"]] = counts.get(row["reason"], 0) + 1
+    return dict(sorted(counts.items(), key=lambda item: -item[1]))
 
 
 FLOOR_COLUMNS = ("floor", "cost_over_floor")
@@ -687,6 +701,9 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
     if payload:
         lines += ["By payload on the mismatch family (J / reference, seeds pooled; scenarios per bin in brackets):",
                   "", payload, ""]
+    if record.get("errors"):
+        lines += ["Rows whose evaluation raised (status error), by reason:", "",
+                  *(f"- {count} x {reason}" for reason, count in record["errors"].items()), ""]
     lines += ["![performance profiles](profiles.png)", "", "Policies:"]
     for label, p in zip(labels, policies, strict=True):
         algo = "batched PPO (skrl)" if p.record is not None and p.record.get("format") == BATCHED_RUN else (

@@ -82,3 +82,22 @@ class SB3TrackVecEnv(VecEnv):
 
     def env_is_wrapped(self, wrapper_class: type, indices: Any = None) -> list[bool]:
         return [False] * len(list(self._get_indices(indices)))
+
+
+def benchmark_vec_env(num_envs: int, env_id: str = "UR5Track-v2", **overrides: Any) -> SB3TrackVecEnv:
+    """`num_envs` episodes of the registered benchmark env `env_id` (default UR5Track-v2, protocol v2: a residual
+    on cubic + feedforward + PID, nominal tasks, the settle window) as an SB3 VecEnv: the env's registered arguments,
+    then `overrides`. What to train a plain stable-baselines3 agent on; `mjtraj rl eval --policy ZIP --policy-env
+    ...` scores the zip it saves.
+
+    Raises:
+      InvalidInputError: `env_id` is not a registered mjtraj env (the valid ones are named), or a bad argument.
+    """
+    import gymnasium as gym
+
+    from mjtraj.envs import BENCHMARK_VARIANTS
+    from mjtraj.exceptions import InvalidInputError
+
+    if env_id not in BENCHMARK_VARIANTS:
+        raise InvalidInputError(f"env_id: expected one of {', '.join(BENCHMARK_VARIANTS)}, got {env_id!r}")
+    return SB3TrackVecEnv(num_envs, **{**gym.spec(env_id).kwargs, **overrides})

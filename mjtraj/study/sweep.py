@@ -219,6 +219,8 @@ class ActorSpec:
     planner: str
     actor: Actor
     columns: dict[str, Any] = field(default_factory=dict)
+    stop_on: tuple[type[Exception], ...] = ()
+    """Errors of the actor that end the run (raised from `run_unit`) instead of becoming its rows' error status."""
 
 
 @dataclass
@@ -307,6 +309,8 @@ def run_unit(settings: SweepSettings, unit: tuple[str, int], *, actors: Sequence
     seconds["sample"] += time.perf_counter() - clock
     try:
         rows = scenario_rows(settings, unit, scenarios, weights, seconds, actors)
+    except tuple(kind for spec in actors for kind in spec.stop_on):
+        raise
     except Exception as e:  # noqa: BLE001 - recorded, and the sweep goes on
         fixed = fixed_columns(settings)
         failed = Outcome("error", one_line(e))
@@ -393,6 +397,8 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
             mine = jobs_for(settings, [scenarios[b] for b in ids], [r for r in refs if isinstance(r, Reference)],
                             [weights[b] for b in ids])
             done = dict(zip(ids, execute(model, config, mine, plant=plant, actor=spec.actor), strict=True))
+        except spec.stop_on:
+            raise
         except Exception as e:  # noqa: BLE001 - recorded, and the evaluation goes on
             done = {b: Outcome("error", one_line(e)) for b in range(len(scenarios))}
         for b, s in enumerate(scenarios):
