@@ -7,6 +7,8 @@ import io
 import re
 from pathlib import Path
 
+import pytest
+
 from mjtraj.rl.evaluate import evaluate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -77,14 +79,21 @@ def _table(text: str, header: str) -> dict[str, dict[str, str]]:
     return rows
 
 
-def test_the_readmes_result_tables_are_the_cited_summarys_cells():
-    """Every cell of the README's two tables of the control laws is the cell of the same method and column in the
-    SUMMARY.md the README cites (written by the command shown beside them), not typed by hand."""
-    readme = (ROOT / "README.md").read_text()
-    summary = (ROOT / "docs" / "results" / "best" / "SUMMARY.md").read_text()
-    assert "](docs/results/best/SUMMARY.md)" in readme and "--out docs/results/best" in readme
-    for header in ("| method | nominal: J / cubic+PID, P(improve) |", "| method | nominal: J / floor |"):
-        shown, source = _table(readme, header), _table(summary, header)
+@pytest.mark.parametrize("page, cited, headers", [
+    ("README.md", "docs/results/v2", ("| method | nominal: J / cubic+adaptive CT, P(improve) |",)),
+    ("docs/results.md", "docs/results/best", ("| method | nominal: J / cubic+PID, P(improve) |",
+                                              "| method | nominal: J / floor |")),
+])
+def test_the_result_tables_are_the_cited_summarys_cells(page, cited, headers):
+    """Every cell of a page's tables of the control laws (the README's protocol v2 table, results.md's protocol v1
+    tables) is the cell of the same method and column in the SUMMARY.md the page cites (written by the command shown
+    beside them), not typed by hand."""
+    text = (ROOT / page).read_text()
+    summary = (ROOT / cited / "SUMMARY.md").read_text()
+    link = cited.removeprefix("docs/") if page.startswith("docs/") else cited
+    assert f"]({link}/SUMMARY.md)" in text and f"--out {cited}" in text
+    for header in headers:
+        shown, source = _table(text, header), _table(summary, header)
         assert shown and set(shown) <= set(source)
         for method, cells in shown.items():
             assert cells == {column: source[method][column] for column in cells}, method

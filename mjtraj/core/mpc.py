@@ -65,7 +65,7 @@ SETTLE_OBSERVER_GAIN = 0.5
 Rule: among 1, 0.5, 0.3 and 0.15, the most episodes at rest at the goal over the validation stream's aggressive and
 mismatch scenarios 0-29 (seed 0, cubic references, 0.5 s window), the mismatched ones measured without noise and
 with the noisy family's 1 mrad, then the least mean J_settle on the noisy ones; for mpc and adaptive_mpc alike.
-mpc: 68 successes of 90 at 1 and at 0.5, 63 at 0.3, 58 at 0.15; mean J_settle with noise 24.0 at 1 against 9.85 at
+mpc: 68 successes of 90 at 1 and at 0.5, 63 at 0.3, 54 at 0.15; mean J_settle with noise 24.0 at 1 against 9.85 at
 0.5. adaptive_mpc: 67 at 1 and at 0.5, 65 at 0.3, 62 at 0.15; 26.4 against 10.9 (docs/floor.md, "Protocol v2")."""
 QP_ITERATION_CAP = 50
 """DAQP's iteration cap per solve (deterministic, unlike a time cap, so a run's numbers stay the same): 5 times the
