@@ -6,7 +6,7 @@ first use.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 
@@ -22,12 +22,13 @@ BENCHMARK_DEFAULTS = {"action_mode": "residual", "task": "random", "family": "no
 """UR5Track-v1's arguments beyond v0's defaults: it acts (a residual of residual_scale, default 6 N m, on cubic +
 feedforward + PID) and each seed draws a new task by the nominal family's rules."""
 BENCHMARK_V2_ID = "UR5Track-v2"
-BENCHMARK_V2_DEFAULTS = {**BENCHMARK_DEFAULTS, "settle": 0.5, "observe_measured": True, "observe_task": True}
+BENCHMARK_V2_DEFAULTS: dict[str, Any] = {**BENCHMARK_DEFAULTS, "settle": 0.5, "observe_measured": True,
+                                         "observe_task": True}
 """UR5Track-v2's arguments beyond v1's (protocol v2, docs/benchmark.md): each episode goes on for a 0.5 s settle window
 after its motion (the reference holding the goal, every period scored, info['settled'] at the end); the observation
 carries the state the control law measures (noisy under measurement_noise) and ends with the move and the time to the
 motion's end (v1's layout as its prefix)."""
-BENCHMARK_VARIANTS = {BENCHMARK_ID: BENCHMARK_DEFAULTS,
+BENCHMARK_VARIANTS: dict[str, dict[str, Any]] = {BENCHMARK_ID: BENCHMARK_DEFAULTS,
                       "UR5TrackAggressive-v1": {**BENCHMARK_DEFAULTS, "family": "aggressive"},
                       "UR5TrackMismatch-v1": {**BENCHMARK_DEFAULTS, "family": "mismatch"},
                       BENCHMARK_V2_ID: BENCHMARK_V2_DEFAULTS,

@@ -91,10 +91,10 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | torque      | 60 a N m is the whole corrective torque (gravity compensation stays)    |
 
     ## Observation Space
-    `Box(float64)` of size 19 + 6 preview (+ 6 with observe_control). After step k the loop is at period k+1
-    and the reference sample is that period's. Bounds: `range` is a joint's position range (pan and lift +-2 pi,
-    elbow +-pi), `width` its length; velocities are bounded by 200 rad/s, which 60 N m cannot reach before
-    |e| > pi ends the episode.
+    `Box(float64)` of size 19 + 6 preview (+ 6 with observe_control, + 7 with observe_plant, + 2 with observe_task).
+    After step k the loop is at period k+1 and the reference sample is that period's. Bounds: `range` is a joint's
+    position range (pan and lift +-2 pi, elbow +-pi), `width` its length; velocities are bounded by 200 rad/s, which
+    60 N m cannot reach before |e| > pi ends the episode.
 
     | index          | observation                                        | min           | max          | unit  |
     |----------------|----------------------------------------------------|---------------|--------------|-------|
@@ -113,13 +113,13 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | t              | observe_task: the move, max_i abs(qg_i - q0_i)     | 0             | largest range width | rad |
     | t+1            | observe_task: time to the motion's end (N - k) dt  | -settle       | max float    | s     |
 
-    (m = 19 + 6 preview; max float = the largest finite float64: these two have no a-priori bound. p = m (+ 6
-    with observe_control); t = p (+ 7 with observe_plant); N the motion's periods (without the settle window). With
+    (m = 19 + 6 preview; max float = the largest finite float64: these two have no a-priori bound. p = m (+ 6 with
+    observe_control); t = p (+ 7 with observe_plant); N the motion's periods (without the settle window). With
     observe_measured, q, qd, e and ed are what the control law measures, noisy under measurement_noise (else the
-    true state, which a policy then sees and the law does not); theta_max: `mjtraj.core.adaptive.BOUND_RULE`; 'true' gives the episode's plant
-    (privileged), 'estimate' the adaptive law's online estimate. With `history` h the whole observation above,
-    of size d, is followed by the h previous ones (latest first, each of size d; an episode's first observation
-    fills them): size d (1 + h).)
+    true state, which a policy then sees and the law does not); theta_max: `mjtraj.core.adaptive.BOUND_RULE`; 'true'
+    gives the episode's plant (privileged), 'estimate' the adaptive law's online estimate. With `history` h the
+    whole observation above, of size d, is followed by the h previous ones (latest first, each of size d; an
+    episode's first observation fills them): size d (1 + h).)
 
     ## Rewards
     r_k = reward_tracking + reward_effort = -(x_k^T Q_exec x_k) - (dtau_k^T R_exec dtau_k), x_k = [e_k; ed_k] the
@@ -179,15 +179,15 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     The defaults are UR5Track-v0's (kept as it was for earlier numbers). The benchmark envs differ in these ("-":
     the default):
 
-    | argument | UR5Track-v1 | UR5TrackAggressive-v1 | UR5TrackMismatch-v1 | UR5Track-v2 | UR5TrackAggressive-v2 | UR5TrackMismatch-v2 | UR5TrackNoisy-v2 |
+    | id | action_mode | task | family | settle | observe_measured | observe_task | measurement_noise |
     |---|---|---|---|---|---|---|---|
-    | action_mode | "residual" | "residual" | "residual" | "residual" | "residual" | "residual" | "residual" |
-    | task | "random" | "random" | "random" | "random" | "random" | "random" | "random" |
-    | family | "nominal" | "aggressive" | "mismatch" | "nominal" | "aggressive" | "mismatch" | "mismatch" |
-    | settle | - | - | - | 0.5 | 0.5 | 0.5 | 0.5 |
-    | observe_measured | - | - | - | True | True | True | True |
-    | observe_task | - | - | - | True | True | True | True |
-    | measurement_noise | - | - | - | - | - | - | 0.001 |
+    | UR5Track-v1 | "residual" | "random" | "nominal" | - | - | - | - |
+    | UR5TrackAggressive-v1 | "residual" | "random" | "aggressive" | - | - | - | - |
+    | UR5TrackMismatch-v1 | "residual" | "random" | "mismatch" | - | - | - | - |
+    | UR5Track-v2 | "residual" | "random" | "nominal" | 0.5 | True | True | - |
+    | UR5TrackAggressive-v2 | "residual" | "random" | "aggressive" | 0.5 | True | True | - |
+    | UR5TrackMismatch-v2 | "residual" | "random" | "mismatch" | 0.5 | True | True | - |
+    | UR5TrackNoisy-v2 | "residual" | "random" | "mismatch" | 0.5 | True | True | 0.001 |
 
     | argument         | default    | meaning                                                                 |
     |------------------|------------|-------------------------------------------------------------------------|
@@ -244,16 +244,16 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | UR5TrackAggressive-v2, UR5TrackMismatch-v2 | as v2 with family="aggressive", "mismatch" | 0.5.0 |
     | UR5TrackNoisy-v2 | as UR5TrackMismatch-v2 with measurement_noise=0.001 (protocol v2's noisy family) | 0.5.0 |
 
-    v0 and v1 are kept unchanged for reproducibility (v0's dynamics and residual default changed within 0.1.0
-    before the benchmark was versioned); new work should use v2. In v2 an episode of N motion periods runs N + 25
-    steps: after the motion the reference holds the goal at rest for the 0.5 s settle window, every period scored
-    with the same weights (the return is minus J_settle), and the last step's info says whether the arm is at rest at
-    the goal (`info["settled"]`: every joint within 2 % of the move and slower than 0.05 rad/s; why not in
-    `info["settle_reason"]`); its metrics add cost_position, cost_velocity, cost_torque, cost_motion (J_exec of
-    the motion alone), end_err, end_speed and settle_time (`mjtraj.core.settle`). `reset(options={"scenario": {"family": F, "seed": S,
-    "index": i}})` replays held-out sweep scenario i of family F under seed S (task, duration, plant), bit for bit
-    the episode `mjtraj sweep` and `mjtraj rl eval` score; reset's info carries the task (q0, qg, duration) and, on
-    perturbed plants, the plant.
+    v0 and v1 are kept unchanged for reproducibility (v0's dynamics and residual default changed within 0.1.0 before
+    the benchmark was versioned); new work should use v2. In v2 an episode of N motion periods runs N + 25 steps:
+    after the motion the reference holds the goal at rest for the 0.5 s settle window, every period scored with the
+    same weights (the return is minus J_settle), and the last step's info says whether the arm is at rest at the
+    goal (`info["settled"]`: every joint within 2 % of the move and slower than 0.05 rad/s; why not in
+    `info["settle_reason"]`); its metrics add cost_position, cost_velocity, cost_torque, cost_motion (J_exec of the
+    motion alone), end_err, end_speed and settle_time (`mjtraj.core.settle`). `reset(options={"scenario": {"family":
+    F, "seed": S, "index": i}})` replays held-out sweep scenario i of family F under seed S (task, duration, plant),
+    bit for bit the episode `mjtraj sweep` and `mjtraj rl eval` score; reset's info carries the task (q0, qg,
+    duration) and, on perturbed plants, the plant.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}

@@ -305,14 +305,13 @@ def test_docstring_arguments_table_matches_the_code():
     documented = {name: value for name, value in rows if name != "argument"}
     code = {name: repr(value).replace("'", '"') for name, value in argument_defaults().items()}
     assert documented == code
-    lines = [line.strip().strip("|").split("|") for line in benchmark.splitlines()
+    lines = [[cell.strip() for cell in line.strip().strip("|").split("|")] for line in benchmark.splitlines()
              if line.strip().startswith("| ")]
-    ids = [cell.strip() for cell in lines[0][1:]]
-    assert ids == list(BENCHMARK_VARIANTS)
-    variants = [[cell.strip() for cell in line] for line in lines[1:]]
-    for column, env_id in enumerate(ids, start=1):
-        shown = {row[0]: row[column] for row in variants if row[column] != "-"}
-        assert shown == {name: repr(value).replace("'", '"') for name, value in BENCHMARK_VARIANTS[env_id].items()}
+    names, variants = lines[0][1:], lines[1:]
+    assert [row[0] for row in variants] == list(BENCHMARK_VARIANTS)
+    for row in variants:
+        shown = {name: cell for name, cell in zip(names, row[1:], strict=True) if cell != "-"}
+        assert shown == {name: repr(value).replace("'", '"') for name, value in BENCHMARK_VARIANTS[row[0]].items()}
     env = UR5TrackEnv()  # and those defaults are what an env built without arguments uses
     s = env.settings
     applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,
@@ -390,7 +389,8 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                    r"torque_limit, "
                    r"action_mode, "
                    r"residual_scale, task, family, max_displacement, duration, dt, preview, observe_control, "
-                   r"observe_plant, observe_task, observe_measured, settle, history, plant_randomization, measurement_noise, reward_baseline, floor, width, "
+                   r"observe_plant, observe_task, observe_measured, settle, history, plant_randomization, "
+                   r"measurement_noise, reward_baseline, floor, width, "
                    r"height, "
                    r"camera, render_quality, "
                    r"controller, "

@@ -3,7 +3,6 @@ against hand-made rows with known answers; and protocol v2's noisy family agains
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from mjtraj.rl.practice import TRACKING_SHARE, execution_summary, execution_table, tracking_heavy, weighting_agreement

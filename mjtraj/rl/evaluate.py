@@ -308,8 +308,9 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
     plans = []
     window = SETTLE[protocol]
     for family in families:
-        drawn = {"families": (sweep_family(family),), "scenarios": scenarios, "seed": seed, "batch": batch,
-                 "settle": window, "sensor_noise": NOISY_SIGMA if family == NOISY_FAMILY else 0.0}
+        drawn: dict[str, Any] = {"families": (sweep_family(family),), "scenarios": scenarios, "seed": seed,
+                                 "batch": batch, "settle": window,
+                                 "sensor_noise": NOISY_SIGMA if family == NOISY_FAMILY else 0.0}
         for law in laws:
             mine = [(p, label) for p, label in zip(loaded, labels, strict=True) if p.controller == law]
             names = tuple(dict.fromkeys([*planner_list, *(p.planner for p, _ in mine)]))

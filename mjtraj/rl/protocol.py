@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from mjtraj.core.settle import SETTLE_WINDOW
+from mjtraj.core import SETTLE_WINDOW
 from mjtraj.exceptions import InvalidInputError
 
 NOISY_FAMILY = "noisy"
