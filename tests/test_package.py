@@ -111,3 +111,16 @@ def test_recorded_versions_are_the_installed_distributions():
     for name in LIBRARIES:
         assert recorded[name] == library_version(name) == metadata.version(name)
     assert library_version("no-such-distribution-mjtraj") == ""
+
+
+def test_one_version_string_everywhere():
+    """The package, its metadata, CITATION.cff and the README's BibTeX name one version."""
+    import re
+
+    from mjtraj.versions import __version__
+
+    citation = re.search(r"^version: (\S+)$", (ROOT / "CITATION.cff").read_text(), flags=re.M)
+    bibtex = re.search(r"version = \{([^}]+)\}", (ROOT / "README.md").read_text())
+    project = re.search(r'^version = "([^"]+)"$', (ROOT / "pyproject.toml").read_text(), flags=re.M)
+    assert citation and bibtex and project
+    assert {citation.group(1), bibtex.group(1), project.group(1)} == {__version__}

@@ -218,8 +218,11 @@ def test_tuned_gains_are_the_best_of_their_trials():
 
 
 @pytest.mark.slow
-def test_a_shipped_baseline_rescores_to_the_summarys_rows_bit_for_bit(tmp_path):
-    """Anyone re-scoring a shipped baseline gets the benchmark's own rows (docs/results/benchmark/eval.csv)."""
+def test_a_shipped_baseline_rescores_to_the_summarys_rows(tmp_path):
+    """Anyone re-scoring a shipped baseline under protocol v1 gets the benchmark's own rows
+    (docs/results/benchmark/eval.csv): the same statuses, and costs within 1e-9 relative (the policy's float32 torch
+    kernels differ in their last bits across x86-64 CPUs, about 1e-15 relative; on the machine and libraries that wrote
+    the rows they agree bit for bit). The reference's float64 rows are checked first."""
     from pathlib import Path
 
     from mjtraj.rl.baselines import baseline_names
@@ -229,11 +232,14 @@ def test_a_shipped_baseline_rescores_to_the_summarys_rows_bit_for_bit(tmp_path):
     mine = [r for r in shipped if r["policy"] == f"baseline:{name}" and r["family"] == "mismatch"]
     assert len(mine) == 200
     report = evaluate([f"baseline:{name}"], families=("mismatch",), scenarios=200, seed=1, reps=10,
-                      out=tmp_path)
-    again = [r for r in read_rows(report.csv) if r["policy"] == f"baseline:{name}"]
-    assert [r["cost"] for r in again] == [r["cost"] for r in mine]
-    reference = [r["cost"] for r in read_rows(report.csv) if r["method"] == "cubic+PID"]
-    assert reference == [r["cost"] for r in shipped if r["method"] == "cubic+PID" and r["family"] == "mismatch"]
+                      out=tmp_path, protocol="v1")
+    rows = read_rows(report.csv)
+    for method, want in (("cubic+PID", [r for r in shipped if r["method"] == "cubic+PID"
+                                        and r["family"] == "mismatch"]), (None, mine)):
+        got = [r for r in rows if (r["method"] == method if method else r["policy"] == f"baseline:{name}")]
+        assert [r["status"] for r in got] == [r["status"] for r in want]
+        assert [float(r["cost"]) for r in got] == pytest.approx([float(r["cost"]) for r in want], rel=1e-9,
+                                                                 nan_ok=True)
 
 
 def test_a_run_off_the_published_protocol_says_so(tmp_path):

@@ -19,7 +19,6 @@ from mjtraj.exceptions import InvalidInputError
 
 JOINT_SPEED_LIMIT = np.pi
 """UR5 joint speed limit, rad/s (180 deg/s on every joint): the velocity scale of Bryson's rule."""
-SCORING_RULES = ("bryson", "fixed")
 
 
 def bryson_weights(task: Task, torque_limit: npt.ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
