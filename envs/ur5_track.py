@@ -319,6 +319,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     def step(self, action: npt.ArrayLike) -> tuple[NDArray[np.float64], float, bool, bool, dict[str, Any]]:
         if not self._running:
             raise InvalidInputError("step: call reset() first (before the first step and after an episode ends)")
+        shape = np.shape(action) if isinstance(action, (np.ndarray, list, tuple)) else None
+        if shape is not None and len(shape) > 1:  # one env takes one action (n,): a batch of one is the vector env's
+            raise InvalidInputError(f"action: expected shape ({self.settings.n},), got {shape}")
         obs, reward, terminated, info = self._core.step(action)
         out = {key: value[0] for key, value in info.items()}
         done = bool(terminated[0])

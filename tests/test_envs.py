@@ -430,6 +430,7 @@ def test_user_planner_object(model):
     ({"a": 1}, r"^action: expected real numbers in \[-1, 1\], got dict$"),
     (np.array([1j, 0, 0]), r"^action: expected real numbers in \[-1, 1\], got complex128 values$"),
     (np.zeros(2), r"^action: expected shape \(3,\), got \(2,\)$"),
+    (np.zeros((1, 3)), r"^action: expected shape \(3,\), got \(1, 3\)$"),  # a batch of one: the vector env's
 ])
 def test_actions_are_checked_in_every_mode(mode, action, message):
     env = UR5TrackEnv(action_mode=mode)
