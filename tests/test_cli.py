@@ -147,6 +147,8 @@ def test_defaults_leave_tracked_files_alone():
     assert parser.parse_args(["audit", "x.csv"]).out == Path("results/AUDIT.md")
     assert _compare_out(parser.parse_args(["compare"])) == Path("results")
     assert _compare_out(parser.parse_args(["compare", "--model", "arms/z1.xml"])) == Path("results/z1")
+    assert _compare_out(parser.parse_args(["compare", "--controller", "mpc"])) == Path("results/mpc")
+    assert _compare_out(parser.parse_args(["compare", "--controller", "pid"])) == Path("results")
     assert _compare_out(parser.parse_args(["compare", "--model", "z1.xml", "--out", "o"])) == Path("o")
 
 

@@ -20,7 +20,8 @@ def add(sub: Any, laws: str) -> None:
     loop_flags(p)
     p.add_argument("--planners", type=names, help="comma-separated planner names (default: all)")
     p.add_argument("--out", type=Path, help="output folder (default: results/, or results/MODEL/ with --model, "
-                   "MODEL the file's name without .xml)")
+                   "MODEL the file's name without .xml; then LAW/ with --controller other than pid, so Table I's "
+                   "files are never overwritten)")
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
     figure_format_option(p)
@@ -28,11 +29,13 @@ def add(sub: Any, laws: str) -> None:
 
 
 def output_folder(args: argparse.Namespace) -> Path:
-    """compare's output folder: --out, else results/ for the UR5 and results/MODEL/ for an arm file (its results
-    beside the UR5's, never over them)."""
+    """compare's output folder: --out, else results/ for the UR5 and results/MODEL/ for an arm file, and within it
+    LAW/ for a control law other than PID named by --controller (each beside Table I's results, never over them)."""
     if args.out is not None:
         return Path(args.out)
-    return Path("results") / args.model.stem if args.model is not None else Path("results")
+    folder = Path("results") / args.model.stem if args.model is not None else Path("results")
+    law = getattr(args, "controller", None)
+    return folder / law if law not in (None, "pid") else folder
 
 
 def run(args: argparse.Namespace) -> int:
