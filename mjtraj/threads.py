@@ -8,7 +8,10 @@ thread count, so a plan made from Python and the same plan made by the CLI diffe
 stays across scenarios (sweep workers), where it pays.
 
 The limit is set with threadpoolctl on every BLAS loaded when an mjtraj call begins (NumPy's and SciPy's OpenBLAS,
-MKL), and the caller's counts are restored when the call returns; nested calls keep the limit (about 8 us a call).
+MKL), and the caller's counts are restored when the last call returns: the limit is process-wide (a BLAS has one
+thread count), so it is counted process-wide, under a lock. Nested calls and calls from several Python threads keep
+the limit until the last of them returns (about 8 us a call); a per-thread count let a thread that returned first
+restore the counts under another thread still inside, and that one then left the process at one thread.
 """
 
 from __future__ import annotations
@@ -21,8 +24,12 @@ from typing import Any, TypeVar
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-_local = threading.local()
-"""Per thread: how deep in mjtraj's calls it is (the limit is set at depth 0 only)."""
+_lock = threading.Lock()
+_active = 0
+"""How many mjtraj calls are inside `one_blas_thread` now, over every Python thread (the limit is set by the first
+and lifted by the last)."""
+_limiter: Any = None
+"""threadpoolctl's limiter while `_active` > 0: it restores the counts it found."""
 
 
 @functools.cache
@@ -42,23 +49,23 @@ def _loaded() -> frozenset[str]:
 
 @contextmanager
 def one_blas_thread() -> Iterator[None]:
-    """Run the block with every loaded BLAS on one thread, then restore the caller's counts (re-entrant)."""
-    depth = getattr(_local, "depth", 0)
-    if depth:
-        _local.depth = depth + 1
-        try:
-            yield
-        finally:
-            _local.depth = depth
-        return
+    """Run the block with every loaded BLAS on one thread; the counts found by the first of the calls inside (in any
+    Python thread) are restored when the last returns (re-entrant, thread-safe)."""
+    global _active, _limiter
     import scipy.linalg  # noqa: F401  (SciPy carries a BLAS of its own: load it before the controller lists them)
 
-    _local.depth = 1
+    with _lock:
+        if _active == 0:
+            _limiter = _controller(_loaded()).limit(limits=1)
+        _active += 1
     try:
-        with _controller(_loaded()).limit(limits=1):
-            yield
+        yield
     finally:
-        _local.depth = 0
+        with _lock:
+            _active -= 1
+            if _active == 0:
+                _limiter.restore_original_limits()
+                _limiter = None
 
 
 def single_blas_thread(function: F) -> F:

@@ -60,6 +60,50 @@ def test_nested_calls_keep_the_limit_and_the_outer_exit_restores():
         assert 2 in blas_threads()
 
 
+def test_two_python_threads_keep_the_limit_until_the_last_returns(monkeypatch):
+    """A BLAS has one thread count per process: the limit is set by the first call to enter (in any Python thread)
+    and lifted by the last to leave, so a thread that leaves first cannot lift it under a thread still inside, nor
+    leave the process limited (a per-thread count did both). Oracle: a recording controller in place of
+    threadpoolctl's (which itself ignores the calls of threads other than the one that controls OpenBLAS)."""
+    import threading
+
+    import mjtraj.threads as threads
+
+    events = []
+
+    class Limiter:
+        def __init__(self):
+            events.append(("limit", threading.current_thread().name))
+
+        def restore_original_limits(self):
+            events.append(("restore", threading.current_thread().name))
+
+    class Controller:
+        def limit(self, *, limits):
+            assert limits == 1
+            return Limiter()
+
+    monkeypatch.setattr(threads, "_controller", lambda libraries: Controller())
+    inside, leave = threading.Event(), threading.Event()
+
+    def first():
+        with one_blas_thread():
+            inside.set()
+            leave.wait(10)
+
+    worker = threading.Thread(target=first, name="first")
+    worker.start()
+    assert inside.wait(10)
+    with one_blas_thread():
+        leave.set()
+        worker.join(10)
+        assert events == [("limit", "first")]  # the first to leave lifted nothing
+    assert events == [("limit", "first"), ("restore", "MainThread")]
+    with one_blas_thread(), one_blas_thread():
+        pass
+    assert events[2:] == [("limit", "MainThread"), ("restore", "MainThread")]
+
+
 HASHES = r"""
 import hashlib, sys
 import numpy as np
