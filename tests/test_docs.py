@@ -121,3 +121,27 @@ def test_the_env_pages_headline_example_prints_what_the_page_shows(tmp_path, mon
         with contextlib.redirect_stdout(out):
             exec(compile(code, "env.md", "exec"), {})
     assert out.getvalue() == shown and (tmp_path / "episode.mp4").stat().st_size > 0
+
+
+@pytest.mark.parametrize("name", ["env-card", "cli-reference"])
+def test_the_docs_generated_blocks_are_what_the_code_generates(name):
+    """docs/env.md's env card and docs/cli.md's option reference are in the repository (readable without a build),
+    and they are what `python docs/hooks.py` writes from the code now. argparse's layout differs between Python
+    versions: under another version than the one that wrote the block, the reference must name the same commands and
+    options."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs" / "hooks.py")
+    assert spec is not None and spec.loader is not None
+    hooks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hooks)
+    committed, version = hooks.committed_block(name)
+    current = hooks.generated_block(name)
+    if name == "env-card" or version == ".".join(map(str, sys.version_info[:2])):
+        assert committed == current, "run: python docs/hooks.py"
+    else:
+        def words(text):
+            return sorted(re.findall(r"(?:^#+ mjtraj [\w ]+$|--[\w-]+)", text, flags=re.M))
+
+        assert words(committed) == words(current), "run: python docs/hooks.py"
