@@ -131,6 +131,9 @@ class SweepSettings:
                            scenario_for_model(self.model, torque_limit=self.torque_limit, workspace=True))
         self.loop_config(self.ff_accel[0], self.gravity_comp[0], mismatch=True)  # validates delay
         window_steps(self.settle, self.base.task.dt)  # validates the window
+        if self.settle and self.floors:
+            raise InvalidInputError(f"floors: the clairvoyant floor is derived for episodes without a settle window; "
+                                    f"got settle={self.settle}")
 
     @property
     def settle_steps(self) -> int:
