@@ -220,9 +220,11 @@ def test_tuned_gains_are_the_best_of_their_trials():
 @pytest.mark.slow
 def test_a_shipped_baseline_rescores_to_the_summarys_rows(tmp_path):
     """Anyone re-scoring a shipped baseline under protocol v1 gets the benchmark's own rows
-    (docs/results/benchmark/eval.csv): the same statuses, and costs within 1e-9 relative (the policy's float32 torch
-    kernels differ in their last bits across x86-64 CPUs, about 1e-15 relative; on the machine and libraries that wrote
-    the rows they agree bit for bit). The reference's float64 rows are checked first."""
+    (docs/results/benchmark/eval.csv): the same statuses, and costs within 1e-6 relative. The policy's float32 torch
+    kernels differ in their last bits across x86-64 CPUs, and the mismatched plants' dry friction amplifies that: on an
+    AVX-512 Xeon every one of the 200 policy costs differed from the rows (written on another machine, with the same
+    libraries and the code before or after this test's change alike), by at most 1.5e-9 relative. On the machine that
+    wrote them they agree bit for bit. The reference's float64 rows are checked first."""
     from pathlib import Path
 
     from mjtraj.rl.baselines import baseline_names
@@ -238,7 +240,7 @@ def test_a_shipped_baseline_rescores_to_the_summarys_rows(tmp_path):
                                         and r["family"] == "mismatch"]), (None, mine)):
         got = [r for r in rows if (r["method"] == method if method else r["policy"] == f"baseline:{name}")]
         assert [r["status"] for r in got] == [r["status"] for r in want]
-        assert [float(r["cost"]) for r in got] == pytest.approx([float(r["cost"]) for r in want], rel=1e-9,
+        assert [float(r["cost"]) for r in got] == pytest.approx([float(r["cost"]) for r in want], rel=1e-6,
                                                                  nan_ok=True)
 
 
