@@ -249,15 +249,15 @@ def profile_figure(scores: dict[str, dict[str, NDArray[np.float64]]], path: Any,
 
 def interval_figure(summaries: Mapping[str, Mapping[str, Any]], path: Any, *, reference: str,
                     formats: Sequence[str] = ("png",)) -> Path | None:
-    """rliable's interval estimates: per family, the IQM of the improvement over `reference` and P(improve), each
-    method's point estimate (black tick) and 95 % interval (bar), in the colours of `method_colors`; a method absent
-    from a family is left blank there. `summaries` family -> method -> MethodSummary. Returns the first path, or
+    """Interval estimates in rliable's style, one row of panels per family: the IQM of the improvement over
+    `reference` and P(improve), each method's point estimate (black tick) and 95 % interval (bar), in the colours of
+    `method_colors`; a method absent from a family, or an interval with an infinite end (a failure), is left blank
+    there (its tick drawn where finite). `summaries` family -> method -> MethodSummary. Returns the first path, or
     None (nothing written) when the reference is the only method."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from rliable import plot_utils
 
     from mjtraj.study import save_figure
 
@@ -265,22 +265,29 @@ def interval_figure(summaries: Mapping[str, Mapping[str, Any]], path: Any, *, re
     methods = [m for m in dict.fromkeys(m for f in families for m in summaries[f]) if m != reference]
     if not methods:
         return None
-    names = [f"{f}: {what}" for f in families for what in ("IQM improvement", f"P(improve over {reference})")]
-    points, intervals = {}, {}
-    for m in methods:
-        values = []
-        for f in families:
-            s = summaries[f].get(m)
-            values += [s.iqm, s.probability_of_improvement] if s is not None else [None, None]
-        points[m] = np.array([np.nan if v is None else v.value for v in values])
-        intervals[m] = np.array([[np.nan if v is None else v.low for v in values],
-                                 [np.nan if v is None else v.high for v in values]])
-    fig, axes = plot_utils.plot_interval_estimates(points, intervals, names, algorithms=methods,
-                                                   colors=method_colors(methods), xlabel="", subfigure_width=3.6,
-                                                   row_height=0.42)
-    for ax, name in zip(np.ravel(axes), names, strict=True):
-        ax.tick_params(labelsize="small")
-        ax.set_title(name.replace(": ", "\n"), fontsize="medium")
+    colors = method_colors(methods)
+    fig, axes = plt.subplots(len(families), 2, figsize=(10.5, 0.9 + len(families) * (0.5 + 0.32 * len(methods))),
+                             squeeze=False)
+    for row, family in enumerate(families):
+        for col, (what, field) in enumerate((("IQM improvement", "iqm"),
+                                             (f"P(improve over {reference})", "probability_of_improvement"))):
+            ax = axes[row, col]
+            for y, method in enumerate(methods):
+                summary = summaries[family].get(method)
+                if summary is None:
+                    continue
+                interval = getattr(summary, field)
+                if np.isfinite(interval.low) and np.isfinite(interval.high):
+                    ax.barh(y, interval.high - interval.low, left=interval.low, height=0.6, color=colors[method],
+                            alpha=0.75)
+                if np.isfinite(interval.value):
+                    ax.plot([interval.value] * 2, [y - 0.3, y + 0.3], color="black", linewidth=1.2)
+            ax.set_yticks(range(len(methods)))
+            ax.set_yticklabels(methods if col == 0 else [], fontsize="small")
+            ax.set_title(f"{family}: {what}", fontsize="medium")
+            ax.tick_params(axis="x", labelsize="small")
+            ax.grid(axis="x", alpha=0.3)
+            ax.spines[["top", "right"]].set_visible(False)
     written = save_figure(fig, Path(path), formats, dpi=130, tight=True)
     plt.close(fig)
     return written[0]
