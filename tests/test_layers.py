@@ -13,7 +13,7 @@ SOURCES = {"mjtraj": ROOT / "mjtraj", "mjtraj.envs": ROOT / "envs"}
 """Package name -> folder (envs/ is installed as mjtraj.envs)."""
 BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj.plugins", "mjtraj._lazy",
         "mjtraj._checkout", "mjtraj._registration", "mjtraj.threads")
-APP = ("mjtraj", "mjtraj.cli", "mjtraj.bench", "mjtraj.bench_busy", "mjtraj.__main__")
+APP = ("mjtraj", "mjtraj.cli", "mjtraj.bench", "mjtraj.bench_busy", "mjtraj.golden", "mjtraj.__main__")
 LAYERS = ["base", "core", "study", "media", "envs", "rl", "app"]
 PUBLIC_BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj.plugins",
                "mjtraj.threads")

@@ -1,7 +1,7 @@
 """The `mjtraj` command: parses, calls the library, writes files. `main(argv) -> exit code`.
 
 One module per command (its parser and its handler together): compare, frontier, tune, gains, floor, render, doctor,
-bench, sweep, export, audit, reproduce and rl; what they share (value types, the options several take, progress
+bench, sweep, export, audit, reproduce, rl and golden; what they share (value types, the options several take, progress
 bars, the scenario their flags describe) is in `common`.
 """
 
@@ -22,6 +22,7 @@ from mjtraj.cli import (
     floor,
     frontier,
     gains,
+    golden,
     render,
     reproduce,
     rl,
@@ -30,7 +31,7 @@ from mjtraj.cli import (
 )
 from mjtraj.exceptions import MjtrajError
 
-COMMANDS = (compare, frontier, tune, bench, sweep, export, audit, reproduce, render, doctor, rl, gains, floor)
+COMMANDS = (compare, frontier, tune, bench, sweep, export, audit, reproduce, render, doctor, rl, gains, floor, golden)
 """The commands' modules, in the order `mjtraj --help` lists them."""
 
 
