@@ -267,7 +267,7 @@ def test_plot_redraws_a_run(trained, tmp_path, capsys):
 def test_eval_rows_are_the_sweeps_and_the_policys(trained, tmp_path, capsys):
     code = main(["rl", "eval", "--policy", str(trained / "policy.zip"), "--family", "aggressive", "--scenarios", "5",
                  "--seed", "3", "--planners", "cubic,optimal", "--reps", "50", "--out", str(tmp_path),
-                 "--no-progress"])
+                 "--no-progress", "--protocol", "v1"])
     assert code == 0
     table = capsys.readouterr().out
     assert "| cubic+PID+residual SAC (6 N m) | 1 | " in table and "| optimal+PID | 1 | " in table
@@ -646,7 +646,7 @@ def test_a_policy_failing_in_eval_is_recorded_and_eval_goes_on(trained, tmp_path
         raise RuntimeError("policy exploded")
 
     monkeypatch.setattr(PolicyActor, "act", failing)
-    evaluate([trained / "policy.zip"], families=("nominal",), scenarios=3, reps=20, out=tmp_path)
+    evaluate([trained / "policy.zip"], families=("nominal",), scenarios=3, reps=20, out=tmp_path, protocol="v1")
     rows = read_rows(tmp_path / "eval.csv")
     assert [(r["method"], r["status"]) for r in rows] == [("cubic+PID", "ok")] * 3 + [
         ("cubic+PID+residual SAC (6 N m)", "error")] * 3
@@ -699,7 +699,8 @@ def test_eval_summarises_a_configuration_over_its_seeds(trained, tmp_path):
     main(["rl", "train", "--steps", "240", "--seed", "4", "--evaluations", "2", "--checkpoints", "2",
           "--validation", "4", "--out", str(other), "--no-progress"])
     paths = [trained / "policy.zip", other / "policy.zip", trained / "best.zip", other / "best.zip"]
-    report = evaluate(paths, families=("nominal",), scenarios=6, seed=7, reps=20, out=tmp_path / "eval")
+    report = evaluate(paths, families=("nominal",), scenarios=6, seed=7, reps=20, out=tmp_path / "eval",
+                      protocol="v1")
     rows = read_rows(report.csv)
     ref = np.array([numeric(r["cost"]) for r in rows if r["method"] == "cubic+PID"])
     lines = report.table.splitlines()[2:]
