@@ -245,7 +245,7 @@ class TrackSettings:
         if family == "mismatch" and not self.perturbs:
             raise InvalidInputError("options: a mismatch scenario runs on a perturbed plant; make the env with "
                                     "family='mismatch' (UR5TrackMismatch-v1) or plant_randomization='mismatch'")
-        if family != "mismatch" and self.measurement_noise > 0:
+        if family != "mismatch" and self.measurement_noise > 0 and self.observe_measured:
             raise InvalidInputError(f"options: a {family} scenario is measured without noise (sweeps draw noise for "
                                     f"mismatched plants only); make the env with measurement_noise=0 to replay it, "
                                     f"got measurement_noise={self.measurement_noise}")

@@ -55,7 +55,7 @@ def observation_space(settings: TrackSettings) -> spaces.Box:
         low, high = [*low, np.zeros(1 + 2 * settings.n)], [*high, np.full(1 + 2 * settings.n, np.finfo(np.float64).max)]
     if settings.observe_task:  # the move (rad, within the range widths) and the time to the motion's end (s; a
         # reset may ask for any duration)
-        low = [*low, np.array([0.0, -settings.settle])]
+        low = [*low, np.array([0.0, -settings.settle_steps * settings.dt])]  # as the observation computes it
         high = [*high, np.array([float(np.max(joints.upper - joints.lower)), np.finfo(np.float64).max])]
     one_low, one_high = np.concatenate(low), np.concatenate(high)
     reps = 1 + settings.history

@@ -200,6 +200,19 @@ def test_the_v2_observation_is_the_measured_state_and_names_the_task():
     assert obs.shape == (19,) and np.array_equal(obs[:3], v1.loop.positions[0])
 
 
+@pytest.mark.parametrize("settle", [0.5, 0.7])
+def test_the_v2_observation_stays_in_its_space_through_the_window(settle):
+    """The time to the motion's end runs down to minus the window, computed in periods (0.7 s is 35 periods, whose
+    product with dt rounds below -0.7): every observation of an episode lies in the observation space."""
+    env = gym.make("UR5TrackAggressive-v2", settle=settle).unwrapped
+    obs, _ = env.reset(seed=1)
+    done = False
+    while not done:
+        assert env.observation_space.contains(obs)
+        obs, _, done, _, _ = env.step(np.zeros(3))
+    assert env.observation_space.contains(obs) and obs[20] < 0
+
+
 def test_a_noise_free_scenario_is_not_replayed_under_noise():
     env = gym.make("UR5TrackNoisy-v2")
     with pytest.raises(InvalidInputError, match=r"^options: a nominal scenario is measured without noise \(sweeps "
@@ -208,19 +221,16 @@ def test_a_noise_free_scenario_is_not_replayed_under_noise():
         env.reset(options={"scenario": {"family": "nominal", "seed": 1, "index": 0}})
 
 
-def test_mpc_plans_to_rest_through_the_window():
+def test_mpc_plans_to_rest_through_the_window(tmp_path):
     """With a settle window the MPC's terminal rows are the at-rest rule's: held-out aggressive motions end at rest
     at the goal (an aggressive scenario it had left still moving under v1's terminal box)."""
     rows = run_unit(SweepSettings(families=("aggressive",), scenarios=3, seed=777, planners=("cubic",),
-                                  config=_mpc_config(), settle=0.5), ("aggressive", 0)).rows
+                                  config=_mpc_config(tmp_path), settle=0.5), ("aggressive", 0)).rows
     assert [r["status"] for r in rows] == ["ok"] * 3
     assert max(r["end_speed"] for r in rows) <= SETTLE_SPEED
 
 
-def _mpc_config():
-    import tempfile
-    from pathlib import Path
-
+def _mpc_config(folder):
     from mjtraj.rl.evaluate import _law_config
 
-    return _law_config("mpc", Path(tempfile.mkdtemp()))
+    return _law_config("mpc", folder)

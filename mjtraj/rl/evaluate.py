@@ -333,8 +333,8 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
 
         bar = tqdm(total=len(units), unit="unit", desc="rl eval", dynamic_ncols=True)
     for (family, law, sweep, mine), unit in units:
-        actors = [ActorSpec(label, p.planner, PolicyActor(p, p.settings()), {**p.columns(), "method": label},
-                            () if keep_going else (PolicyError,))
+        actors = [ActorSpec(label, p.planner, PolicyActor(p, acting_settings(p, protocol)),
+                            {**p.columns(), "method": label}, () if keep_going else (PolicyError,))
                   for p, label in mine]
         if law == "adaptive_computed_torque":
             actors.append(ActorSpec(ORACLE_LABEL, "cubic", TrueParameters(),
@@ -402,6 +402,14 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
                                                 versus_md, executions, weighting))
     return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals,
                       executions, weighting, protocol, reference)
+
+
+def acting_settings(policy: ScoredPolicy, protocol: str) -> Any:
+    """The env settings a policy acts in under `protocol`: its own; under protocol v2 it observes the measured state,
+    as the control laws do (the noisy family's noise reaches policies and laws alike; without noise the measured state
+    is the true one)."""
+    settings = policy.settings()
+    return dataclasses.replace(settings, observe_measured=True) if SETTLE[protocol] else settings
 
 
 def error_counts(rows: Sequence[dict[str, Any]]) -> dict[str, int]:
@@ -617,7 +625,7 @@ PAYLOAD_BINS = 5
 def payload_table(rows: Sequence[dict[str, Any]],
                   costs: tuple[NDArray[np.float64], Mapping[str, NDArray[np.float64]]],
                   reference: str = REFERENCE) -> str:
-    """Markdown: on the mismatch family, each method's ratio of mean J_exec to the reference's within bins of the
+    """Markdown: on the mismatch family, each method's ratio of mean score to the reference's within bins of the
     scenario's payload (its seeds pooled; FAILURE_RULE); `costs` the family's `method_costs`."""
     ref, by_method = costs
     payload = {int(r["scenario"]): numeric(r["payload_kg"]) for r in rows
