@@ -240,9 +240,9 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | UR5Track-v1 | action_mode="residual" (6 N m), task="random", family="nominal" (docs/benchmark.md) | 0.2.0 |
     | UR5TrackAggressive-v1 | as v1 with family="aggressive" (T uniform in [0.5, 1] s) | 0.2.0 |
     | UR5TrackMismatch-v1 | as v1 with family="mismatch" (a perturbed plant each episode) | 0.2.0 |
-    | UR5Track-v2 | as v1 with settle=0.5, observe_measured=True, observe_task=True (protocol v2) | 0.5.0 |
-    | UR5TrackAggressive-v2, UR5TrackMismatch-v2 | as v2 with family="aggressive", "mismatch" | 0.5.0 |
-    | UR5TrackNoisy-v2 | as UR5TrackMismatch-v2 with measurement_noise=0.001 (protocol v2's noisy family) | 0.5.0 |
+    | UR5Track-v2 | as v1 with settle=0.5, observe_measured=True, observe_task=True (protocol v2) | 0.4.0 |
+    | UR5TrackAggressive-v2, UR5TrackMismatch-v2 | as v2 with family="aggressive", "mismatch" | 0.4.0 |
+    | UR5TrackNoisy-v2 | as UR5TrackMismatch-v2 with measurement_noise=0.001 (protocol v2's noisy family) | 0.4.0 |
 
     v0 and v1 are kept unchanged for reproducibility (v0's dynamics and residual default changed within 0.1.0 before
     the benchmark was versioned); new work should use v2. In v2 an episode of N motion periods runs N + 25 steps:

@@ -140,7 +140,8 @@ class UR5TrackVectorEnv(VectorEnv):
             if self._core.settings.settle:
                 settled = np.zeros(self.num_envs, dtype=bool)
                 settled[ended] = [not why for why in self._core.settled(ended, values)]
-                out["settled"], out["_settled"] = settled, done.copy()
+                # a truncated episode did not reach its window's end: no verdict
+                out["settled"], out["_settled"] = settled, terminated.copy()
         if restart.size:
             self._restart(restart, obs, out)
             reward[restart] = 0.0

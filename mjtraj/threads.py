@@ -11,7 +11,9 @@ The limit is set with threadpoolctl on every BLAS loaded when an mjtraj call beg
 MKL), and the caller's counts are restored when the last call returns: the limit is process-wide (a BLAS has one
 thread count), so it is counted process-wide, under a lock. Nested calls and calls from several Python threads keep
 the limit until the last of them returns (about 8 us a call); a per-thread count let a thread that returned first
-restore the counts under another thread still inside, and that one then left the process at one thread.
+restore the counts under another thread still inside, and that one then left the process at one thread. Where a
+BLAS keeps a count per thread (an OpenMP build of OpenBLAS, MKL) the restore runs in whichever thread leaves last;
+threadpoolctl itself applies OpenBLAS limits from one controlling thread only.
 """
 
 from __future__ import annotations

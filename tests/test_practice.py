@@ -1,5 +1,5 @@
 """What a practitioner reads (mjtraj.rl.practice): the execution table and the ranking under a second weighting,
-against hand-made rows with known answers; and protocol v2's noisy family against the sweep's own rows."""
+against hand-made rows with known answers."""
 
 from __future__ import annotations
 

@@ -449,3 +449,23 @@ def test_a_plain_sb3_zip_scores_once_its_env_is_named(tmp_path, capsys):
     assert main([*command.split()[1:], *args[4:]]) == 0
     rows = read_rows(tmp_path / "out" / "eval.csv")
     assert {r["method"] for r in rows if r["policy"]} == {"plain.zip (PPO)"}
+
+
+def test_a_zip_of_another_algorithm_is_refused_by_name(tmp_path):
+    """A plain SB3 zip's algorithm is read from its policy class's module; one mjtraj cannot act with is refused
+    naming it and the supported algorithms."""
+    import zipfile
+
+    from mjtraj.rl.adapters import sb3_algorithm
+
+    def saved(module):
+        path = tmp_path / f"{module}.zip"
+        with zipfile.ZipFile(path, "w") as archive:
+            archive.writestr("data", json.dumps({"policy_class": {"__module__": module}}))
+        return path
+
+    assert sb3_algorithm(saved("stable_baselines3.common.policies")) == "ppo"
+    assert sb3_algorithm(saved("stable_baselines3.sac.policies")) == "sac"
+    with pytest.raises(InvalidInputError, match=r"holds a policy of sb3_contrib.tqc.policies; expected one of SAC, "
+                                                r"PPO, TD3, RecurrentPPO \(stable-baselines3 or sb3-contrib\)$"):
+        sb3_algorithm(saved("sb3_contrib.tqc.policies"))

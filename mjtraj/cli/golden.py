@@ -31,6 +31,8 @@ def run(args: argparse.Namespace) -> int:
     moved = 0
     for name in names:
         spec = golden.SETS[name]
+        if not args.write:
+            golden.read(spec, folder)  # a missing or unreadable file is said before minutes of computing
         print(f"{name}: computing ...", file=sys.stderr, flush=True)
         entries = golden.compute(spec)
         if args.write:

@@ -62,11 +62,11 @@ OBSERVER_GAIN = 1.0
 """L of the disturbance estimate d_k = d_{k-1} + L (x_k - x_pred,k) (an integrator of the prediction error)."""
 SETTLE_OBSERVER_GAIN = {"mpc": 0.5, "adaptive_mpc": 0.3}
 """Each law's L in the episodes of protocol v2 (references that end with a settle window); protocol v1's keep
-OBSERVER_GAIN. Rule: among 1, 0.5, 0.3 and 0.15, the most episodes at rest at the goal over the validation stream's
-aggressive and mismatch scenarios 0-29 (seed 0, cubic references, 0.5 s window, linearised along the reference:
-SETTLE_REAL_TIME_ITERATION), the mismatched ones measured without noise and with the noisy family's 1 mrad, then the
-least mean J_settle on the noisy ones. mpc: 68, 73, 72 and 67 successes of 90; adaptive_mpc: 67, 70, 71 and 66
-(docs/floor.md, "Protocol v2")."""
+OBSERVER_GAIN, as does a law of another name (a plug-in built on these: its `observer_gain`). Rule: among 1, 0.5,
+0.3 and 0.15, the most episodes at rest at the goal over the validation stream's aggressive and mismatch scenarios
+0-29 (seed 0, cubic references, 0.5 s window, linearised along the reference: SETTLE_REAL_TIME_ITERATION), the
+mismatched ones measured without noise and with the noisy family's 1 mrad, then the least mean J_settle on the noisy
+ones. mpc: 68, 73, 72 and 67 successes of 90; adaptive_mpc: 67, 70, 71 and 66 (docs/floor.md, "Protocol v2")."""
 REAL_TIME_ITERATION = True
 """Linearise along the last solve's prediction, shifted by one period (True), or always along the reference (False:
 the ablation of docs/floor.md, "Protocol v2")."""
@@ -79,9 +79,10 @@ last prediction: 98 and 96 (docs/floor.md, "Protocol v2")."""
 QP_ITERATION_CAP = 50
 """DAQP's iteration cap per solve (deterministic, unlike a time cap, so a run's numbers stay the same): 5 times the
 most any solve took over 60 episodes of the validation stream (20 per family, seed 0, with the settle window: 2, 6
-and 10 at most, the median 1). A solve that reaches it, fails or overflows applies the linearisation's torques: after
-the first period the last plan shifted by one period (the real-time iteration's guess), else the reference's
-feedforward."""
+and 10 at most, the median 1). It applies in both protocols: under v1 no solve of 4 scenarios per family and law took
+more than 4, and the published v1 rows reproduce. A solve that reaches it, fails or overflows applies the torques the
+model was linearised at: in v1 after the first period the last plan shifted by one period (the real-time iteration's
+guess), in v2 and at the first period the reference's feedforward within the saturation."""
 GOAL_AIM = 0.5
 """The terminal rows aim at this fraction of the goal rule's per-joint box, a margin for the model's error."""
 
@@ -272,7 +273,7 @@ class ModelPredictive:
             solved = _qp(hessian, gradient, np.zeros((0, H * n)), np.zeros(0), rows_g, rows_h, low, high, True,
                          iter_limit=QP_ITERATION_CAP)
         except SolverError:  # a Hessian made of a prediction that overflowed
-            solved = None  # the fallback: the linearisation's torques (the last plan, shifted; QP_ITERATION_CAP)
+            solved = None  # the fallback: the linearisation's torques (QP_ITERATION_CAP)
         v = solved[0] if solved is not None and np.all(np.isfinite(solved[0])) else np.zeros(H * n)
         states = X + deviation + np.einsum("jab,b->ja", G, v)  # (H+1, 2n): the predicted motion
         self._keep(b, k, H, states, W + v.reshape(H, n))
@@ -313,7 +314,8 @@ class ModelPredictive:
         window = self._plan["window"] > 0
         if not window.any():
             return counter, disturbance + self.observer_gain * np.nan_to_num(x - expected)
-        gain = np.where(window, SETTLE_OBSERVER_GAIN[self.name], self.observer_gain)[:, None]
+        settle_gain = SETTLE_OBSERVER_GAIN.get(self.name, self.observer_gain)
+        gain = np.where(window, settle_gain, self.observer_gain)[:, None]
         return counter, disturbance + gain * np.nan_to_num(x - expected)
 
     def _skipped(self, state: NDArray[np.float64]) -> NDArray[np.float64]:

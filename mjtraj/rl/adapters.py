@@ -248,9 +248,12 @@ def from_object(obj: Any, *, label: str | None = None, source: str | None = None
                         fingerprint(obj, file))
 
 
-SB3_POLICY_MODULES = (("sb3_contrib", "recurrent_ppo"), (".sac.", "sac"), (".td3.", "td3"), ("", "ppo"))
-"""How a plain SB3 zip's algorithm is read from the module of its pickled policy class (the first that matches):
-sb3-contrib's recurrent policies, SAC's, TD3's, else an actor-critic policy, PPO's."""
+SB3_POLICY_MODULES = {"sb3_contrib.common.recurrent.policies": "recurrent_ppo",
+                      "stable_baselines3.sac.policies": "sac", "stable_baselines3.td3.policies": "td3",
+                      "stable_baselines3.common.policies": "ppo", "stable_baselines3.ppo.policies": "ppo"}
+"""How a plain SB3 zip's algorithm is read from the module of its pickled policy class: sb3-contrib's recurrent
+policies, SAC's, TD3's, and the actor-critic policies PPO trains (A2C's are the same classes: an A2C zip loads as
+PPO and acts alike, deterministically). Any other module is refused."""
 
 
 def sb3_algorithm(path: Path) -> str:
@@ -263,7 +266,10 @@ def sb3_algorithm(path: Path) -> str:
         module = str(data["policy_class"]["__module__"])
     except (zipfile.BadZipFile, KeyError, TypeError, json.JSONDecodeError) as e:
         raise InvalidInputError(f"policy: {path} is not a stable-baselines3 zip ({type(e).__name__}: {e})") from e
-    return next(algo for key, algo in SB3_POLICY_MODULES if key in module)
+    if module not in SB3_POLICY_MODULES:
+        raise InvalidInputError(f"policy: {path} holds a policy of {module}; expected one of "
+                                f"{', '.join(ALGORITHM_NAMES.values())} (stable-baselines3 or sb3-contrib)")
+    return SB3_POLICY_MODULES[module]
 
 
 def suggested_settings(size: int, n: int = 3) -> dict[str, Any] | None:
