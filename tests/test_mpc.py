@@ -118,22 +118,22 @@ def test_an_env_copied_mid_episode_goes_on_bit_for_bit_under_mpc():
     assert ours == theirs
 
 
-def test_a_capped_solve_applies_the_linearisations_torques(monkeypatch, scenario, model):
-    """With DAQP's iteration cap at one iteration some solves reach it: those periods apply the torques the law was
-    linearised at (after the first period, its last plan shifted by one period), within the saturation; the others
-    apply their QP's solution. The cap reaches DAQP (a solve that needs more iterations returns None)."""
-    import mjtraj.core.mpc as mpc_module
+def test_a_refused_solve_applies_the_linearisations_torques(monkeypatch, scenario, model):
+    """Every third QP refused (as a capped, failed or overflowing solve is): those periods apply the torques the law
+    was linearised at (v1: after the first period, its last plan shifted by one period), within the saturation; the
+    others their QP's solution, which differs."""
     import mjtraj.core.planners.sqp as sqp
 
-    monkeypatch.setattr(mpc_module, "QP_ITERATION_CAP", 1)
-    capped, torques = [], []
+    calls, refused, torques = [], [], []
     real_qp, real_linearisation = sqp._qp, ModelPredictive._linearisation
 
     def qp(*args, **kwargs):
-        assert kwargs["iter_limit"] == 1
-        out = real_qp(*args, **kwargs)
-        capped.append(out is None)
-        return out
+        calls.append(1)
+        if len(calls) % 3 == 0:
+            refused.append(True)
+            return None
+        refused.append(False)
+        return real_qp(*args, **kwargs)
 
     def linearisation(self, b, k, H):
         out = real_linearisation(self, b, k, H)
@@ -142,11 +142,29 @@ def test_a_capped_solve_applies_the_linearisations_torques(monkeypatch, scenario
 
     monkeypatch.setattr(sqp, "_qp", qp)
     monkeypatch.setattr(ModelPredictive, "_linearisation", linearisation)
-    drawn = draw_scenario("aggressive", 777, 2, model, 0.02)  # 3 of its 31 solves need more than one iteration
-    config = dataclasses.replace(scenario.loop, controller="mpc")
-    loop = ClosedLoop(model, config)
+    drawn = draw_scenario("aggressive", 777, 2, model, 0.02)
+    loop = ClosedLoop(model, dataclasses.replace(scenario.loop, controller="mpc"))
     rollout = loop.run([scenario.planner("cubic").plan(drawn.task, model)])
     limit = JointInfo.of(model).torque_limit
-    assert any(capped) and not all(capped) and len(capped) == rollout.dtau.shape[1]
-    for k in np.flatnonzero(capped):
-        assert np.array_equal(rollout.dtau[0, k], np.clip(torques[k], -limit, limit))
+    assert len(refused) == rollout.dtau.shape[1]
+    applied = [np.clip(torques[k], -limit, limit) for k in range(len(refused))]
+    for k in np.flatnonzero(refused):
+        assert np.array_equal(rollout.dtau[0, k], applied[k])
+    assert any(not np.array_equal(rollout.dtau[0, k], applied[k]) for k in np.flatnonzero(~np.array(refused)))
+
+
+def test_the_iteration_cap_reaches_daqp():
+    """A QP that needs many iterations: capped at one it returns None (the law's fallback), uncapped it is solved
+    within its rows."""
+    from mjtraj.core.planners.sqp import _qp
+
+    rng = np.random.default_rng(0)
+    n, m = 20, 30
+    hessian, gradient = np.eye(n), 10 * rng.standard_normal(n)
+    rows = rng.standard_normal((m, n))
+    bound = np.full(m, 0.1)
+    args = (hessian, gradient, np.zeros((0, n)), np.zeros(0), np.vstack([rows, -rows]), np.concatenate([bound, bound]),
+            np.full(n, -1e3), np.full(n, 1e3), False)
+    assert _qp(*args, iter_limit=1) is None
+    solved = _qp(*args)
+    assert solved is not None and np.all(np.abs(rows @ solved[0]) <= 0.1 + 1e-9)
