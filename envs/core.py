@@ -349,8 +349,7 @@ class TrackCore:
         """Simulation `row`'s settle window (its task's goal and move, its reference's motion)."""
         task, reference = self.tasks[row], self.references[row]
         assert task is not None and reference is not None
-        return Settle(int(reference.info["motion_steps"]), self.settings.settle_steps, task.qg,
-                      float(np.max(np.abs(task.displacement))))
+        return Settle.of(task, int(reference.info["motion_steps"]), self.settings.settle_steps)
 
     def _settle_metrics(self, ids: NDArray[np.intp], rollout: Rollout, complete: NDArray[np.bool_]
                         ) -> dict[str, NDArray[np.float64]]:

@@ -636,7 +636,7 @@ def bench_predictive(scenario: Scenario, *, scenarios: int = 3, seed: int = 1,
     period (`scenario_for_model`, its gains by the workspace rule)."""
     import dataclasses
 
-    from mjtraj.core import default_model_path, held, window_steps
+    from mjtraj.core import SETTLE_WINDOW, default_model_path, held, window_steps
     from mjtraj.study.families import FAMILIES, draw_scenario, perturbed_plant, plant_fields
     from mjtraj.study.scenario import scenario_for_model
 
@@ -652,7 +652,7 @@ def bench_predictive(scenario: Scenario, *, scenarios: int = 3, seed: int = 1,
                 times = []
                 for i in range(scenarios):
                     drawn = draw_scenario(family, seed, i, model, dt)
-                    reference = held(base.planner("cubic").plan(drawn.task, model), window_steps(0.5, dt),
+                    reference = held(base.planner("cubic").plan(drawn.task, model), window_steps(SETTLE_WINDOW, dt),
                                      drawn.task.qg)
                     perturbation = drawn.perturbation
                     loop = (ClosedLoop(model, config, plant=plant, plant_fields=plant_fields(plant, [perturbation]))

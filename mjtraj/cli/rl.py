@@ -361,10 +361,8 @@ def run_eval(args: argparse.Namespace) -> int:
                           settings=overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
                           progress=not args.no_progress, floor=args.floor,
                           figure_formats=tuple(args.figure_format), versus=args.versus, keep_going=args.keep_going)
-    stamp = json.loads(evaluation.summary_json.read_text())["protocol"]
-    print(f"Protocol {evaluation.protocol}." if stamp == evaluation.protocol else
-          f"Protocol {evaluation.protocol}, OFF-PROTOCOL ({stamp.removeprefix('off-protocol: ')}): these numbers "
-          "cannot be compared with published ones.")
+    print(f"Protocol {evaluation.protocol}, OFF-PROTOCOL ({'; '.join(evaluation.departures)}): these numbers "
+          "cannot be compared with published ones." if evaluation.departures else f"Protocol {evaluation.protocol}.")
     print()
     print(evaluation.table)
     print(f"\nIn short (J / {evaluation.reference}, then P(improve)):\n")

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from mjtraj.core.reference import Reference
 from mjtraj.core.rollout import Rollout
+from mjtraj.core.task import Task
 from mjtraj.exceptions import InvalidInputError
 
 SETTLE_WINDOW = 0.5
@@ -49,6 +50,11 @@ class Settle:
     window_steps: int
     goal: NDArray[np.float64]
     move: float
+
+    @classmethod
+    def of(cls, task: Task, motion_steps: int, window_steps: int) -> Settle:
+        """The window of an episode of `task` whose motion runs `motion_steps` periods: its goal and move."""
+        return cls(motion_steps, window_steps, task.qg, float(np.max(np.abs(task.displacement))))
 
     @property
     def band(self) -> float:

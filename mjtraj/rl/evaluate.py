@@ -131,6 +131,8 @@ class EvalReport:
     """Protocol v2's ranking under J_settle and under a tracking-heavy weighting, with Kendall's tau."""
     protocol: str = PROTOCOL
     reference: str = REFERENCES[PROTOCOL]
+    departures: tuple[str, ...] = ()
+    """How the run departs from its protocol's scenarios and resamples (`mjtraj.rl.protocol.departures`)."""
 
 
 def _labels(policies: Sequence[ScoredPolicy]) -> list[str]:
@@ -401,7 +403,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
     write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded, compact, floors_md,
                                                 versus_md, executions, weighting))
     return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals,
-                      executions, weighting, protocol, reference)
+                      executions, weighting, protocol, reference, tuple(off))
 
 
 def acting_settings(policy: ScoredPolicy, protocol: str) -> Any:

@@ -291,7 +291,7 @@ def jobs_for(settings: SweepSettings, scenarios: Sequence[FamilyScenario], refer
     for s, ref, w in zip(scenarios, references, weights, strict=True):
         settle = None
         if window:
-            settle = Settle(ref.steps, window, s.task.qg, float(np.max(np.abs(s.task.displacement))))
+            settle = Settle.of(s.task, ref.steps, window)
             ref = held(ref, window, s.task.qg)
         noise = None
         if s.perturbation is not None and settings.sensor_noise > 0:
