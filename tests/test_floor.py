@@ -12,6 +12,7 @@ import pytest
 from mjtraj.core.floor import _Problem, clairvoyant_floor
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners.shooting import Shooting
+from mjtraj.core.settle import held
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.study.families import draw_scenario, perturbed_plant
 from mjtraj.study.floor import STARTS, floor_of, replay
@@ -266,3 +267,99 @@ def test_on_a_mismatched_plant_no_law_of_the_table_scores_below_the_floor_the_or
     _, (oracle,) = execute_batch(model, dataclasses.replace(scenario.loop, controller="adaptive_computed_torque"),
                                  [job], plant=plant, actor=TrueParameters())
     assert oracle.metrics["cost"] == floor.controllers["oracle"] >= floor.cost
+
+
+def test_on_a_linear_plant_the_at_rest_floor_is_the_convex_qps_solution_by_osqp():
+    """Protocol v2's floor (`AtRest`: 4 n linear rows on the last state) on a rotor, where the problem is a convex
+    QP: its solution by OSQP (an independent solver, polished) is the floor; the rule binds (the floor without it
+    ends outside)."""
+    import osqp
+    import scipy.sparse
+
+    from mjtraj.core.floor import GOAL_MARGIN, AtRest
+
+    inertia, damping, N, S, h = 0.3, 0.4, 30, 10, 0.02
+    plant = mujoco.MjModel.from_xml_string(ROTOR.format(inertia=inertia, damping=damping))
+    t = np.arange(N + 1) * h
+    motion = 0.8 * (3 * (t / t[-1]) ** 2 - 2 * (t / t[-1]) ** 3)
+    q_ref = np.concatenate([motion, np.full(S, motion[-1])])[:, None]
+    qd_ref = np.concatenate([np.gradient(motion, h), np.zeros(S)])[:, None]
+    q_diag, r_diag = np.array([0.5, 0.01]), np.array([0.2])
+    rule = AtRest(np.array([0.8]), 0.004, 0.02)
+    T = N + S
+    loose = clairvoyant_floor(plant, q_ref, qd_ref, q_diag, r_diag, np.array([1000.0]), goal_radius=10.0,
+                              starts={"zero": np.zeros((T, 1))})
+    found = clairvoyant_floor(plant, q_ref, qd_ref, q_diag, r_diag, np.array([1000.0]), at_rest=rule,
+                              starts={"zero": np.zeros((T, 1))})
+    Ad, Bd = rk4_map(inertia, damping, h)
+    x_ref = np.concatenate([q_ref, qd_ref], axis=1)
+    Gamma, Phi = np.zeros((T + 1, 2, T)), np.zeros((T + 1, 2))
+    x = x_ref[0].copy()
+    for k in range(T + 1):
+        Phi[k] = x
+        x = Ad @ x
+        if k < T:
+            Gamma[k + 1] = Ad @ Gamma[k]
+            Gamma[k + 1, :, k] = Bd[:, 0]
+    end = lambda U: Phi[T] + Gamma[T] @ U  # noqa: E731
+    assert abs(end(loose.torques[:, 0])[0] - 0.8) > rule.band or abs(end(loose.torques[:, 0])[1]) > rule.speed
+    w = np.sqrt(q_diag)
+    rows = (Gamma[1:T] * w[None, :, None]).reshape(-1, T)
+    target = ((x_ref[1:T] - Phi[1:T]) * w).ravel()
+    system = np.vstack([rows, np.sqrt(r_diag[0]) * np.eye(T)])
+    goal = np.concatenate([target, np.zeros(T)])
+    aim = GOAL_MARGIN * np.array([rule.band, rule.speed])
+    centre = np.array([0.8, 0.0]) - Phi[T]
+    solver = osqp.OSQP()
+    solver.setup(scipy.sparse.csc_matrix(2 * system.T @ system), -2 * system.T @ goal,
+                 scipy.sparse.csc_matrix(Gamma[T]), centre - aim, centre + aim, eps_abs=1e-12, eps_rel=1e-12,
+                 max_iter=200000, polishing=True, verbose=False)
+    U = solver.solve().x
+    best = float(np.sum((system @ U - goal) ** 2))
+    assert found.cost == pytest.approx(best, rel=1e-6)  # the solve stops within FEASIBLE (1e-5) of the aimed rows
+    np.testing.assert_allclose(found.torques[:, 0], U, rtol=1e-5, atol=1e-5 * np.abs(U).max())
+    assert found.cost > loose.cost
+
+
+def test_the_at_rest_rows_gradient_matches_finite_differences(scenario, model):
+    from mjtraj.core.floor import AtRest
+
+    fs = draw_scenario("aggressive", 1, 3, model, scenario.task.dt)
+    ref = held(scenario.planner("cubic").plan(fs.task, model), 25, fs.task.qg)
+    q_diag, r_diag = scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit)
+    x_ref = np.concatenate([ref.q, ref.qd], axis=1)
+    problem = _Problem(Shooting(model, x_ref[0].copy(), x_ref[-1].copy(), np.zeros((6, 6)), np.zeros((3, 3)),
+                                ref.steps, 1e-7), x_ref, np.sqrt(q_diag), np.sqrt(r_diag), np.inf,
+                       AtRest(fs.task.qg, 0.01, 0.05))
+    u = np.random.default_rng(0).uniform(-2.0, 2.0, ref.steps * 3)
+    _, _, terminal = problem.linearised(u)
+    assert terminal.shape == (12, ref.steps * 3)
+    direction = np.random.default_rng(1).standard_normal(u.size)
+    step = 1e-5
+    plus, minus = problem.rollout(u + step * direction), problem.rollout(u - step * direction)
+    np.testing.assert_allclose((plus[1] - minus[1]) / (2 * step), terminal @ direction, rtol=1e-5,
+                               atol=1e-7 * np.abs(terminal @ direction).max())
+
+
+@pytest.mark.parametrize("family, index", [("nominal", 0), ("aggressive", 3), ("mismatch", 3)])
+def test_protocol_v2s_floor_replays_at_rest_and_no_law_at_rest_scores_below_it(family, index, scenario, model):
+    """The v2 floor's torques replayed through the closed loop (settle window and all) end at rest at the goal with
+    the solver's J_settle; every starting law that came to rest scores at or above it; on a mismatch plant every start
+    is solved and the floor without a law's own start is never below the floor."""
+    from mjtraj.core.settle import SETTLE_SPEED, Settle
+
+    fs = draw_scenario(family, 1, index, model, scenario.task.dt)
+    plant = perturbed_plant(model) if fs.perturbation is not None else None
+    motion = scenario.planner("cubic").plan(fs.task, model)
+    job = Job(held(motion, 25, fs.task.qg), scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit),
+              fs.perturbation, settle=Settle.of(fs.task, motion.steps, 25))
+    floor = floor_of(model, scenario.loop, job, plant=plant)
+    again = replay(model, scenario.loop, job, floor.torques, plant=plant)
+    assert again.status == "ok" and again.metrics["cost"] == floor.cost
+    assert again.metrics["end_err"] <= job.settle.band and again.metrics["end_speed"] <= SETTLE_SPEED
+    assert floor.cost == pytest.approx(floor.solver_cost, rel=1e-9)
+    at_rest = {law: cost for law, cost in floor.controllers.items() if np.isfinite(cost)}
+    assert at_rest and all(cost >= floor.cost for cost in at_rest.values()), at_rest
+    if fs.perturbation is not None:
+        assert not any(np.isnan(list(floor.starts.values())))  # every start solved
+        assert all(floor.without(law) >= floor.cost for law in floor.controllers)

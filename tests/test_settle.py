@@ -51,12 +51,6 @@ def _rollout(rng, B, steps, n):
                    diverged_step=np.full(B, -1), dt=0.02)
 
 
-def test_a_sweep_with_a_window_refuses_the_floor_it_does_not_define():
-    with pytest.raises(InvalidInputError, match=r"^floors: the clairvoyant floor is derived for episodes without a "
-                                                r"settle window; got settle=0.5$"):
-        SweepSettings(settle=0.5, floors=True)
-
-
 def test_the_parts_sum_to_the_episodes_score_and_the_motion_is_j_exec():
     """Oracles: J_exec over every period and over the motion's (`executed_cost`, the score's one definition); the end
     error and speed as the largest joint's."""

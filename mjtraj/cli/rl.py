@@ -149,8 +149,8 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--tuned-gains", dest="tuned_gains", type=Path,
                    help="a scenario file from `mjtraj tune --gains`, scored as 'cubic+PID (tuned gains)'")
     p.add_argument("--floor", action="store_true", help="also compute each scenario's clairvoyant floor and read "
-                   "every method against it and against the strongest classical method (floor.csv; protocol v1 "
-                   "only)")
+                   "every method against it and against the strongest classical method (floor.csv; under protocol v2 "
+                   "the least J_settle at rest at the goal, on the mismatch plants also without each law's own start)")
     p.add_argument("--versus", metavar="METHOD", help="also pair every method against this one of the evaluation "
                    "(e.g. \"cubic+adaptive CT\"): J / its J and P(better), with intervals, in SUMMARY.md")
     p.add_argument("--reps", type=int, default=None,

@@ -8,7 +8,12 @@ on the true plant, among executions that reach the goal (the benchmark's goal ru
     s.t.   x_{k+1} = F(x_k, u_k) (the plant's own MuJoCo step),  |u_k| <= limit,  |q_N - q_ref,N| <= goal_radius,
 
 with Q, R the scenario's scoring weights (J_exec's; x_N is not scored, hence the terminal constraint). It is a
-nonlinear least-squares problem with a box and one smooth inequality. It is solved by a Gauss-Newton SQP on the
+nonlinear least-squares problem with a box and one smooth inequality.
+
+Protocol v2 (`mjtraj.core.settle`) scores the whole episode, the motion and the settle window that follows it (the
+reference holding the goal q_g), and succeeds only at rest: its floor is the same problem over the episode's N + S
+periods (J_settle) with the at-rest rule as the terminal constraint, 4 n linear rows on x_{N+S} instead of the ball
+(`AtRest`): |q_{N+S} - q_g| <= band and |qd_{N+S}| <= speed, joint by joint. It is solved by a Gauss-Newton SQP on the
 residual vector [sqrt(Q) (x_k - x_ref,k); sqrt(R) u_k]: the states' sensitivities to the torques come from the
 nonlinear planners' single-shooting machinery (`mjtraj.core.planners.shooting` with `partial`: analytic step
 Jacobians of the plant's hinge tree, its dry friction and per-link gravity compensation included, at every sample
@@ -63,13 +68,23 @@ approach the aimed radius from outside and stall near 3e-5 above it."""
 
 
 @dataclass(frozen=True)
+class AtRest:
+    """Protocol v2's success rule as the floor's terminal constraint: at the episode's last state every joint within
+    `band` (rad) of `goal` ((n,), rad) and slower than `speed` (rad/s)."""
+
+    goal: NDArray[np.float64]
+    band: float
+    speed: float
+
+
+@dataclass(frozen=True)
 class FloorSolution:
     """The best goal-reaching torques found and how they were found.
 
     Attributes:
       torques: the applied corrective torques, shape (N, n), N m.
       cost: J_exec of their rollout on the plant (the solver's own evaluation; the replay is the caller's).
-      terminal_err: |q_ref,N - q_N| of that rollout, rad.
+      terminal_err: |q_ref,N - q_N| of that rollout, rad (with `AtRest`: the largest joint's |q_N - q_g|).
       start: the name of the start it came from.
       iterations: Gauss-Newton iterations of that start.
       converged: that start's iterations stopped by the convergence test (not by MAX_ITER).
@@ -100,20 +115,33 @@ class _Problem:
     """sqrt(diag R), (n,)."""
     radius: float
     """The goal ball's radius the solve aims at, rad."""
+    rest: AtRest | None = None
+    """The at-rest rule the solve aims inside (its band and speed already narrowed by GOAL_MARGIN), in place of the
+    ball."""
 
-    def rollout(self, u: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
-        """(J_exec, |q_N - q_ref,N| / radius - 1, X) at u (N n,)."""
+    def rollout(self, u: NDArray[np.float64]) -> tuple[float, Violation, NDArray[np.float64]]:
+        """(J, the terminal constraint's value, X) at u (N n,): |q_N - q_ref,N| / radius - 1 (a float), or with
+        `rest` the 4 n rows [dq / band; -dq / band; qd_N / speed; -qd_N / speed] - 1 (dq = q_N - q_g); <= 0 holds."""
         U, X = self.shooting.states(u)
         d = (X - self.x_ref)[:-1] * self.q_root
         cost = float(np.sum(d * d) + np.sum((U * self.r_root) ** 2))
         n = self.shooting.n
+        if self.rest is not None:
+            scaled = self._rest_scale() * np.concatenate([X[-1, :n] - self.rest.goal, X[-1, n:]])
+            return cost, np.concatenate([scaled, -scaled]) - 1.0, X
         miss = X[-1, :n] - self.x_ref[-1, :n]
         return cost, float(np.linalg.norm(miss)) / self.radius - 1.0, X
+
+    def _rest_scale(self) -> NDArray[np.float64]:
+        """1 / band per joint position, 1 / speed per joint speed, (2n,)."""
+        assert self.rest is not None
+        n = self.shooting.n
+        return np.concatenate([np.full(n, 1.0 / self.rest.band), np.full(n, 1.0 / self.rest.speed)])
 
     def linearised(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                                            NDArray[np.float64]]:
         """The Gauss-Newton Hessian J^T J (N n, N n), the gradient J^T r (N n,) (both of J_exec / 2) and the terminal
-        constraint's gradient (N n,) at u.
+        constraint's gradient (N n,) at u (with `rest`: its rows' Jacobian, (4n, N n)).
 
         By the chain's structure rather than as the product of the (N-1) 2n by N n sensitivities: with W = Q and
         P_m = W + A_m^T P_{m+1} A_m (P_N = 0: x_N is not scored) the weight of everything from x_m on, the block
@@ -140,17 +168,41 @@ class _Problem:
             gradient[j * n:(j + 1) * n] = B.T @ adjoint
         hessian[np.diag_indices(N * n)] += np.tile(self.r_root**2, N)
         gradient += (U * self.r_root**2).ravel()
+        if self.rest is not None:
+            rows = self._rest_scale()[:, None] * S[N]
+            return hessian, gradient, np.concatenate([rows, -rows])
         miss = X[-1, :n] - self.x_ref[-1, :n]
         size = max(float(np.linalg.norm(miss)), 1e-12 * self.radius)
         terminal = (miss @ S[N, :n]) / (size * self.radius)
         return hessian, gradient, terminal
 
 
+Violation = float | NDArray[np.float64]
+"""A terminal constraint's value at a point: the ball's one row (a float) or the at-rest rule's rows; <= 0 holds."""
+
+
+def _excess(constraint: Violation) -> float:
+    """The l1 merit's measure of a terminal constraint's violation: the sum of its rows' positive parts."""
+    if isinstance(constraint, float):
+        return max(0.0, constraint)
+    return float(np.sum(np.maximum(constraint, 0.0)))
+
+
+def _worst(constraint: Violation) -> float:
+    """The largest row of a terminal constraint (<= 0: it holds)."""
+    return constraint if isinstance(constraint, float) else float(np.max(constraint))
+
+
 def _step(hessian: NDArray[np.float64], gradient: NDArray[np.float64], terminal: NDArray[np.float64],
-          constraint: float, low: NDArray[np.float64], high: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
-    """argmin 1/2 d^T H d + g^T d s.t. terminal^T d <= -constraint, low <= d <= high: (d, the terminal row's
-    multiplier). Where the box is not active the one inequality is solved in closed form on H's Cholesky factor
-    (0.5 ms at 300 torques); else by DAQP (`mjtraj.core.planners.sqp._qp`, 1.5 ms)."""
+          constraint: Violation, low: NDArray[np.float64], high: NDArray[np.float64]
+          ) -> tuple[NDArray[np.float64], float]:
+    """argmin 1/2 d^T H d + g^T d s.t. terminal d <= -constraint, low <= d <= high: (d, the terminal rows' largest
+    multiplier). With one row (the ball) and the box not active the inequality is solved in closed form on H's
+    Cholesky factor (0.5 ms at 300 torques); with the at-rest rows the unconstrained step is taken where it keeps
+    them; else by DAQP (`mjtraj.core.planners.sqp._qp`, 1.5 ms)."""
+    if terminal.ndim == 2:
+        return _rows_step(hessian, gradient, terminal, np.asarray(constraint), low, high)
+    assert isinstance(constraint, float)
     try:
         factor = scipy.linalg.cho_factor(hessian, lower=True, check_finite=False)
     except np.linalg.LinAlgError as e:
@@ -172,12 +224,31 @@ def _step(hessian: NDArray[np.float64], gradient: NDArray[np.float64], terminal:
     return step, float(np.abs(multipliers).max(initial=0.0))
 
 
-def _merit(cost: float, constraint: float, weight: float) -> float:
-    return cost + weight * max(0.0, constraint)
+def _rows_step(hessian: NDArray[np.float64], gradient: NDArray[np.float64], terminal: NDArray[np.float64],
+               constraint: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
+               ) -> tuple[NDArray[np.float64], float]:
+    """`_step` with several terminal rows (the at-rest rule's 4 n)."""
+    try:
+        factor = scipy.linalg.cho_factor(hessian, lower=True, check_finite=False)
+    except np.linalg.LinAlgError as e:
+        raise SolverError("the floor's Gauss-Newton Hessian is not positive definite") from e
+    free = -scipy.linalg.cho_solve(factor, gradient, check_finite=False)
+    if np.all(constraint + terminal @ free <= 0.0) and np.all(free >= low) and np.all(free <= high):
+        return free, 0.0
+    solved = _qp(hessian, gradient, np.zeros((0, gradient.size)), np.zeros(0), -terminal, -constraint, low, high,
+                 True)
+    if solved is None:
+        raise SolverError("the floor's QP has no solution within the torque box")
+    step, multipliers = solved
+    return step, float(np.abs(multipliers).max(initial=0.0))
+
+
+def _merit(cost: float, constraint: Violation, weight: float) -> float:
+    return cost + weight * _excess(constraint)
 
 
 def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
-           ) -> tuple[NDArray[np.float64], float, float, int, bool]:
+           ) -> tuple[NDArray[np.float64], float, Violation, int, bool]:
     """Gauss-Newton SQP from u with a Levenberg-Marquardt trust region: (u, cost, constraint, iterations,
     converged). Each trial step is the QP's at the current damping, taken whole and accepted where the l1 merit
     falls by at least ACCEPT of what the QP's model predicts; the damping follows the ratio (Nielsen's rule), and a
@@ -201,8 +272,10 @@ def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], 
         damped[np.diag_indices_from(damped)] = diagonal + damping * scale
         step, multiplier = _step(damped, gradient, terminal, constraint, low - u, high - u)
         weight = max(weight, 2.0 * multiplier + 1e-12)
+        linear = terminal @ step
+        after = constraint + (float(linear) if isinstance(constraint, float) else linear)
         predicted = (-(2.0 * float(gradient @ step) + float(step @ hessian @ step))
-                     + weight * (max(0.0, constraint) - max(0.0, constraint + float(terminal @ step))))
+                     + weight * (_excess(constraint) - _excess(after)))
         trial = np.clip(u + step, low, high)
         try:
             c_trial, g_trial, _ = problem.rollout(trial)
@@ -212,23 +285,25 @@ def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], 
         if not predicted > 0.0 or not ratio >= ACCEPT:
             damping, growth = max(damping, FIRST_DAMPING) * growth, 2.0 * growth
             if damping > MAX_DAMPING:
-                return u, cost, constraint, iteration, constraint <= FEASIBLE
+                return u, cost, constraint, iteration, _worst(constraint) <= FEASIBLE
             continue
         damping *= max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3)
         growth = 2.0
         previous = cost
         u, cost, constraint = trial, c_trial, g_trial
         linearised = None
-        if constraint <= FEASIBLE and abs(previous - cost) <= STALL * max(abs(cost), 1e-300):
+        if _worst(constraint) <= FEASIBLE and abs(previous - cost) <= STALL * max(abs(cost), 1e-300):
             return u, cost, constraint, iteration, True
 
 
 @single_blas_thread
 def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64],
                       q_diag: NDArray[np.float64], r_diag: NDArray[np.float64], limit: NDArray[np.float64], *,
-                      goal_radius: float, starts: Mapping[str, NDArray[np.float64]], first_fixed: bool = False,
-                      every_start: bool = False) -> FloorSolution:
-    """The least J_exec over corrective torques within `limit` that end within `goal_radius` of the goal.
+                      starts: Mapping[str, NDArray[np.float64]], goal_radius: float | None = None,
+                      at_rest: AtRest | None = None, first_fixed: bool = False, every_start: bool = False
+                      ) -> FloorSolution:
+    """The least J_exec over corrective torques within `limit` that end within `goal_radius` of the goal (or, with
+    `at_rest`, at rest at it: protocol v2's floor, whose reference is the whole episode, its settle window held).
 
     Args:
       plant: the true plant (its own fields set; one MuJoCo step is one control period; native gravity compensation).
@@ -236,6 +311,7 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
       q_diag, r_diag: J_exec's diagonal weights, (2n,) and (n,).
       limit: the saturation per joint, (n,), N m.
       goal_radius: the largest |q_N - q_ref,N| that reaches the goal, rad.
+      at_rest: the at-rest rule at x_N instead (exactly one of the two).
       starts: name -> applied torques (N, n) to start a solve from (clipped into the box).
       first_fixed: the first period's torque is zero (a one-period actuation delay).
       every_start: solve from every start and keep the least result (the check that the starts agree). By default
@@ -246,7 +322,7 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
         at four times the time (docs/floor.md).
 
     Raises:
-      InvalidInputError: shapes disagree, or there is no start.
+      InvalidInputError: shapes disagree, there is no start, or not exactly one terminal rule.
       SolverError: no start reached the goal.
     """
     clock = time.perf_counter()
@@ -257,10 +333,19 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
         raise InvalidInputError(f"q_ref, qd_ref, q_diag, r_diag, limit: expected shapes (N+1, {n}) twice, "
                                 f"({2 * n},), ({n},), ({n},); got {q_ref.shape}, {qd_ref.shape}, {q_diag.shape}, "
                                 f"{r_diag.shape}, {limit.shape}")
+    if (goal_radius is None) == (at_rest is None):
+        raise InvalidInputError(f"goal_radius, at_rest: expected exactly one terminal rule, got goal_radius="
+                                f"{goal_radius!r}, at_rest={at_rest!r}")
+    if at_rest is not None and (np.shape(at_rest.goal) != (n,) or not at_rest.band > 0 or not at_rest.speed > 0):
+        raise InvalidInputError(f"at_rest: expected a goal of shape ({n},), a band and a speed > 0; got "
+                                f"{np.shape(at_rest.goal)}, {at_rest.band!r}, {at_rest.speed!r}")
     x_ref = np.concatenate([q_ref, qd_ref], axis=1)
     shooting = Shooting(plant, x_ref[0].copy(), x_ref[-1].copy(), np.zeros((2 * n, 2 * n)), np.zeros((n, n)), N,
                         FD_EPS, partial=True)
-    problem = _Problem(shooting, x_ref, np.sqrt(q_diag), np.sqrt(r_diag), GOAL_MARGIN * goal_radius)
+    aimed = None if at_rest is None else AtRest(np.asarray(at_rest.goal, dtype=np.float64),
+                                                GOAL_MARGIN * at_rest.band, GOAL_MARGIN * at_rest.speed)
+    problem = _Problem(shooting, x_ref, np.sqrt(q_diag), np.sqrt(r_diag),
+                       GOAL_MARGIN * (goal_radius if goal_radius is not None else np.inf), aimed)
     high = np.tile(limit, N)
     low = -high
     if first_fixed:
@@ -277,15 +362,16 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
         except MjtrajError:
             found[name] = float("inf")
             continue
-        ranked.append((constraint > REACHED, _merit(cost, constraint, 10.0 * max(cost, 1e-12)), name, start))
+        ranked.append((_worst(constraint) > REACHED, _merit(cost, constraint, 10.0 * max(cost, 1e-12)), name, start))
     for _, _, name, start in sorted(ranked, key=lambda r: r[:2]):
         try:
             u, cost, constraint, iterations, converged = _solve(problem, start, low, high)
         except MjtrajError:
             found[name] = float("inf")
             continue
-        found[name] = cost if constraint <= REACHED else float("inf")
-        if constraint <= REACHED and (best is None or cost < best[0]):
+        reached = _worst(constraint) <= REACHED
+        found[name] = cost if reached else float("inf")
+        if reached and (best is None or cost < best[0]):
             best = (cost, name, u, iterations, converged)
         if best is not None and not every_start:
             break
@@ -293,6 +379,7 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
         raise SolverError(f"the floor: no start reached the goal ({', '.join(found)})")
     cost, name, u, iterations, converged = best
     _, X = shooting.states(u)
-    terminal = float(np.linalg.norm(X[-1, :n] - q_ref[-1]))
+    terminal = (float(np.linalg.norm(X[-1, :n] - q_ref[-1])) if at_rest is None
+                else float(np.max(np.abs(X[-1, :n] - at_rest.goal))))
     return FloorSolution(frozen(u.reshape(N, n).copy()), cost, terminal, name, iterations, converged, found,
                          time.perf_counter() - clock)

@@ -5,6 +5,11 @@ The floor is what no controller can beat on that execution: the least J_exec ove
 saturation, on the plant the scenario really runs (payload, link scales, damping and friction included), among
 executions that reach the goal by the benchmark's goal rule (GOAL_TOLERANCE of the move). Its value is the replay's
 J_exec (the pipeline's own metrics of the torques, applied in the env's torque mode), not the solver's.
+
+A job with a settle window (protocol v2, `mjtraj.core.settle`) gets protocol v2's floor: the least J_settle over the
+whole episode among executions at rest at the goal when the window ends (`mjtraj.core.floor.AtRest`). On a perturbed
+plant every start is then solved, so that each law can be read against the floor found without its own execution
+(`Floor.without`): a law is not measured against a refinement of itself.
 """
 
 from __future__ import annotations
@@ -20,10 +25,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
-from mjtraj.core.floor import clairvoyant_floor
+from mjtraj.core.floor import AtRest, clairvoyant_floor
 from mjtraj.core.model import JointInfo
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
+from mjtraj.core.settle import SETTLE_SPEED, Settle, held, window_steps
 from mjtraj.exceptions import InvalidInputError, MjtrajError
 from mjtraj.study.families import Perturbation, plant_fields
 from mjtraj.study.oracle import TrueParameters
@@ -53,12 +59,14 @@ class Floor:
     Attributes:
       cost: J_exec of the floor's torques replayed through the closed loop (the floor's value).
       solver_cost: J_exec by the solver's own rollout.
-      terminal_err: the replay's |q_ref,N - q_N|, rad; goal_radius: the goal rule's bound on it, rad.
+      terminal_err: the replay's |q_ref,N - q_N|, rad; goal_radius: the goal rule's bound on it, rad (protocol v2:
+        the largest joint's end error and the settling band).
       start: the start the best solve came from; starts: each start's cost (inf: it did not reach the goal).
       controllers: J_exec of each starting law's own execution (the starts' sources).
       iterations, converged: the best solve's Gauss-Newton iterations and whether it converged.
       seconds: the solve's wall time, s (the starting executions and the replay not included).
       torques: the applied corrective torques, (N, n), N m.
+      end_speed: protocol v2: the replay's largest joint speed at the window's end, rad/s (NaN in v1).
     """
 
     cost: float
@@ -72,6 +80,13 @@ class Floor:
     converged: bool
     seconds: float
     torques: NDArray[np.float64]
+    end_speed: float = float("nan")
+
+    def without(self, law: str) -> float:
+        """The least of the starts' results other than `law`'s (inf if none reached the goal; NaN where only the
+        best-ranked start was solved): the floor as found without that law's own execution."""
+        others = [cost for name, cost in self.starts.items() if name != law]
+        return min(others, default=float("inf"))
 
     def as_dict(self) -> dict[str, object]:
         """JSON-ready, without the torques."""
@@ -166,9 +181,10 @@ def floors_of(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *,
             rollout, outcomes = execute_batch(model, law_config, [jobs[i] for i in ids], plant=plant,
                                               actor=TrueParameters() if law == ORACLE else None)
             for b, (i, result) in enumerate(zip(ids, outcomes, strict=True)):
-                if result.status == "ok":  # the torques the plant received (after a delay, if any)
+                if result.status in ("ok", "not_settled"):  # the torques the plant received (after a delay, if any)
                     executed[i][law] = rollout.dtau[b]
-                controllers[i][law] = float(result.metrics.get("cost", np.inf))
+                controllers[i][law] = (float(result.metrics.get("cost", np.inf)) if result.status != "not_settled"
+                                       else np.inf)
     limit = JointInfo.of(model).torque_limit
     out: list[Floor | MjtrajError] = []
     for job, move, torques, costs in zip(jobs, moves, executed, controllers, strict=True):
@@ -184,21 +200,30 @@ def _solved(model: mujoco.MjModel, config: LoopConfig, job: Job, plant: mujoco.M
             controllers: dict[str, float], every_start: bool) -> Floor:
     """One job's floor from its start laws' executed torques, replayed through the closed loop as its check."""
     reference = job.reference
-    radius = GOAL_TOLERANCE * displacement
     truth = model if job.perturbation is None else true_plant(_needs(plant), job.perturbation)
     if not executed:
         executed = {"zero": np.zeros((reference.steps, reference.n))}
+    if job.settle is None:
+        radius = GOAL_TOLERANCE * displacement
+        rule: dict[str, Any] = {"goal_radius": radius}
+    else:  # protocol v2: at rest at the goal; on a perturbed plant every start, for `Floor.without`
+        radius = job.settle.band
+        rule = {"at_rest": AtRest(job.settle.goal, radius, SETTLE_SPEED)}
+        every_start = every_start or job.perturbation is not None
     solution = clairvoyant_floor(truth, reference.q, reference.qd, job.weights[0], job.weights[1], limit,
-                                 goal_radius=radius, starts=executed, first_fixed=bool(config.delay),
-                                 every_start=every_start)
+                                 starts=executed, first_fixed=bool(config.delay), every_start=every_start, **rule)
     result = replay(model, config, job, solution.torques, plant=plant, displacement=displacement)
     if result.status != "ok":
         raise MjtrajError(f"the floor's torques replayed: {result.status} ({result.reason})")
     cost = result.metrics["cost"]
     if abs(cost - solution.cost) > REPLAY_TOLERANCE * max(cost, 1e-12):
-        raise MjtrajError(f"the floor's torques replayed give J_exec {cost!r}, the solver's rollout {solution.cost!r}")
-    return Floor(cost, solution.cost, result.metrics["terminal_err"], radius, solution.start, solution.starts,
-                 controllers, solution.iterations, solution.converged, solution.seconds, solution.torques)
+        raise MjtrajError(f"the floor's torques replayed give J {cost!r}, the solver's rollout {solution.cost!r}")
+    if job.settle is None:
+        return Floor(cost, solution.cost, result.metrics["terminal_err"], radius, solution.start, solution.starts,
+                     controllers, solution.iterations, solution.converged, solution.seconds, solution.torques)
+    return Floor(cost, solution.cost, result.metrics["end_err"], radius, solution.start, solution.starts,
+                 controllers, solution.iterations, solution.converged, solution.seconds, solution.torques,
+                 result.metrics["end_speed"])
 
 
 def replay(model: mujoco.MjModel, config: LoopConfig, job: Job, torques: NDArray[np.float64], *,
@@ -222,7 +247,8 @@ def _needs(plant: mujoco.MjModel | None) -> mujoco.MjModel:
 
 
 def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequence[int], planner: str = "cubic",
-                  starts: Sequence[str] = STARTS, every_start: bool = False) -> Iterator[dict[str, Any]]:
+                  starts: Sequence[str] = STARTS, every_start: bool = False, settle: float = 0.0
+                  ) -> Iterator[dict[str, Any]]:
     """One record per scenario of `family` (drawn and scored as sweeps draw and score it, seed `seed`: Bryson's
     weights on each task): the starting laws' J_exec on `planner`'s reference and the floor of that execution. A
     scenario whose planning or floor fails gets its error in 'status' and the run goes on.
@@ -231,6 +257,8 @@ def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequ
       scenario: the base scenario (model, controller), as sweeps take it.
       scenarios: the scenario indices.
       every_start: solve from every start (`clairvoyant_floor`).
+      settle: the settle window, s (protocol v2: each episode and its floor run this long after the motion, scored
+        by J_settle; records gain end_speed, and on the mismatch plants floor_without_LAW for each starting law).
     """
     from mjtraj.study.families import draw_scenario, perturbed_plant
 
@@ -239,13 +267,16 @@ def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequ
              else None)
     limit = JointInfo.of(model).torque_limit
     config = dataclasses.replace(scenario.loop, delay=0)
+    window = window_steps(settle, scenario.task.dt)
     for index in scenarios:
         drawn = draw_scenario(family, seed, index, model, scenario.task.dt)
         move = float(np.max(np.abs(drawn.task.displacement)))
         record: dict[str, Any] = {"family": family, "scenario": index, "planner": planner}
         try:
             reference = scenario.planner(planner).plan(drawn.task, model)
-            job = Job(reference, Scoring().weights(drawn.task, limit), drawn.perturbation)  # as sweeps score
+            rest = Settle.of(drawn.task, reference.steps, window) if window else None
+            job = Job(held(reference, window, drawn.task.qg), Scoring().weights(drawn.task, limit),
+                      drawn.perturbation, settle=rest)  # as sweeps score
             found = floor_of(model, config, job, plant=plant, starts=starts, displacement=move,
                              every_start=every_start)
         except MjtrajError as e:
@@ -255,7 +286,16 @@ def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequ
         yield {**record, "status": "ok", **{f"J_{law}": cost for law, cost in found.controllers.items()},
                "floor": found.cost, "floor_over_best": found.cost / best, "start": found.start,
                "start_spread": _spread(found.starts), "iterations": found.iterations, "converged": found.converged,
-               "terminal_err": found.terminal_err, "goal_radius": found.goal_radius, "seconds": found.seconds}
+               "terminal_err": found.terminal_err, "goal_radius": found.goal_radius, "seconds": found.seconds,
+               **(_settled(found, family) if window else {})}
+
+
+def _settled(found: Floor, family: str) -> dict[str, float]:
+    """A protocol-v2 record's end speed and, on the mismatch plants, each starting law's floor without it."""
+    out = {"end_speed": found.end_speed}
+    if family == "mismatch":
+        out.update({f"floor_without_{law}": found.without(law) for law in found.controllers if law != ORACLE})
+    return out
 
 
 def _spread(costs: Mapping[str, float]) -> float:

@@ -82,8 +82,9 @@ class SweepSettings:
       torque_limit: with `model`, the corrective saturation, N m: one value for every joint, or one per joint
         (None: from the model).
       floors: also each row's clairvoyant floor (`mjtraj.study.floor.floors_of`: its planner's reference on its
-        plant under its controller variant) and J_exec over it, columns FLOOR_COLUMNS (NaN where the variant's
-        gravity compensation is not native, which the floor does not model, or the floor failed).
+        plant under its controller variant) and the row's score over it, columns FLOOR_COLUMNS (NaN where the
+        variant's gravity compensation is not native, which the floor does not model, or the floor failed); with a
+        settle window, protocol v2's floor (J_settle, at rest at the goal).
       settle: the settle window, s (protocol v2, `mjtraj.core.settle`): every execution goes on after its motion
         for this long, the reference holding the goal, and is scored over the whole episode (J_settle) and held to
         the at-rest rule; 0 (the default, the paper's study): the motion alone, J_exec.
@@ -131,9 +132,6 @@ class SweepSettings:
                            scenario_for_model(self.model, torque_limit=self.torque_limit, workspace=True))
         self.loop_config(self.ff_accel[0], self.gravity_comp[0], mismatch=True)  # validates delay
         window_steps(self.settle, self.base.task.dt)  # validates the window
-        if self.settle and self.floors:
-            raise InvalidInputError(f"floors: the clairvoyant floor is derived for episodes without a settle window; "
-                                    f"got settle={self.settle}")
 
     @property
     def settle_steps(self) -> int:
