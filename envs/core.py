@@ -369,12 +369,13 @@ class TrackCore:
     def floors(self, ids: NDArray[np.intp], costs: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
         """The clairvoyant floors of the episodes of simulations `ids` (`mjtraj.study.floor.floors_of`: their
         reference, weights and plant, the laws' executions as starts; measurement noise does not reach a torque
-        sequence), and their J_exec `costs` (len(ids),) over them: "floor" and "cost_over_floor", (len(ids),), NaN
-        where the floor failed."""
+        sequence; with a settle window protocol v2's floor, J_settle at rest at the goal), and their scores `costs`
+        (len(ids),) over them: "floor" and "cost_over_floor", (len(ids),), NaN where the floor failed."""
         from mjtraj.study import Floor, floors_of
 
+        window = self.settings.settle_steps
         jobs = [Job(self.references[i], (self._q_diag[i].copy(), self._r_diag[i].copy()),  # type: ignore[arg-type]
-                    self.plants[i]) for i in ids]
+                    self.plants[i], settle=self._settle(int(i)) if window else None) for i in ids]
         moves = [float(np.max(np.abs(self.tasks[i].displacement))) for i in ids]  # type: ignore[union-attr]
         plant = self.plant if any(job.perturbation is not None for job in jobs) else None
         if plant is not None:  # a batch is all perturbed or all nominal: a nominal episode is the null perturbation

@@ -105,9 +105,9 @@ class EnvOptions:
                                   "control law alone, minus (step cost - the same episode's step cost under that law "
                                   "with no action, run in a shadow loop); metrics keep J_exec ('pid' is its earlier "
                                   "name)", choices=REWARD_BASELINES)
-    floor: bool = option(False, "at each episode's end also compute its clairvoyant floor (the least J_exec any "
-                         "controller can score on it) into info['metrics'] as floor and cost_over_floor (about 0.1 s "
-                         "a nominal and 0.4 s a mismatched episode)")
+    floor: bool = option(False, "at each episode's end also compute its clairvoyant floor (the least score any "
+                         "controller can reach on it; with a settle window at rest at the goal) into info['metrics'] "
+                         "as floor and cost_over_floor (its cost: docs/floor.md)")
     width: int = option(640, "image width, px", minimum=1)
     height: int = option(480, "image height, px", minimum=1)
     camera: str = option("front", "a camera of the model (the UR5: front, side, top) or free (framed on the model); "

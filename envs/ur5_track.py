@@ -154,8 +154,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     the return), terminal_err at the pose reached. The vector env's own `max_episode_steps` puts them in the
     truncating step's info.
     With `floor=True` the ending step's `info["metrics"]` also holds `floor`, the episode's clairvoyant floor (the
-    least J_exec any controller can score on that task and plant, reaching the goal: docs/floor.md), and
-    `cost_over_floor`; it costs about 0.1 s a nominal and 0.4 s a mismatched episode, NaN where the floor fails.
+    least score any controller can reach on that task and plant, reaching the goal, or in a v2 env at rest at it),
+    and `cost_over_floor`, NaN where the floor fails; its solve time: docs/floor.md.
 
     ## Plant randomisation
     With `plant_randomization="mismatch"` each episode runs on its own plant, drawn from the reset's generator

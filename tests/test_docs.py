@@ -86,14 +86,14 @@ def _table(text: str, header: str) -> dict[str, dict[str, str]]:
 
 
 @pytest.mark.parametrize("page, cited, headers", [
-    ("README.md", "docs/results/v2", ("| method | nominal: J / cubic+adaptive CT, P(improve) |",)),
+    ("docs/results.md", "docs/results/v2", ("| method | nominal: J / cubic+adaptive CT, P(improve) |",)),
     ("docs/results.md", "docs/results/best", ("| method | nominal: J / cubic+PID, P(improve) |",
                                               "| method | nominal: J / floor |")),
 ])
 def test_the_result_tables_are_the_cited_summarys_cells(page, cited, headers):
-    """Every cell of a page's tables of the control laws (the README's protocol v2 table, results.md's protocol v1
-    tables) is the cell of the same method and column in the SUMMARY.md the page cites (written by the command shown
-    beside them), not typed by hand."""
+    """Every cell of a page's tables of the control laws (results.md's protocol v2 and v1 tables) is the cell of the
+    same method and column in the SUMMARY.md the page cites (written by the command shown beside them), not typed by
+    hand."""
     text = (ROOT / page).read_text()
     summary = (ROOT / cited / "SUMMARY.md").read_text()
     link = cited.removeprefix("docs/") if page.startswith("docs/") else cited
@@ -145,3 +145,81 @@ def test_the_docs_generated_blocks_are_what_the_code_generates(name):
             return sorted(re.findall(r"(?:^#+ mjtraj [\w ]+$|--[\w-]+)", text, flags=re.M))
 
         assert words(committed) == words(current), "run: python docs/hooks.py"
+
+
+def test_the_readmes_policy_interface_is_the_benchmark_envs():
+    """The README's one-screen interface (observation shape and layout, action shape, scale and saturation) is
+    UR5Track-v2's, measured on the env: each number it quotes fails this test when the env changes."""
+    import gymnasium as gym
+    import mjtraj.envs  # noqa: F401
+    import numpy as np
+
+    text = " ".join((ROOT / "README.md").read_text().split())
+    env = gym.make("UR5Track-v2")
+    obs, _ = env.reset(seed=3)
+    core = env.unwrapped
+    size, = env.observation_space.shape
+    assert f"observation of shape ({size},)" in text and obs.shape == (size,)
+    assert f"shape ({env.action_space.shape[0]},) in [−1, 1]" in text
+    assert env.action_space.low.min() == -1 and env.action_space.high.max() == 1
+    scale = float(core.settings.residual_scale)
+    assert f"times {scale:g} N m" in text
+    q, qd = core.loop.measured()
+    assert np.array_equal(obs[0:3], q[0]) and np.array_equal(obs[3:6], qd[0])
+    assert "(entries 0-17, rad and rad/s" in text and np.allclose(obs[12:15], obs[6:9] - obs[0:3])
+    assert "the phase k/N (18)" in text and obs[18] == pytest.approx(0.0)
+    task = core.reference.info["task"] if "task" in core.reference.info else None
+    move = float(np.max(np.abs(core.reference.q[-1] - core.reference.q[0]))) if task is None else task
+    assert "the move and the time to the motion's end (19-20)" in text and obs[19] == pytest.approx(move)
+    limit = float(np.max(core.settings.torque_limit))
+    assert f"±{limit:g} N m saturation" in text
+    env.close()
+
+
+QUOTED = [  # (page, its words with the number as a group, the source that measures it: a function of the repo)
+    ("docs/results.md", r"validation chose, at ([\d,]+) of the run's ([\d,]+) steps",
+     lambda: _baseline_steps()),
+    ("CITATION.cff", r"\nversion: (\S+)\n", lambda: (_version(),)),
+    ("README.md", r"version = \{(\S+)\}", lambda: (_version(),)),
+]
+"""Numbers a page quotes from elsewhere, each beside its source: the test fails when they differ."""
+
+
+def _baseline_steps() -> tuple[str, str]:
+    import json
+
+    best = json.loads((ROOT / "mjtraj/rl/baselines/BEST.json").read_text())["best"]
+    run = json.loads((ROOT / f"mjtraj/rl/baselines/{best}/run.json").read_text())
+    return f"{int(run['best']['timesteps']):,}", f"{int(run['timesteps']):,}"
+
+
+def _version() -> str:
+    import mjtraj
+
+    return mjtraj.__version__
+
+
+@pytest.mark.parametrize("page, words, source", QUOTED, ids=[q[0] + ":" + q[1][:20] for q in QUOTED])
+def test_a_quoted_number_is_its_sources(page, words, source):
+    found = re.search(words, " ".join((ROOT / page).read_text().split()) if page.endswith(".md") else
+                      (ROOT / page).read_text())
+    assert found, (page, words)
+    assert found.groups() == tuple(source())
+
+
+def test_no_page_but_the_ones_that_measure_them_quotes_timings():
+    """Timings live in the pages that measure them (docs/speed.md, docs/floor.md, docs/results.md, docs/benchmark.md,
+    docs/testing.md and the CHANGELOG); the README, the env card, the command line's help and the other pages link
+    there instead of quoting a number that goes stale."""
+    from mjtraj.cli import build_parser
+
+    duration = re.compile(r"\b\d+(?:\.\d+)? ?(?:s|ms|min|minutes|seconds|hours?) (?:a|per|each|on|in all)\b|"
+                          r"\b(?:about|takes|took) \d+(?:\.\d+)? ?(?:s|ms|min|minutes|seconds|hours?)\b")
+    pages = {"README.md": (ROOT / "README.md").read_text(), "docs/env.md": (ROOT / "docs/env.md").read_text()}
+    parser = build_parser()
+    pages["mjtraj --help"] = parser.format_help()
+    for action in parser._subparsers._group_actions:  # type: ignore[union-attr]
+        for name, sub in action.choices.items():
+            pages[f"mjtraj {name} --help"] = " ".join(sub.format_help().split())
+    for page, text in pages.items():
+        assert not duration.findall(" ".join(text.split())), page

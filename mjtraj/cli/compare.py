@@ -16,7 +16,8 @@ def add(sub: Any, laws: str) -> None:
     p = sub.add_parser("compare", help="the paper's Table I: every planner through one closed loop")
     arm_options(p)
     task_options(p)
-    p.add_argument("--dt", type=float, help="control period, s")
+    p.add_argument("--dt", type=float, help="control period, s (default: the scenario's; 0.02 in the paper "
+                   "scenario)")
     loop_flags(p)
     p.add_argument("--planners", type=names, help="comma-separated planner names (default: all)")
     p.add_argument("--out", type=Path, help="output folder (default: results/, or results/MODEL/ with --model, "

@@ -16,15 +16,11 @@ from typing import Any
 
 from mjtraj.cli.common import no_progress_option
 
-MINUTES_ON_TWO_CORES = 6
-"""How long `mjtraj reproduce` took at its defaults on the 2-core development machine (docs/results.md), minutes."""
-
 
 def add(sub: Any, laws: str) -> None:
     """Declare `mjtraj reproduce`."""
-    p = sub.add_parser("reproduce", help=f"the study the README reports, from scratch: Table I, the frontiers, the "
-                       f"three audit sweeps and the effort sweep, their audits (about {MINUTES_ON_TWO_CORES} "
-                       "minutes on two cores)")
+    p = sub.add_parser("reproduce", help="the study the README reports, from scratch: Table I, the frontiers, the "
+                       "three audit sweeps and the effort sweep, their audits (its wall time: docs/speed.md)")
     p.add_argument("--out", type=Path, default=Path("reproduced"), help="output folder (default reproduced/)")
     p.add_argument("--scenarios", type=int, default=1000, help="scenarios per family of each sweep (default 1000, "
                    "the published study; the nominal frontier takes at most 200)")

@@ -60,7 +60,7 @@ def add(sub: Any, laws: str) -> None:
                    "the native vector env, on a mixture of families (mjtraj.rl.batched; defaults: 10,000,000 steps, "
                    "512 sub-envs, the adaptive law, --families nominal,aggressive,mismatch); --hyperparameter sets "
                    "its other settings (rollouts, epochs, minibatches, learning_rate, discount, gae_lambda, hidden)")
-    p.add_argument("--families", type=names, default=["nominal", "aggressive", "mismatch"],
+    p.add_argument("--families", "--family", type=names, default=["nominal", "aggressive", "mismatch"],
                    help="with --batched: the families the sub-envs are split over (default all three)")
     p.add_argument("--initial-std", dest="initial_std", type=float,
                    help="with --batched: the policy's initial action std, in units of the residual scale (default "
@@ -100,7 +100,7 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--steps", type=int, default=1_000_000, help="env steps per trial (default 1,000,000)")
     p.add_argument("--num-envs", dest="num_envs", type=int, help="sub-envs per trial (default 512)")
     p.add_argument("--controller", help="the law the residual acts on (default adaptive_computed_torque)")
-    p.add_argument("--families", type=names, default=["nominal", "aggressive", "mismatch"],
+    p.add_argument("--families", "--family", type=names, default=["nominal", "aggressive", "mismatch"],
                    help="the families trained and validated on (default all three)")
     p.add_argument("--seed", type=int, default=0, help="the trials' training seed and the sampler's (default 0)")
     p.add_argument("--evaluations", type=int, default=5, help="validation points per trial (default 5; the pruner "
@@ -132,7 +132,7 @@ def add(sub: Any, laws: str) -> None:
                    help=f"the benchmark protocol (default {PROTOCOL}: each episode goes on for a settle window after "
                    "its motion, scored over it by J_settle and held to the at-rest rule, against cubic+adaptive CT; "
                    "v1: J_exec over the motion and the goal rule, against cubic+PID; docs/benchmark.md)")
-    p.add_argument("--family", type=names, default=None,
+    p.add_argument("--family", "--families", type=names, default=None,
                    help="families, comma-separated: nominal, aggressive, mismatch, noisy (default the protocol's: "
                    f"{', '.join(PROTOCOL_V2['families'])} in v2, the first three in v1)")
     p.add_argument("--scenarios", type=int, default=None,
