@@ -124,3 +124,14 @@ def test_one_version_string_everywhere():
     project = re.search(r'^version = "([^"]+)"$', (ROOT / "pyproject.toml").read_text(), flags=re.M)
     assert citation and bibtex and project
     assert {citation.group(1), bibtex.group(1), project.group(1)} == {__version__}
+
+
+def test_every_shipped_baseline_folder_is_a_declared_package():
+    """setuptools ships a data-only folder without warning only where it is declared (pyproject.toml's packages):
+    a baseline added without its line would warn at every build (and a future setuptools may leave it out)."""
+    from mjtraj.study.scenario import tomllib
+
+    declared = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    folders = {f"mjtraj.rl.baselines.{p.name}" for p in (ROOT / "mjtraj/rl/baselines").iterdir()
+               if p.is_dir() and p.name != "__pycache__"}
+    assert folders and folders <= declared, sorted(folders - declared)
