@@ -22,6 +22,7 @@ from mjtraj.core import (
     available,
     check_name,
     check_options,
+    controller_names,
     declared_options,
     load_model,
     option,
@@ -96,6 +97,9 @@ class EnvOptions:
                            "goal) and the settle metrics (protocol v2)", minimum=0.0)
     history: int = option(0, "previous observations appended to each observation, the latest first (an episode's "
                           "first observation fills them)", minimum=0)
+    teacher: str = option("none", "none, or a control law that shadows the env's own on the same states: "
+                          "env.unwrapped.loop.teach(teacher) gives its command of the step to come (imitation, "
+                          "DAgger); it changes nothing the env does", choices=lambda: ("none", *controller_names()))
     plant_randomization: str = option("none", "none, or mismatch: each episode's plant drawn by the sweeps' mismatch "
                                       "rules (payload, link masses and inertias, damping, friction)",
                                       choices=PLANT_RANDOMIZATIONS)
@@ -156,6 +160,8 @@ class TrackSettings:
     """'none', 'true' (the plant's parameters, privileged) or 'estimate' (the adaptive law's estimate of them)."""
     history: int
     """Previous observations appended to each one."""
+    teacher: str
+    """'none', or the control law that shadows the env's own (`ClosedLoop.teach`)."""
     observe_task: bool
     """The observation ends with the move (rad) and the time to the motion's end (s)."""
     observe_measured: bool
@@ -366,7 +372,7 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          max_displacement=own.max_displacement,
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,
                          observe_control=own.observe_control, observe_plant=own.observe_plant,
-                         history=own.history, observe_task=own.observe_task,
+                         history=own.history, teacher=own.teacher, observe_task=own.observe_task,
                          observe_measured=own.observe_measured, settle=own.settle,
                          plant_randomization=own.plant_randomization,
                          family=own.family,

@@ -223,6 +223,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | observe_measured | False      | observe the measured (noisy) state the law gets, not the true one       |
     | settle           | 0.0        | settle window after the motion, s (protocol v2; info["settled"] at the end) |
     | history          | 0          | previous observations appended, latest first                             |
+    | teacher          | "none"     | a control law shadowing the env's own: loop.teach(teacher), for imitation |
     | Q_exec           | None       | diag of Q_exec, 6 weights (None: Bryson's rule for each task)           |
     | R_exec           | None       | diag of R_exec, 3 weights (None: Bryson's rule)                         |
     | render_mode      | None       | None, "rgb_array", "depth_array" or "human" (a window; needs a display) |

@@ -4,7 +4,7 @@ default, or computed torque, or a plug-in's), batched; compare, sweeps, rl eval 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple
 
 import mujoco
@@ -95,6 +95,7 @@ class _LoopState:
     noise: NDArray[np.float64] | None = None
     held: NDArray[np.float64] | None = None
     law_state: NDArray[np.float64] | None = None
+    teachers: dict[str, _TeacherState] = field(default_factory=dict)
     sync: int | None = 0
     ends: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     rows: NDArray[np.intp] = field(init=False)
@@ -138,6 +139,16 @@ class _LoopState:
         self.sync = int(k[0]) if np.all(k == k[0]) and np.all(self.diverged_step < 0) else None
 
 
+@dataclass
+class _TeacherState:
+    """A teacher's own PID integral (B, n) and law state (B, state_size, or None), and its output of the period
+    it last answered (`ClosedLoop.teach`), kept until the loop steps past that period."""
+
+    integral: NDArray[np.float64]
+    law_state: NDArray[np.float64] | None
+    answered: tuple[NDArray[np.intp], ControlOutput] | None = None
+
+
 class Step(NamedTuple):
     """What one period did, for a batch: measured state and errors before control (shapes (B, n)), the control.
 
@@ -162,11 +173,16 @@ class ClosedLoop:
 
     The records hold the true state and error (the metrics score them); with measurement noise the controller
     sees the noisy ones. With an actuation delay, `dtau` records the torque the plant received.
+
+    `teachers` names other control laws that shadow the loop's own (for imitation: `teach` gives what one of them
+    would command now, at what the loop's law measures). Each runs as the loop's law would, on the same references
+    and measurements, with its own integral and state, advanced every period by its own command, whatever the loop
+    applies: where the loop's law is the teacher's, its answers are the loop's commands, bit for bit.
     """
 
     def __init__(self, model: mujoco.MjModel, config: LoopConfig, *, nsim: int = 1,
                  plant: mujoco.MjModel | None = None, plant_fields: dict[str, NDArray[np.float64]] | None = None,
-                 nthread: int = 0) -> None:
+                 nthread: int = 0, teachers: Sequence[str] = ()) -> None:
         self.model = model
         self.config = config
         self.dt = float(model.opt.timestep)
@@ -183,6 +199,14 @@ class ClosedLoop:
         self._none_diverged = np.zeros(nsim, dtype=bool)
         self._none_diverged.setflags(write=False)
         self._probe: DynamicsProbe | None = None
+        self._teachers: dict[str, Controller] = {}
+        for name in teachers:
+            if not isinstance(name, str) or name not in controller_names():
+                raise InvalidInputError(f"teachers: expected control laws among {', '.join(controller_names())}, got "
+                                        f"{name!r}")
+            self._teachers[name] = make_controller(replace(config, controller=name), self.dt, model.nv, nsim, model)
+        self._teacher_dynamics = (DynamicsProbe(model, size=nsim)
+                                  if any(law.needs_dynamics for law in self._teachers.values()) else None)
 
     # -- queries -------------------------------------------------------------------------------------------------
 
@@ -359,7 +383,8 @@ class ClosedLoop:
                                      accel=self.config.ff_accel, probe=self._probe)
         column = {key: b for b, key in enumerate(unique)}
         ff = ff_unique[:, [column[id(r)] for r in references]]
-        reads = self._law.needs_dynamics or self._stateful
+        reads = self._law.needs_dynamics or self._stateful or any(
+            law.needs_dynamics or _stateful(law) for law in self._teachers.values())
         qdd = reference_accelerations(references, self.config.ff_accel) if reads else None
         return q_ref, qd_ref, ff, qdd
 
@@ -380,7 +405,9 @@ class ClosedLoop:
                                  np.full(B, -1, dtype=np.int64), records, np.full((B, n), np.nan),
                                  np.full((B, n), np.nan), noise=checked,
                                  held=np.zeros((B, n)) if self.config.delay else None,
-                                 law_state=self._initial_law_state(B), ends=lengths)
+                                 law_state=self._initial_law_state(B), ends=lengths,
+                                 teachers={name: _TeacherState(np.zeros((B, n)), _initial_state(law, B))
+                                           for name, law in self._teachers.items()})
         self._track(slice(None), q_ref, qd_ref, ff, references)
         self._plant.reset(q_ref[0], qd_ref[0])
 
@@ -428,6 +455,11 @@ class ClosedLoop:
             s.held[where] = 0.0
         if s.law_state is not None:
             s.law_state[where] = self._initial_law_state(rows.size)
+        for name, taught in s.teachers.items():
+            taught.integral[where] = 0.0
+            if taught.law_state is not None:
+                taught.law_state[where] = _initial_state(self._teachers[name], rows.size)
+            taught.answered = None
         s.set_ends(where, lengths)
         s.resync()
         self._track(where, q_ref, qd_ref, ff, references)
@@ -459,6 +491,8 @@ class ClosedLoop:
                                     None if s.qdd_ref is None else s.qdd_ref[k], residual, override, s.law_state)
             s.integral = out.integral
             s.law_state = out.state
+            if s.teachers:
+                self._advance_teachers(None)
             if s.held is not None:
                 out = out._replace(dtau=self._delayed(out.dtau, slice(None)))
             plant.step(out.dtau)
@@ -488,6 +522,8 @@ class ClosedLoop:
         out = self._control(seen_e, seen_ed, seen_q, seen_qd, s.integral, s.tau_ff[ks, s.rows],
                             None if s.qdd_ref is None else s.qdd_ref[ks, s.rows], residual, override, s.law_state)
         dtau = np.where(active[:, None], out.dtau, 0.0)
+        if s.teachers:
+            self._advance_teachers(active)
         if s.held is not None:
             dtau = np.where(active[:, None], self._delayed(dtau, active), 0.0)
         s.integral = np.where(active[:, None], out.integral, s.integral)
@@ -511,30 +547,86 @@ class ClosedLoop:
     def _control(self, e: NDArray[np.float64], ed: NDArray[np.float64], q: NDArray[np.float64],
                  qd: NDArray[np.float64], integral: NDArray[np.float64], tau_ff: NDArray[np.float64],
                  qdd_ref: NDArray[np.float64] | None, residual: NDArray[np.float64] | None,
-                 override: NDArray[np.float64] | None, law_state: NDArray[np.float64] | None) -> ControlOutput:
-        """The configured control law on what the controller sees (errors, measured state q, qd), shapes (B, n)."""
+                 override: NDArray[np.float64] | None, law_state: NDArray[np.float64] | None, *,
+                 law: Controller | None = None) -> ControlOutput:
+        """A control law (the configured one, or a teacher `law`) on what the controller sees (errors, measured
+        state q, qd), shapes (B, n)."""
         dynamics = None
-        if self._dynamics is not None and override is None:
-            dynamics = self._dynamics.mass_and_bias(q, qd)
+        probe = self._dynamics if law is None else self._teacher_dynamics
+        law = self._law if law is None else law
+        if probe is not None and override is None and law.needs_dynamics:
+            dynamics = probe.mass_and_bias(q, qd)
         if law_state is None:
-            return self._law(e, ed, integral, tau_ff, qdd_ref, dynamics, self._limit, self.dt, residual=residual,
-                             override=override)
-        return self._law(e, ed, integral, tau_ff, qdd_ref, dynamics, self._limit, self.dt,  # type: ignore[call-arg]
-                         residual=residual, override=override, state=law_state, q=q, qd=qd)
+            return law(e, ed, integral, tau_ff, qdd_ref, dynamics, self._limit, self.dt, residual=residual,
+                       override=override)
+        return law(e, ed, integral, tau_ff, qdd_ref, dynamics, self._limit, self.dt,  # type: ignore[call-arg]
+                   residual=residual, override=override, state=law_state, q=q, qd=qd)
+
+    # -- teachers ------------------------------------------------------------------------------------------------
+
+    @property
+    def teachers(self) -> tuple[str, ...]:
+        """The control laws that shadow the loop's own (`teach`)."""
+        return tuple(self._teachers)
+
+    def teach(self, name: str) -> ControlOutput:
+        """What teacher `name` commands this period for every simulation, at what the loop's law measures now
+        (noise included): its ControlOutput, shapes (B, n) (dtau the saturated command, N m; `state` its state
+        after the period). Repeated calls in one period give the same answer; the teacher's state advances when the
+        loop steps. A simulation that has ended or diverged gets its last period's inputs (its answer is unused).
+
+        Raises:
+          InvalidInputError: `name` is not one of `teachers`, or the loop has not started.
+        """
+        if name not in self._teachers:
+            raise InvalidInputError(f"name: expected one of the loop's teachers ({', '.join(self._teachers) or 'none'})"
+                                    f", got {name!r}")
+        s = self._running()
+        taught = s.teachers[name]
+        ks = np.minimum(s.periods, s.ends - 1)
+        if taught.answered is not None and np.array_equal(taught.answered[0], ks):
+            return taught.answered[1]
+        n = self.model.nv
+        q, qd = self._plant.state()
+        e = s.q_ref[ks, s.rows] - q
+        ed = s.qd_ref[ks, s.rows] - qd
+        if s.noise is not None:
+            noise = s.noise[ks, s.rows]
+            e, ed, q, qd = e - noise[:, :n], ed - noise[:, n:], q + noise[:, :n], qd + noise[:, n:]
+        out = self._control(e, ed, q, qd, taught.integral, s.tau_ff[ks, s.rows],
+                            None if s.qdd_ref is None else s.qdd_ref[ks, s.rows], None, None, taught.law_state,
+                            law=self._teachers[name])
+        taught.answered = (ks, out)
+        return out
+
+    def _advance_teachers(self, active: NDArray[np.bool_] | None) -> None:
+        """Every teacher's integral and state after this period (its own command's; `active` (B,): the simulations
+        that ran it, None: all)."""
+        s = self._running()
+        for name, taught in s.teachers.items():
+            out = self.teach(name)
+            if active is None:
+                taught.integral, taught.law_state = out.integral, out.state
+            else:
+                taught.integral = np.where(active[:, None], out.integral, taught.integral)
+                if taught.law_state is not None and out.state is not None:
+                    taught.law_state = np.where(active[:, None], out.state, taught.law_state)
+            taught.answered = None
 
     def _track(self, rows: slice | NDArray[np.intp], q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64],
                ff: NDArray[np.float64], references: Sequence[Reference]) -> None:
         """Give a law that previews the reference (one with `track`, the model-predictive ones) the references of
         simulations `rows`: q_ref, qd_ref (N+1, R, n), the feedforward (N, R, n); and, where they end with a settle
         window (`mjtraj.core.settle.held`), its periods (R,) as `windows`."""
-        track = getattr(self._law, "track", None)
-        if track is None:
-            return
         windows = np.array([int(r.info.get("settle_steps", 0)) for r in references], dtype=np.intp)
-        if windows.any():
-            track(rows, q_ref, qd_ref, ff, windows=windows)
-        else:
-            track(rows, q_ref, qd_ref, ff)
+        for law in (self._law, *self._teachers.values()):
+            track = getattr(law, "track", None)
+            if track is None:
+                continue
+            if windows.any():
+                track(rows, q_ref, qd_ref, ff, windows=windows)
+            else:
+                track(rows, q_ref, qd_ref, ff)
 
     def _initial_law_state(self, rows: int) -> NDArray[np.float64] | None:
         """A stateful law's initial state for `rows` simulations, (rows, state_size); None for other laws."""
@@ -612,6 +704,16 @@ class ClosedLoop:
         for _ in range(self.steps):
             self.step()
         return self.rollout()
+
+
+def _stateful(law: Controller) -> bool:
+    """The law keeps state per simulation (`state_size` > 0)."""
+    return int(getattr(law, "state_size", 0)) > 0
+
+
+def _initial_state(law: Controller, rows: int) -> NDArray[np.float64] | None:
+    """A stateful law's initial state for `rows` simulations, else None."""
+    return law.initial_state(rows) if _stateful(law) else None  # type: ignore[attr-defined,no-any-return]
 
 
 def _padded(steps: int, q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64], ff: NDArray[np.float64],

@@ -1,0 +1,109 @@
+"""Teachers: any control law's command at the states of a running loop (`ClosedLoop.teach`), for imitation. The
+oracle is the loop itself: a teacher of the loop's own law answers, every period, the command the loop applies, bit
+for bit, on the fast path and off it (references of several lengths), with noise and a settle window; a teacher
+changes nothing the loop does; driven by another law, a teacher's answer is its law's command at that state."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mjtraj.core.closed_loop import ClosedLoop
+from mjtraj.core.settle import held
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.study.families import draw_scenario
+
+LAWS = ("pid", "computed_torque", "adaptive_computed_torque", "mpc", "adaptive_mpc")
+
+
+def _references(scenario, model, family: str, indices, window: int = 0):
+    out = []
+    for i in indices:
+        drawn = draw_scenario(family, 0, i, model, scenario.task.dt)
+        out.append(held(scenario.planner("cubic").plan(drawn.task, model), window, drawn.task.qg))
+    return out
+
+
+@pytest.mark.parametrize("law", LAWS)
+def test_a_teacher_of_the_loops_own_law_answers_the_loops_command_bit_for_bit(law, scenario, model):
+    """Two nominal references with measurement noise and a settle window (the predictive laws' v2 path)."""
+    refs = _references(scenario, model, "nominal", [0, 0], window=5)
+    config = dataclasses.replace(scenario.loop, controller=law)
+    loop = ClosedLoop(model, config, nsim=2, teachers=(law,))
+    noise = np.random.default_rng(0).standard_normal((refs[0].steps, 2, 2 * model.nv)) * 1e-3
+    loop.start(refs, noise=noise)
+    alone = ClosedLoop(model, config, nsim=2)
+    alone.start(refs, noise=noise)
+    for _ in range(loop.steps):
+        answer = loop.teach(law)
+        again = loop.teach(law)
+        step = loop.step()
+        assert again is answer
+        np.testing.assert_array_equal(answer.dtau, step.control.dtau)
+        np.testing.assert_array_equal(alone.step().control.dtau, step.control.dtau)  # the teacher changed nothing
+    np.testing.assert_array_equal(loop.rollout().dtau, alone.rollout().dtau)
+
+
+@pytest.mark.parametrize("law", ["pid", "adaptive_computed_torque"])
+def test_off_the_fast_path_a_teacher_still_answers_the_loops_command(law, scenario, model):
+    """References of several lengths (the aggressive family's) run side by side: each simulation at its own period,
+    the shorter one ended first (its answers unused)."""
+    refs = _references(scenario, model, "aggressive", [0, 1, 2])
+    assert len({r.steps for r in refs}) > 1
+    loop = ClosedLoop(model, dataclasses.replace(scenario.loop, controller=law), nsim=3, teachers=(law,))
+    loop.start(refs)
+    while not loop.done.all():
+        live = ~loop.done
+        answer = loop.teach(law)
+        step = loop.step()
+        np.testing.assert_array_equal(answer.dtau[live], step.control.dtau[live])
+
+
+@pytest.mark.parametrize("teacher", ["adaptive_computed_torque", "mpc"])
+def test_a_teacher_shadows_every_period_whether_or_not_it_is_asked(teacher, scenario, model):
+    """PID drives; the teacher's state (the adaptive estimate, the predictive law's prediction and disturbance)
+    advances every period along PID's motion, so its answer at the last period is the same asked every period or
+    only then; and it is its own law's command, not PID's."""
+    refs = _references(scenario, model, "nominal", [3, 4])
+    loops = [ClosedLoop(model, scenario.loop, nsim=2, teachers=(teacher,)) for _ in range(2)]
+    for loop in loops:
+        loop.start(refs)
+    differs = False
+    for _ in range(refs[0].steps - 1):
+        answer = loops[0].teach(teacher)
+        step = loops[0].step()
+        loops[1].step()
+        differs |= not np.array_equal(answer.dtau, step.control.dtau)
+    np.testing.assert_array_equal(loops[0].teach(teacher).dtau, loops[1].teach(teacher).dtau)
+    assert differs
+
+
+def test_teachers_are_named_control_laws(scenario, model):
+    with pytest.raises(InvalidInputError, match=r"^teachers: expected control laws among .*, got 'teacher'$"):
+        ClosedLoop(model, scenario.loop, teachers=("teacher",))
+    loop = ClosedLoop(model, scenario.loop, teachers=("mpc",))
+    loop.start(_references(scenario, model, "nominal", [0]))
+    with pytest.raises(InvalidInputError, match=r"^name: expected one of the loop's teachers \(mpc\), got 'pid'$"):
+        loop.teach("pid")
+    assert loop.teachers == ("mpc",)
+
+
+def test_the_vector_envs_teacher_answers_its_law_when_the_env_runs_that_law():
+    """The env's `teacher` option: a vector env whose law is `mpc`, asked what its `mpc` teacher commands before
+    each zero-residual step, gets the torque that step applies (the oracle: the env's loop's record of it)."""
+    import gymnasium as gym
+
+    import mjtraj.envs  # noqa: F401
+
+    env = gym.make_vec("UR5Track-v2", num_envs=2, vectorization_mode="vector_entry_point", controller="mpc",
+                       teacher="mpc")
+    env.reset(seed=5)
+    loop = env.unwrapped.loop
+    for _ in range(10):
+        k = int(loop.periods[0])
+        answer = loop.teach("mpc").dtau.copy()
+        env.step(np.zeros((2, 3)))
+        np.testing.assert_array_equal(answer, loop.rollout().dtau[:, k])
+    env.close()
