@@ -94,7 +94,6 @@ def test_the_vector_envs_teacher_answers_its_law_when_the_env_runs_that_law():
     """The env's `teacher` option: a vector env whose law is `mpc`, asked what its `mpc` teacher commands before
     each zero-residual step, gets the torque that step applies (the oracle: the env's loop's record of it)."""
     import gymnasium as gym
-
     import mjtraj.envs  # noqa: F401
 
     env = gym.make_vec("UR5Track-v2", num_envs=2, vectorization_mode="vector_entry_point", controller="mpc",
