@@ -272,3 +272,18 @@ def test_bench_json_prints_the_measurements_alone(capsys):
     assert [row["scenarios"] for row in record["loop"]] == [1, 2]
     for row in record["loop"]:
         assert row["ratio"] == pytest.approx(row["loop_steps_per_s"] / row["raw_steps_per_s"], rel=1e-12)
+
+
+def test_the_docs_say_what_a_bare_bench_runs():
+    """docs/cli.md: a bare `mjtraj bench` runs every stage but the ones it names. Oracle: the command's source, each
+    stage's block run for "all" or only when named."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    source = (root / "mjtraj" / "cli" / "bench.py").read_text()
+    with_all = set(re.findall(r'if args\.what in \("(\w+)", "all"\):', source))
+    named_only = set(re.findall(r'if args\.what == "(\w+)":', source)) - {"all"}
+    assert with_all and named_only and not with_all & named_only
+    stated = re.search(r"A bare `mjtraj bench` runs all but ((?:`\w+`(?:, | and )?)+)", (root / "docs" / "cli.md")
+                       .read_text())
+    assert stated is not None and set(re.findall(r"`(\w+)`", stated[1])) == named_only
