@@ -13,6 +13,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -30,8 +31,6 @@ def api_timings(*, repeats: int = 21, slow_repeats: int = 3, env_steps: int = 50
     """Median seconds per plan of each of PLANNERS on HELD_OUT_TASK (`repeats` plans of the linear one,
     `slow_repeats` of the nonlinear ones, after one untimed plan each) and seconds per `env.step` of UR5Track-v1
     (median of 5 passes of `env_steps` steps), all through the public API in this process."""
-    import time
-
     import gymnasium as gym
     import numpy as np
 

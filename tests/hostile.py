@@ -4,9 +4,10 @@ Each case is run and classified:
 - `refused`: one line from the MjtrajError family (the CLI: exit 2, one line on stderr starting "mjtraj: ");
 - `ran`: accepted and run to the end (exit 0, or no exception);
 - `traceback`: anything else (another exception, exit 1, or a message over several lines).
-A bad input must be refused; an extreme one may run or be refused, never end in a traceback. `run_catalogue`
-returns one outcome per case; `table` tallies them by kind. `python -m pytest tests/test_hostile_inputs.py -s`
-prints the table.
+Every case states its right outcome: a bad input is refused in one line that names what it got wrong (`names`: the
+flag, argument, key or file, found in the line; '{tmp}' there is the case's folder), so that a refusal for another
+reason (a missing flag, a neighbouring error) fails it; an extreme input runs. `run_catalogue` returns one outcome
+per case; `table` tallies them by kind. `python -m pytest tests/test_hostile_inputs.py -s` prints the table.
 """
 
 from __future__ import annotations
@@ -36,6 +37,9 @@ class Case:
     label: str
     run: Callable[[Path], Any]
     expect: str = BAD
+    names: str = ""
+    """What the refusal of a bad input must name (a flag, argument, key, value or file); '{tmp}' is the case's
+    folder, and a dash may read as an underscore (--num-envs, num_envs)."""
 
 
 @dataclass(frozen=True)
@@ -45,10 +49,17 @@ class Outcome:
     """refused, ran or traceback."""
     detail: str
 
+    folder: str = ""
+    """The folder the case ran in."""
+
     @property
     def ok(self) -> bool:
-        """A bad input refused, or an extreme one refused or run; never a traceback."""
-        return self.result == "refused" or (self.result == "ran" and self.case.expect == EXTREME)
+        """A bad input refused in one line naming what it got wrong, an extreme one run."""
+        if self.case.expect == EXTREME:
+            return self.result == "ran"
+        names = self.case.names.replace("{tmp}", self.folder)
+        return self.result == "refused" and bool(names) and (names in self.detail  # a flag's dashes may read as _
+                                                             or names.replace("-", "_") in self.detail)
 
 
 class CliResult:
@@ -80,18 +91,18 @@ def classify(case: Case, tmp: Path) -> Outcome:
         result = case.run(tmp)
     except MjtrajError as e:
         text = str(e)
-        return Outcome(case, "refused" if "\n" not in text else "traceback", text)
+        return Outcome(case, "refused" if "\n" not in text else "traceback", text, str(tmp))
     except Exception as e:  # noqa: BLE001 - the point is to catch what escapes
-        return Outcome(case, "traceback", f"{type(e).__name__}: {e}")
+        return Outcome(case, "traceback", f"{type(e).__name__}: {e}", str(tmp))
     if isinstance(result, CliResult):
         lines = result.err.strip().splitlines()
         if result.code == 0:
-            return Outcome(case, "ran", "")
+            return Outcome(case, "ran", "", str(tmp))
         if (result.code in (2, 130) and len(lines) == 1 and lines[0].startswith("mjtraj: ")
                 and "Traceback" not in result.err):
-            return Outcome(case, "refused", lines[0])
-        return Outcome(case, "traceback", f"exit {result.code}: {result.err[-400:]}")
-    return Outcome(case, "ran", "")
+            return Outcome(case, "refused", lines[0], str(tmp))
+        return Outcome(case, "traceback", f"exit {result.code}: {result.err[-400:]}", str(tmp))
+    return Outcome(case, "ran", "", str(tmp))
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -101,8 +112,12 @@ NUMBERS = ["0", "-1", "nan", "inf", "x", "", "1e400", "1,2"]
 """Bad values for a flag that takes a positive number."""
 
 
-def _flag_cases(kind: str, command: list[str], flag: str, values: list[str], tail: list[str]) -> list[Case]:
-    return [Case(kind, f"{' '.join(command)} {flag} {v!r}", cli([*command, flag, v, *tail])) for v in values]
+def _flag_cases(kind: str, command: list[str], flag: str, values: list[str], tail: list[str],
+                names: str | None = None) -> list[Case]:
+    """`command flag value tail` for each bad value, whose refusal names the flag (`names`: another word it names)."""
+    named = names if names is not None else flag.removeprefix("--")
+    return [Case(kind, f"{' '.join(command)} {flag} {v!r}", cli([*command, flag, v, *tail]), names=named)
+            for v in values]
 
 
 def cli_cases() -> list[Case]:
@@ -136,7 +151,8 @@ def cli_cases() -> list[Case]:
         cases += _flag_cases("CLI numbers", sweep, flag, values, ["--out", "{tmp}/s.sqlite"])
     for flag, values in (("--family", ["hard", "", "nominal,nominal"]), ("--planners", ["spline", "cubic,cubic"]),
                          ("--ff-accel", ["mean"]), ("--gravity-comp", ["off"]), ("--backend", ["gpu", ""])):
-        cases += _flag_cases("CLI names", sweep, flag, values, ["--out", "{tmp}/s.sqlite"])
+        cases += _flag_cases("CLI names", sweep, flag, values, ["--out", "{tmp}/s.sqlite"],
+                             "planner" if flag == "--planners" else None)
     render = ["render", "--planners", "cubic", "--every", "100", "--width", "32", "--height", "24"]
     for flag, values in (("--width", ["0", "5000", "x", "-5"]), ("--height", ["0", "5000", "x"]),
                          ("--every", ["0", "-1", "x"])):
@@ -145,7 +161,7 @@ def cli_cases() -> list[Case]:
                          ("--planners", ["spline"])):
         cases += _flag_cases("CLI names", render, flag, values, out)
     cases += _flag_cases("CLI numbers", ["bench", "loop"], "--sizes", ["0", "x", "-1", ""], [])
-    cases += _flag_cases("CLI names", ["bench"], "", ["everything"], [])
+    cases += [Case("CLI names", "bench 'everything'", cli(["bench", "everything"]), names="'everything'")]
     rl = ["rl", "train", "--steps", "64", "--no-progress", "--out", "{tmp}/rl"]
     for flag, values in (("--steps", ["0", "-1", "x"]), ("--num-envs", ["0", "x"]), ("--residual-scale",
                          ["0", "-1", "nan"]), ("--threads", ["0", "x"]), ("--evaluations", ["-1", "x"])):
@@ -156,22 +172,30 @@ def cli_cases() -> list[Case]:
         cases += _flag_cases("CLI names", rl, flag, values, [])
     evaluate = ["rl", "eval", "--scenarios", "2", "--reps", "10", "--no-progress", "--out", "{tmp}/eval"]
     for flag, values in (("--family", ["hard", ""]), ("--controllers", ["lqr"]), ("--planners", ["spline"]),
-                         ("--policy", ["nope.zip", "no_such_module:policy", "json:nothing", "baseline:nope"]),
-                         ("--policy-env", ["gain=2", "action_mode=flying"])):
-        cases += _flag_cases("CLI names", evaluate, flag, values, [])
+                         ("--policy", ["nope.zip", "no_such_module:policy", "json:nothing", "baseline:nope"])):
+        cases += _flag_cases("CLI names", evaluate, flag, values, [], "planner" if flag == "--planners" else None)
+    for value, named in (("gain=2", "'gain'"), ("action_mode=flying", "action_mode")):  # named: the setting
+        cases += _flag_cases("CLI names", evaluate, "--policy-env", [value], [], named)
     cases += _flag_cases("CLI numbers", evaluate, "--reps", ["0", "x"], [])
-    cases += [Case("CLI usage", " ".join(a), cli(a)) for a in (
-        ["bogus"], ["--bogus"], ["compare", "--bogus"], ["compare", "extra"], ["compare", "--dt"],
-        ["sweep", "--out"],
-        ["audit"], ["export", "{tmp}/x.csv"], ["rl", "eval", "--policy"],
-        ["compare", "--config", "paper", "--model", "x.xml"],
-        ["compare", "--torque-limit", "5"])]
-    cases += [Case("CLI output paths", f"compare --out {p}", cli(["compare", "--planners", "cubic", "--out", p]))
-              for p in ("{tmp}/file.txt/sub", "/proc/version", "/proc/mjtraj", "{tmp}/file.txt")]
+    cases += [Case("CLI usage", " ".join(a), cli(a), names=named) for a, named in (
+        (["bogus"], "'bogus'"), (["--bogus"], "--bogus"), (["compare", "--bogus"], "--bogus"),
+        (["compare", "extra"], "extra"), (["compare", "--dt"], "--dt"), (["sweep", "--out"], "--out"),
+        (["audit"], "sweeps"), (["export", "{tmp}/x.csv"], "--out"), (["rl", "eval", "--policy"], "--policy"),
+        (["compare", "--config", "paper", "--model", "x.xml"], "model, config"),
+        (["compare", "--torque-limit", "5"], "torque-limit"))]
+    # an output path's refusal names the path, or the part of it that is in the way (file.txt, a file)
+    cases += [Case("CLI output paths", f"compare --out {p}", cli(["compare", "--planners", "cubic", "--out", p]),
+                   names=named)
+              for p, named in (("{tmp}/file.txt/sub", "{tmp}/file.txt/sub"), ("/proc/version", "/proc/version"),
+                               ("/proc/mjtraj", "/proc/mjtraj"), ("{tmp}/file.txt", "{tmp}/file.txt"))]
     cases += [Case("CLI output paths", f"sweep --out {p}", cli(["sweep", "--scenarios", "1", "--planners", "cubic",
-                                                               "--no-progress", "--out", p]))
-              for p in ("{tmp}/file.txt/s.sqlite", "/proc/s.sqlite", "{tmp}", "{tmp}/file.txt")]
-    cases += [Case("CLI output paths", "tune --out a folder", cli(["tune", "--budget", "1", "--out", "{tmp}"]))]
+                                                               "--no-progress", "--out", p]), names=named)
+              for p, named in (("{tmp}/file.txt/s.sqlite", "{tmp}/file.txt"), ("/proc/s.sqlite", "/proc/s.sqlite"),
+                               ("{tmp}", "out: {tmp} exists"), ("{tmp}/file.txt", "out: {tmp}/file.txt exists"))]
+    # named: the folder given as --out is in the way of the file written (the line names the writer's temporary file
+    # beside it, {tmp}/../.caseNNNN.*, not --out itself)
+    cases += [Case("CLI output paths", "tune --out a folder", cli(["tune", "--budget", "1", "--out", "{tmp}"]),
+                   names="Is a directory")]
     cases += [Case("CLI extreme values", " ".join(a), cli(a), EXTREME) for a in (
         ["compare", "--q0", "0,-1.5707963267948966,0", "--qg", "0,-1.5707963267948966,0", *compare[1:]],
         ["compare", "--duration", "0.02", *compare[1:]], ["compare", "--duration", "0.04", *compare[1:]],
@@ -182,12 +206,15 @@ def cli_cases() -> list[Case]:
         ["compare", "--substeps", "1000", "--duration", "0.1", *compare[1:]],
         ["compare", "--qg", "3.14159,3.14159,3.14159", *compare[1:]],
         ["compare", "--duration", "0.1", "--planners", "optimal,trapezoidal,scurve", "--no-figures", *out],
-        ["frontier", "--alphas", "0,1e300", "--no-figures", *out], ["frontier", "--alphas", "1e-300", *out],
+        ["frontier", "--alphas", "1e-300", *out],
         ["render", "--planners", "cubic", "--every", "1000", "--width", "1", "--height", "1", *out],
         ["sweep", "--scenarios", "1", "--planners", "cubic", "--no-progress", "--out", "{tmp}/one.sqlite"],
         ["sweep", "--scenarios", "3", "--batch", "1000", "--planners", "cubic", "--no-progress", "--out",
          "{tmp}/b.csv"],
         ["tune", "--planners", "cubic", "--budget", "1", "--scenarios", "2", "--out", "{tmp}/t.toml"])]
+    # extreme, but above the frontier's declared ceiling of 1e12: refused, naming it
+    cases += [Case("CLI extreme values", "frontier --alphas 0,1e300", cli(["frontier", "--alphas", "0,1e300",
+                                                                            "--no-figures", *out]), names="alphas")]
     return cases
 
 
@@ -200,7 +227,7 @@ def _paper_text() -> str:
     return resources.files("mjtraj.study.scenarios").joinpath("paper.toml").read_text()
 
 
-def _config_case(label: str, make: Callable[[str], str | bytes], expect: str = BAD) -> Case:
+def _config_case(label: str, make: Callable[[str], str | bytes], names: str, planners: str = "cubic") -> Case:
     def run(tmp: Path) -> CliResult:
         content = make(_paper_text())
         path = tmp / "s.toml"
@@ -208,10 +235,10 @@ def _config_case(label: str, make: Callable[[str], str | bytes], expect: str = B
             path.write_bytes(content)
         else:
             path.write_text(content)
-        return cli(["compare", "--config", str(path), "--planners", "cubic", "--no-figures", "--out",
+        return cli(["compare", "--config", str(path), "--planners", planners, "--no-figures", "--out",
                     str(tmp / "o")])(tmp)
 
-    return Case("scenario files", label, run, expect)
+    return Case("scenario files", label, run, names=names)
 
 
 def _replace(old: str, new: str) -> Callable[[str], str]:
@@ -222,52 +249,77 @@ def _replace(old: str, new: str) -> Callable[[str], str]:
     return make
 
 
+def _section(name: str, body: str) -> Callable[[str], str]:
+    """The paper scenario with the table [name]'s body replaced by `body`."""
+
+    def make(text: str) -> str:
+        start = text.index(f"[{name}]\n")
+        end = text.find("\n[", start + 1)
+        return text[:start] + f"[{name}]\n{body}" + (text[end:] if end >= 0 else "")
+
+    return make
+
+
 def config_cases() -> list[Case]:
     q0 = "q0 = [0.0, -1.5707963267948966, 0.0]"
     dt = "dt = 0.02        # [paper] control period 0.02 s, N = 100"
     kp = "kp = [23.891577780936444, 92.58602250615462, 22.055960792072106]"
-    edits = {
-        "name a path": _replace('name = "paper"', 'name = "../escaped"'),
-        "name absolute": _replace('name = "paper"', 'name = "/tmp/abs"'),
-        "name a number": _replace('name = "paper"', "name = 5"),
-        "name empty": _replace('name = "paper"', 'name = ""'),
-        "q0 true": _replace(q0, "q0 = true"), "q0 text": _replace(q0, 'q0 = "a"'),
-        "q0 two values": _replace(q0, "q0 = [0.0, 1.0]"), "q0 nested": _replace(q0, "q0 = [[0.0], [1.0], [2.0]]"),
-        "q0 out of range": _replace(q0, "q0 = [0.0, 9.0, 0.0]"), "q0 nan": _replace(q0, "q0 = [nan, 0.0, 0.0]"),
-        "q0 inf": _replace(q0, "q0 = [inf, 0.0, 0.0]"), "q0 missing": _replace(q0, ""),
-        "dt zero": _replace(dt, "dt = 0"), "dt negative": _replace(dt, "dt = -0.02"),
-        "dt text": _replace(dt, 'dt = "0.02"'), "dt not dividing T": _replace(dt, "dt = 0.03"),
-        "dt true": _replace(dt, "dt = true"),
-        "duration off the grid": _replace("duration = 2.0", "duration = 2.011"),
-        "kp short": _replace(kp, "kp = [1.0, 2.0]"), "kp negative": _replace(kp, "kp = [-1.0, 1.0, 1.0]"),
-        "kp text": _replace(kp, 'kp = "high"'),
-        "planners a number": lambda t: t.replace("[planners.trapezoidal]\ncruise_factor = 1.5", "[planners]\ncubic "
-                                                 "= 5\n[planners.trapezoidal]\ncruise_factor = 1.5"),
-        "unknown planner table": lambda t: t + "\n[planners.spline]\norder = 3\n",
-        "torque_bound negative": lambda t: t + "torque_bound = -1\n",
-        "q_bar short": lambda t: t + "q_bar = [0, 0]\n",
-        "unknown planner option": lambda t: t + "bogus = 1\n",
-        "cruise_factor zero": _replace("cruise_factor = 1.5", "cruise_factor = 0"),
-        "cruise_factor too high": _replace("cruise_factor = 1.5", "cruise_factor = 2.5"),
-        "cost rule unknown": lambda t: t + '\n[cost]\nrule = "lqr"\n' if "[cost]" not in t else
-        t.replace("[cost]", '[cost]\nrule = "lqr"', 1),
-        "unknown top-level key": lambda t: "extra = 1\n" + t,
-        "unknown controller key": _replace("substeps = 1 ", "substepz = 1 "),
-        "substeps zero": _replace("substeps = 1 ", "substeps = 0 "),
-        "controller unknown law": _replace('feedforward = "inverse"', 'controller = "pd"\nfeedforward = "inverse"'),
-        "feedforward unknown": _replace('feedforward = "inverse"', 'feedforward = "magic"'),
-        "model a number": lambda t: "model = 5\n" + t,
-        "model missing file": lambda t: 'model = "/nonexistent/arm.xml"\n' + t,
-        "torque_limit without model": lambda t: "torque_limit = 5.0\n" + t,
-        "TOML syntax error": lambda t: t + "\n[task\n",
-        "duplicate key": lambda t: t.replace('name = "paper"', 'name = "paper"\nname = "again"'),
-        "empty file": lambda t: "",
-        "binary": lambda t: bytes(range(256)) * 4,
-        "UTF-16": lambda t: t.encode("utf-16"),
-        "task a number": lambda t: t.replace("[task]", "task = 3\n[nottask]", 1),
+    optimal = "[planners.optimal]\n"
+    edits: dict[str, tuple[Callable[[str], str | bytes], str]] = {  # label: (the edit, what the refusal names)
+        "name a path": (_replace('name = "paper"', 'name = "../escaped"'), "name"),
+        "name absolute": (_replace('name = "paper"', 'name = "/tmp/abs"'), "name"),
+        "name a number": (_replace('name = "paper"', "name = 5"), "name"),
+        "name empty": (_replace('name = "paper"', 'name = ""'), "name"),
+        "q0 true": (_replace(q0, "q0 = true"), "q0"), "q0 text": (_replace(q0, 'q0 = "a"'), "q0"),
+        # q0 sets the joint count before the arm is read: the mismatch is named at qg ("expected 2 values")
+        "q0 two values": (_replace(q0, "q0 = [0.0, 1.0]"), "qg: expected 2 values"),
+        "q0 nested": (_replace(q0, "q0 = [[0.0], [1.0], [2.0]]"), "q0"),
+        "q0 out of range": (_replace(q0, "q0 = [0.0, 9.0, 0.0]"), "q0"),
+        "q0 nan": (_replace(q0, "q0 = [nan, 0.0, 0.0]"), "q0"), "q0 inf": (_replace(q0, "q0 = [inf, 0.0, 0.0]"), "q0"),
+        "q0 missing": (_replace(q0, ""), "'q0'"),
+        "dt zero": (_replace(dt, "dt = 0"), "dt"), "dt negative": (_replace(dt, "dt = -0.02"), "dt"),
+        "dt text": (_replace(dt, 'dt = "0.02"'), "dt"), "dt not dividing T": (_replace(dt, "dt = 0.03"), "dt=0.03"),
+        "dt true": (_replace(dt, "dt = true"), "dt"),
+        "duration off the grid": (_replace("duration = 2.0", "duration = 2.011"), "duration"),
+        "kp short": (_replace(kp, "kp = [1.0, 2.0]"), "kp"),
+        "kp negative": (_replace(kp, "kp = [-1.0, 1.0, 1.0]"), "kp"),
+        "kp text": (_replace(kp, 'kp = "high"'), "kp"),
+        "planners a number": (lambda t: t.replace("[planners.trapezoidal]\ncruise_factor = 1.5", "[planners]\ncubic "
+                                                  "= 5\n[planners.trapezoidal]\ncruise_factor = 1.5"),
+                              "[planners.cubic]"),
+        "unknown planner table": (lambda t: t + "\n[planners.spline]\norder = 3\n", "[planners.spline]"),
+        "torque_bound negative": (_replace(optimal, optimal + "torque_bound = -1\n"),
+                                  "torque_bound: expected positive"),
+        "unknown planner option": (_replace(optimal, optimal + "bogus = 1\n"),
+                                   "planner 'optimal': unknown option 'bogus'"),
+        "cruise_factor zero": (_replace("cruise_factor = 1.5", "cruise_factor = 0"), "cruise_factor"),
+        "cruise_factor too high": (_replace("cruise_factor = 1.5", "cruise_factor = 2.5"), "cruise_factor"),
+        "cost rule unknown": (_section("cost", 'rule = "lqr"\n'), "'lqr'"),
+        "unknown top-level key": (lambda t: "extra = 1\n" + t, "'extra'"),
+        "unknown controller key": (_replace("substeps = 1 ", "substepz = 1 "), "'substepz'"),
+        "substeps zero": (_replace("substeps = 1 ", "substeps = 0 "), "substeps"),
+        "controller unknown law": (_replace('feedforward = "inverse"', 'controller = "pd"\nfeedforward = "inverse"'),
+                                   "'pd'"),
+        "feedforward unknown": (_replace('feedforward = "inverse"', 'feedforward = "magic"'), "'magic'"),
+        "model a number": (lambda t: "model = 5\n" + t, "model"),
+        "model missing file": (lambda t: 'model = "/nonexistent/arm.xml"\n' + t, "/nonexistent/arm.xml"),
+        "torque_limit without model": (lambda t: "torque_limit = 5.0\n" + t, "torque_limit"),
+        "TOML syntax error": (lambda t: t + "\n[task\n", "{tmp}/s.toml is not valid TOML"),
+        "duplicate key": (lambda t: t.replace('name = "paper"', 'name = "paper"\nname = "again"'),
+                          "{tmp}/s.toml is not valid TOML"),
+        "empty file": (lambda t: "", "[task]"),
+        "binary": (lambda t: bytes(range(256)) * 4, "{tmp}/s.toml is not a text file"),
+        "UTF-16": (lambda t: t.encode("utf-16"), "{tmp}/s.toml is not a text file"),
+        "task a number": (lambda t: "task = 3\n" + _section("task", "")(t).replace("[task]\n", "", 1),
+                          "[task] must be a table, got 3"),
     }
-    cases = [_config_case(label, make) for label, make in edits.items()]
-    cases += [Case("scenario files", f"--config {p}", cli(["compare", "--config", p, "--out", "{tmp}/o"]))
+    cases = [_config_case(label, make, names) for label, (make, names) in edits.items()]
+    # a planner's per-joint option is checked against the task when that planner plans (a file whose optimal
+    # planner's q_bar is short loads, and runs the other planners): the case plans with it
+    cases.append(_config_case("q_bar short", _replace(optimal, optimal + "q_bar = [0, 0]\n"),
+                              "q_bar: expected 3 values", "optimal"))
+    cases += [Case("scenario files", f"--config {p}", cli(["compare", "--config", p, "--out", "{tmp}/o"]),
+                   names=f"config: scenario file not found: {p}")
               for p in ("/nonexistent.toml", "{tmp}", "/dev/null", "nosuchshipped")]
     return cases
 
@@ -293,7 +345,7 @@ def _model_case(label: str, content: str | bytes | None, command: str = "compare
                 "frontier": ["frontier", "--model", str(path), "--no-figures", "--out", str(tmp / "o")]}[command]
         return cli(argv)(tmp)
 
-    return Case("model files", f"{command} --model: {label}", run)
+    return Case("model files", f"{command} --model: {label}", run, names="{tmp}/arm.xml")
 
 
 def model_cases() -> list[Case]:
@@ -337,11 +389,11 @@ def _resume_case(label: str, damage: Callable[[Path], None], suffix: str = ".csv
         return cli(["sweep", "--scenarios", "4", "--batch", "2", "--planners", "cubic", "--no-progress", "--out",
                     str(path), "--resume"])(tmp)
 
-    return Case("sweep files (resume)", label, run)
+    return Case("sweep files (resume)", label, run, names="{tmp}/s" + suffix)
 
 
 def _read_case(kind: str, label: str, damage: Callable[[Path], None], command: str, suffix: str = ".csv",
-               scenarios: int = 4, expect: str = BAD) -> Case:
+               scenarios: int = 4, expect: str = BAD, names: str | None = None) -> Case:
     def run(tmp: Path) -> CliResult:
         path = _sweep_file(tmp, "s" + suffix, scenarios)
         damage(path)
@@ -349,7 +401,7 @@ def _read_case(kind: str, label: str, damage: Callable[[Path], None], command: s
                 "export": ["export", str(path), "--out", str(tmp / "e.jsonl")]}[command]
         return cli(argv)(tmp)
 
-    return Case(kind, f"{command}: {label}", run, expect)
+    return Case(kind, f"{command}: {label}", run, expect, "{tmp}/s" + suffix if names is None else names)
 
 
 def _lines(edit: Callable[[list[bytes]], list[bytes]]) -> Callable[[Path], None]:
@@ -407,13 +459,17 @@ def file_cases() -> list[Case]:
         "a directory": lambda p: (p.unlink(), p.mkdir()),
         "missing": lambda p: p.unlink(),
     }
+    # the audit reads cells, not files: its refusal of a file that is not a sweep cannot name the file
+    unnamed = {("audit", "not a sweep"): "sweep: not a sweep results file"}
     for command in ("audit", "export"):
-        cases += [_read_case("sweep files (read)", label, damage, command) for label, damage in read_damage.items()]
+        cases += [_read_case("sweep files (read)", label, damage, command, names=unnamed.get((command, label)))
+                  for label, damage in read_damage.items()]
         cases += [_read_case("sweep files (read)", label, damage, command, ".sqlite")
                   for label, damage in store_damage.items() if "unit entry" not in label]
     cases += [_read_case("sweep files (read)", "one scenario: no verdict", lambda p: None, "audit", scenarios=1,
                          expect=EXTREME)]
-    cases += [Case("sweep files (read)", f"export --out {o}", cli(["export", "/dev/null", "--out", o]))
+    cases += [Case("sweep files (read)", f"export --out {o}", cli(["export", "/dev/null", "--out", o]),
+                   names=f"out: expected a file ending in .sqlite, .db, .jsonl, .csv, got '{o}'")
               for o in ("{tmp}/x.parquet", "{tmp}/x")]
     return cases
 
@@ -467,26 +523,31 @@ def env_cases() -> list[Case]:
         "dt": [0, -0.02, nan], "preview": [-1, 1.5, "a"], "plant_randomization": ["heavy"],
         "measurement_noise": [-1, nan], "reward_baseline": ["x"], "width": [0, -1, 5000, 1.5],
         "height": [0, 5000], "camera": ["wrist"], "render_quality": ["ultra"], "render_mode": ["ansi", "rgb"],
-        "Q_exec": [[1, 1]], "R_exec": [[1, 1, 1]], "xml_file": ["/nonexistent.xml"], "torque_limit": [5.0],
+        "torque_limit": [5.0],
         "controller": ["pd"], "feedforward": ["x"], "substeps": [0, -1], "divergence_bound": [0, -1],
         "delay": [2, -1], "anti_windup": ["x"], "bogus": [1], "observe_control": ["yes"],
     }
-    cases = [Case("env arguments", f"{name}={value!r}", _env(**{name: value}))
+    cases = [Case("env arguments", f"{name}={value!r}", _env(**{name: value}), names=name)
              for name, values in arguments.items() for value in values]
-    cases += [Case("env arguments", label, _env(**kwargs)) for label, kwargs in (
-        ("q0 with the paper task", {"q0": [0, 0, 0], "qg": [0, 0, 1]}),
-        ("explicit without qg", {"task": "explicit", "q0": [0, 0, 0]}),
-        ("explicit out of range", {"task": "explicit", "q0": [0, 0, 4], "qg": [0, 0, 0]}),
-        ("explicit nan", {"task": "explicit", "q0": [nan, 0, 0], "qg": [0, 0, 0]}),
-        ("Q_exec nan", {"Q_exec": [nan] * 6, "R_exec": [1, 1, 1]}),
+    cases += [Case("env arguments", label, _env(**kwargs), names=named) for label, kwargs, named in (
+        ("Q_exec short", {"Q_exec": [1, 1], "R_exec": [1, 1, 1]}, "Q_exec: expected 6 values"),
+        ("R_exec without Q_exec", {"R_exec": [1, 1, 1]}, "Q_exec, R_exec"),
+        ("xml_file missing", {"xml_file": "/nonexistent.xml"}, "/nonexistent.xml"),
+        ("q0 with the paper task", {"q0": [0, 0, 0], "qg": [0, 0, 1]}, "q0, qg"),
+        ("explicit without qg", {"task": "explicit", "q0": [0, 0, 0]}, "qg"),
+        ("explicit out of range", {"task": "explicit", "q0": [0, 0, 4], "qg": [0, 0, 0]}, "q0"),
+        ("explicit nan", {"task": "explicit", "q0": [nan, 0, 0], "qg": [0, 0, 0]}, "q0"),
+        ("Q_exec nan", {"Q_exec": [nan] * 6, "R_exec": [1, 1, 1]}, "Q_exec"),
     )]
     actions: list[Any] = [np.zeros(2), np.zeros((3, 1)), np.full(3, nan), np.full(3, np.inf), ["a", "b", "c"],
                           None, "x", np.zeros(0), 1.0]
-    cases += [Case("env actions", f"{mode}: {a!r}"[:60], _step(mode, a)) for mode in ("pid", "residual", "torque")
-              for a in actions]
-    cases += [Case("env reset options", repr(o), _reset(o)) for o in (
-        {"q0": [9, 9, 9], "qg": [0, 0, 0]}, {"duration": -1}, {"bogus": 1}, {"q0": "a", "qg": [0, 0, 0]},
-        {"q0": [0, 0, 0]}, {"duration": 1.013}, "q0", {"qg": [nan, 0, 0], "q0": [0, 0, 0]})]
+    cases += [Case("env actions", f"{mode}: {a!r}"[:60], _step(mode, a), names="action")
+              for mode in ("pid", "residual", "torque") for a in actions]
+    move = {"q0": [0.0, -1.5, 0.0], "qg": [0.5, -1.0, 0.5]}  # a valid task, so that only the duration is wrong
+    cases += [Case("env reset options", repr(o), _reset(o), names=named) for o, named in (
+        ({"q0": [9, 9, 9], "qg": [0, 0, 0]}, "q0"), ({**move, "duration": -1}, "duration"), ({"bogus": 1}, "'bogus'"),
+        ({"q0": "a", "qg": [0, 0, 0]}, "q0"), ({"q0": [0, 0, 0]}, "qg"), ({**move, "duration": 1.013}, "duration"),
+        ("q0", "options"), ({"qg": [nan, 0, 0], "q0": [0, 0, 0]}, "qg"))]
     return cases
 
 
@@ -494,12 +555,15 @@ def api_cases() -> list[Case]:
     from mjtraj.core import PIDGains, Task, make
 
     nan = math.nan
-    cases = [Case("library calls", f"Task.create{args}", (lambda a: lambda tmp: Task.create(*a))(args))
-             for args in (([nan, 0, 0], [0, 0, 0], 2.0, 0.02), ([0, 0, 0], [0, 0], 2.0, 0.02),
-                          ([0, 0, 0], [0, 0, 0], -2.0, 0.02), ([0, 0, 0], [0, 0, 0], 2.0, 0.0),
-                          ([0, 0, 0], [0, 0, 0], 2.0, 0.03), ("a", [0, 0, 0], 2.0, 0.02),
-                          ([0, 0, 0], [0, 0, 0], 1e9, 0.02))]
-    cases += [Case("library calls", f"PIDGains.create{args}", (lambda a: lambda tmp: PIDGains.create(*a, n=3))(args))
+    cases = [Case("library calls", f"Task.create{args}", (lambda a: lambda tmp: Task.create(*a))(args), names=named)
+             for args, named in ((([nan, 0, 0], [0, 0, 0], 2.0, 0.02), "q0"), (([0, 0, 0], [0, 0], 2.0, 0.02), "qg"),
+                                 (([0, 0, 0], [0, 0, 0], -2.0, 0.02), "duration"),
+                                 (([0, 0, 0], [0, 0, 0], 2.0, 0.0), "dt"),
+                                 (([0, 0, 0], [0, 0, 0], 2.0, 0.03), "dt=0.03"),
+                                 (("a", [0, 0, 0], 2.0, 0.02), "q0"),
+                                 (([0, 0, 0], [0, 0, 0], 1e9, 0.02), "duration, dt"))]
+    cases += [Case("library calls", f"PIDGains.create{args}", (lambda a: lambda tmp: PIDGains.create(*a, n=3))(args),
+                   names="kp")
               for args in (([1, 1], [1, 1, 1], [1, 1, 1]), ([-1, 1, 1], [1, 1, 1], [1, 1, 1]),
                            ([nan, 1, 1], [1, 1, 1], [1, 1, 1]))]
     options = {"optimal": [{"torque_bound": -1}, {"q_bar": (0, 0)}, {"linearization": "end"}, {"bogus": 1},
@@ -517,8 +581,9 @@ def api_cases() -> list[Case]:
 
         return run
 
-    cases += [Case("library calls", f"make({name!r}, **{o}).plan(paper task)", plan(name, o))
-              for name, opts in options.items() for o in opts]
+    cases += [Case("library calls", f"make({name!r}, **{o}).plan(paper task)", plan(name, o),
+                   names=f"'{key}'" if key == "bogus" else key)
+              for name, opts in options.items() for o in opts for key in o]
     return cases
 
 

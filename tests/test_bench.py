@@ -1,24 +1,63 @@
-"""`mjtraj bench`: the ratios it prints are the ones it measured (no timing assertion: machines are noisy)."""
+"""`mjtraj bench`: the ratios it prints are the ones it measured (no timing assertion: machines are noisy).
+
+The rates and ratios are checked against a scripted clock (`Clock`): the bench runs its real passes, but each span
+it times lasts what the test says, so every rate and ratio has a value computed here by hand.
+"""
 
 from __future__ import annotations
 
 import json
 import re
+import types
 
 import numpy as np
 import pytest
 
+import mjtraj.bench as bench
 from mjtraj.bench import bench_loop
 from mjtraj.cli import main
 
+PAPER_STEPS = 100
+"""Control periods of the paper task (T = 2 s at dt = 0.02 s, paper.toml), the episode of UR5Track-v0."""
 
-def test_loop_ratio_is_loop_rate_over_raw_rate(scenario):
-    rows = bench_loop(scenario, (1, 8), rounds=1)
-    assert [row["scenarios"] for row in rows] == [1, 8]
-    for row in rows:
-        assert np.isfinite(row["raw_steps_per_s"]) and row["raw_steps_per_s"] > 0
-        assert np.isfinite(row["loop_steps_per_s"]) and row["loop_steps_per_s"] > 0
-        assert row["ratio"] == pytest.approx(row["loop_steps_per_s"] / row["raw_steps_per_s"], rel=1e-12)
+
+class Clock:
+    """A stand-in for time.perf_counter: reads come in pairs (start, end), the k-th pair `spans[k]` seconds apart,
+    1024 s between pairs (which no span may include). Spans of few binary digits (0.25, 0.375, 3) keep every
+    difference exact. `done` says whether the code read it exactly as often as the spans scripted."""
+
+    def __init__(self, spans: list[float]) -> None:
+        self.spans, self.reads, self.now = list(spans), 0, 0.0
+
+    def __call__(self) -> float:
+        pair, end = divmod(self.reads, 2)
+        self.reads += 1
+        assert pair < len(self.spans), f"the clock was read more than the {2 * len(self.spans)} times scripted"
+        self.now += self.spans[pair] if end else 1024.0
+        return self.now
+
+    @property
+    def done(self) -> bool:
+        return self.reads == 2 * len(self.spans)
+
+
+def scripted(monkeypatch: pytest.MonkeyPatch, module: object, spans: list[float]) -> Clock:
+    """Give `module` (which calls time.perf_counter) a Clock of `spans`."""
+    clock = Clock(spans)
+    monkeypatch.setattr(module, "time", types.SimpleNamespace(perf_counter=clock))
+    return clock
+
+
+def test_loop_ratio_is_loop_rate_over_raw_rate(scenario, monkeypatch):
+    """Three rounds of (raw, loop) per batch size: the medians of the scripted spans give the rates, B N / median."""
+    clock = scripted(monkeypatch, bench, [4.0, 5.0, 1.0, 9.0, 2.0, 3.0,  # B = 1: raw 4, 1, 2; loop 5, 9, 3
+                                          0.5, 2.0, 0.25, 2.0, 1.0, 2.0])  # B = 8: raw 0.5, 0.25, 1; loop 2, 2, 2
+    rows = bench_loop(scenario, (1, 8), rounds=3)
+    assert clock.done
+    assert rows == [{"scenarios": 1, "raw_steps_per_s": PAPER_STEPS / 2.0, "loop_steps_per_s": PAPER_STEPS / 5.0,
+                     "ratio": pytest.approx(0.4, rel=1e-15)},
+                    {"scenarios": 8, "raw_steps_per_s": 8 * PAPER_STEPS / 0.5, "loop_steps_per_s": 8 * PAPER_STEPS / 2,
+                     "ratio": pytest.approx(0.25, rel=1e-15)}]
 
 
 def test_printed_table_carries_the_measured_ratios(capsys):
@@ -31,14 +70,25 @@ def test_printed_table_carries_the_measured_ratios(capsys):
         assert float(ratio) == pytest.approx(float(loop) / float(raw), abs=0.006)
 
 
-@pytest.mark.slow
-def test_startup_ratio_is_compare_over_imports():
-    from mjtraj.bench import bench_startup
+def test_startup_ratio_is_compare_over_imports(monkeypatch):
+    """Three commands, `repeats` fresh interpreters each (subprocess.run recorded here, not run): the medians of their
+    scripted spans, and compare's over each anchor's."""
+    import subprocess
+    import sys
 
-    row = bench_startup(repeats=1)
-    assert row["imports_s"] > 0 and row["compare_s"] > 0
-    assert row["ratio"] == pytest.approx(row["compare_s"] / row["imports_s"], rel=1e-12)
-    assert row["ratio_linalg"] == pytest.approx(row["compare_s"] / row["linalg_s"], rel=1e-12)
+    commands = []
+    monkeypatch.setattr(subprocess, "run", lambda command, **_: commands.append(command))
+    clock = scripted(monkeypatch, bench, [1.0, 0.4, 0.5,  # python -c "import mujoco, gymnasium, scipy"
+                                          0.625, 0.875, 0.75,  # ... scipy.linalg
+                                          3.0, 2.0, 9.0])  # mjtraj compare
+    row = bench.bench_startup(repeats=3)
+    assert clock.done
+    assert [c[1:3] for c in commands] == [["-c", "import mujoco, gymnasium, scipy"]] * 3 + [
+        ["-c", "import mujoco, gymnasium, scipy.linalg"]] * 3 + [["-m", "mjtraj"]] * 3
+    assert all(c[0] == sys.executable for c in commands) and all(c[3:5] == ["compare", "--no-figures"]
+                                                                 for c in commands[6:])
+    assert row == {"imports_s": 0.5, "linalg_s": 0.75, "compare_s": 3.0, "ratio": pytest.approx(6.0, rel=1e-15),
+                   "ratio_linalg": pytest.approx(4.0, rel=1e-15)}
 
 
 @pytest.mark.slow
@@ -99,23 +149,43 @@ def test_three_independent_qp_solvers_agree_with_mjtraj_on_the_optimal_planners_
 
 
 @pytest.mark.slow
-def test_render_ratio_is_fast_ur5_over_reacher_in_one_run():
-    from mjtraj.bench import bench_render
-
-    (row,) = bench_render(((64, 48),), frames=2, rounds=1)
+def test_render_ratio_is_fast_ur5_over_reacher_in_one_run(monkeypatch):
+    """Two rounds over fast UR5Track-v0, high and Reacher-v5 (present: a missing Reacher would leave the clock short):
+    each rate is frames over its best round's span."""
+    clock = scripted(monkeypatch, bench, [0.5, 2.0, 0.125,   # round 1: fast, high, Reacher-v5
+                                          0.25, 4.0, 0.375])  # round 2
+    (row,) = bench.bench_render(((64, 48),), frames=2, rounds=2)
+    assert clock.done
     assert row["size"] == "64x48"
-    assert all(row[k] > 0 for k in ("fast_fps", "high_fps", "reacher_fps"))  # Reacher-v5 present: not skipped
-    assert row["ratio"] == pytest.approx(row["fast_fps"] / row["reacher_fps"], rel=1e-12)
-    assert row["high_ratio"] == pytest.approx(row["high_fps"] / row["reacher_fps"], rel=1e-12)
+    assert (row["fast_fps"], row["high_fps"], row["reacher_fps"]) == (8.0, 1.0, 16.0)
+    assert (row["ratio"], row["high_ratio"]) == (0.5, 0.0625)
 
 
-def test_env_ratios_are_env_rate_over_each_raw_rate():
-    from mjtraj.bench import bench_env, bench_vector_env
+def test_env_ratios_are_env_rate_over_each_raw_rate(monkeypatch):
+    """bench_env: a warm-up (raw, then one span per episode of the env), then per round raw (one span), replay and env
+    (one span per episode each); only the rounds count. bench_vector_env: per round raw, replay and env, one
+    episode and its autoreset step each."""
+    episodes = 2
+    warm_up = [99.0, 99.0, 99.0]
+    rounds = [[1.0, 0.5, 1.5, 2.0, 2.0],  # raw; replay's two episodes (2 s); env's two (4 s)
+              [3.0, 1.0, 1.0, 1.0, 5.0],  # raw 3; replay 2; env 6
+              [2.0, 2.0, 1.0, 3.0, 2.0]]  # raw 2; replay 3; env 5
+    clock = scripted(monkeypatch, bench, warm_up + [span for spans in rounds for span in spans])
+    row = bench.bench_env(episodes=episodes, rounds=3)
+    assert clock.done
+    steps = episodes * PAPER_STEPS
+    assert row == {"raw_steps_per_s": steps / 2.0, "replay_steps_per_s": steps / 2.0, "env_steps_per_s": steps / 5.0,
+                   "ratio": pytest.approx(0.4, rel=1e-15), "ratio_replay": pytest.approx(0.4, rel=1e-15)}
 
-    for row in (bench_env(episodes=1, rounds=1), *bench_vector_env((4,), rounds=1)):
-        assert all(row[k] > 0 for k in ("raw_steps_per_s", "replay_steps_per_s", "env_steps_per_s"))
-        assert row["ratio"] == pytest.approx(row["env_steps_per_s"] / row["raw_steps_per_s"], rel=1e-12)
-        assert row["ratio_replay"] == pytest.approx(row["env_steps_per_s"] / row["replay_steps_per_s"], rel=1e-12)
+    clock = scripted(monkeypatch, bench, [1.0, 4.0, 10.0,  # raw, replay, env
+                                          2.0, 3.0, 8.0,
+                                          3.0, 2.0, 12.0])
+    (row,) = bench.bench_vector_env((4,), rounds=3)
+    assert clock.done
+    steps = 4 * (PAPER_STEPS + 1)
+    assert row == {"envs": 4, "raw_steps_per_s": steps / 2.0, "replay_steps_per_s": steps / 3.0,
+                   "env_steps_per_s": steps / 10.0, "ratio": pytest.approx(0.2, rel=1e-15),
+                   "ratio_replay": pytest.approx(0.3, rel=1e-15)}
 
 
 def test_the_replay_anchor_steps_the_envs_own_motions():
@@ -180,11 +250,19 @@ def test_busy_bench_reports_quiet_and_busy_times_of_the_public_api(monkeypatch):
     assert "OPENBLAS_NUM_THREADS" not in env and env["MKL_NUM_THREADS"] == "4"
 
 
-def test_api_timings_time_every_planner_and_the_env():
-    from mjtraj.bench_busy import PLANNERS, api_timings
+def test_api_timings_time_every_planner_and_the_env(monkeypatch):
+    """`repeats` timed plans of the linear planner, `slow_repeats` of each nonlinear one, five passes of `env_steps`
+    steps: the medians of the scripted spans, per plan and per step."""
+    import mjtraj.bench_busy as busy
 
-    times = api_timings(repeats=1, slow_repeats=1, env_steps=5)
-    assert list(times) == [*PLANNERS, "env.step"] and all(t > 0 for t in times.values())
+    clock = scripted(monkeypatch, busy, [3.0, 1.0, 2.0,  # optimal
+                                         7.0, 5.0,  # nonlinear_min_effort
+                                         11.0, 13.0,  # nonlinear_optimal
+                                         1.0, 0.5, 2.5, 0.25, 4.0])  # five env passes of 5 steps
+    times = busy.api_timings(repeats=3, slow_repeats=2, env_steps=5)
+    assert clock.done
+    assert busy.PLANNERS == ("optimal", "nonlinear_min_effort", "nonlinear_optimal")
+    assert times == {"optimal": 2.0, "nonlinear_min_effort": 6.0, "nonlinear_optimal": 12.0, "env.step": 0.2}
 
 
 def test_bench_json_prints_the_measurements_alone(capsys):
@@ -194,3 +272,18 @@ def test_bench_json_prints_the_measurements_alone(capsys):
     assert [row["scenarios"] for row in record["loop"]] == [1, 2]
     for row in record["loop"]:
         assert row["ratio"] == pytest.approx(row["loop_steps_per_s"] / row["raw_steps_per_s"], rel=1e-12)
+
+
+def test_the_docs_say_what_a_bare_bench_runs():
+    """docs/cli.md: a bare `mjtraj bench` runs every stage but the ones it names. Oracle: the command's source, each
+    stage's block run for "all" or only when named."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    source = (root / "mjtraj" / "cli" / "bench.py").read_text()
+    with_all = set(re.findall(r'if args\.what in \("(\w+)", "all"\):', source))
+    named_only = set(re.findall(r'if args\.what == "(\w+)":', source)) - {"all"}
+    assert with_all and named_only and not with_all & named_only
+    stated = re.search(r"A bare `mjtraj bench` runs all but ((?:`\w+`(?:, | and )?)+)", (root / "docs" / "cli.md")
+                       .read_text())
+    assert stated is not None and set(re.findall(r"`(\w+)`", stated[1])) == named_only

@@ -42,20 +42,53 @@ def test_best_name_without_a_choice(tmp_path):
         best_name(tmp_path)
 
 
-def test_scores_are_ratios_to_cubic_pid_on_the_same_scenarios():
-    """One baseline, two scenarios per family: each ratio is its mean J_exec over cubic+PID's, the two computed
-    independently here through the evaluation path."""
-    from mjtraj.envs import resolve
+def _env_costs(env, scenarios, act, monkeypatch) -> np.ndarray:
+    """Each scenario's J_exec, replayed in `env` (reset to it, `act(obs)` each step, the cost from the last step's
+    info): +inf where the episode diverged, or, on the nominal family, ended short of the goal."""
+    from mjtraj.envs.settings import TrackSettings
+
+    costs = []
+    for scenario in scenarios:
+        monkeypatch.setattr(TrackSettings, "scenario", lambda self, spec, scenario=scenario: scenario)
+        obs, _ = env.reset(options={"scenario": {"family": scenario.family, "seed": 0, "index": scenario.index}})
+        done = False
+        while not done:
+            obs, _, terminated, truncated, info = env.step(act(obs))
+            done = terminated or truncated
+        failed = info["diverged"] or (scenario.family == "nominal" and info["missed_goal"])
+        costs.append(np.inf if failed else info["metrics"]["cost"])
+    return np.array(costs)
+
+
+def test_scores_are_ratios_to_cubic_pid_on_the_same_scenarios(monkeypatch):
+    """One baseline, two scenarios per family. Oracle: the validation scenarios drawn here from the stated stream
+    [VALIDATION_SEED, VALIDATION_STREAM, family id, i] and replayed in UR5TrackEnv, stepped by hand: the policy acting
+    on the env's observations in the env it declares, and the controller alone (a zero action) in the default
+    random-task env (cubic+PID); each ratio is the mean of the policy's episode costs over cubic+PID's. The policy's
+    float32 kernels batch differently in the two paths: 1e-9 relative."""
+    from mjtraj.envs import UR5TrackEnv
 
     from mjtraj.rl.adapters import load_any
+    from mjtraj.rl.streams import VALIDATION_STREAM
+    from mjtraj.study import FAMILY_ID, FamilyScenario, draw_family
 
     name = baseline_names()[0]
-    got = best.score_baselines([name], scenarios=2)[name]
     policy = load_any(f"baseline:{name}")
-    pid = resolve(task="random")
+    assert not policy.sees_plant  # a deployable one: acts on observations alone
+    got = best.score_baselines([name], scenarios=2)[name]
+    assert list(got) == list(FAMILIES)
     for family in FAMILIES:
-        draws = best.validation_scenarios(family, 2, pid.model, pid.dt)
-        mine = best._costs(policy, policy.settings(), draws)
-        ref = best._costs(None, pid, draws)
-        expected = mine.mean() / ref.mean() if np.all(np.isfinite(mine)) else np.inf
-        assert got[family] == expected
+        plants = {"plant_randomization": "mismatch"} if family == "mismatch" else {}
+        acting = UR5TrackEnv(**{**policy.env, "task": "random", **plants})
+        alone = UR5TrackEnv(task="random", **plants)
+        scenarios = []
+        for i in range(2):
+            rng = np.random.default_rng([best.VALIDATION_SEED, VALIDATION_STREAM, FAMILY_ID[family], i])
+            scenarios.append(FamilyScenario(family, i, *draw_family(rng, family, alone.settings.model,
+                                                                    alone.settings.dt), 0))
+        policy.start(np.ones(1, dtype=bool))
+        mine = _env_costs(acting, scenarios, lambda obs: policy.act(obs[None])[0], monkeypatch)
+        reference = _env_costs(alone, scenarios, lambda obs: np.zeros(3), monkeypatch)
+        assert np.all(np.isfinite(reference)), family
+        expected = mine.mean() / reference.mean() if np.all(np.isfinite(mine)) else np.inf
+        assert got[family] == pytest.approx(expected, rel=1e-9), family

@@ -21,19 +21,50 @@ def test_all_names_import():
 
 
 
+def _design_table(heading: str) -> dict[str, tuple[str, str]]:
+    """docs/design.md's table under `heading`: option -> (default, values), as written."""
+    text = (ROOT / "docs" / "design.md").read_text()
+    section = text[text.index(heading):]
+    rows = {}
+    for line in section.splitlines()[1:]:
+        if line.startswith("#"):
+            break
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if line.startswith("|") and len(cells) == 3 and cells[0] not in ("option", "") and set(cells[0]) != {"-"}:
+            rows[cells[0]] = (cells[1], cells[2])
+    return rows
+
+
 def test_documented_loop_defaults_match_the_docs():
-    """docs/design.md's defaults: the pid law, feedforward inverse, sample acceleration, native gravity comp, no
-    anti-windup."""
+    """docs/design.md's table "Loop options, declared once" names every LoopConfig option with its default and, for
+    a named choice, its valid values: the page is read here, and each default is parsed from its text."""
     import dataclasses
+    import math
 
     from mjtraj.core.closed_loop import LoopConfig
+    from mjtraj.core.options import declared_options, resolved_choices
 
-    defaults = {f.name: f.default for f in dataclasses.fields(LoopConfig) if f.default is not dataclasses.MISSING}
-    assert defaults == {"controller": "pid", "feedforward": "inverse", "ff_accel": "sample", "gravity_comp": "native",
-                        "anti_windup": "none", "adaptation_rate": 0.0155, "substeps": 1,
-                        "divergence_bound": pytest.approx(3.141592653589793),
-                        "delay": 0}
-
+    table = _design_table("### Loop options, declared once")
+    declared = {f.name: (f.default, declaration) for f, declaration, _ in declared_options(LoopConfig)}
+    assert list(table) == list(declared)
+    for name, (default, declaration) in declared.items():
+        written, values = table[name]
+        assert default is not dataclasses.MISSING, name
+        if isinstance(default, str):
+            assert written == default, name
+        elif written == "π rad":
+            assert default == math.pi, name
+        else:
+            assert float(written) == default and type(default)(written) == default, name
+        choices = resolved_choices(declaration)
+        if choices is not None and isinstance(default, str):
+            assert values == ", ".join(choices), name
+        elif choices is not None:
+            assert values.startswith(" or ".join(map(str, choices)) + " "), name
+        elif declaration.minimum is not None:
+            assert values.startswith(f"≥ {declaration.minimum:g}"), name
+        else:
+            assert declaration.positive and values.startswith("> 0"), name
 
 
 @pytest.mark.slow
@@ -84,16 +115,22 @@ def test_lazy_names_resolve_to_their_modules():
     assert out == "mjtraj.study.comparison True"
 
 
-@pytest.mark.parametrize("code", [
-    "import gymnasium as gym; import mjtraj; gym.make('UR5Track-v0').reset(seed=0)",
-    "import mjtraj; import gymnasium as gym; gym.make('UR5Track-v0').reset(seed=0)",
-    "import mjtraj.core.lqr, gymnasium as gym; gym.make_vec('UR5Track-v0', num_envs=2, "
-    "vectorization_mode='vector_entry_point').reset(seed=0)",
-    "import mjtraj.envs, gymnasium as gym; gym.make('UR5Track-v0').reset(seed=0)",
-    "import gymnasium as gym; gym.make('mjtraj:UR5Track-v0').reset(seed=0)",
+@pytest.mark.parametrize(("code", "made"), [
+    ("import gymnasium as gym; import mjtraj; env = gym.make('UR5Track-v0')", "UR5TrackEnv"),
+    ("import mjtraj; import gymnasium as gym; env = gym.make('UR5Track-v0')", "UR5TrackEnv"),
+    ("import mjtraj.core.lqr, gymnasium as gym; env = gym.make_vec('UR5Track-v0', num_envs=2, "
+     "vectorization_mode='vector_entry_point')", "UR5TrackVectorEnv"),
+    ("import mjtraj.envs, gymnasium as gym; env = gym.make('UR5Track-v0')", "UR5TrackEnv"),
+    ("import gymnasium as gym; env = gym.make('mjtraj:UR5Track-v0')", "UR5TrackEnv"),
 ])
-def test_env_registration(code):
-    _fresh(code + "; print('ok')", MUJOCO_GL="osmesa")
+def test_env_registration(code, made):
+    """Every import order registers UR5Track-v0 with mjtraj's env class (or its native vector env), and the env it
+    makes resets to an observation inside its own observation space."""
+    out = _fresh(code + "; obs, _ = env.reset(seed=0); u = env.unwrapped; "
+                 "print(env.spec.id, type(u).__module__, type(u).__name__, env.observation_space.contains(obs))",
+                 MUJOCO_GL="osmesa")
+    module = "vector" if made == "UR5TrackVectorEnv" else "ur5_track"
+    assert out.splitlines()[-1] == f"UR5Track-v0 mjtraj.envs.{module} {made} True"
 
 
 def test_recorded_versions_are_the_installed_distributions():

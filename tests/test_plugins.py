@@ -135,3 +135,21 @@ def test_a_pip_installed_plugin_runs_in_mjtraj_compare(tmp_path):
         subprocess.run([*pip, "uninstall", "-y", "mjtraj-toy-plugin"], check=True)
     assert "controller = pid_again," in out
     assert any(line.startswith("ramp ") for line in out.splitlines())
+
+
+def test_the_documented_factory_signature_is_the_one_the_loop_calls(installed, scenario):
+    """Every page that states a plug-in law factory's parameters states the four the loop passes: the toy plug-in
+    takes exactly those (a fifth argument, or a missing one, would fail its call) and the loop builds its law."""
+    import importlib
+    import inspect
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    pages = [root / "docs" / name for name in ("api.md", "architecture.md", "design.md")]
+    stated = {page.name: set(re.findall(r"factory\(([^)]*)\)", page.read_text())) for page in pages}
+    assert stated == {page.name: {"config, dt, n, nsim"} for page in pages}
+    assert re.findall(r"factory\(([^)]*)\)", inspect.getsource(plugins)) == ["config, dt, n, nsim"]
+    pid_again = importlib.import_module("toy_plugin").pid_again
+    assert ", ".join(inspect.signature(pid_again).parameters) == "config, dt, n, nsim"
+    assert ClosedLoop(scenario.model, LoopConfig(scenario.loop.gains, controller="pid_again")).nsim == 1

@@ -18,13 +18,13 @@ from functools import cached_property
 from typing import Any
 
 import mujoco
-import numba
 import numpy as np
 from mujoco import rollout as mj_rollout
 from mujoco.batch import Batch
 from numpy.typing import NDArray
 
 from mjtraj.core.model import control_range
+from mjtraj.core.planners.numba_cache import njit
 from mjtraj.core.planners.rigid_body import RigidBody
 from mjtraj.exceptions import SolverError
 
@@ -318,7 +318,7 @@ class Shooting:
         return H  # type: ignore[no-any-return]
 
 
-@numba.njit(cache=True)
+@njit
 def _propagate(A: NDArray[np.float64], B: NDArray[np.float64], S: NDArray[np.float64]) -> None:
     """S_{k+1} = A_k S_k + [0 .. B_k .. 0] for k = 0..N-1 into S (N+1, 2n, N n), whose S_0 is zero: only the blocks
     left of k + 1 are written, the rest stays zero (x_{k+1} does not depend on later torques). Compiled: NumPy's 100

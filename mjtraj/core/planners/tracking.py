@@ -8,9 +8,10 @@ from __future__ import annotations
 
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from mjtraj.core.planners.numba_cache import njit
 
 TRACKING_ERROR = (0.01, 0.1)
 """The feedback is LQR with Bryson's weights for these largest tracking errors (rad, rad/s) and the torque bound
@@ -34,7 +35,7 @@ def tracking_gains(Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[
     return K
 
 
-@numba.njit(cache=True)
+@njit
 def _riccati(Ad: Any, Bd: Any, Q: Any, R: Any, K: Any) -> None:  # pragma: no cover (compiled)
     """`tracking_gains`' recursion, written out for small matrices; fills K (N, nu, nx)."""
     steps, nx, nu = Bd.shape

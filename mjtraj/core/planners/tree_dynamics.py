@@ -12,11 +12,11 @@ da/dx = -M^-1 dtau/dx.
 All P points run in one compiled call: Pinocchio's Python API takes one point per call, and at N = 100 steps of
 RK4 (4 N points per Jacobian) the calls cost more than the arithmetic (about 1.7 ms against 0.72 ms per 400
 points on one core of this machine; a test holds the values to Pinocchio's within 1e-11). The compiled code is
-cached on disk (numba's cache=True): the first call in a new installation compiles it (about 9 s here), later
-processes load it. `HingeTree.rk4` chains these derivatives through the four stages of an RK4 step of MuJoCo's arm
-(damping, the input map, clamped controls, dry friction, per-body gravity compensation) in the same compiled code:
-the step and its Jacobian in (x, u), 0.79 ms per 100 states where NumPy's chain over the same compiled derivatives
-took 0.99.
+cached on disk (numba's cache, in the folder `mjtraj.core.planners.numba_cache` chooses): the first call in a new
+installation compiles it (about 9 s here; `mjtraj doctor --warm-up` does it ahead), later processes load it.
+`HingeTree.rk4` chains these derivatives through the four stages of an RK4 step of MuJoCo's arm (damping, the input
+map, clamped controls, dry friction, per-body gravity compensation) in the same compiled code: the step and its
+Jacobian in (x, u), 0.79 ms per 100 states where NumPy's chain over the same compiled derivatives took 0.99.
 
 Spatial vectors are pairs of 3-vectors (linear, angular), each a row of a (rows, 3) array addressed by its index:
 numba makes a view of an array row at a cost, and the passes take hundreds of them per point. A motion in the
@@ -29,14 +29,15 @@ from __future__ import annotations
 
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
-_compiled = numba.njit(cache=True, error_model="numpy")
+from mjtraj.core.planners.numba_cache import njit
+
+_compiled = njit(error_model="numpy")
 """numba's compilation of the kernels: NumPy's error model (a division by zero gives inf or nan, not an exception),
 which leaves out the checks around every division (5 % of `derivatives`' time; the same values, bit for bit)."""
-_inline = numba.njit(cache=True, inline="always", error_model="numpy")
+_inline = njit(inline="always", error_model="numpy")
 
 
 @_inline
