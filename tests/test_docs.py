@@ -85,16 +85,19 @@ def _table(text: str, header: str) -> dict[str, dict[str, str]]:
     return rows
 
 
-@pytest.mark.parametrize("page, cited, headers", [
-    ("docs/results.md", "docs/results/v2", ("| method | nominal: J / cubic+adaptive CT, P(improve) |",)),
-    ("docs/results.md", "docs/results/best", ("| method | nominal: J / cubic+PID, P(improve) |",
-                                              "| method | nominal: J / floor |")),
+@pytest.mark.parametrize("page, section, cited, headers", [
+    ("docs/results.md", "## Tracking controllers under protocol v2", "docs/results/v2",
+     ("| method | nominal: J / cubic+adaptive CT, P(improve) |", "| method | nominal: J / floor |")),
+    ("docs/results.md", "## Tracking controllers under protocol v1", "docs/results/best",
+     ("| method | nominal: J / cubic+PID, P(improve) |", "| method | nominal: J / floor |")),
 ])
-def test_the_result_tables_are_the_cited_summarys_cells(page, cited, headers):
-    """Every cell of a page's tables of the control laws (results.md's protocol v2 and v1 tables) is the cell of the
-    same method and column in the SUMMARY.md the page cites (written by the command shown beside them), not typed by
-    hand."""
+def test_the_result_tables_are_the_cited_summarys_cells(page, section, cited, headers):
+    """Every cell of a page's tables of the control laws (results.md's protocol v2 and v1 sections) is the cell of
+    the same method and column in the SUMMARY.md the section cites (written by the command shown beside them), not
+    typed by hand."""
     text = (ROOT / page).read_text()
+    text = text[text.index(section + "\n"):]
+    text = text[:text.find("\n## ", 1) if "\n## " in text else None]
     summary = (ROOT / cited / "SUMMARY.md").read_text()
     link = cited.removeprefix("docs/") if page.startswith("docs/") else cited
     assert f"]({link}/SUMMARY.md)" in text and f"--out {cited}" in text
@@ -223,3 +226,21 @@ def test_no_page_but_the_ones_that_measure_them_quotes_timings():
             pages[f"mjtraj {name} --help"] = " ".join(sub.format_help().split())
     for page, text in pages.items():
         assert not duration.findall(" ".join(text.split())), page
+
+
+def test_the_published_v2_rows_that_succeeded_are_at_rest_and_not_below_their_floor():
+    """docs/results/v2/eval.csv (protocol v2, 200 held-out scenarios per family, every method): every row whose status
+    is ok ends within the settling band of its goal (2 % of the move) and below 0.05 rad/s, and scores at or above
+    its scenario's floor (to the replay's tolerance, 1e-6)."""
+    import csv
+
+    from mjtraj.core.settle import SETTLE_BAND, SETTLE_SPEED
+
+    with open(ROOT / "docs/results/v2/eval.csv", newline="") as handle:
+        rows = [r for r in csv.DictReader(handle) if r["status"] == "ok"]
+    families = {r["family"] for r in rows}
+    assert families == {"nominal", "aggressive", "mismatch", "noisy"} and len(rows) > 4000
+    for r in rows:
+        assert float(r["end_err"]) <= SETTLE_BAND * float(r["max_displacement"]), r["scenario"]
+        assert float(r["end_speed"]) <= SETTLE_SPEED, r["scenario"]
+        assert float(r["cost_over_floor"]) >= 1.0 - 1e-6, (r["family"], r["scenario"], r["method"])
