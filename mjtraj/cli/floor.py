@@ -82,8 +82,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _summary(args: argparse.Namespace, family: str, records: list[dict[str, Any]]) -> dict[str, Any]:
     """One family's summary of its records."""
-    import numpy as np
-
     ok = [r for r in records if r["status"] == "ok"]
     laws = [k[2:] for k in ok[0] if k.startswith("J_")] if ok else []
     v2 = args.protocol == "v2"
@@ -91,40 +89,67 @@ def _summary(args: argparse.Namespace, family: str, records: list[dict[str, Any]
                                "planner": args.planner,
                                "starts": "every start" if args.every_start or (v2 and family == "mismatch")
                                else "the best-ranked start", "scenarios": len(records), "floored": len(ok)}
-    if ok and v2:  # a law that did not come to rest failed: its means are over the scenarios it succeeded on
-        floor = np.array([r["floor"] for r in ok])
-        for law in laws:
-            cost = np.array([r[f"J_{law}"] for r in ok])
-            done = np.isfinite(cost)
-            summary[f"mean J_{law} (at rest)"] = float(np.mean(cost[done])) if done.any() else float("nan")
-            summary[f"J_{law}: not at rest"] = int(np.sum(~done))
-            summary[f"J_{law} / floor (ratio of means, where at rest)"] = (
-                float(np.mean(cost[done]) / np.mean(floor[done])) if done.any() else float("nan"))
-        summary["mean floor"] = float(np.mean(floor))
-    elif ok:
-        pid = np.array([r["J_pid"] for r in ok]) if "pid" in laws else None
-        for law in laws:
-            summary[f"mean J_{law}"] = float(np.mean([r[f"J_{law}"] for r in ok]))
-        summary["mean floor"] = float(np.mean([r["floor"] for r in ok]))
-        if pid is not None:
-            summary["floor / cubic+PID (ratio of means)"] = summary["mean floor"] / float(np.mean(pid))
     if ok:
-        summary["median floor / best law"] = float(np.median([r["floor_over_best"] for r in ok]))
-        summary["median seconds"] = float(np.median([r["seconds"] for r in ok]))
-        spreads = [r["start_spread"] for r in ok if np.isfinite(r["start_spread"])]
-        if spreads:
-            summary["median spread of the starts' floors"] = float(np.median(spreads))
-        summary["largest end error / settling band" if v2 else "largest terminal_err / goal radius"] = float(
-            max(r["terminal_err"] / r["goal_radius"] for r in ok))
-        if "end_speed" in ok[0]:
-            summary["largest end speed (rad/s)"] = float(max(r["end_speed"] for r in ok))
-        for law in laws:
-            if f"floor_without_{law}" in ok[0]:
-                pairs = np.array([(r[f"J_{law}"], r[f"floor_without_{law}"]) for r in ok])
-                done = np.isfinite(pairs).all(axis=1)
-                summary[f"J_{law} / floor without its start (ratio of means, where at rest)"] = (
-                    float(np.mean(pairs[done, 0]) / np.mean(pairs[done, 1])) if done.any() else float("nan"))
+        summary.update(_at_rest_means(ok, laws) if v2 else _means(ok, laws))
+        summary.update(_solves(ok, laws, v2))
     return summary
+
+
+def _ratio(pairs: list[tuple[float, float]]) -> float:
+    """The ratio of means of (numerator, denominator) pairs, over the pairs whose both are finite (NaN: none)."""
+    import numpy as np
+
+    values = np.array(pairs, dtype=np.float64).reshape(-1, 2)
+    done = np.isfinite(values).all(axis=1)
+    return float(np.mean(values[done, 0]) / np.mean(values[done, 1])) if done.any() else float("nan")
+
+
+def _means(ok: list[dict[str, Any]], laws: list[str]) -> dict[str, Any]:
+    """Protocol v1: each law's mean J_exec and the floor's, and the floor over cubic+PID's."""
+    import numpy as np
+
+    out: dict[str, Any] = {f"mean J_{law}": float(np.mean([r[f"J_{law}"] for r in ok])) for law in laws}
+    out["mean floor"] = float(np.mean([r["floor"] for r in ok]))
+    if "pid" in laws:
+        out["floor / cubic+PID (ratio of means)"] = out["mean floor"] / float(np.mean([r["J_pid"] for r in ok]))
+    return out
+
+
+def _at_rest_means(ok: list[dict[str, Any]], laws: list[str]) -> dict[str, Any]:
+    """Protocol v2: a law that did not come to rest failed, so its mean J_settle and its ratio to the floor are over
+    the scenarios it succeeded on, beside how many it failed."""
+    import numpy as np
+
+    out: dict[str, Any] = {}
+    for law in laws:
+        cost = np.array([r[f"J_{law}"] for r in ok])
+        done = np.isfinite(cost)
+        out[f"mean J_{law} (at rest)"] = float(np.mean(cost[done])) if done.any() else float("nan")
+        out[f"J_{law}: not at rest"] = int(np.sum(~done))
+        out[f"J_{law} / floor (ratio of means, where at rest)"] = _ratio([(r[f"J_{law}"], r["floor"]) for r in ok])
+    out["mean floor"] = float(np.mean([r["floor"] for r in ok]))
+    return out
+
+
+def _solves(ok: list[dict[str, Any]], laws: list[str], v2: bool) -> dict[str, Any]:
+    """How the solves went: the floor over the best law, time, the starts' spread, the terminal rule's slack, and in
+    v2 on mismatch plants each law against the floor found without its own start."""
+    import numpy as np
+
+    out: dict[str, Any] = {"median floor / best law": float(np.median([r["floor_over_best"] for r in ok])),
+                           "median seconds": float(np.median([r["seconds"] for r in ok]))}
+    spreads = [r["start_spread"] for r in ok if np.isfinite(r["start_spread"])]
+    if spreads:
+        out["median spread of the starts' floors"] = float(np.median(spreads))
+    out["largest end error / settling band" if v2 else "largest terminal_err / goal radius"] = float(
+        max(r["terminal_err"] / r["goal_radius"] for r in ok))
+    if "end_speed" in ok[0]:
+        out["largest end speed (rad/s)"] = float(max(r["end_speed"] for r in ok))
+    for law in laws:
+        if f"floor_without_{law}" in ok[0]:
+            out[f"J_{law} / floor without its start (ratio of means, where at rest)"] = _ratio(
+                [(r[f"J_{law}"], r[f"floor_without_{law}"]) for r in ok])
+    return out
 
 
 def _print(summary: dict[str, Any], records: list[dict[str, Any]]) -> None:

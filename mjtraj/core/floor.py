@@ -296,6 +296,25 @@ def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], 
             return u, cost, constraint, iteration, True
 
 
+def _check(q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64], q_diag: NDArray[np.float64],
+           r_diag: NDArray[np.float64], limit: NDArray[np.float64], starts: Mapping[str, NDArray[np.float64]],
+           goal_radius: float | None, at_rest: AtRest | None) -> None:
+    """InvalidInputError unless `clairvoyant_floor`'s arguments agree (shapes, a start, one terminal rule)."""
+    n = q_ref.shape[1]
+    if not starts:
+        raise InvalidInputError("starts: expected at least one start, got none")
+    if q_diag.shape != (2 * n,) or r_diag.shape != (n,) or limit.shape != (n,) or qd_ref.shape != q_ref.shape:
+        raise InvalidInputError(f"q_ref, qd_ref, q_diag, r_diag, limit: expected shapes (N+1, {n}) twice, "
+                                f"({2 * n},), ({n},), ({n},); got {q_ref.shape}, {qd_ref.shape}, {q_diag.shape}, "
+                                f"{r_diag.shape}, {limit.shape}")
+    if (goal_radius is None) == (at_rest is None):
+        raise InvalidInputError(f"goal_radius, at_rest: expected exactly one terminal rule, got goal_radius="
+                                f"{goal_radius!r}, at_rest={at_rest!r}")
+    if at_rest is not None and (np.shape(at_rest.goal) != (n,) or not at_rest.band > 0 or not at_rest.speed > 0):
+        raise InvalidInputError(f"at_rest: expected a goal of shape ({n},), a band and a speed > 0; got "
+                                f"{np.shape(at_rest.goal)}, {at_rest.band!r}, {at_rest.speed!r}")
+
+
 @single_blas_thread
 def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64],
                       q_diag: NDArray[np.float64], r_diag: NDArray[np.float64], limit: NDArray[np.float64], *,
@@ -327,18 +346,7 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
     """
     clock = time.perf_counter()
     N, n = q_ref.shape[0] - 1, q_ref.shape[1]
-    if not starts:
-        raise InvalidInputError("starts: expected at least one start, got none")
-    if q_diag.shape != (2 * n,) or r_diag.shape != (n,) or limit.shape != (n,) or qd_ref.shape != q_ref.shape:
-        raise InvalidInputError(f"q_ref, qd_ref, q_diag, r_diag, limit: expected shapes (N+1, {n}) twice, "
-                                f"({2 * n},), ({n},), ({n},); got {q_ref.shape}, {qd_ref.shape}, {q_diag.shape}, "
-                                f"{r_diag.shape}, {limit.shape}")
-    if (goal_radius is None) == (at_rest is None):
-        raise InvalidInputError(f"goal_radius, at_rest: expected exactly one terminal rule, got goal_radius="
-                                f"{goal_radius!r}, at_rest={at_rest!r}")
-    if at_rest is not None and (np.shape(at_rest.goal) != (n,) or not at_rest.band > 0 or not at_rest.speed > 0):
-        raise InvalidInputError(f"at_rest: expected a goal of shape ({n},), a band and a speed > 0; got "
-                                f"{np.shape(at_rest.goal)}, {at_rest.band!r}, {at_rest.speed!r}")
+    _check(q_ref, qd_ref, q_diag, r_diag, limit, starts, goal_radius, at_rest)
     x_ref = np.concatenate([q_ref, qd_ref], axis=1)
     shooting = Shooting(plant, x_ref[0].copy(), x_ref[-1].copy(), np.zeros((2 * n, 2 * n)), np.zeros((n, n)), N,
                         FD_EPS, partial=True)
