@@ -327,12 +327,32 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
                   weights: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
                   seconds: dict[str, float] | None = None, actors: Sequence[ActorSpec] = ()) -> list[dict[str, Any]]:
     """The rows of `scenarios` (unit `unit` = (family, index) of the rows), scored with `weights`; `seconds` per
-    stage are added to (see run_unit). Raises what planning or execution raise (run_unit records it)."""
+    stage are added to (see run_unit). Raises what planning or execution raise (run_unit records it). The stages:
+    plan (with each plan's extra columns), execute every planner under every controller variant (and the floors),
+    then the planners' rows and each actor's."""
     seconds = {"sample": 0.0, "plan": 0.0, "execute": 0.0, "metrics": 0.0} if seconds is None else seconds
-    family, u = unit
-    model = settings.base.model
+    family, _ = unit
+    base = settings.base
     clock = time.perf_counter()
     plans = plan_scenarios(settings, scenarios)
+    extras = _plan_extras(settings, plans)
+    seconds["plan"] += time.perf_counter() - clock
+    plant = perturbed_plant(base.model, base.model_path, base.model_torque_limit) if family == "mismatch" else None
+    outcomes, floors = _executions(settings, family, scenarios, plans, weights, plant, seconds)
+    rows = _planner_rows(settings, unit, scenarios, plans, extras, outcomes, floors)
+    for spec in actors:
+        rows += _actor_rows(settings, unit, scenarios, plans, weights, plant, spec)
+    return rows
+
+
+_Key = tuple[int, str, str, str]
+"""(scenario position in the unit, planner, ff_accel, gravity_comp): one execution of a unit."""
+
+
+def _plan_extras(settings: SweepSettings, plans: dict[str, list[Reference | MjtrajError]]
+                 ) -> dict[tuple[int, str], dict[str, float]]:
+    """(scenario position, planner) -> the plan's own columns: its planned effort (rms of u_plan, N m) where it has
+    one, and with `model_error` the linear model's open-loop prediction error."""
     extras: dict[tuple[int, str], dict[str, float]] = {}
     for name, refs in plans.items():
         for b, ref in enumerate(refs):
@@ -342,19 +362,26 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
         keyed = [(key, ref) for key in extras if isinstance(ref := plans[key[1]][key[0]], Reference)]
         for steps in sorted({ref.steps for _, ref in keyed}):
             group = [(key, ref) for key, ref in keyed if ref.steps == steps]
-            errors = _model_errors(model, [ref for _, ref in group])
+            errors = _model_errors(settings.base.model, [ref for _, ref in group])
             for (key, _), value in zip(group, errors, strict=True):
                 extras[key]["model_error"] = float(value)
-    seconds["plan"] += time.perf_counter() - clock
+    return extras
+
+
+def _executions(settings: SweepSettings, family: str, scenarios: list[FamilyScenario],
+                plans: dict[str, list[Reference | MjtrajError]],
+                weights: list[tuple[NDArray[np.float64], NDArray[np.float64]]], plant: mujoco.MjModel | None,
+                seconds: dict[str, float]) -> tuple[dict[_Key, Outcome], dict[_Key, float]]:
+    """Every planned reference executed under every controller variant, and with `floors` each execution's floor
+    (NaN where it failed)."""
+    model = settings.base.model
     mismatch = family == "mismatch"
-    base = settings.base
-    plant = perturbed_plant(model, base.model_path, base.model_torque_limit) if mismatch else None
     live = [(b, name) for b in range(len(scenarios)) for name in settings.planners
             if isinstance(plans[name][b], Reference)]
     references = [ref for b, name in live if isinstance(ref := plans[name][b], Reference)]
     jobs = jobs_for(settings, [scenarios[b] for b, _ in live], references, [weights[b] for b, _ in live])
-    outcomes: dict[tuple[int, str, str, str], Outcome] = {}
-    floors: dict[tuple[int, str, str, str], float] = {}
+    outcomes: dict[_Key, Outcome] = {}
+    floors: dict[_Key, float] = {}
     for ff in settings.ff_accel:
         for gc in settings.gravity_comp:
             config = settings.loop_config(ff, gc, mismatch=mismatch)
@@ -370,6 +397,14 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
                                             strict=True):
                     floors[(b, name, ff, gc)] = found.cost if isinstance(found, Floor) else float("nan")
                 seconds["floor"] = seconds.get("floor", 0.0) + time.perf_counter() - clock
+    return outcomes, floors
+
+
+def _planner_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: list[FamilyScenario],
+                  plans: dict[str, list[Reference | MjtrajError]], extras: dict[tuple[int, str], dict[str, float]],
+                  outcomes: dict[_Key, Outcome], floors: dict[_Key, float]) -> list[dict[str, Any]]:
+    """One row per scenario, controller variant and planner, in that order (a failed plan's row says why)."""
+    family, u = unit
     rows = []
     fixed = fixed_columns(settings)
     for b, s in enumerate(scenarios):
@@ -389,27 +424,38 @@ def scenario_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: lis
                                     gravity_comp=gc, outcome=result, extras=extra, solver=solver, task=s.task,
                                     perturbation=s.perturbation, settings=fixed, more=more,
                                     settle=bool(settings.settle)).columns())
+    return rows
+
+
+def _actor_rows(settings: SweepSettings, unit: tuple[str, int], scenarios: list[FamilyScenario],
+                plans: dict[str, list[Reference | MjtrajError]],
+                weights: list[tuple[NDArray[np.float64], NDArray[np.float64]]], plant: mujoco.MjModel | None,
+                spec: ActorSpec) -> list[dict[str, Any]]:
+    """An actor's rows on its planner's references under the first controller variant (an error other than
+    `spec.stop_on` becomes every row's status, and the evaluation goes on)."""
+    family, u = unit
     ff, gc = settings.ff_accel[0], settings.gravity_comp[0]
-    config = settings.loop_config(ff, gc, mismatch=mismatch)
-    for spec in actors:
-        refs = plans[spec.planner]
-        ids = [b for b, ref in enumerate(refs) if isinstance(ref, Reference)]
-        try:
-            mine = jobs_for(settings, [scenarios[b] for b in ids], [r for r in refs if isinstance(r, Reference)],
-                            [weights[b] for b in ids])
-            done = dict(zip(ids, execute(model, config, mine, plant=plant, actor=spec.actor), strict=True))
-        except spec.stop_on:
-            raise
-        except Exception as e:  # noqa: BLE001 - recorded, and the evaluation goes on
-            done = {b: Outcome("error", one_line(e)) for b in range(len(scenarios))}
-        for b, s in enumerate(scenarios):
-            plan = refs[b]
-            result = done[b] if b in done else plan_failure(plan) if isinstance(plan, MjtrajError) else \
-                Outcome("error", "not executed")
-            result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
-            rows.append(Row(family=family, scenario=s.index, unit=u, planner=spec.label, ff_accel=ff,
-                            gravity_comp=gc, outcome=result, task=s.task, perturbation=s.perturbation,
-                            settings=fixed, more=spec.columns, settle=bool(settings.settle)).columns())
+    config = settings.loop_config(ff, gc, mismatch=family == "mismatch")
+    refs = plans[spec.planner]
+    ids = [b for b, ref in enumerate(refs) if isinstance(ref, Reference)]
+    try:
+        mine = jobs_for(settings, [scenarios[b] for b in ids], [r for r in refs if isinstance(r, Reference)],
+                        [weights[b] for b in ids])
+        done = dict(zip(ids, execute(settings.base.model, config, mine, plant=plant, actor=spec.actor), strict=True))
+    except spec.stop_on:
+        raise
+    except Exception as e:  # noqa: BLE001 - recorded, and the evaluation goes on
+        done = {b: Outcome("error", one_line(e)) for b in range(len(scenarios))}
+    rows = []
+    fixed = fixed_columns(settings)
+    for b, s in enumerate(scenarios):
+        plan = refs[b]
+        result = done[b] if b in done else plan_failure(plan) if isinstance(plan, MjtrajError) else \
+            Outcome("error", "not executed")
+        result = goal_checked(result, float(np.max(np.abs(s.task.displacement))))
+        rows.append(Row(family=family, scenario=s.index, unit=u, planner=spec.label, ff_accel=ff,
+                        gravity_comp=gc, outcome=result, task=s.task, perturbation=s.perturbation,
+                        settings=fixed, more=spec.columns, settle=bool(settings.settle)).columns())
     return rows
 
 
