@@ -276,7 +276,7 @@ def test_on_a_linear_plant_the_at_rest_floor_is_the_convex_qps_solution_by_osqp(
     import osqp
     import scipy.sparse
 
-    from mjtraj.core.floor import GOAL_MARGIN, AtRest
+    from mjtraj.core.floor import DEFAULT_SETTINGS, AtRest
 
     inertia, damping, N, S, h = 0.3, 0.4, 30, 10, 0.02
     plant = mujoco.MjModel.from_xml_string(ROTOR.format(inertia=inertia, damping=damping))
@@ -308,7 +308,7 @@ def test_on_a_linear_plant_the_at_rest_floor_is_the_convex_qps_solution_by_osqp(
     target = ((x_ref[1:T] - Phi[1:T]) * w).ravel()
     system = np.vstack([rows, np.sqrt(r_diag[0]) * np.eye(T)])
     goal = np.concatenate([target, np.zeros(T)])
-    aim = GOAL_MARGIN * np.array([rule.band, rule.speed])
+    aim = DEFAULT_SETTINGS.goal_margin * np.array([rule.band, rule.speed])
     centre = np.array([0.8, 0.0]) - Phi[T]
     solver = osqp.OSQP()
     solver.setup(scipy.sparse.csc_matrix(2 * system.T @ system), -2 * system.T @ goal,
@@ -363,3 +363,26 @@ def test_protocol_v2s_floor_replays_at_rest_and_no_law_at_rest_scores_below_it(f
     if fs.perturbation is not None:
         assert not any(np.isnan(list(floor.starts.values())))  # every start solved
         assert all(floor.without(law) >= floor.cost for law in floor.controllers)
+
+
+def test_the_solvers_tunables_are_settings_in_the_open(scenario, model):
+    """`FloorSettings` reaches the solve (a loose stall test stops it earlier, no lower than the default's floor; a
+    cap of one iteration leaves it short of the goal) and refuses a bad value by name; the defaults are the published
+    floors' (the golden floors pin them)."""
+    from mjtraj.exceptions import SolverError
+    from mjtraj.core.floor import DEFAULT_SETTINGS, FloorSettings
+
+    fs = draw_scenario("aggressive", 1, 3, model, scenario.task.dt)
+    ref = scenario.planner("cubic").plan(fs.task, model)
+    job = Job(ref, scenario.scoring.weights(fs.task, JointInfo.of(model).torque_limit))
+    move = float(np.max(np.abs(fs.task.displacement)))
+    full = floor_of(model, scenario.loop, job, displacement=move, starts=("pid",))
+    loose = floor_of(model, scenario.loop, job, displacement=move, starts=("pid",), settings=FloorSettings(stall=0.5))
+    assert loose.iterations < full.iterations and loose.cost > full.cost
+    with pytest.raises(SolverError, match=r"no start reached the goal"):
+        floor_of(model, scenario.loop, job, displacement=move, starts=("pid",), settings=FloorSettings(max_iter=1))
+    assert DEFAULT_SETTINGS == FloorSettings()
+    with pytest.raises(InvalidInputError, match=r"^settings.goal_margin: expected a number > 0 and <= 1, got 1.5$"):
+        FloorSettings(goal_margin=1.5)
+    with pytest.raises(InvalidInputError, match=r"^settings.stall: expected a number > 0, got 0.0$"):
+        FloorSettings(stall=0.0)

@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjtraj.core.floor import GOAL_MARGIN
+from mjtraj.core.floor import DEFAULT_SETTINGS
 from mjtraj.core.model import JointInfo
 from mjtraj.core.settle import SETTLE_SPEED, Settle, held
 from mjtraj.study.families import draw_scenario
@@ -111,7 +111,7 @@ def _ipopt_floor(model: mujoco.MjModel, job: Job, limit: np.ndarray, scale: floa
     opti.subject_to(opti.bounded(-box, U, box))
     settle = job.settle
     assert settle is not None
-    band, speed = GOAL_MARGIN * settle.band, GOAL_MARGIN * SETTLE_SPEED
+    band, speed = DEFAULT_SETTINGS.goal_margin * settle.band, DEFAULT_SETTINGS.goal_margin * SETTLE_SPEED
     opti.subject_to(opti.bounded(settle.goal - band, X[:n, T], settle.goal + band))
     opti.subject_to(opti.bounded(-speed, X[n:, T], speed))
     opti.set_initial(X, x_ref)

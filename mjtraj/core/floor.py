@@ -29,6 +29,7 @@ closed loop (`mjtraj.study.floor`), which is the floor's own check.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -44,27 +45,50 @@ from mjtraj.core.planners.sqp import _qp
 from mjtraj.exceptions import InvalidInputError, MjtrajError, SolverError
 from mjtraj.threads import single_blas_thread
 
-MAX_ITER = 60
-"""Gauss-Newton iterations per start at most."""
-STALL = 1e-6
-"""A start has converged when its feasible cost changes by less than this fraction between iterations."""
-FIRST_DAMPING = 1e-3
-"""The Levenberg-Marquardt damping a start begins with, relative to the Gauss-Newton Hessian's mean diagonal."""
-ACCEPT = 1e-4
-"""A trial step is accepted where the merit falls by at least this fraction of the QP model's predicted fall."""
-MAX_DAMPING = 1e4
-"""Past this damping (a refused step doubles the growth of the next) the start has converged as far as the merit's
-model allows (at a kink of the dry friction)."""
-FD_EPS = 1e-7
-"""Forward-difference step of the step Jacobians where they are differenced (as the nonlinear planners')."""
-GOAL_MARGIN = 0.999
-"""The solves aim inside the goal ball, at this fraction of its radius, so that the replay's last bits keep it."""
-FEASIBLE = 1e-5
-"""A solve has converged only where |q_N - q_ref,N| exceeds the aimed radius by at most this fraction of it."""
-REACHED = 5e-4
-"""A start's result reaches the goal where |q_N - q_ref,N| exceeds the aimed radius by at most this fraction of it:
-still inside the goal ball (GOAL_MARGIN leaves 1e-3). With DAQP 0.5 (the declared floor) the solves' last iterates
-approach the aimed radius from outside and stall near 3e-5 above it."""
+
+@dataclass(frozen=True)
+class FloorSettings:
+    """The floor solver's tunables, with their rules (docs/floor.md, "The floor", gives the measurements behind
+    them). Pass one to `clairvoyant_floor(settings=...)`; the defaults are the published floors'.
+
+    Attributes:
+      max_iter: Gauss-Newton iterations per start at most.
+      stall: a start has converged when its feasible cost changes by less than this fraction between iterations.
+      first_damping: the Levenberg-Marquardt damping a start begins with, relative to the Gauss-Newton Hessian's mean
+        diagonal.
+      accept: a trial step is accepted where the merit falls by at least this fraction of the QP model's predicted
+        fall.
+      max_damping: past this damping (a refused step doubles the growth of the next) the start has converged as far
+        as the merit's model allows (at a kink of the dry friction).
+      fd_eps: forward-difference step of the step Jacobians where they are differenced (as the nonlinear planners').
+      goal_margin: the solves aim inside the terminal rule (the goal ball, or the at-rest band and speed) at this
+        fraction of it, so that the replay's last bits keep it.
+      feasible: a solve has converged only where the terminal rule's largest row exceeds the aimed bound by at most
+        this fraction of it.
+      reached: a start's result reaches the goal where that row exceeds the aimed bound by at most this fraction
+        (still inside the rule: goal_margin leaves 1e-3; with DAQP 0.5, the declared floor, the last iterates
+        approach the aimed bound from outside and stall near 3e-5 above it).
+    """
+
+    max_iter: int = 60
+    stall: float = 1e-6
+    first_damping: float = 1e-3
+    accept: float = 1e-4
+    max_damping: float = 1e4
+    fd_eps: float = 1e-7
+    goal_margin: float = 0.999
+    feasible: float = 1e-5
+    reached: float = 5e-4
+
+    def __post_init__(self) -> None:
+        for name, value in dataclasses.asdict(self).items():
+            if not (np.isfinite(value) and value > 0) or (name == "goal_margin" and value > 1):
+                bound = " and <= 1" if name == "goal_margin" else ""
+                raise InvalidInputError(f"settings.{name}: expected a number > 0{bound}, got {value!r}")
+
+
+DEFAULT_SETTINGS = FloorSettings()
+"""The published floors' settings."""
 
 
 @dataclass(frozen=True)
@@ -87,7 +111,7 @@ class FloorSolution:
       terminal_err: |q_ref,N - q_N| of that rollout, rad (with `AtRest`: the largest joint's |q_N - q_g|).
       start: the name of the start it came from.
       iterations: Gauss-Newton iterations of that start.
-      converged: that start's iterations stopped by the convergence test (not by MAX_ITER).
+      converged: that start's iterations stopped by the convergence test (not by settings.max_iter).
       starts: each start's final cost (inf where it did not reach the goal or failed, NaN where it was not solved).
       seconds: wall time of the whole solve, s.
     """
@@ -116,8 +140,8 @@ class _Problem:
     radius: float
     """The goal ball's radius the solve aims at, rad."""
     rest: AtRest | None = None
-    """The at-rest rule the solve aims inside (its band and speed already narrowed by GOAL_MARGIN), in place of the
-    ball."""
+    """The at-rest rule the solve aims inside (its band and speed already narrowed by settings.goal_margin), in place
+    of the ball."""
 
     def rollout(self, u: NDArray[np.float64]) -> tuple[float, Violation, NDArray[np.float64]]:
         """(J, the terminal constraint's value, X) at u (N n,): |q_N - q_ref,N| / radius - 1 (a float), or with
@@ -247,23 +271,23 @@ def _merit(cost: float, constraint: Violation, weight: float) -> float:
     return cost + weight * _excess(constraint)
 
 
-def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
-           ) -> tuple[NDArray[np.float64], float, Violation, int, bool]:
+def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
+           settings: FloorSettings) -> tuple[NDArray[np.float64], float, Violation, int, bool]:
     """Gauss-Newton SQP from u with a Levenberg-Marquardt trust region: (u, cost, constraint, iterations,
     converged). Each trial step is the QP's at the current damping, taken whole and accepted where the l1 merit
-    falls by at least ACCEPT of what the QP's model predicts; the damping follows the ratio (Nielsen's rule), and a
-    refused step is retried at more damping on the same linearisation (one rollout a trial, not a line search's
-    several). Past MAX_DAMPING the start has converged as far as the merit's model allows (a kink of the dry
-    friction)."""
+    falls by at least `settings.accept` of what the QP's model predicts; the damping follows the ratio (Nielsen's
+    rule), and a refused step is retried at more damping on the same linearisation (one rollout a trial, not a line
+    search's several). Past `settings.max_damping` the start has converged as far as the merit's model allows (a
+    kink of the dry friction)."""
     cost, constraint, _ = problem.rollout(u)
     weight = 10.0 * max(cost, 1e-12)
-    damping, growth = FIRST_DAMPING, 2.0
+    damping, growth = settings.first_damping, 2.0
     iteration = 0
     linearised = None
     while True:
         if linearised is None:
-            if iteration == MAX_ITER:
-                return u, cost, constraint, MAX_ITER, False
+            if iteration == settings.max_iter:
+                return u, cost, constraint, settings.max_iter, False
             iteration += 1
             hessian, gradient, terminal = linearised = problem.linearised(u)
             scale = float(np.mean(np.diag(hessian)))
@@ -282,17 +306,18 @@ def _solve(problem: _Problem, u: NDArray[np.float64], low: NDArray[np.float64], 
             ratio = (_merit(cost, constraint, weight) - _merit(c_trial, g_trial, weight)) / predicted
         except SolverError:  # the trial's rollout diverged
             ratio = -np.inf
-        if not predicted > 0.0 or not ratio >= ACCEPT:
-            damping, growth = max(damping, FIRST_DAMPING) * growth, 2.0 * growth
-            if damping > MAX_DAMPING:
-                return u, cost, constraint, iteration, _worst(constraint) <= FEASIBLE
+        if not predicted > 0.0 or not ratio >= settings.accept:
+            damping, growth = max(damping, settings.first_damping) * growth, 2.0 * growth
+            if damping > settings.max_damping:
+                return u, cost, constraint, iteration, _worst(constraint) <= settings.feasible
             continue
         damping *= max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3)
         growth = 2.0
         previous = cost
         u, cost, constraint = trial, c_trial, g_trial
         linearised = None
-        if _worst(constraint) <= FEASIBLE and abs(previous - cost) <= STALL * max(abs(cost), 1e-300):
+        converged = abs(previous - cost) <= settings.stall * max(abs(cost), 1e-300)
+        if _worst(constraint) <= settings.feasible and converged:
             return u, cost, constraint, iteration, True
 
 
@@ -319,8 +344,8 @@ def _check(q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64], q_diag: NDAr
 def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64],
                       q_diag: NDArray[np.float64], r_diag: NDArray[np.float64], limit: NDArray[np.float64], *,
                       starts: Mapping[str, NDArray[np.float64]], goal_radius: float | None = None,
-                      at_rest: AtRest | None = None, first_fixed: bool = False, every_start: bool = False
-                      ) -> FloorSolution:
+                      at_rest: AtRest | None = None, first_fixed: bool = False, every_start: bool = False,
+                      settings: FloorSettings = DEFAULT_SETTINGS) -> FloorSolution:
     """The least J_exec over corrective torques within `limit` that end within `goal_radius` of the goal (or, with
     `at_rest`, at rest at it: protocol v2's floor, whose reference is the whole episode, its settle window held).
 
@@ -331,6 +356,7 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
       limit: the saturation per joint, (n,), N m.
       goal_radius: the largest |q_N - q_ref,N| that reaches the goal, rad.
       at_rest: the at-rest rule at x_N instead (exactly one of the two).
+      settings: the solver's tunables (`FloorSettings`; the default: the published floors').
       starts: name -> applied torques (N, n) to start a solve from (clipped into the box).
       first_fixed: the first period's torque is zero (a one-period actuation delay).
       every_start: solve from every start and keep the least result (the check that the starts agree). By default
@@ -349,11 +375,12 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
     _check(q_ref, qd_ref, q_diag, r_diag, limit, starts, goal_radius, at_rest)
     x_ref = np.concatenate([q_ref, qd_ref], axis=1)
     shooting = Shooting(plant, x_ref[0].copy(), x_ref[-1].copy(), np.zeros((2 * n, 2 * n)), np.zeros((n, n)), N,
-                        FD_EPS, partial=True)
-    aimed = None if at_rest is None else AtRest(np.asarray(at_rest.goal, dtype=np.float64),
-                                                GOAL_MARGIN * at_rest.band, GOAL_MARGIN * at_rest.speed)
+                        settings.fd_eps, partial=True)
+    margin = settings.goal_margin
+    aimed = None if at_rest is None else AtRest(np.asarray(at_rest.goal, dtype=np.float64), margin * at_rest.band,
+                                                margin * at_rest.speed)
     problem = _Problem(shooting, x_ref, np.sqrt(q_diag), np.sqrt(r_diag),
-                       GOAL_MARGIN * (goal_radius if goal_radius is not None else np.inf), aimed)
+                       settings.goal_margin * (goal_radius if goal_radius is not None else np.inf), aimed)
     high = np.tile(limit, N)
     low = -high
     if first_fixed:
@@ -370,14 +397,15 @@ def clairvoyant_floor(plant: mujoco.MjModel, q_ref: NDArray[np.float64], qd_ref:
         except MjtrajError:
             found[name] = float("inf")
             continue
-        ranked.append((_worst(constraint) > REACHED, _merit(cost, constraint, 10.0 * max(cost, 1e-12)), name, start))
+        merit = _merit(cost, constraint, 10.0 * max(cost, 1e-12))
+        ranked.append((_worst(constraint) > settings.reached, merit, name, start))
     for _, _, name, start in sorted(ranked, key=lambda r: r[:2]):
         try:
-            u, cost, constraint, iterations, converged = _solve(problem, start, low, high)
+            u, cost, constraint, iterations, converged = _solve(problem, start, low, high, settings)
         except MjtrajError:
             found[name] = float("inf")
             continue
-        reached = _worst(constraint) <= REACHED
+        reached = _worst(constraint) <= settings.reached
         found[name] = cost if reached else float("inf")
         if reached and (best is None or cost < best[0]):
             best = (cost, name, u, iterations, converged)

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.core.closed_loop import ClosedLoop, LoopConfig
-from mjtraj.core.floor import AtRest, clairvoyant_floor
+from mjtraj.core.floor import DEFAULT_SETTINGS, AtRest, FloorSettings, clairvoyant_floor
 from mjtraj.core.model import JointInfo
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
@@ -130,7 +130,8 @@ def true_plant(plant: mujoco.MjModel, perturbation: Perturbation) -> mujoco.MjMo
 
 
 def floor_of(model: mujoco.MjModel, config: LoopConfig, job: Job, *, plant: mujoco.MjModel | None = None,
-             starts: Sequence[str] = STARTS, displacement: float | None = None, every_start: bool = False) -> Floor:
+             starts: Sequence[str] = STARTS, displacement: float | None = None, every_start: bool = False,
+             settings: FloorSettings = DEFAULT_SETTINGS) -> Floor:
     """The floor of executing `job` (its reference, weights, plant perturbation; noise does not reach a torque
     sequence) under `config`'s saturation, delay and integrator.
 
@@ -139,6 +140,7 @@ def floor_of(model: mujoco.MjModel, config: LoopConfig, job: Job, *, plant: mujo
       starts: the control laws whose executions start the solves.
       displacement: the task's largest joint displacement, rad, for the goal rule (default: the reference's).
       every_start: solve from every start, not only the best-ranked one (`clairvoyant_floor`).
+      settings: the solver's tunables (`mjtraj.core.floor.FloorSettings`).
 
     Raises:
       InvalidInputError: a configuration the floor does not model (zoh gravity compensation, substeps), or no start.
@@ -146,7 +148,8 @@ def floor_of(model: mujoco.MjModel, config: LoopConfig, job: Job, *, plant: mujo
       MjtrajError: the replay does not reproduce the solver's cost or misses the goal (a defect).
     """
     found = floors_of(model, config, [job], plant=plant, starts=starts,
-                      displacements=None if displacement is None else [displacement], every_start=every_start)[0]
+                      displacements=None if displacement is None else [displacement], every_start=every_start,
+                      settings=settings)[0]
     if isinstance(found, MjtrajError):
         raise found
     return found
@@ -154,7 +157,7 @@ def floor_of(model: mujoco.MjModel, config: LoopConfig, job: Job, *, plant: mujo
 
 def floors_of(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *, plant: mujoco.MjModel | None = None,
               starts: Sequence[str] = STARTS, displacements: Sequence[float] | None = None,
-              every_start: bool = False) -> list[Floor | MjtrajError]:
+              every_start: bool = False, settings: FloorSettings = DEFAULT_SETTINGS) -> list[Floor | MjtrajError]:
     """`floor_of` of each of `jobs` (all perturbed or all nominal), each start law executing them as batches of one
     length (as sweeps execute): the floor, or the error that refused it, per job in order.
 
@@ -189,7 +192,7 @@ def floors_of(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *,
     out: list[Floor | MjtrajError] = []
     for job, move, torques, costs in zip(jobs, moves, executed, controllers, strict=True):
         try:
-            out.append(_solved(model, config, job, plant, limit, move, torques, costs, every_start))
+            out.append(_solved(model, config, job, plant, limit, move, torques, costs, every_start, settings))
         except MjtrajError as e:
             out.append(e)
     return out
@@ -197,7 +200,7 @@ def floors_of(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *,
 
 def _solved(model: mujoco.MjModel, config: LoopConfig, job: Job, plant: mujoco.MjModel | None,
             limit: NDArray[np.float64], displacement: float, executed: dict[str, NDArray[np.float64]],
-            controllers: dict[str, float], every_start: bool) -> Floor:
+            controllers: dict[str, float], every_start: bool, settings: FloorSettings) -> Floor:
     """One job's floor from its start laws' executed torques, replayed through the closed loop as its check."""
     reference = job.reference
     truth = model if job.perturbation is None else true_plant(_needs(plant), job.perturbation)
@@ -211,7 +214,8 @@ def _solved(model: mujoco.MjModel, config: LoopConfig, job: Job, plant: mujoco.M
         rule = {"at_rest": AtRest(job.settle.goal, radius, SETTLE_SPEED)}
         every_start = every_start or job.perturbation is not None
     solution = clairvoyant_floor(truth, reference.q, reference.qd, job.weights[0], job.weights[1], limit,
-                                 starts=executed, first_fixed=bool(config.delay), every_start=every_start, **rule)
+                                 starts=executed, first_fixed=bool(config.delay), every_start=every_start,
+                                 settings=settings, **rule)
     result = replay(model, config, job, solution.torques, plant=plant, displacement=displacement)
     if result.status != "ok":
         raise MjtrajError(f"the floor's torques replayed: {result.status} ({result.reason})")
