@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 from importlib import metadata
 
-__version__ = "0.4.0.dev0"
+__version__ = "0.4.0.dev1"
+"""Changes whenever rows can move (a CHANGELOG entry says why), so that a result's version names its numbers."""
 
 LIBRARIES = ("mujoco", "numpy", "scipy", "osqp", "gymnasium")
 """The distributions whose versions every result records, after mjtraj's own."""
