@@ -32,12 +32,19 @@ class CheckoutFinder(importlib.abc.MetaPathFinder):
                                                       submodule_search_locations=[str(folder)])
 
 
-def install(package_dir: Path) -> None:
-    """Install the finder if `package_dir` (mjtraj/) is a checkout's: no envs/ inside it, the repository's beside."""
+def checkout_root(package_dir: Path) -> Path | None:
+    """The repository `package_dir` (mjtraj/) belongs to if it is a checkout's (no envs/ inside it, the repository's
+    envs/ and mjtraj's pyproject.toml beside it); None for an installed mjtraj."""
     root = package_dir.parent
     if (package_dir / "envs").exists() or not (root / "envs" / "__init__.py").is_file():
-        return
+        return None
     if not (root / "pyproject.toml").is_file() or 'name = "mjtraj"' not in (root / "pyproject.toml").read_text():
-        return
-    if not any(isinstance(finder, CheckoutFinder) for finder in sys.meta_path):
+        return None
+    return root
+
+
+def install(package_dir: Path) -> None:
+    """Install the finder if `package_dir` (mjtraj/) is a checkout's (`checkout_root`)."""
+    root = checkout_root(package_dir)
+    if root is not None and not any(isinstance(finder, CheckoutFinder) for finder in sys.meta_path):
         sys.meta_path.append(CheckoutFinder(root))

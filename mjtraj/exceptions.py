@@ -11,6 +11,11 @@ class InvalidInputError(MjtrajError, ValueError):
     """An argument, option or file entry is malformed or out of range."""
 
 
+class ProvenanceError(InvalidInputError):
+    """Rows of another provenance (mjtraj, a library's version, the BLAS, the CPU model, the commit) would join a
+    results store: `--resume` of a store written elsewhere, or a worker that runs other code or libraries."""
+
+
 class ModelError(MjtrajError):
     """The MuJoCo model is missing, unreadable or lacks what mjtraj needs."""
 
@@ -45,4 +50,4 @@ class PolicyError(MjtrajError):
 
 
 __all__ = ["BackendError", "InfeasibleError", "InvalidInputError", "MissingExtraError", "MjtrajError", "ModelError",
-           "PluginError", "PolicyError", "RenderError", "SolverError"]
+           "PluginError", "PolicyError", "ProvenanceError", "RenderError", "SolverError"]

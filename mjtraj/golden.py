@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from mjtraj.exceptions import InvalidInputError
+from mjtraj.versions import blas
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -304,26 +305,12 @@ def _version(name: str) -> str:
         return ""
 
 
-def _blas() -> str:
-    """NumPy's and SciPy's BLAS (the libraries mjtraj's float64 paths call): implementation, version and the kernels'
-    architecture. Others that a process happens to have loaded (PyTorch's) are left out, so that the fingerprint does
-    not depend on what ran before."""
-    import numpy  # noqa: F401  (loaded before they are listed)
-    import scipy.linalg  # noqa: F401
-    from threadpoolctl import threadpool_info
-
-    libraries = [lib for lib in threadpool_info() if lib.get("user_api") == "blas"]
-    ours = [lib for lib in libraries if any(name in str(lib.get("filepath", "")) for name in ("numpy", "scipy"))]
-    return ", ".join(sorted({f"{lib.get('internal_api')} {lib.get('version')} {lib.get('architecture')}"
-                             for lib in ours or libraries}))
-
-
 def fingerprint() -> dict[str, str]:
     """What decides the bits of a float64 result besides mjtraj's own code: the CPU (model, flags), the platform,
-    Python, FINGERPRINT_LIBRARIES' versions and the BLAS. Two machines with equal fingerprints give the same
-    golden values bit for bit."""
+    Python, FINGERPRINT_LIBRARIES' versions and the BLAS (`mjtraj.versions.blas`). Two machines with equal
+    fingerprints give the same golden values bit for bit."""
     return {**_cpu(), "platform": f"{platform.system()} {platform.machine()}", "python": platform.python_version(),
-            **{name: _version(name) for name in FINGERPRINT_LIBRARIES}, "blas": _blas()}
+            **{name: _version(name) for name in FINGERPRINT_LIBRARIES}, "blas": blas()}
 
 
 # The entries

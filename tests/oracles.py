@@ -1,6 +1,13 @@
-"""Oracles and tasks shared by the planner, QP and nonlinear planner tests."""
+"""Oracles and tasks shared by the planner, QP and nonlinear planner tests, and the provenance oracle of the results
+tests."""
 
 from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 
@@ -37,3 +44,64 @@ def same_outcome(a, b) -> bool:
     """Outcomes equal bit for bit, NaN metrics (not measured) included."""
     return (a.status, a.reason, sorted(a.metrics)) == (b.status, b.reason, sorted(b.metrics)) and all(
         np.array_equal(a.metrics[k], b.metrics[k], equal_nan=True) for k in a.metrics)
+
+
+DISTRIBUTIONS = ("mujoco", "numpy", "scipy", "osqp", "daqp", "numba", "llvmlite", "pin", "ruckig", "torch",
+                 "gymnasium")
+"""Every distribution mjtraj's numbers pass through: a result records the version of each."""
+
+
+def provenance_oracle() -> dict[str, str]:
+    """The provenance a result of this process must record, found without mjtraj's code: mjtraj's version from its
+    installed metadata's source (pyproject.toml in a checkout), each of DISTRIBUTIONS' from its metadata ('' if not
+    installed), the CPU model from lscpu (/proc/cpuinfo where lscpu is missing), and the commit from git run in the
+    folder above the imported package when that folder is a git work tree's top ('' otherwise); the commit of a
+    tree whose package folders differ from HEAD is only a prefix, HEAD's hash + '+dirty.'. The BLAS: `blas_oracle`."""
+    import mjtraj
+
+    root = Path(mjtraj.__file__).resolve().parents[1]
+    if (root / "pyproject.toml").is_file():
+        version = re.search(r'^version = "([^"]+)"$', (root / "pyproject.toml").read_text(), flags=re.M).group(1)
+    else:
+        version = metadata.version("mjtraj")
+    out = {"mjtraj": version}
+    for name in DISTRIBUTIONS:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = ""
+    if shutil.which("lscpu"):
+        text = subprocess.run(["lscpu"], capture_output=True, text=True, check=True,
+                              env={"LC_ALL": "C", "PATH": "/usr/bin:/bin"}).stdout
+        out["cpu"] = " ".join(re.search(r"^Model name:\s*(.+)$", text, flags=re.M).group(1).split())
+    else:
+        out["cpu"] = " ".join(re.search(r"^model name\s*:\s*(.+)$", Path("/proc/cpuinfo").read_text(),
+                                        flags=re.M).group(1).split())
+    top = subprocess.run(["git", "rev-parse", "--show-toplevel"], cwd=root, capture_output=True, text=True)
+    out["commit"] = ""
+    if top.returncode == 0 and Path(top.stdout.strip()).resolve() == root:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
+                              check=True).stdout.strip()
+        changed = subprocess.run(["git", "status", "--porcelain", "--", "mjtraj", "envs", "assets"], cwd=root,
+                                 capture_output=True, text=True, check=True).stdout
+        out["commit"] = f"{head}+dirty." if changed else head
+    return out
+
+
+def blas_oracle() -> list[tuple[str, str]]:
+    """(implementation, version) of each BLAS that NumPy and SciPy load, as threadpoolctl finds them by file."""
+    import scipy.linalg  # noqa: F401 - loaded, so that threadpoolctl lists its BLAS
+    from threadpoolctl import threadpool_info
+
+    return sorted({(lib["internal_api"], lib["version"]) for lib in threadpool_info()
+                   if lib["user_api"] == "blas" and re.search(r"(numpy|scipy)", lib["filepath"])})
+
+
+def assert_provenance(recorded) -> None:
+    """`recorded` (a row or a summary's versions) holds the provenance `provenance_oracle` and `blas_oracle` find."""
+    want = provenance_oracle()
+    commit = want.pop("commit")
+    assert {k: recorded[k] for k in want} == want
+    assert recorded["commit"] == commit or commit.endswith("+dirty.") and recorded["commit"].startswith(commit)
+    libraries = blas_oracle()
+    assert libraries and all(f"{api} {version} " in recorded["blas"] for api, version in libraries), recorded["blas"]

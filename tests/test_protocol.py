@@ -4,6 +4,7 @@ failure rule (oracles: the classical rows bit for bit, rliable's own metric, clo
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -263,6 +264,27 @@ def test_a_run_off_the_published_protocol_says_so(tmp_path):
     summary = (tmp_path / "SUMMARY.md").read_text().splitlines()
     assert summary[0] == "# Benchmark summary (OFF-PROTOCOL)"
     assert summary[2].startswith("**Off-protocol**: families nominal (v1: nominal,aggressive,mismatch); ")
+
+
+def test_a_summary_and_its_rows_record_the_provenance_of_their_numbers(tmp_path):
+    """summary.json's versions, SUMMARY.md's header and every row of eval.csv carry the full provenance (versions of
+    every numeric library, BLAS, CPU, commit), each field what its own source says."""
+    from oracles import assert_provenance
+
+    evaluate([], families=("nominal",), scenarios=2, seed=3, reps=20, out=tmp_path, protocol="v1")
+    versions = json.loads((tmp_path / "summary.json").read_text())["versions"]
+    assert_provenance(versions)
+    assert versions["python"] == ".".join(map(str, sys.version_info[:3]))
+    for row in read_rows(tmp_path / "eval.csv"):
+        assert_provenance(row)
+    header = (tmp_path / "SUMMARY.md").read_text().split("\n\n")[:5]
+    (line,) = [p for p in header if p.startswith("Computed with ")]
+    assert "\n" not in line and line.startswith(f"Computed with mjtraj {versions['mjtraj']}, mujoco ")
+    for name in ("numpy", "scipy", "osqp", "daqp", "numba", "pin", "torch"):
+        assert f" {name} {versions[name]}," in line
+    for name in ("blas", "cpu"):
+        assert f" {name.upper()} {versions[name]!r}," in line
+    assert (f" commit {versions['commit']}," if versions["commit"] else " no git commit,") in line
 
 
 def test_every_method_keeps_one_colour_and_policies_never_share_one():

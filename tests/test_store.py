@@ -4,6 +4,7 @@ writer are refused, leaving the file untouched."""
 
 from __future__ import annotations
 
+import csv
 import signal
 import subprocess
 import sys
@@ -11,9 +12,9 @@ import time
 
 import pytest
 
-from mjtraj.exceptions import InvalidInputError
+from mjtraj.exceptions import InvalidInputError, ProvenanceError
 from mjtraj.study.runner import run_sweep
-from mjtraj.study.store import ResultsFile
+from mjtraj.study.store import ResultsFile, csv_text
 from mjtraj.study.sweep import SweepSettings, columns, fixed_columns
 
 SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
@@ -51,14 +52,18 @@ def test_resume_refuses_other_settings_and_versions(tmp_path):
     with pytest.raises(InvalidInputError, match=r"^out: cannot resume .*: setting 'sweep_seed' differs \(file: '0', "
                                                 r"now: '1'\)"):
         run_sweep(SweepSettings(**{**SMALL, "seed": 1}), path, resume=True, workers=1, progress=False)
-    text = path.read_text().splitlines()
-    header = text[0].split(",")
-    i = header.index("mujoco")
-    cells = text[1].split(",")
-    cells[i] = "3.0.0"
-    path.write_text("\n".join([text[0], ",".join(cells), *text[2:]]) + "\n")
-    with pytest.raises(InvalidInputError, match=r"it was written by mujoco 3.0.0 \(line 2\), this is mujoco "):
+    lines = list(csv.reader(path.read_text().splitlines()))
+    i = lines[0].index("mujoco")
+    now = lines[1][i]
+    lines[2][i] = "3.0.0"  # a row of another provenance in the middle of the file
+    path.write_text(csv_text(lines[0], [dict(zip(lines[0], cells, strict=True)) for cells in lines[1:]]))
+    before = path.read_bytes()
+    with pytest.raises(ProvenanceError) as refused:
         run_sweep(SweepSettings(**SMALL), path, resume=True, workers=1, progress=False)
+    assert str(refused.value) == (f"out: cannot resume {path} (line 3): its rows were computed with mujoco 3.0.0, "
+                                  f"this run has mujoco {now}; start a new file (a results file holds rows of one "
+                                  f"provenance)")
+    assert path.read_bytes() == before
 
 
 

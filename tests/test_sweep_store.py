@@ -15,7 +15,7 @@ import time
 import pytest
 
 from mjtraj.cli import main
-from mjtraj.exceptions import InvalidInputError
+from mjtraj.exceptions import InvalidInputError, ProvenanceError
 from mjtraj.study.runner import run_sweep
 from mjtraj.study.store import read_rows
 from mjtraj.study.sweep import SweepSettings, columns, fixed_columns
@@ -81,7 +81,8 @@ def test_resume_refuses_what_a_sweep_cannot_have_written(stored, tmp_path, damag
     settings = SweepSettings(**SMALL)
     match = {"units": r"unit nominal 0 has 5 rows, its entry says 6; the store was edited",
              "settings": r"setting 'sweep_seed' differs \(store: '0', now: '1'\)",
-             "versions": r"it was written by mujoco 3.0.0, this is mujoco ",
+             "versions": r"its rows were computed with mujoco 3.0.0, this run has mujoco \S+; start a new store \(a "
+                         r"store holds rows of one provenance\)$",
              "foreign unit": r"it holds unit nominal 9, which this sweep does not have",
              "not a store": r"is a SQLite database but not an mjtraj sweep store",
              "text": r"it is not a SQLite sweep store"}[damage]
@@ -91,8 +92,9 @@ def test_resume_refuses_what_a_sweep_cannot_have_written(stored, tmp_path, damag
         elif damage == "settings":
             settings = SweepSettings(**{**SMALL, "seed": 1})
         elif damage == "versions":
-            connection.execute("UPDATE meta SET value = replace(value, ?, '3.0.0') WHERE key = 'settings'",
-                               (fixed_columns(settings)["mujoco"],))
+            (meta,) = connection.execute("SELECT value FROM meta WHERE key = 'settings'").fetchone()
+            connection.execute("UPDATE meta SET value = ? WHERE key = 'settings'",
+                               (json.dumps({**json.loads(meta), "mujoco": "3.0.0"}),))
         elif damage == "foreign unit":  # consistent, but a unit this sweep does not have
             connection.execute("UPDATE rows SET unit = '9' WHERE unit = '1'")
             connection.execute("UPDATE units SET unit = 9 WHERE unit = 1")
@@ -104,6 +106,90 @@ def test_resume_refuses_what_a_sweep_cannot_have_written(stored, tmp_path, damag
     with pytest.raises(InvalidInputError, match=rf"^out: cannot resume {path}: .*{match}|^sweep: {path} {match}"):
         run_sweep(settings, path, resume=True, workers=1, progress=False)
     assert path.read_bytes() == before
+
+
+def test_resume_across_a_provenance_change_is_refused_in_one_line(stored, tmp_path, monkeypatch, capsys):
+    """A store holds rows of one provenance: resumed by a process with another numpy and commit, it is refused in one
+    line naming both, the store untouched. The store's own values are numpy's and git's."""
+    import numpy as np
+    from oracles import provenance_oracle
+
+    import mjtraj.study.sweep
+
+    _, store = stored
+    path = tmp_path / "s.sqlite"
+    path.write_bytes(store.read_bytes())
+    with sqlite3.connect(path) as connection:  # a store with its last unit still to do
+        connection.execute("DELETE FROM rows WHERE unit = '1'")
+        connection.execute("DELETE FROM units WHERE unit = 1")
+    before = path.read_bytes()
+    written = json.loads(sqlite3.connect(path).execute("SELECT value FROM meta WHERE key = 'settings'").fetchone()[0])
+    assert written["numpy"] == np.__version__ and written["commit"].startswith(provenance_oracle()["commit"])
+    other = {**mjtraj.study.sweep.provenance(), "numpy": "0.0.1", "commit": "f" * 40}
+    monkeypatch.setattr(mjtraj.study.sweep, "provenance", lambda: other)
+    with pytest.raises(ProvenanceError) as refused:
+        run_sweep(SweepSettings(**SMALL), path, resume=True, workers=1, progress=False)
+    assert str(refused.value) == (f"out: cannot resume {path}: its rows were computed with numpy {np.__version__}, "
+                                  f"commit {written['commit']}, this run has numpy 0.0.1, commit {'f' * 40}; start a "
+                                  f"new store (a store holds rows of one provenance)")
+    assert path.read_bytes() == before
+    capsys.readouterr()
+    assert main(["sweep", "--scenarios", "6", "--batch", "3", "--planners", "optimal,cubic", "--workers", "1",
+                 "--no-progress", "--out", str(path), "--resume"]) == 2
+    assert capsys.readouterr().err == f"mjtraj: error: {refused.value}\n"
+    assert path.read_bytes() == before
+
+
+def test_a_unit_a_worker_computed_under_another_provenance_is_refused(tmp_path, monkeypatch):
+    """The driver stores only rows of its own provenance: a unit that comes back from a worker with another (here
+    the driver's numpy differs) ends the sweep before it is stored."""
+    import numpy as np
+
+    import mjtraj.study.runner
+
+    monkeypatch.setattr(mjtraj.study.runner, "fixed_columns", lambda s: {**fixed_columns(s), "numpy": "0.0.1"})
+    path = tmp_path / "s.sqlite"
+    with pytest.raises(ProvenanceError) as refused:
+        run_sweep(SweepSettings(**SMALL), path, workers=1, progress=False)
+    assert str(refused.value) == (f"sweep: unit nominal 0 came back from a worker whose rows were computed with numpy "
+                                  f"{np.__version__}, this run has numpy 0.0.1; every worker must run mjtraj from the "
+                                  f"same commit with the same libraries, BLAS and CPU model")
+    assert not path.exists()  # nothing was stored: nothing is left
+
+
+def test_a_store_from_before_the_full_provenance_is_read_but_not_resumed(stored, tmp_path):
+    """A 0.4.0.dev0 store (its rows record mjtraj, mujoco and numpy only): export and audit read it; --resume
+    refuses it, naming what it does not record."""
+    from mjtraj.versions import MACHINE, PROVENANCE
+
+    _, store = stored
+    rows = read_rows(store)
+    dropped = list(PROVENANCE[3:])
+    assert set(MACHINE) <= set(dropped) and "scipy" in dropped
+    old_columns = [c for c in rows[0] if c not in dropped]
+    settings = SweepSettings(**SMALL)
+    record = {k: v for k, v in fixed_columns(settings).items() if k not in dropped}
+    path = tmp_path / "old.sqlite"
+    writer = SweepStore.open(path, old_columns, {**record, "mjtraj": "0.4.0.dev0"},
+                             {unit: settings.unit_rows(unit) for unit in settings.units()}, resume=False)
+    try:
+        for unit in ("0", "1"):
+            writer.append([{**{c: r[c] for c in old_columns}, "mjtraj": "0.4.0.dev0"} for r in rows
+                           if r["unit"] == unit])
+    finally:
+        writer.close()
+    assert main(["export", str(path), "--out", str(tmp_path / "old.csv")]) == 0
+    assert [r["cost"] for r in read_rows(tmp_path / "old.csv")] == [r["cost"] for r in rows]
+    assert main(["audit", str(path), "--no-tasks", "--out", str(tmp_path / "AUDIT.md")]) == 0
+    assert f"Versions: mjtraj 0.4.0.dev0, mujoco {rows[0]['mujoco']}, numpy {rows[0]['numpy']}." in \
+        (tmp_path / "AUDIT.md").read_text()
+    with pytest.raises(ProvenanceError) as refused:
+        run_sweep(settings, path, resume=True, workers=1, progress=False)
+    assert str(refused.value) == (
+        f"out: cannot resume {path}: its rows were computed with mjtraj 0.4.0.dev0, this run has mjtraj "
+        f"{rows[0]['mjtraj']}; record no scipy, osqp, daqp, numba, llvmlite, pin, ruckig, torch, gymnasium, BLAS, "
+        f"CPU, commit (written before mjtraj recorded them); start a new store (a store holds rows of one "
+        f"provenance)")
 
 
 def test_a_second_writer_is_refused_while_the_first_holds_the_store(stored, tmp_path):

@@ -73,6 +73,7 @@ from mjtraj.study import (
     numeric,
     run_unit,
 )
+from mjtraj.versions import describe
 
 POLICY_COLUMNS = ("method", "policy", "policy_kind", "policy_sha256", "policy_timesteps", "policy_privileged",
                   "policy_env")
@@ -672,6 +673,8 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
         lines += [f"Protocol {base}.", ""]
     if record["command"]:
         lines += [f"Regenerate: `{record['command']}`", ""]
+    if record.get("versions"):
+        lines += [f"Computed with {describe(record['versions'])}.", ""]
     if record.get("settle"):
         lines += [f"Every episode goes on for a settle window of {record['settle']:g} s after its motion, the "
                   f"reference holding the goal, and is scored over the whole episode ({score}: J_exec's weights on "

@@ -41,17 +41,12 @@ def policy_class(algo: str) -> str:
 
 
 def rl_versions() -> dict[str, str]:
-    """Versions of the RL stack that shape a policy's numbers (after mjtraj's own `compare.versions`); a package of
-    the rl extra that is not installed is recorded as "not installed" (scoring a plain callable needs neither)."""
-    import importlib.metadata
+    """The provenance of a policy's numbers (`mjtraj.versions.provenance`: the versions of mjtraj and of its numeric
+    libraries, torch among them, the BLAS, the CPU model and the commit), then Stable-Baselines3's and Python's
+    versions; '' for a package that is not installed (scoring a plain callable needs neither torch nor SB3)."""
     import platform
 
-    from mjtraj.versions import versions
+    from mjtraj.versions import library_version, provenance
 
-    found = {}
-    for module, distribution in (("stable_baselines3", "stable_baselines3"), ("torch", "torch")):
-        try:
-            found[module] = importlib.metadata.version(distribution)
-        except importlib.metadata.PackageNotFoundError:
-            found[module] = "not installed"
-    return {**versions(), **found, "python": platform.python_version()}
+    return {**provenance(), "stable_baselines3": library_version("stable_baselines3"),
+            "python": platform.python_version()}

@@ -33,6 +33,7 @@ from mjtraj.study.stats import EXACT_PAIRS, PairedRatio, cvar, paired_ratio
 from mjtraj.study.store import VERSION_COLUMNS, expected_rows, iter_cells, iter_rows
 from mjtraj.study.sweep import SHIPPED_CONFIG, SweepSettings
 from mjtraj.study.sweep_store import is_sqlite_file, iter_store_cells, unit_row_counts
+from mjtraj.versions import describe
 
 CLASSICAL = ("cubic", "quintic", "trapezoidal")
 LARGE_MOTION = 1.0
@@ -274,7 +275,7 @@ class SweepData:
                 self._add(groups, chunk, where, key_cells, metric_cells)
         if not self.count:
             raise InvalidInputError(f"sweep: no rows in {', '.join(map(str, paths))}")
-        self.versions = {k: self.first[k] for k in VERSION_COLUMNS}
+        self.versions = {k: self.first[k] for k in VERSION_COLUMNS if k in self.first}  # an older file records fewer
         self.settings = {k: v for k, v in self.first.items() if k.startswith("sweep_") or k in ("sensor_noise",
                                                                                                "delay")}
         configs = list(dict.fromkeys(key[3] for key in groups))
@@ -537,8 +538,7 @@ def _header(data: SweepData, paths: Sequence[str | os.PathLike[str]]) -> list[st
             f"Sweep: families {s.get('sweep_families')}, {s.get('sweep_scenarios')} scenarios per family, seed "
             f"{s.get('sweep_seed')}, planners {s.get('sweep_planners')}, ff_accel {s.get('sweep_ff_accel')}, "
             f"gravity_comp {s.get('sweep_gravity_comp')}, sensor noise {s.get('sensor_noise')} rad, delay "
-            f"{s.get('delay')}; {data.count} rows. Versions: "
-            + ", ".join(f"{k} {v}" for k, v in data.versions.items()) + ".", "",
+            f"{s.get('delay')}; {data.count} rows. Versions: {describe(data.versions)}.", "",
             "Scenario rules are in `mjtraj/study/families.py`; controller and weights rules in "
             "`mjtraj/study/sweep.py`.", ""] + (
         [f"Weights compared, each a sweep's scenario file, never mixed: {', '.join(data.weights)}. Each column of "

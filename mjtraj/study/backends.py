@@ -146,7 +146,8 @@ def check_ray_address(address: str | None, timeout: float = 5.0) -> None:
 def ray_map(settings: SweepSettings, units: Sequence[tuple[str, int]], address: str | None,
             workers: int) -> Iterator[UnitResult]:
     """Units as Ray tasks (one CPU each) on the cluster at `address` (None: a local instance with `workers`
-    CPUs), results in order. The cluster's nodes need mjtraj installed, at this version."""
+    CPUs), results in order. The cluster's nodes need this provenance (`mjtraj.versions.provenance`): mjtraj at this
+    version and commit, the same libraries, BLAS and CPU model (`run_sweep` refuses a unit computed otherwise)."""
     ray = _import_ray()
     started = not ray.is_initialized()
     if started:

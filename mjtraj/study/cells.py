@@ -5,8 +5,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
-VERSION_COLUMNS = ("mjtraj", "mujoco", "numpy")
-"""Columns that hold library versions, compared verbatim."""
+from mjtraj.versions import PROVENANCE
+
+VERSION_COLUMNS = PROVENANCE
+"""Columns that hold the rows' provenance (`mjtraj.versions.provenance`: versions, BLAS, CPU, commit), compared
+verbatim."""
 
 
 def cell_text(value: Any) -> str:
@@ -17,5 +20,5 @@ def cell_text(value: Any) -> str:
 
 
 def setting_cells(settings: dict[str, Any]) -> dict[str, str]:
-    """The setting and version columns as the text every row carries (versions verbatim: '3.10' is not 3.1)."""
+    """The setting and provenance columns as the text every row carries (versions verbatim: '3.10' is not 3.1)."""
     return {name: str(value) if name in VERSION_COLUMNS else cell_text(value) for name, value in settings.items()}

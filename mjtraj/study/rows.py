@@ -1,5 +1,5 @@
 """The one row schema of results files (sweeps, `mjtraj rl eval`): a row per scenario, controller variant and
-planner (or policy), its outcome and metrics, the task and plant it ran on, and the settings and versions."""
+planner (or policy), its outcome and metrics, the task and plant it ran on, and the settings and provenance."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ class Row:
       extras: EXTRA_METRICS values measured for this row.
       solver: the solver that planned the reference ('' for kinematic planners or failures).
       task: the motion; perturbation: how the plant differed from the nominal model (None: it did not).
-      settings: the columns every row of the file shares (settings and versions).
+      settings: the columns every row of the file shares (settings and provenance).
       more: columns appended after the settings (`mjtraj rl eval`'s policy columns).
       settle: a row of protocol v2 (an episode with a settle window): SETTLE_METRICS follow the metrics, which
         cover the whole episode.

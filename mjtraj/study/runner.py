@@ -7,12 +7,15 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from mjtraj.exceptions import InvalidInputError
+from mjtraj.exceptions import InvalidInputError, ProvenanceError
 from mjtraj.study.backends import backend_map, check_backend
+from mjtraj.study.cells import VERSION_COLUMNS
 from mjtraj.study.store import ResultsFile
-from mjtraj.study.sweep import SweepSettings, columns, fixed_columns
+from mjtraj.study.sweep import SweepSettings, UnitResult, columns, fixed_columns
 from mjtraj.study.sweep_store import SweepStore, is_store_path
+from mjtraj.versions import difference
 
 
 @dataclass
@@ -40,6 +43,8 @@ def run_sweep(settings: SweepSettings, out: str | os.PathLike[str], *, resume: b
       ray_address: a Ray cluster (HOST:PORT, ray://HOST:PORT or 'auto'); None starts a local instance.
 
     Raises:
+      ProvenanceError: `out` holds rows of another provenance (`mjtraj.versions.provenance`: versions, BLAS, CPU,
+        commit) than this process's, or a worker's rows have another.
       InvalidInputError: unknown backend, or a file that cannot be resumed (see ResultsFile.open and
         SweepStore.open).
       BackendError: Ray missing or unreachable; raised before the file is touched.
@@ -67,6 +72,7 @@ def run_sweep(settings: SweepSettings, out: str | os.PathLike[str], *, resume: b
     start = time.perf_counter()
     try:
         for result in backend_map(backend, settings, todo, workers=workers, ray_address=ray_address):
+            _check_provenance(result, record)
             results.append(result.rows)
             report.rows += len(result.rows)
             report.statuses.update(row["status"] for row in result.rows)
@@ -87,6 +93,19 @@ def run_sweep(settings: SweepSettings, out: str | os.PathLike[str], *, resume: b
             bar.close()
     report.wall = time.perf_counter() - start
     return report
+
+
+def _check_provenance(result: UnitResult, record: dict[str, Any]) -> None:
+    """ProvenanceError if a worker computed `result` under another provenance than this sweep's `record` (its fixed
+    columns): a store holds rows of one provenance."""
+    if result.rows:
+        row = result.rows[0]
+        changed = difference({k: str(row[k]) for k in VERSION_COLUMNS if k in row}, record)
+        if changed:
+            family, unit = result.unit
+            raise ProvenanceError(f"sweep: unit {family} {unit} came back from a worker whose rows {changed}; every "
+                                  f"worker must run mjtraj from the same commit with the same libraries, BLAS and CPU "
+                                  f"model")
 
 
 __all__ = ["SweepReport", "run_sweep"]

@@ -1,10 +1,10 @@
 """A sweep's results file: CSV, one row per scenario, controller variant and planner, appended unit by unit.
 
 Each unit's rows go out in one write, flushed and fsynced, so an interrupted sweep leaves whole units and at most
-one torn unit at the end. Resuming checks that the file was written by the same versions with the same
-settings, cuts the torn tail, refuses anything an interruption cannot explain (a damaged row before the end, a
-unit twice), and reports which units are done. A lock keeps two sweeps from writing one file at once. Floats
-are written as repr(), which reads back to the same bits.
+one torn unit at the end. Resuming checks that every row has this process's provenance (`mjtraj.versions.PROVENANCE`:
+versions, BLAS, CPU, commit) and the same settings, cuts the torn tail, refuses anything an interruption cannot
+explain (a damaged row before the end, a unit twice), and reports which units are done. A lock keeps two sweeps from
+writing one file at once. Floats are written as repr(), which reads back to the same bits.
 """
 
 from __future__ import annotations
@@ -17,11 +17,12 @@ from collections.abc import Collection, Generator, Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from mjtraj.exceptions import InvalidInputError
+from mjtraj.exceptions import InvalidInputError, ProvenanceError
 from mjtraj.files import with_path
 from mjtraj.study.cells import VERSION_COLUMNS, cell_text, setting_cells
 from mjtraj.study.locks import lock_file
 from mjtraj.study.sweep_store import is_sqlite_file, iter_store_cells
+from mjtraj.versions import difference
 
 
 def expected_rows(row: dict[str, str]) -> int:
@@ -160,14 +161,15 @@ class ResultsFile:
 
         Args:
           columns: the header.
-          settings: the setting and version columns every row of this sweep carries, name -> value.
+          settings: the setting and provenance columns every row of this sweep carries, name -> value.
           unit_rows: rows of each complete unit.
 
         Raises:
-          InvalidInputError: the file exists without resume; another sweep is writing it; it was written by
-            other versions, with other settings or other columns; or it is damaged (a row cut short or too long
-            before the end, a unit twice, an unfinished unit followed by others, a unit this sweep does not
-            have). The message names the first problem and its line.
+          ProvenanceError: a row's provenance (versions, BLAS, CPU, commit) is not this process's.
+          InvalidInputError: the file exists without resume; another sweep is writing it; it was written with
+            other settings or other columns; or it is damaged (a row cut short or too long before the end, a unit
+            twice, an unfinished unit followed by others, a unit this sweep does not have). The message names the
+            first problem and its line.
         """
         file = Path(path)
         if file.exists() and not resume:
@@ -209,15 +211,23 @@ def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: 
     except UnicodeDecodeError as e:
         raise InvalidInputError(f"out: cannot resume {file}: it is not a text results file (not UTF-8 at byte "
                                 f"{e.start})") from e
+    expected = setting_cells(settings)
+    body = lines[1:-1]  # the last piece follows the last newline: empty, or a torn line that is cut
     if header != columns:
+        try:
+            row = next(csv.reader([body[0].decode()]), []) if body else []
+        except (UnicodeDecodeError, csv.Error):  # not a row: the columns' message says enough
+            row = []
+        if len(row) == len(header):  # its provenance says why the columns differ
+            _check_provenance(file, dict(zip(header, row, strict=True)), expected, 2)
         missing = [c for c in columns if c not in header]
         extra = [c for c in header if c not in columns]
         raise InvalidInputError(f"out: cannot resume {file}: its columns differ from this version's "
                                 f"(missing {missing[:5]}, unexpected {extra[:5]}); it was written by another "
                                 f"mjtraj version; start a new file")
     index = {c: i for i, c in enumerate(columns)}
-    expected = setting_cells(settings)
-    body = lines[1:-1]  # the last piece follows the last newline: empty, or a torn line that is cut
+    provenance = [(name, index[name], value) for name, value in expected.items() if name in VERSION_COLUMNS]
+    others = [(name, index[name], value) for name, value in expected.items() if name not in VERSION_COLUMNS]
     damaged = "; the file was damaged or edited (an interruption only tears the last line or unit): start a new file"
     offset = keep = len(lines[0]) + 1
     runs: list[tuple[tuple[str, int], int, int]] = []  # (unit, first line, rows) for each run of one unit
@@ -230,15 +240,13 @@ def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: 
         if len(cells) != len(columns):
             raise InvalidInputError(f"out: cannot resume {file}: line {number} has {len(cells)} cells, the header "
                                     f"{len(columns)}{damaged}")
-        for name, value in expected.items():
-            if cells[index[name]] != value:
-                if name in VERSION_COLUMNS:
-                    raise InvalidInputError(f"out: cannot resume {file}: it was written by {name} "
-                                            f"{cells[index[name]]} (line {number}), this is {name} {value}; start "
-                                            f"a new file")
-                raise InvalidInputError(f"out: cannot resume {file}: setting {name!r} differs (file: "
-                                        f"{cells[index[name]]!r}, now: {value!r}) at line {number}; resume with "
-                                        f"the same settings or start a new file")
+        if any(cells[i] != value for _, i, value in provenance):
+            _check_provenance(file, {name: cells[i] for name, i, _ in provenance}, expected, number)
+        for name, i, value in others:
+            if cells[i] != value:
+                raise InvalidInputError(f"out: cannot resume {file}: setting {name!r} differs (file: {cells[i]!r}, "
+                                        f"now: {value!r}) at line {number}; resume with the same settings or start "
+                                        f"a new file")
         try:
             unit = (cells[index["family"]], int(cells[index["unit"]]))
         except ValueError:
@@ -269,3 +277,11 @@ def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: 
         seen[unit] = first
     done = {unit for unit, _, rows in runs if rows == unit_rows[unit]}
     return done, keep
+
+
+def _check_provenance(file: Path, row: dict[str, str], expected: dict[str, str], number: int) -> None:
+    """ProvenanceError if line `number`'s cells `row` record another provenance than `expected`'s."""
+    changed = difference(row, expected)
+    if changed:
+        raise ProvenanceError(f"out: cannot resume {file} (line {number}): its rows {changed}; start a new file (a "
+                              f"results file holds rows of one provenance)")

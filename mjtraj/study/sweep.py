@@ -40,8 +40,7 @@ from mjtraj.study.families import FAMILIES, FamilyScenario, draw_scenario, measu
 from mjtraj.study.pipeline import Actor, Job, Outcome, execute, goal_checked, one_line, plan_failure
 from mjtraj.study.rows import Row
 from mjtraj.study.scenario import Scenario, load_scenario, scenario_for_model
-from mjtraj.study.store import VERSION_COLUMNS
-from mjtraj.versions import versions as all_versions
+from mjtraj.versions import provenance
 
 DEFAULT_PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
 SHIPPED_CONFIG = "paper.toml (shipped)"
@@ -202,12 +201,6 @@ class SweepSettings:
         out = asdict(self)
         out.pop("base", None)
         return out
-
-
-def versions() -> dict[str, str]:
-    """The versions every row records (VERSION_COLUMNS of `mjtraj.versions.versions`)."""
-    every = all_versions()
-    return {name: every[name] for name in VERSION_COLUMNS}
 
 
 @dataclass(frozen=True)
@@ -471,8 +464,9 @@ def floor_columns(result: Outcome, floor: float) -> dict[str, float]:
 
 
 def fixed_columns(settings: SweepSettings) -> dict[str, Any]:
-    """The columns every row of a sweep shares: its settings and the versions."""
-    return {**settings.record(), **versions()}
+    """The columns every row of a sweep shares: its settings and the provenance of the process that computes it
+    (`mjtraj.versions.provenance`: versions, BLAS, CPU, commit)."""
+    return {**settings.record(), **provenance()}
 
 
 def columns(settings: SweepSettings) -> list[str]:

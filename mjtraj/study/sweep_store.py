@@ -1,7 +1,7 @@
 """A sweep's results as a SQLite store: one transaction per unit of work, so a unit is stored whole or not at all.
 
 Three tables:
-- `meta` (key, value): the file's columns and the settings and versions every row carries, as JSON;
+- `meta` (key, value): the file's columns and the settings and provenance every row carries, as JSON;
 - `units` (family, unit, rows): the units stored, written in the same transaction as their rows;
 - `rows`: one row per scenario, controller variant and planner, keyed (PRIMARY KEY) by family, scenario, ff_accel,
   gravity_comp and planner. Cells are the text the CSV store writes (floats as repr(), so they read back to the
@@ -9,8 +9,8 @@ Three tables:
 
 A duplicated, missing or torn unit cannot exist by construction: a unit's rows and its `units` entry commit
 together (SQLite's journal undoes an interrupted transaction at the next open), and the key refuses a row twice.
-A second sweep on the same store is refused while the first holds its lock. Resume checks the settings and
-versions and skips the stored units.
+A second sweep on the same store is refused while the first holds its lock. Resume checks the provenance
+(`mjtraj.versions.PROVENANCE`: versions, BLAS, CPU, commit) and the settings, and skips the stored units.
 """
 
 from __future__ import annotations
@@ -25,9 +25,10 @@ from collections.abc import Collection, Generator, Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from mjtraj.exceptions import InvalidInputError
+from mjtraj.exceptions import InvalidInputError, ProvenanceError
 from mjtraj.study.cells import VERSION_COLUMNS, cell_text, setting_cells
 from mjtraj.study.locks import lock_file
+from mjtraj.versions import difference
 
 STORE_SUFFIXES = (".sqlite", ".sqlite3", ".db")
 """An `--out` ending in one of these is a SQLite store; anything else is the CSV results file."""
@@ -262,13 +263,14 @@ class SweepStore:
 
         Args:
           columns: the rows' columns.
-          settings: the setting and version columns every row of this sweep carries, name -> value.
+          settings: the setting and provenance columns every row of this sweep carries, name -> value.
           unit_rows: rows of each unit of this sweep.
 
         Raises:
+          ProvenanceError: its rows' provenance (versions, BLAS, CPU, commit) is not this process's.
           InvalidInputError: the file exists without resume; another sweep holds it; it is not a sweep store; it
-            was written by other versions, with other settings or columns; or it holds a unit this sweep does
-            not have, or a unit whose row count is wrong.
+            was written with other settings or columns; or it holds a unit this sweep does not have, or a unit
+            whose row count is wrong.
         """
         file = Path(path)
         if file.exists() and not resume:
@@ -369,6 +371,10 @@ def _check(connection: sqlite3.Connection, file: Path, columns: list[str], cells
            unit_rows: dict[tuple[str, int], int]) -> set[tuple[str, int]]:
     """Validate a store to resume; return its units."""
     stored_columns, stored = _meta(connection, file)
+    changed = difference(stored, cells)
+    if changed:
+        raise ProvenanceError(f"out: cannot resume {file}: its rows {changed}; start a new store (a store holds "
+                              f"rows of one provenance)")
     if stored_columns != columns:
         missing = [c for c in columns if c not in stored_columns]
         extra = [c for c in stored_columns if c not in columns]
@@ -376,10 +382,7 @@ def _check(connection: sqlite3.Connection, file: Path, columns: list[str], cells
                                 f"{missing[:5]}, unexpected {extra[:5]}); it was written by another mjtraj version; "
                                 f"start a new store")
     for name, value in cells.items():
-        if stored.get(name) != value:
-            if name in VERSION_COLUMNS:
-                raise InvalidInputError(f"out: cannot resume {file}: it was written by {name} {stored.get(name)}, "
-                                        f"this is {name} {value}; start a new store")
+        if stored.get(name) != value and name not in VERSION_COLUMNS:
             raise InvalidInputError(f"out: cannot resume {file}: setting {name!r} differs (store: "
                                     f"{stored.get(name)!r}, now: {value!r}); resume with the same settings or start "
                                     f"a new store")
