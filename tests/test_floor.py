@@ -369,8 +369,8 @@ def test_the_solvers_tunables_are_settings_in_the_open(scenario, model):
     """`FloorSettings` reaches the solve (a loose stall test stops it earlier, no lower than the default's floor; a
     cap of one iteration leaves it short of the goal) and refuses a bad value by name; the defaults are the published
     floors' (the golden floors pin them)."""
-    from mjtraj.exceptions import SolverError
     from mjtraj.core.floor import DEFAULT_SETTINGS, FloorSettings
+    from mjtraj.exceptions import SolverError
 
     fs = draw_scenario("aggressive", 1, 3, model, scenario.task.dt)
     ref = scenario.planner("cubic").plan(fs.task, model)
