@@ -184,7 +184,8 @@ class TrackCore:
         """The simulated model whose fields each episode's perturbation sets; None: the nominal model."""
         fields = plant_fields(self.plant, [no_perturbation(n)] * num) if self.plant is not None else None
         self.loop = ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields,
-                               teachers=() if settings.teacher == "none" else (settings.teacher,))
+                               teachers=() if settings.teacher == "none" else
+                               tuple(dict.fromkeys((settings.teacher, settings.loop.controller))))
         self.shadow = (ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields)
                        if settings.reward_baseline != "none" else None)
         """With reward_baseline 'controller' (or 'pid', its earlier name): the same episodes under the control law

@@ -98,8 +98,9 @@ class EnvOptions:
     history: int = option(0, "previous observations appended to each observation, the latest first (an episode's "
                           "first observation fills them)", minimum=0)
     teacher: str = option("none", "none, or a control law that shadows the env's own on the same states: "
-                          "env.unwrapped.loop.teach(teacher) gives its command of the step to come (imitation, "
-                          "DAgger); it changes nothing the env does", choices=lambda: ("none", *controller_names()))
+                          "env.unwrapped.loop.teach(teacher) gives its command of the step to come, and "
+                          "loop.teach(controller) the env's law's own, without the action (imitation, DAgger); it "
+                          "changes nothing the env does", choices=lambda: ("none", *controller_names()))
     plant_randomization: str = option("none", "none, or mismatch: each episode's plant drawn by the sweeps' mismatch "
                                       "rules (payload, link masses and inertias, damping, friction)",
                                       choices=PLANT_RANDOMIZATIONS)

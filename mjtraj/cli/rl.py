@@ -12,6 +12,7 @@ from mjtraj.cli.common import (
     Parser,
     Progress,
     command_line,
+    counts,
     figure_format_option,
     names,
     no_progress_option,
@@ -110,6 +111,30 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--out", type=Path, default=Path("runs/search"), help="output folder (default runs/search)")
     no_progress_option(p)
     p.set_defaults(handler=run_search)
+    p = rl_sub.add_parser("distill", help="imitate a control law: behaviour cloning, then DAgger, of a residual "
+                          "policy on the native vector env's training streams (mjtraj.rl.distill); policy.pt (rl eval "
+                          "--policy RUN/policy.pt scores it), run.json, resume.pt")
+    p.add_argument("--teacher", default="mpc", help="the control law imitated (default mpc)")
+    p.add_argument("--controller", default="adaptive_computed_torque",
+                   help="the law the residual acts on (default adaptive_computed_torque)")
+    p.add_argument("--residual-scale", dest="residual_scale", type=float, default=60.0,
+                   help="N m per unit of action (default 60: up to the saturation)")
+    p.add_argument("--families", "--family", type=names, default=["nominal", "aggressive", "mismatch"],
+                   help="the families the sub-envs are split over (default all three)")
+    p.add_argument("--num-envs", dest="num_envs", type=int, default=24, help="sub-envs (default 24)")
+    p.add_argument("--rounds", type=int, default=4, help="data-collection rounds: the teacher's, then DAgger's "
+                   "(default 4)")
+    p.add_argument("--steps", type=int, default=150, help="steps of every sub-env per round (default 150)")
+    p.add_argument("--epochs", type=int, default=30, help="passes over the data after each round (default 30)")
+    p.add_argument("--hidden", type=counts, default=[256, 256, 256],
+                   help="hidden layer widths, comma-separated (default 256,256,256)")
+    p.add_argument("--preview", type=int, default=10, help="future reference samples observed (default 10)")
+    p.add_argument("--seed", type=int, default=0, help="the training streams' seed (default 0)")
+    p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1)")
+    p.add_argument("--out", type=Path, default=Path("runs/distill"), help="output folder (default runs/distill)")
+    p.add_argument("--resume", action="store_true", help="continue the distillation saved in --out")
+    no_progress_option(p)
+    p.set_defaults(handler=run_distill)
     p = rl_sub.add_parser("plot", help="redraw a run's learning_curve.png from its learning_curve.csv (also of a run "
                           "still going or interrupted)")
     p.add_argument("run", type=Path, help="the folder rl train wrote")
@@ -277,6 +302,24 @@ def _run_batched(args: argparse.Namespace) -> int:
     if report.stopped:
         print(f"stopped at {report.timesteps} steps: {report.stopped}")
     print(f"wrote {report.policy}, {report.best} (best on validation), {report.curve} and {report.out / 'run.json'}")
+    return 0
+
+
+def run_distill(args: argparse.Namespace) -> int:
+    """`mjtraj rl distill`."""
+    from mjtraj.rl.distill import DistillSettings, distill, resume_distill
+
+    if args.resume:
+        report = resume_distill(args.out, progress=not args.no_progress)
+    else:
+        settings = DistillSettings(teacher=args.teacher, controller=args.controller,
+                                   residual_scale=args.residual_scale, families=tuple(args.families),
+                                   num_envs=args.num_envs, rounds=args.rounds, steps=args.steps, epochs=args.epochs,
+                                   hidden=tuple(args.hidden), preview=args.preview, seed=args.seed,
+                                   threads=args.threads)
+        report = distill(settings, args.out, progress=not args.no_progress, command=command_line(args))
+    print(f"wrote {report.policy} ({int(report.rounds[-1]['samples'])} labelled states); score it: mjtraj rl eval "
+          f"--policy {report.policy}")
     return 0
 
 

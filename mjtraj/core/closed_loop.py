@@ -228,9 +228,9 @@ class ClosedLoop:
 
     @property
     def previews(self) -> bool:
-        """Whether the control law previews the reference (the model-predictive ones): it runs references of one
-        length per batch."""
-        return getattr(self._law, "track", None) is not None
+        """Whether the control law or a teacher previews the reference (the model-predictive ones): the loop runs
+        references of one length per batch."""
+        return any(getattr(law, "track", None) is not None for law in (self._law, *self._teachers.values()))
 
     @property
     def ends(self) -> NDArray[np.intp]:

@@ -179,5 +179,10 @@ def label(record: dict[str, Any]) -> str:
     from mjtraj.rl import law_label
 
     s = record["settings"]
+    if "distill" in record:  # an imitation (mjtraj.rl.distill)
+        d = record["distill"]
+        return (f"cubic+{law_label(s['controller'])}+residual distilled from {d['teacher']} "
+                f"({s['residual_scale']:g} N m, {'+'.join(s['families'])}, preview {d['preview']}, "
+                f"{d['rounds']} rounds)")
     return (f"cubic+{law_label(s['controller'])}+residual batched PPO ({s['residual_scale']:g} N m, "
             f"{'+'.join(s['families'])}, std {s['initial_std']:g})")

@@ -731,8 +731,9 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
                   *(f"- {count} x {reason}" for reason, count in record["errors"].items()), ""]
     lines += ["![performance profiles](profiles.png)", "", "Policies:"]
     for label, p in zip(labels, policies, strict=True):
-        algo = "batched PPO (skrl)" if p.record is not None and p.record.get("format") == BATCHED_RUN else (
-            p.record["settings"]["algo"].upper() if p.record is not None else "")
+        algo = ("imitation (behaviour cloning, DAgger)" if p.record is not None and "distill" in p.record else
+                "batched PPO (skrl)" if p.record is not None and p.record.get("format") == BATCHED_RUN else
+                p.record["settings"]["algo"].upper() if p.record is not None else "")
         what = (f"{algo}, {p.timesteps} steps, seed {p.record['settings']['seed']}" if p.record is not None
                 else p.kind)
         lines.append(f"- {label}: `{p.source}` ({what}; acts in {json.loads(p.columns()['policy_env'])}"

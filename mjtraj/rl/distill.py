@@ -1,0 +1,301 @@
+"""Imitation of a control law (behaviour cloning, then DAgger) on mjtraj's native vector env.
+
+The student is a residual on the env's control law (`controller`, the adaptive law by default) with the authority
+`residual_scale` N m per unit (60 by default: up to the saturation). Its label at a state is what makes the loop
+apply the teacher's command there: a* = clip((tau_teacher - tau_law) / residual_scale, -1, 1), with tau_teacher the
+teacher's saturated command and tau_law the law's own command before the saturation, both asked of the env's
+teachers (`ClosedLoop.teach`: the teacher, and the law itself, each shadowing the loop on the same measured states).
+
+Round 0 runs the teacher's labels as the actions (behaviour cloning on the teacher's own states); each later round
+runs the student, labels the states it visits, adds them to the data set and trains again on all of it (DAgger,
+Ross et al. 2011). Sub-envs are split over `families`; round r's sub-env i starts from the training stream
+[seed, 16, r B + i] (`mjtraj.rl.streams`, B sub-envs) and continues it across its episodes, never an evaluation
+scenario. The network is the batched runs' (tanh layers,
+the observation standardised by the data's mean and std, the output clipped to [-1, 1]), saved in their format
+(`mjtraj.rl.batched_policy`): `mjtraj rl eval --policy RUN/policy.pt` scores it. After every round the data set,
+the network, the optimiser and the generators are saved (resume.pt), and `resume` continues bit for bit (every
+round starts its sub-envs afresh from their streams, so no simulation state needs saving).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.checks import choice, positive, positive_int
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.files import atomic_path, write_text_atomic
+from mjtraj.rl.batched_policy import BATCHED_RUN, BatchedSettings, batched_policy_class, save_policy
+from mjtraj.rl.extra import rl_versions
+from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, check_seed, stream_seed
+from mjtraj.study import FAMILIES
+
+DISTILL_RUN = "mjtraj-distill-run/1"
+"""The format of a distillation's own part of its record (`distill`); the record is otherwise a batched run's, so
+that everything that reads a batched policy reads a distilled one."""
+
+
+@dataclass(frozen=True)
+class DistillSettings:
+    """One distillation: the teacher, the student's action and network, and the DAgger schedule."""
+
+    teacher: str = "mpc"
+    controller: str = "adaptive_computed_torque"
+    """The law the student's residual acts on."""
+    residual_scale: float = 60.0
+    """N m per unit of action: 60, the saturation, lets the student command anything the teacher does."""
+    families: tuple[str, ...] = ("nominal", "aggressive", "mismatch")
+    num_envs: int = 24
+    rounds: int = 4
+    """Data-collection rounds: the teacher's own (behaviour cloning), then the student's (DAgger)."""
+    steps: int = 150
+    """Steps of every sub-env per round."""
+    epochs: int = 30
+    """Passes over the aggregated data after each round."""
+    batch: int = 512
+    learning_rate: float = 1e-3
+    hidden: tuple[int, ...] = (256, 256, 256)
+    preview: int = 10
+    """Future reference samples the student observes (the env's `preview`)."""
+    settle: float = 0.5
+    """The episodes' settle window, s (protocol v2's)."""
+    task: str = "random"
+    """The envs' task: random (the families' draws) or paper (the paper's move every episode: a check that the
+    student reproduces its teacher where it was trained)."""
+    seed: int = 0
+    threads: int = 1
+
+    def __post_init__(self) -> None:
+        from mjtraj.core import controller_names
+
+        choice("teacher", self.teacher, controller_names())
+        choice("controller", self.controller, controller_names())
+        for name in ("num_envs", "rounds", "steps", "epochs", "batch", "threads"):
+            positive_int(name, getattr(self, name))
+        for name in ("residual_scale", "learning_rate"):
+            positive(name, getattr(self, name))
+        if not isinstance(self.preview, int) or self.preview < 0:
+            raise InvalidInputError(f"preview: expected an integer >= 0, got {self.preview!r}")
+        if not (np.isfinite(self.settle) and self.settle >= 0):
+            raise InvalidInputError(f"settle: expected a window >= 0 s, got {self.settle!r}")
+        choice("task", self.task, ("random", "paper"))
+        if not self.families:
+            raise InvalidInputError("families: expected at least one family, got none")
+        for family in self.families:
+            choice("families", family, FAMILIES)
+        if self.num_envs < len(self.families):
+            raise InvalidInputError(f"num_envs: expected at least one sub-env per family ({len(self.families)}), got "
+                                    f"{self.num_envs}")
+        if not self.hidden or any(int(h) < 1 for h in self.hidden):
+            raise InvalidInputError(f"hidden: expected layer widths >= 1, got {self.hidden!r}")
+        check_seed("seed", self.seed)
+
+    def split(self) -> list[int]:
+        """Sub-envs per family, as even as possible (the first families take the remainder)."""
+        base, extra = divmod(self.num_envs, len(self.families))
+        return [base + (k < extra) for k in range(len(self.families))]
+
+    def env_kwargs(self, family: str) -> dict[str, Any]:
+        """The UR5Track arguments of the sub-envs of `family`: the student's action on the law, the teacher beside
+        it, the measured state observed (as protocol v2 gives it)."""
+        return {"action_mode": "residual", "residual_scale": self.residual_scale, "controller": self.controller,
+                "task": self.task, **({"family": family} if self.task == "random" else {}), "preview": self.preview, "settle": self.settle,
+                "observe_measured": True, "teacher": self.teacher}
+
+    def policy_settings(self) -> BatchedSettings:
+        """The deployable policy's settings in the batched runs' format (what `load_batched` rebuilds)."""
+        return BatchedSettings(num_envs=self.num_envs, residual_scale=self.residual_scale, controller=self.controller,
+                               families=self.families, hidden=self.hidden, seed=self.seed, threads=self.threads,
+                               preview=self.preview)
+
+
+@dataclass(frozen=True)
+class DistillReport:
+    """Where a distillation wrote its policy and record, and how its rounds went."""
+
+    out: Path
+    policy: Path
+    rounds: list[dict[str, float]]
+
+
+def labels(env: Any, teacher: str, controller: str, scale: float) -> NDArray[np.float64]:
+    """The student's labels at the vector env's current states, (B, n) in [-1, 1]: the residual that makes the loop
+    apply the teacher's command, (tau_teacher - tau_law) / scale, clipped."""
+    loop = env.loop
+    wanted = loop.teach(teacher).dtau
+    own = loop.teach(controller)
+    return np.clip((wanted - (own.tau_ff + own.tau_fb)) / scale, -1.0, 1.0)  # type: ignore[no-any-return]
+
+
+class _Families:
+    """Sub-envs of the families side by side (one native vector env per family, or per sub-env where a law
+    previews references of one length: `mjtraj.rl.batched.MixedFamilies`), with their labels."""
+
+    def __init__(self, settings: DistillSettings) -> None:
+        from mjtraj.rl.batched import MixedFamilies
+
+        self.settings = settings
+        self.mixed = MixedFamilies(settings)  # type: ignore[arg-type]
+
+    @property
+    def actions(self) -> int:
+        """n, the action's size."""
+        return int(self.mixed.single_action_space.shape[0])
+
+    def reset(self, round_: int) -> NDArray[np.float64]:
+        """Every sub-env from its stream of round `round_`: [seed, TRAIN_STREAM, round_ B + i]."""
+        s, m = self.settings, self.mixed
+        seeds = [stream_seed(s.seed, TRAIN_STREAM, round_ * s.num_envs + i) for i in range(s.num_envs)]
+        bounds = m._bounds  # noqa: SLF001 - the mixture's own split
+        return np.concatenate([env.reset(seed=seeds[a:b])[0]
+                               for env, a, b in zip(m.envs, bounds, bounds[1:], strict=False)])
+
+    def labels(self) -> NDArray[np.float64]:
+        s = self.settings
+        return np.concatenate([labels(env, s.teacher, s.controller, s.residual_scale) for env in self.mixed.envs])
+
+    def step(self, actions: NDArray[np.float64]) -> NDArray[np.float64]:
+        return self.mixed.step(actions)[0]
+
+
+def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True, command: str = "",
+            resume: bool = False) -> DistillReport:
+    """Distil `settings.teacher` into a residual policy on `settings.controller` (the module docstring), writing
+    policy.pt, run.json and resume.pt to `out`.
+
+    Raises:
+      InvalidInputError: `out` holds another run (without `resume`), or nothing to resume.
+    """
+    import torch
+
+    out = Path(out)
+    saved = out / "resume.pt"
+    if resume and not saved.is_file():
+        raise InvalidInputError(f"out: nothing to resume in {out} (no resume.pt)")
+    if not resume and (out / "run.json").exists():
+        raise InvalidInputError(f"out: {out} holds a run already; give another folder or resume it")
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(settings.threads)
+    torch.manual_seed(settings.seed)
+    env = _Families(settings)
+    policy_settings = settings.policy_settings()
+    obs = env.reset(0)
+    module = batched_policy_class()(obs.shape[1], env.actions, policy_settings)
+    module.clip.fill_(10.0)
+    module.epsilon.fill_(1e-8)
+    optimiser = torch.optim.Adam(module.net.parameters(), lr=settings.learning_rate)
+    rng = np.random.default_rng([settings.seed, TRAIN_STREAM, 99])
+    data_x: list[NDArray[np.float64]] = []
+    data_y: list[NDArray[np.float64]] = []
+    history: list[dict[str, float]] = []
+    first = 0
+    record: dict[str, Any] = {"format": BATCHED_RUN, "distill_format": DISTILL_RUN,
+                              "settings": dataclasses.asdict(policy_settings), "distill": dataclasses.asdict(settings),
+                              "command": command, "library": "torch (behaviour cloning, DAgger)",
+                              "versions": rl_versions(),
+                              "streams": {"train": {"stream": TRAIN_STREAM, "gym_seeds": [
+                                  stream_seed(settings.seed, TRAIN_STREAM, i)
+                                  for i in range(settings.rounds * settings.num_envs)]},
+                                  "validation": {"stream": VALIDATION_STREAM, "count": 0}}}
+    if resume:
+        state = torch.load(saved, map_location="cpu", weights_only=False)
+        if json.dumps(state["record"]["distill"]) != json.dumps(record["distill"]):
+            raise InvalidInputError(f"out: {out} holds a distillation with other settings; give another folder")
+        module.load_state_dict(state["module"])
+        optimiser.load_state_dict(state["optimiser"])
+        torch.set_rng_state(state["torch_rng"])
+        rng.bit_generator.state = state["rng"]
+        data_x, data_y, history, first = state["x"], state["y"], state["history"], state["round"]
+        record["resumed"] = [*state["record"].get("resumed", []), {"round": first}]
+    clock = time.perf_counter()
+    for r in range(first, settings.rounds):
+        start = time.perf_counter()
+        obs = env.reset(r)
+        xs, ys = [], []
+        for _ in range(settings.steps):
+            label = env.labels()
+            xs.append(obs.copy())
+            ys.append(label)
+            if r == 0:
+                action = label
+            else:
+                with torch.no_grad():
+                    action = module(torch.as_tensor(obs, dtype=torch.float32)).numpy().astype(np.float64)
+            obs = env.step(action)
+        data_x.append(np.concatenate(xs))
+        data_y.append(np.concatenate(ys))
+        collected = time.perf_counter() - start
+        loss = _train(module, optimiser, np.concatenate(data_x), np.concatenate(data_y), settings, rng)
+        history.append({"round": r, "samples": float(sum(len(x) for x in data_x)), "collect_s": collected,
+                        "train_s": time.perf_counter() - start - collected, "loss": loss})
+        if progress:
+            print(f"round {r}: {int(history[-1]['samples'])} labelled states, loss {loss:.3g}, "
+                  f"{collected:.0f} s collecting, {history[-1]['train_s']:.0f} s training", flush=True)
+        _save_resume(saved, module, optimiser, rng, data_x, data_y, history, r + 1, record)
+    record.update(rounds=history, wall_s=time.perf_counter() - clock, timesteps=int(history[-1]["samples"]))
+    save_policy(module, out / "policy.pt", record)
+    write_text_atomic(out / "run.json", json.dumps(record, indent=1, default=float) + "\n")
+    return DistillReport(out, out / "policy.pt", history)
+
+
+def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.float64], settings: DistillSettings,
+           rng: np.random.Generator) -> float:
+    """`settings.epochs` passes of mean-squared error over (x, y) in shuffled minibatches, the standardisation
+    refitted to all of x first; the last epoch's mean loss."""
+    import torch
+
+    module.mean.copy_(torch.as_tensor(x.mean(axis=0), dtype=torch.float32))
+    module.std.copy_(torch.as_tensor(x.std(axis=0), dtype=torch.float32))
+    inputs = torch.as_tensor(x, dtype=torch.float32)
+    targets = torch.as_tensor(y, dtype=torch.float32)
+    normal = torch.clamp((inputs - module.mean) / (module.std + module.epsilon), -module.clip, module.clip)
+    loss_sum = 0.0
+    for _ in range(settings.epochs):
+        order = torch.as_tensor(rng.permutation(len(x)))
+        loss_sum, batches = 0.0, 0
+        for k in range(0, len(x), settings.batch):
+            pick = order[k:k + settings.batch]
+            loss = torch.mean((module.net(normal[pick]) - targets[pick]) ** 2)
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+            loss_sum, batches = loss_sum + loss.item(), batches + 1
+        loss_sum /= max(batches, 1)
+    return loss_sum
+
+
+def _save_resume(path: Path, module: Any, optimiser: Any, rng: np.random.Generator, data_x: list[Any],
+                 data_y: list[Any], history: list[dict[str, float]], rounds: int, record: dict[str, Any]) -> None:
+    """Everything a resumed distillation needs (the data, the network, the optimiser, the generators), atomically."""
+    import torch
+
+    buffer = io.BytesIO()
+    torch.save({"module": module.state_dict(), "optimiser": optimiser.state_dict(), "torch_rng": torch.get_rng_state(),
+                "rng": rng.bit_generator.state, "x": data_x, "y": data_y, "history": history, "round": rounds,
+                "record": record}, buffer)
+    with atomic_path(path) as tmp:
+        Path(tmp).write_bytes(buffer.getvalue())
+
+
+def resume_distill(out: str | Path, *, progress: bool = True) -> DistillReport:
+    """Continue the distillation saved in `out` (its resume.pt) to its last round.
+
+    Raises:
+      InvalidInputError: nothing to resume in `out`.
+    """
+    import torch
+
+    saved = Path(out) / "resume.pt"
+    if not saved.is_file():
+        raise InvalidInputError(f"out: nothing to resume in {out} (no resume.pt)")
+    record = torch.load(saved, map_location="cpu", weights_only=False)["record"]
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in record["distill"].items()}
+    return distill(DistillSettings(**fields), out, progress=progress, command=record["command"], resume=True)
