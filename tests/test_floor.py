@@ -43,6 +43,20 @@ def rk4_map(inertia: float, damping: float, h: float) -> tuple[np.ndarray, np.nd
     return Ad, Bd
 
 
+def predicted(Ad: np.ndarray, Bd: np.ndarray, x0: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray]:
+    """The linear map's states x_k = Phi_k + Gamma_k U, k = 0..N, from x0 under torques U (N,): Phi (N+1, 2) and
+    Gamma (N+1, 2, N), by the recursion x_{k+1} = Ad x_k + Bd u_k."""
+    Gamma, Phi = np.zeros((N + 1, 2, N)), np.zeros((N + 1, 2))
+    x = x0.copy()
+    for k in range(N + 1):
+        Phi[k] = x
+        x = Ad @ x
+        if k < N:
+            Gamma[k + 1] = Ad @ Gamma[k]
+            Gamma[k + 1, :, k] = Bd[:, 0]
+    return Phi, Gamma
+
+
 def test_on_a_linear_plant_without_active_bounds_the_floor_is_the_closed_form_lq_tracking_solution():
     inertia, damping, N, h = 0.3, 0.4, 40, 0.02
     plant = mujoco.MjModel.from_xml_string(ROTOR.format(inertia=inertia, damping=damping))
@@ -53,17 +67,8 @@ def test_on_a_linear_plant_without_active_bounds_the_floor_is_the_closed_form_lq
     found = clairvoyant_floor(plant, q_ref, qd_ref, q_diag, r_diag, np.array([1000.0]), goal_radius=10.0,
                               starts={"zero": np.zeros((N, 1))})
     # closed form: x_k = Ad^k x0 + sum_j Ad^(k-1-j) Bd u_j; J = |W (Phi x0 + Gamma U - r)|^2 + |sqrt(R) U|^2
-    Ad, Bd = rk4_map(inertia, damping, h)
     x_ref = np.concatenate([q_ref, qd_ref], axis=1)
-    Gamma = np.zeros((N + 1, 2, N))
-    Phi = np.zeros((N + 1, 2))
-    x = x_ref[0].copy()
-    for k in range(N + 1):
-        Phi[k] = x
-        x = Ad @ x
-        if k < N:
-            Gamma[k + 1] = Ad @ Gamma[k]
-            Gamma[k + 1, :, k] = Bd[:, 0]
+    Phi, Gamma = predicted(*rk4_map(inertia, damping, h), x_ref[0], N)
     w = np.sqrt(q_diag)
     rows = (Gamma[1:N] * w[None, :, None]).reshape(-1, N)
     target = ((x_ref[1:N] - Phi[1:N]) * w).ravel()
@@ -291,16 +296,8 @@ def test_on_a_linear_plant_the_at_rest_floor_is_the_convex_qps_solution_by_osqp(
                               starts={"zero": np.zeros((T, 1))})
     found = clairvoyant_floor(plant, q_ref, qd_ref, q_diag, r_diag, np.array([1000.0]), at_rest=rule,
                               starts={"zero": np.zeros((T, 1))})
-    Ad, Bd = rk4_map(inertia, damping, h)
     x_ref = np.concatenate([q_ref, qd_ref], axis=1)
-    Gamma, Phi = np.zeros((T + 1, 2, T)), np.zeros((T + 1, 2))
-    x = x_ref[0].copy()
-    for k in range(T + 1):
-        Phi[k] = x
-        x = Ad @ x
-        if k < T:
-            Gamma[k + 1] = Ad @ Gamma[k]
-            Gamma[k + 1, :, k] = Bd[:, 0]
+    Phi, Gamma = predicted(*rk4_map(inertia, damping, h), x_ref[0], T)
     end = lambda U: Phi[T] + Gamma[T] @ U  # noqa: E731
     assert abs(end(loose.torques[:, 0])[0] - 0.8) > rule.band or abs(end(loose.torques[:, 0])[1]) > rule.speed
     w = np.sqrt(q_diag)

@@ -33,10 +33,16 @@ from numpy.typing import NDArray
 from mjtraj.checks import choice, positive, positive_int
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path, write_text_atomic
-from mjtraj.rl.batched_policy import BATCHED_RUN, BatchedSettings, batched_policy_class, save_policy
+from mjtraj.rl.batched_policy import (
+    BATCHED_RUN,
+    BatchedSettings,
+    batched_policy_class,
+    check_mixture,
+    save_policy,
+    split_envs,
+)
 from mjtraj.rl.extra import rl_versions
-from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, check_seed, stream_seed
-from mjtraj.study import FAMILIES
+from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, stream_seed
 
 DISTILL_RUN = "mjtraj-distill-run/1"
 """The format of a distillation's own part of its record (`distill`); the record is otherwise a batched run's, so
@@ -87,27 +93,18 @@ class DistillSettings:
         if not (np.isfinite(self.settle) and self.settle >= 0):
             raise InvalidInputError(f"settle: expected a window >= 0 s, got {self.settle!r}")
         choice("task", self.task, ("random", "paper"))
-        if not self.families:
-            raise InvalidInputError("families: expected at least one family, got none")
-        for family in self.families:
-            choice("families", family, FAMILIES)
-        if self.num_envs < len(self.families):
-            raise InvalidInputError(f"num_envs: expected at least one sub-env per family ({len(self.families)}), got "
-                                    f"{self.num_envs}")
-        if not self.hidden or any(int(h) < 1 for h in self.hidden):
-            raise InvalidInputError(f"hidden: expected layer widths >= 1, got {self.hidden!r}")
-        check_seed("seed", self.seed)
+        check_mixture(self.families, self.num_envs, self.hidden, self.seed)
 
     def split(self) -> list[int]:
         """Sub-envs per family, as even as possible (the first families take the remainder)."""
-        base, extra = divmod(self.num_envs, len(self.families))
-        return [base + (k < extra) for k in range(len(self.families))]
+        return split_envs(self.num_envs, self.families)
 
     def env_kwargs(self, family: str) -> dict[str, Any]:
         """The UR5Track arguments of the sub-envs of `family`: the student's action on the law, the teacher beside
         it, the measured state observed (as protocol v2 gives it)."""
         return {"action_mode": "residual", "residual_scale": self.residual_scale, "controller": self.controller,
-                "task": self.task, **({"family": family} if self.task == "random" else {}), "preview": self.preview, "settle": self.settle,
+                "task": self.task, **({"family": family} if self.task == "random" else {}),
+                "preview": self.preview, "settle": self.settle,
                 "observe_measured": True, "teacher": self.teacher}
 
     def policy_settings(self) -> BatchedSettings:
