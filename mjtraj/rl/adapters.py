@@ -368,9 +368,11 @@ def import_attribute(spec: str) -> Any:
 def _batched(path: Path, *, source: str) -> ScoredPolicy:
     """A batched run's policy file (mjtraj.rl.batched) as the benchmark scores it, named `source`."""
     from mjtraj.rl.batched_policy import label, load_batched
+    from mjtraj.rl.distill import distilled_label
 
     module = load_batched(path)
-    policy = from_object(module, label=label(module.record), source=source)
+    named = distilled_label(module.record) if "distill" in module.record else label(module.record)
+    policy = from_object(module, label=named, source=source)
     policy.record, policy.path = module.record, path
     policy.timesteps = int(module.record.get("timesteps", 0))
     return policy

@@ -18,27 +18,6 @@ BATCHED_RUN = "mjtraj-batched-run/1"
 """The format of a batched run's record (run.json, and inside policy.pt and best.pt)."""
 
 
-def check_mixture(families: tuple[str, ...], num_envs: int, hidden: tuple[int, ...], seed: int) -> None:
-    """InvalidInputError unless sub-envs can be split over `families` (known, at least one sub-env each), the
-    network's `hidden` widths are >= 1 and `seed` is one stream word: what every trainer on the mixture checks."""
-    if not families:
-        raise InvalidInputError("families: expected at least one family, got none")
-    for family in families:
-        choice("families", family, FAMILIES)
-    if num_envs < len(families):
-        raise InvalidInputError(f"num_envs: expected at least one sub-env per family ({len(families)}), got "
-                                f"{num_envs}")
-    if not hidden or any(int(h) < 1 for h in hidden):
-        raise InvalidInputError(f"hidden: expected layer widths >= 1, got {hidden!r}")
-    check_seed("seed", seed)
-
-
-def split_envs(num_envs: int, families: tuple[str, ...]) -> list[int]:
-    """Sub-envs per family, as even as possible (the first families take the remainder)."""
-    base, extra = divmod(num_envs, len(families))
-    return [base + (k < extra) for k in range(len(families))]
-
-
 @dataclass(frozen=True)
 class BatchedSettings:
     """One batched training run: the recipe of mjtraj.rl.batched's module docstring, every setting recorded."""
@@ -79,7 +58,16 @@ class BatchedSettings:
         for name in ("discount", "gae_lambda"):
             if not 0.0 < getattr(self, name) <= 1.0:
                 raise InvalidInputError(f"{name}: expected a number in (0, 1], got {getattr(self, name)!r}")
-        check_mixture(self.families, self.num_envs, self.hidden, self.seed)
+        if not self.families:
+            raise InvalidInputError("families: expected at least one family, got none")
+        for family in self.families:
+            choice("families", family, FAMILIES)
+        if self.num_envs < len(self.families):
+            raise InvalidInputError(f"num_envs: expected at least one sub-env per family ({len(self.families)}), got "
+                                    f"{self.num_envs}")
+        if not self.hidden or any(int(h) < 1 for h in self.hidden):
+            raise InvalidInputError(f"hidden: expected layer widths >= 1, got {self.hidden!r}")
+        check_seed("seed", self.seed)
         from mjtraj.core import controller_names
 
         choice("controller", self.controller, controller_names())
@@ -91,7 +79,8 @@ class BatchedSettings:
 
     def split(self) -> list[int]:
         """Sub-envs per family, as even as possible (the first families take the remainder)."""
-        return split_envs(self.num_envs, self.families)
+        base, extra = divmod(self.num_envs, len(self.families))
+        return [base + (k < extra) for k in range(len(self.families))]
 
     def env_kwargs(self, family: str) -> dict[str, Any]:
         """The UR5Track arguments of the sub-envs of `family`."""
@@ -190,10 +179,5 @@ def label(record: dict[str, Any]) -> str:
     from mjtraj.rl import law_label
 
     s = record["settings"]
-    if "distill" in record:  # an imitation (mjtraj.rl.distill)
-        d = record["distill"]
-        return (f"cubic+{law_label(s['controller'])}+residual distilled from {d['teacher']} "
-                f"({s['residual_scale']:g} N m, {'+'.join(s['families'])}, preview {d['preview']}, "
-                f"{d['rounds']} rounds)")
     return (f"cubic+{law_label(s['controller'])}+residual batched PPO ({s['residual_scale']:g} N m, "
             f"{'+'.join(s['families'])}, std {s['initial_std']:g})")

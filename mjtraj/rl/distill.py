@@ -33,14 +33,7 @@ from numpy.typing import NDArray
 from mjtraj.checks import choice, positive, positive_int
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path, write_text_atomic
-from mjtraj.rl.batched_policy import (
-    BATCHED_RUN,
-    BatchedSettings,
-    batched_policy_class,
-    check_mixture,
-    save_policy,
-    split_envs,
-)
+from mjtraj.rl.batched_policy import BATCHED_RUN, BatchedSettings, batched_policy_class, save_policy
 from mjtraj.rl.extra import rl_versions
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, stream_seed
 
@@ -93,11 +86,11 @@ class DistillSettings:
         if not (np.isfinite(self.settle) and self.settle >= 0):
             raise InvalidInputError(f"settle: expected a window >= 0 s, got {self.settle!r}")
         choice("task", self.task, ("random", "paper"))
-        check_mixture(self.families, self.num_envs, self.hidden, self.seed)
+        self.policy_settings()  # the mixture's checks (families, sub-envs, widths, seed): the batched runs'
 
     def split(self) -> list[int]:
-        """Sub-envs per family, as even as possible (the first families take the remainder)."""
-        return split_envs(self.num_envs, self.families)
+        """Sub-envs per family, as even as possible (the batched runs' split)."""
+        return self.policy_settings().split()
 
     def env_kwargs(self, family: str) -> dict[str, Any]:
         """The UR5Track arguments of the sub-envs of `family`: the student's action on the law, the teacher beside
@@ -121,6 +114,15 @@ class DistillReport:
     out: Path
     policy: Path
     rounds: list[dict[str, float]]
+
+
+def distilled_label(record: dict[str, Any]) -> str:
+    """How tables name a distilled policy's configuration (its seeds share it)."""
+    from mjtraj.rl import law_label
+
+    s, d = record["settings"], record["distill"]
+    return (f"cubic+{law_label(s['controller'])}+residual distilled from {d['teacher']} ({s['residual_scale']:g} "
+            f"N m, {'+'.join(s['families'])}, preview {d['preview']}, {d['rounds']} rounds)")
 
 
 def labels(env: Any, teacher: str, controller: str, scale: float) -> NDArray[np.float64]:
