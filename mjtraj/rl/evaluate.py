@@ -271,6 +271,48 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
       MissingExtraError: a policy (an SB3 zip, a baseline, a torch module) or `threads` needs the rl extra and it is
         not installed; plain callables need none of it.
     """
+    request = _request(policies, families=families, scenarios=scenarios, seed=seed, planners=planners,
+                       controllers=controllers, settings=settings, out=out, reps=reps, threads=threads,
+                       figure_formats=figure_formats, protocol=protocol)
+    plans = _plans(request, tuned_gains, batch)
+    rows = _executions(request, plans, progress=progress, keep_going=keep_going)
+    floors = scenario_floors(request.families, request.scenarios, request.seed, request.out, progress,
+                             settle=request.window) if floor else {}
+    extra = _floor_columns(rows, floors)
+    csv_path = request.out / "eval.csv"
+    write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS, *extra], rows))
+    return _reports(request, rows, floors, csv_path, tuned_gains=tuned_gains, progress=progress,
+                    figure_formats=figure_formats, versus=versus, command=command)
+
+
+@dataclass(frozen=True)
+class _Request:
+    """An evaluation's checked arguments, with the protocol's defaults filled in: what every stage reads."""
+
+    families: tuple[str, ...]
+    scenarios: int
+    seed: int
+    reps: int
+    protocol: str
+    reference: str
+    planners: list[str]
+    laws: list[str]
+    loaded: list[ScoredPolicy]
+    labels: list[str]
+    out: Path
+
+    @property
+    def window(self) -> float:
+        """The protocol's settle window, s (0: none)."""
+        return SETTLE[self.protocol]
+
+
+def _request(policies: Sequence[Any], *, families: Sequence[str] | None, scenarios: int | None, seed: int | None,
+             planners: Sequence[str], controllers: Sequence[str], settings: Mapping[str, Any] | None,
+             out: str | Path, reps: int | None, threads: int | None, figure_formats: Sequence[str],
+             protocol: str) -> _Request:
+    """The arguments checked (InvalidInputError), the policies loaded and checked to be held out from what they
+    trained on, PyTorch's threads set."""
     if threads is not None:
         positive_int("threads", threads)
         if importlib.util.find_spec("torch") is not None:  # without it no policy can run PyTorch
@@ -302,18 +344,26 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
         for family in families:
             check_held_out(policy, family, seed, scenarios)
     laws = list(dict.fromkeys([*laws, *(p.controller for p in loaded)]))
-    labels = _labels(loaded)
-    out = Path(out)
-    configs = {law: _law_config(law, out) for law in laws}
-    plans = []
-    window = SETTLE[protocol]
-    for family in families:
-        drawn: dict[str, Any] = {"families": (sweep_family(family),), "scenarios": scenarios, "seed": seed,
-                                 "batch": batch, "settle": window,
+    return _Request(families, scenarios, seed, reps, protocol, reference, planner_list, laws, loaded,
+                    _labels(loaded), Path(out))
+
+
+_Plan = tuple[str, str, SweepSettings, list[tuple[ScoredPolicy, str]]]
+"""(family, law or 'tuned', the sweep that draws and runs it, the policies acting on that law with their labels)."""
+
+
+def _plans(request: _Request, tuned_gains: str | Path | None, batch: int) -> list[_Plan]:
+    """Per family, one sweep per control law (its planners and the policies acting on it) and the tuned gains'."""
+    configs = {law: _law_config(law, request.out) for law in request.laws}
+    plans: list[_Plan] = []
+    for family in request.families:
+        drawn: dict[str, Any] = {"families": (sweep_family(family),), "scenarios": request.scenarios,
+                                 "seed": request.seed, "batch": batch, "settle": request.window,
                                  "sensor_noise": NOISY_SIGMA if family == NOISY_FAMILY else 0.0}
-        for law in laws:
-            mine = [(p, label) for p, label in zip(loaded, labels, strict=True) if p.controller == law]
-            names = tuple(dict.fromkeys([*planner_list, *(p.planner for p, _ in mine)]))
+        for law in request.laws:
+            mine = [(p, label) for p, label in zip(request.loaded, request.labels, strict=True)
+                    if p.controller == law]
+            names = tuple(dict.fromkeys([*request.planners, *(p.planner for p, _ in mine)]))
             sweep = SweepSettings(planners=names, config=configs[law], **drawn)
             for policy, _ in mine:
                 _check_loop(policy, sweep)
@@ -325,6 +375,13 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
                                         f"{tuned.base.loop.controller!r}; expected tuned PID gains (mjtraj tune "
                                         f"--gains)")
             plans.append((family, "tuned", tuned, []))
+    return plans
+
+
+def _executions(request: _Request, plans: list[_Plan], *, progress: bool, keep_going: bool
+                ) -> list[dict[str, Any]]:
+    """Every plan's units run (the sweep's rows, each policy's and, under the adaptive law, the oracle's), each row
+    named by its method."""
     rows: list[dict[str, Any]] = []
     units = [(plan, unit) for plan in plans for unit in plan[2].units()]
     bar = None
@@ -333,7 +390,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
 
         bar = tqdm(total=len(units), unit="unit", desc="rl eval", dynamic_ncols=True)
     for (family, law, sweep, mine), unit in units:
-        actors = [ActorSpec(label, p.planner, PolicyActor(p, acting_settings(p, protocol)),
+        actors = [ActorSpec(label, p.planner, PolicyActor(p, acting_settings(p, request.protocol)),
                             {**p.columns(), "method": label}, () if keep_going else (PolicyError,))
                   for p, label in mine]
         if law == "adaptive_computed_torque":
@@ -352,17 +409,27 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
             bar.update(1)
     if bar is not None:
         bar.close()
-    floors = scenario_floors(families, scenarios, seed, out, progress, settle=SETTLE[protocol]) if floor else {}
-    extra: list[str] = []
-    if floors:
-        extra = list(FLOOR_COLUMNS)
-        for row in rows:
-            value = float(floors[row["family"]][int(row["scenario"])])
-            cost = numeric(row["cost"]) if row["status"] == "ok" else float("nan")
-            row.update(floor=value, cost_over_floor=cost / value)
-    csv_path = out / "eval.csv"
-    write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS, *extra], rows))
-    groups = configurations(loaded, labels)
+    return rows
+
+
+def _floor_columns(rows: list[dict[str, Any]], floors: Mapping[str, NDArray[np.float64]]) -> list[str]:
+    """Each row's scenario floor and its score over it (FLOOR_COLUMNS, added to the rows), where there are floors."""
+    if not floors:
+        return []
+    for row in rows:
+        value = float(floors[row["family"]][int(row["scenario"])])
+        cost = numeric(row["cost"]) if row["status"] == "ok" else float("nan")
+        row.update(floor=value, cost_over_floor=cost / value)
+    return list(FLOOR_COLUMNS)
+
+
+def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str, NDArray[np.float64]],
+             csv_path: Path, *, tuned_gains: str | Path | None, progress: bool, figure_formats: Sequence[str],
+             versus: str | None, command: str) -> EvalReport:
+    """The statistics (intervals, profiles, the floor's and the pairing's), the tables, summary.json and
+    SUMMARY.md."""
+    families, reference, reps, out = request.families, request.reference, request.reps, request.out
+    groups = configurations(request.loaded, request.labels)
     costs = {family: method_costs(rows, groups, family, reference) for family in families}
     with _stage(progress, f"intervals: {reps} bootstrap resamples per method and family, and the figures"):
         summaries, scores = summarise(costs, reps=reps)
@@ -374,16 +441,19 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
     table = summary_table(summaries, families, reference)
     compact = compact_table(summaries, families, reference)
     payload = payload_table(rows, costs["mismatch"], reference) if "mismatch" in families else ""
+    window = request.window
     executions, execution_record = execution_table(rows, groups, families) if window else ("", {})
     weighting, weighting_record = weighting_agreement(rows, groups, families) if window else ("", {})
-    off = departures(families, scenarios, seed, reps, protocol)
+    off = departures(families, request.scenarios, request.seed, reps, request.protocol)
+    protocol = request.protocol
     record = {"format": "mjtraj-benchmark-summary/1", "reference": reference, "failure_rule": FAILURE_RULE,
               "protocol": f"off-protocol: {'; '.join(off)}" if off else protocol,
               "protocol_base": protocol, "score": SCORE_NAMES[protocol], "settle": window,
               "noisy_sigma": NOISY_SIGMA if NOISY_FAMILY in families else 0.0, "families": list(families),
-              "scenarios": scenarios, "seed": seed, "reps": reps,
-              "controllers": laws, "planners": planner_list, "tuned_gains": str(tuned_gains or ""),
-              "policies": [{"label": label, **p.columns()} for p, label in zip(loaded, labels, strict=True)],
+              "scenarios": request.scenarios, "seed": request.seed, "reps": reps,
+              "controllers": request.laws, "planners": request.planners, "tuned_gains": str(tuned_gains or ""),
+              "policies": [{"label": label, **p.columns()}
+                           for p, label in zip(request.loaded, request.labels, strict=True)],
               "configurations": groups, "versions": rl_versions(), "command": command,
               "torch_threads": _torch_threads(),
               "summary": {family: {m: s.as_dict() for m, s in per.items()} for family, per in summaries.items()},
@@ -398,8 +468,8 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
     md_path = out / "SUMMARY.md"
     floors_md = floor_table(against, families) if against else ""
     versus_md = versus_table(paired, families, versus) if versus is not None else ""
-    write_text_atomic(md_path, summary_markdown(table, payload, record, labels, loaded, compact, floors_md,
-                                                versus_md, executions, weighting))
+    write_text_atomic(md_path, summary_markdown(table, payload, record, request.labels, request.loaded, compact,
+                                                floors_md, versus_md, executions, weighting))
     return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals,
                       executions, weighting, protocol, reference, tuple(off))
 
