@@ -373,6 +373,15 @@ def test_every_method_is_paired_against_the_named_one_and_an_unknown_name_is_ref
                                                 r"cubic\+PID, cubic\+CT; got 'cubic\+MPC'$"):
         evaluate([], families=("nominal",), scenarios=2, seed=3, reps=20, controllers=("pid", "computed_torque"),
                  out=tmp_path / "b", versus="cubic+MPC", protocol="v1")
+    several = evaluate([], families=("nominal",), scenarios=4, seed=3, reps=20,
+                       controllers=("pid", "computed_torque"), out=tmp_path / "c", versus=("cubic+CT", "cubic+PID"),
+                       protocol="v1")
+    pairs = json.loads(several.summary_json.read_text())["versus"]
+    assert [p["method"] for p in pairs] == ["cubic+CT", "cubic+PID"]
+    assert pairs[0]["nominal"] == record["nominal"]  # the same pairing as asked alone, and the other beside it
+    assert pairs[1]["nominal"]["cubic+CT"]["ratio"]["value"] == pytest.approx(
+        mean["cubic+CT"] / mean["cubic+PID"], rel=1e-12)
+    assert "Paired against cubic+CT, cubic+PID on the same scenarios (a table each)" in several.markdown.read_text()
 
 
 def test_protocol_v2_scores_the_window_and_its_noisy_family_is_the_sweeps_own(tmp_path):

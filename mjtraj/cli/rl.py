@@ -176,8 +176,10 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--floor", action="store_true", help="also compute each scenario's clairvoyant floor and read "
                    "every method against it and against the strongest classical method (floor.csv; under protocol v2 "
                    "the least J_settle at rest at the goal, on the mismatch plants also without each law's own start)")
-    p.add_argument("--versus", metavar="METHOD", help="also pair every method against this one of the evaluation "
-                   "(e.g. \"cubic+adaptive CT\"): J / its J and P(better), with intervals, in SUMMARY.md")
+    p.add_argument("--versus", metavar="METHOD", action="append",
+                   help="also pair every method against this one of the evaluation (e.g. \"cubic+adaptive CT\"): "
+                   "J / its J and P(better), with intervals, in SUMMARY.md; repeat it to pair against several (one "
+                   "run, one table each: labels may hold commas)")
     p.add_argument("--reps", type=int, default=None,
                    help=f"bootstrap resamples per interval (default the protocol's, {PROTOCOL_V2['reps']})")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1, the rule of rl train)")
@@ -387,6 +389,13 @@ def run_ship(args: argparse.Namespace) -> int:
     return 0
 
 
+def _versus(given: list[str] | None) -> str | tuple[str, ...] | None:
+    """--versus as evaluate takes it: one method (its summary as it always was), several, or none."""
+    if not given:
+        return None
+    return given[0] if len(given) == 1 else tuple(given)
+
+
 def run_eval(args: argparse.Namespace) -> int:
     """`mjtraj rl eval`."""
     from mjtraj.rl.evaluate import evaluate
@@ -403,7 +412,8 @@ def run_eval(args: argparse.Namespace) -> int:
                           tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
                           settings=overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
                           progress=not args.no_progress, floor=args.floor,
-                          figure_formats=tuple(args.figure_format), versus=args.versus, keep_going=args.keep_going)
+                          figure_formats=tuple(args.figure_format), versus=_versus(args.versus),
+                          keep_going=args.keep_going)
     print(f"Protocol {evaluation.protocol}, OFF-PROTOCOL ({'; '.join(evaluation.departures)}): these numbers "
           "cannot be compared with published ones." if evaluation.departures else f"Protocol {evaluation.protocol}.")
     print()

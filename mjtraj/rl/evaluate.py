@@ -236,7 +236,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
              tuned_gains: str | Path | None = None, settings: Mapping[str, Any] | None = None,
              out: str | Path = "rl_eval", batch: int = 250, reps: int | None = None,
              threads: int | None = 1, command: str = "", progress: bool = False, floor: bool = False,
-             figure_formats: Sequence[str] = ("png",), versus: str | None = None,
+             figure_formats: Sequence[str] = ("png",), versus: str | Sequence[str] | None = None,
              protocol: str = PROTOCOL, keep_going: bool = False) -> EvalReport:
     """Score `policies` beside the `planners` under every law of `controllers` on scenarios 0..scenarios-1 of each
     of `families` under `seed`; writes eval.csv, summary.json, SUMMARY.md, profiles.png and intervals.png (in each
@@ -261,9 +261,9 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
         execution, which the reference and every policy on cubic track): rows gain the columns floor and
         cost_over_floor, floor.csv holds the floors, and the summary reads every method against the floor and the
         strongest classical method (FloorSummary).
-      versus: a method of this evaluation (e.g. "cubic+adaptive CT"): every method is also paired against it on
-        each family (mean J / its mean J, P(better), with intervals), a table of SUMMARY.md and "versus" in
-        summary.json.
+      versus: a method of this evaluation (e.g. "cubic+adaptive CT"), or several: every method is also paired
+        against each on each family (mean J / its mean J, P(better), with intervals), a table of SUMMARY.md per
+        method and "versus" in summary.json (one method: its pairing; several: a list of them).
 
     Raises:
       InvalidInputError: bad arguments, an unreadable policy, or scenarios not held out from a policy's training.
@@ -425,7 +425,7 @@ def _floor_columns(rows: list[dict[str, Any]], floors: Mapping[str, NDArray[np.f
 
 def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str, NDArray[np.float64]],
              csv_path: Path, *, tuned_gains: str | Path | None, progress: bool, figure_formats: Sequence[str],
-             versus: str | None, command: str) -> EvalReport:
+             versus: str | Sequence[str] | None, command: str) -> EvalReport:
     """The statistics (intervals, profiles, the floor's and the pairing's), the tables, summary.json and
     SUMMARY.md."""
     families, reference, reps, out = request.families, request.reference, request.reps, request.out
@@ -437,7 +437,8 @@ def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str,
         figure = profile_figure(scores, out / "profiles.png", reference=reference, reps=reps,
                                 formats=figure_formats)
         intervals = interval_figure(summaries, out / "intervals.png", reference=reference, formats=figure_formats)
-    paired = versus_all(costs, versus, reps=reps) if versus is not None else {}
+    against_methods = [versus] if isinstance(versus, str) else list(versus or ())
+    paired = {method: versus_all(costs, method, reps=reps) for method in against_methods}
     table = summary_table(summaries, families, reference)
     compact = compact_table(summaries, families, reference)
     payload = payload_table(rows, costs["mismatch"], reference) if "mismatch" in families else ""
@@ -458,16 +459,14 @@ def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str,
               "torch_threads": _torch_threads(),
               "summary": {family: {m: s.as_dict() for m, s in per.items()} for family, per in summaries.items()},
               "floor": {family: {m: s.as_dict() for m, s in per.items()} for family, per in against.items()},
-              "versus": {"method": versus, **{family: {m: {"ratio": v.as_dict(), "beats": b.as_dict()}
-                                                       for m, (v, b) in per.items()}
-                                              for family, per in paired.items()}} if versus is not None else {},
+              "versus": _versus_record(paired, several=not isinstance(versus, str)) if paired else {},
               "executions": execution_record, "weightings": weighting_record,
               "errors": error_counts(rows)}
     json_path = out / "summary.json"
     write_text_atomic(json_path, json.dumps(record, indent=1) + "\n")
     md_path = out / "SUMMARY.md"
     floors_md = floor_table(against, families) if against else ""
-    versus_md = versus_table(paired, families, versus) if versus is not None else ""
+    versus_md = "\n\n".join(versus_table(per, families, method) for method, per in paired.items())
     write_text_atomic(md_path, summary_markdown(table, payload, record, request.labels, request.loaded, compact,
                                                 floors_md, versus_md, executions, weighting))
     return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals,
@@ -573,6 +572,16 @@ def versus_all(costs: Mapping[str, tuple[NDArray[np.float64], Mapping[str, NDArr
                                     f"{', '.join(m for m, c in by_method.items() if c.shape[0] == 1)}; got {versus!r}")
         out[family] = {m: paired_against(c, other[0], reps=reps) for m, c in by_method.items()}
     return out
+
+
+def _versus_record(paired: Mapping[str, Mapping[str, Mapping[str, tuple[Interval, Interval]]]], *, several: bool
+                   ) -> dict[str, Any] | list[dict[str, Any]]:
+    """summary.json's "versus": each method's pairing of every method on every family (a list where several were
+    asked for; one method's alone where one was, as it always was)."""
+    out = [{"method": method, **{family: {m: {"ratio": v.as_dict(), "beats": b.as_dict()} for m, (v, b) in per.items()}
+                                 for family, per in by_family.items()}}
+           for method, by_family in paired.items()]
+    return out if several else out[0]
 
 
 def versus_table(paired: Mapping[str, Mapping[str, tuple[Interval, Interval]]], families: Sequence[str],
@@ -790,8 +799,10 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
                   "upper estimate of the true floor. Methods on other planners than cubic track another reference, "
                   "whose floor differs.", "", floors, ""]
     if versus:
-        lines += [f"Paired against {record['versus']['method']} on the same scenarios: the ratio of mean {score} and "
-                  "the probability that an episode scores below its (ties one half), 95 % intervals as above.", "",
+        named = record["versus"] if isinstance(record["versus"], list) else [record["versus"]]
+        each = " (a table each)" if len(named) > 1 else ""
+        lines += [f"Paired against {', '.join(v['method'] for v in named)} on the same scenarios{each}: the ratio of "
+                  f"mean {score} and the probability that an episode scores below its (ties one half), 95 % intervals as above.", "",
                   versus, ""]
     if payload:
         lines += ["By payload on the mismatch family (J / reference, seeds pooled; scenarios per bin in brackets):",
