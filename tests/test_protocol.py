@@ -500,3 +500,30 @@ def test_a_zip_of_another_algorithm_is_refused_by_name(tmp_path):
     with pytest.raises(InvalidInputError, match=r"holds a policy of sb3_contrib.tqc.policies; expected one of SAC, "
                                                 r"PPO, TD3, RecurrentPPO \(stable-baselines3 or sb3-contrib\)$"):
         sb3_algorithm(saved("sb3_contrib.tqc.policies"))
+
+
+def test_every_summary_gives_each_methods_per_period_compute(tmp_path):
+    """summary.json's compute: every law timed on each period of its own execution of each family's first scenario
+    (the oracle for the count: those episodes' periods, motion and window), every policy on its inference calls;
+    SUMMARY.md shows the table."""
+    from mjtraj.core.settle import SETTLE_WINDOW, window_steps
+    from mjtraj.rl.compute import POLICY_CALLS
+    from mjtraj.study import load_scenario
+    from mjtraj.study.families import draw_scenario
+
+    def policy(obs):
+        return np.zeros(3)
+
+    report = evaluate([policy], families=("nominal", "aggressive"), scenarios=2, reps=20,
+                      controllers=("pid", "mpc"), out=tmp_path)
+    compute = json.loads(report.summary_json.read_text())["compute"]
+    base = load_scenario()
+    window = window_steps(SETTLE_WINDOW, base.task.dt)
+    periods = sum(draw_scenario(family, 1, 0, base.model, base.task.dt).task.steps + window
+                  for family in ("nominal", "aggressive"))
+    for law in ("cubic+PID", "cubic+MPC", "cubic+adaptive CT"):
+        assert compute[law]["samples"] == periods, law
+        assert 0 < compute[law]["median_ms"] <= compute[law]["p99_ms"]
+    mine = [v for k, v in compute.items() if k not in ("cubic+PID", "cubic+MPC", "cubic+adaptive CT")]
+    assert len(mine) == 1 and mine[0]["samples"] == POLICY_CALLS and mine[0]["what"] == "inference, batch 1"
+    assert "| method | what is timed | median ms | p99 ms | periods or calls |" in report.markdown.read_text()

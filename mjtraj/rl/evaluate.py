@@ -31,6 +31,7 @@ from mjtraj.files import write_text_atomic
 from mjtraj.rl import law_label
 from mjtraj.rl.adapters import ScoredPolicy, check_settings, load_any
 from mjtraj.rl.batched_policy import BATCHED_RUN
+from mjtraj.rl.compute import StepCompute, compute_table, law_compute, policy_compute
 from mjtraj.rl.episodes import PolicyActor
 from mjtraj.rl.extra import rl_versions
 from mjtraj.rl.practice import execution_table, weighting_agreement
@@ -281,7 +282,8 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
     extra = _floor_columns(rows, floors)
     csv_path = request.out / "eval.csv"
     write_text_atomic(csv_path, csv_text([*columns(plans[0][2]), *POLICY_COLUMNS, *extra], rows))
-    return _reports(request, rows, floors, csv_path, tuned_gains=tuned_gains, progress=progress,
+    computes = _computes(request, plans)
+    return _reports(request, rows, floors, csv_path, computes, tuned_gains=tuned_gains, progress=progress,
                     figure_formats=figure_formats, versus=versus, command=command)
 
 
@@ -412,6 +414,27 @@ def _executions(request: _Request, plans: list[_Plan], *, progress: bool, keep_g
     return rows
 
 
+def _computes(request: _Request, plans: list[_Plan]) -> dict[str, StepCompute]:
+    """Each method's per-period compute (`mjtraj.rl.compute`): every law of the evaluation timed along its own
+    execution of the first scenario of each family (cubic, the protocol's window), and every policy's inference."""
+    from mjtraj.core.settle import held, window_steps
+    from mjtraj.study.families import draw_scenario
+
+    out: dict[str, StepCompute] = {}
+    for law in request.laws:
+        mine = [(family, sweep) for family, name, sweep, _ in plans if name == law]
+        base = mine[0][1].base
+        window = window_steps(request.window, base.task.dt)
+        refs = []
+        for family, _ in mine:
+            task = draw_scenario(sweep_family(family), request.seed, 0, base.model, base.task.dt).task
+            refs.append(held(base.planner("cubic").plan(task, base.model), window, task.qg))
+        out[f"cubic+{law_label(law)}"] = law_compute(base.loop, [], base.model, None, references=refs)
+    for policy, label in zip(request.loaded, request.labels, strict=True):
+        out[label] = policy_compute(policy.act, policy.settings().obs_size)
+    return out
+
+
 def _floor_columns(rows: list[dict[str, Any]], floors: Mapping[str, NDArray[np.float64]]) -> list[str]:
     """Each row's scenario floor and its score over it (FLOOR_COLUMNS, added to the rows), where there are floors."""
     if not floors:
@@ -424,8 +447,8 @@ def _floor_columns(rows: list[dict[str, Any]], floors: Mapping[str, NDArray[np.f
 
 
 def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str, NDArray[np.float64]],
-             csv_path: Path, *, tuned_gains: str | Path | None, progress: bool, figure_formats: Sequence[str],
-             versus: str | Sequence[str] | None, command: str) -> EvalReport:
+             csv_path: Path, computes: Mapping[str, StepCompute], *, tuned_gains: str | Path | None, progress: bool,
+             figure_formats: Sequence[str], versus: str | Sequence[str] | None, command: str) -> EvalReport:
     """The statistics (intervals, profiles, the floor's and the pairing's), the tables, summary.json and
     SUMMARY.md."""
     families, reference, reps, out = request.families, request.reference, request.reps, request.out
@@ -461,6 +484,7 @@ def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str,
               "floor": {family: {m: s.as_dict() for m, s in per.items()} for family, per in against.items()},
               "versus": _versus_record(paired, several=not isinstance(versus, str)) if paired else {},
               "executions": execution_record, "weightings": weighting_record,
+              "compute": {method: c.as_dict() for method, c in computes.items()},
               "errors": error_counts(rows)}
     json_path = out / "summary.json"
     write_text_atomic(json_path, json.dumps(record, indent=1) + "\n")
@@ -468,7 +492,8 @@ def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str,
     floors_md = floor_table(against, families) if against else ""
     versus_md = "\n\n".join(versus_table(per, families, method) for method, per in paired.items())
     write_text_atomic(md_path, summary_markdown(table, payload, record, request.labels, request.loaded, compact,
-                                                floors_md, versus_md, executions, weighting))
+                                                floors_md, versus_md, executions, weighting,
+                                                compute_table(dict(computes)) if computes else ""))
     return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals,
                       executions, weighting, protocol, reference, tuple(off))
 
@@ -736,8 +761,9 @@ def payload_table(rows: Sequence[dict[str, Any]],
 
 def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: Sequence[str],
                      policies: Sequence[ScoredPolicy], compact: str = "", floors: str = "", versus: str = "",
-                     executions: str = "", weighting: str = "") -> str:
-    """SUMMARY.md: how to regenerate it, the protocol in brief, the table, the by-payload table, the policies."""
+                     executions: str = "", weighting: str = "", compute: str = "") -> str:
+    """SUMMARY.md: how to regenerate it, the protocol in brief, the table, the by-payload table, each method's
+    per-period compute, the policies."""
     families = ", ".join(record["families"])
     protocol = record.get("protocol", "v1")
     base = record.get("protocol_base", "v1")
@@ -802,11 +828,17 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
         named = record["versus"] if isinstance(record["versus"], list) else [record["versus"]]
         each = " (a table each)" if len(named) > 1 else ""
         lines += [f"Paired against {', '.join(v['method'] for v in named)} on the same scenarios{each}: the ratio of "
-                  f"mean {score} and the probability that an episode scores below its (ties one half), 95 % intervals as above.", "",
+                  f"mean {score} and the probability that an episode scores below its (ties one half), 95 % "
+                  "intervals as above.", "",
                   versus, ""]
     if payload:
         lines += ["By payload on the mismatch family (J / reference, seeds pooled; scenarios per bin in brackets):",
                   "", payload, ""]
+    if compute:
+        lines += ["What each method computes per control period, for one simulation on one core (a law: its command, "
+                  "timed along its own execution of each family's first scenario; a policy: its inference on one "
+                  "observation, the law it acts on beside it; wall-clock on this run's machine, a record, not a "
+                  "benchmark):", "", compute, ""]
     if record.get("errors"):
         lines += ["Rows whose evaluation raised (status error), by reason:", "",
                   *(f"- {count} x {reason}" for reason, count in record["errors"].items()), ""]
