@@ -202,72 +202,110 @@ class ResultsFile:
             self._lock = None
 
 
+_DAMAGED = "; the file was damaged or edited (an interruption only tears the last line or unit): start a new file"
+
+
 def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: dict[tuple[str, int], int]
            ) -> tuple[set[tuple[str, int]], int]:
-    """Validate a file to resume; return its complete units and the byte length that holds them."""
+    """Validate a file to resume; return its complete units and the byte length that holds them. The stages: its
+    header, each row's cells (provenance and settings), the runs of each unit's rows, no unit twice."""
     lines = file.read_bytes().split(b"\n")
-    try:
-        header = next(csv.reader([lines[0].decode()]))
-    except UnicodeDecodeError as e:
-        raise InvalidInputError(f"out: cannot resume {file}: it is not a text results file (not UTF-8 at byte "
-                                f"{e.start})") from e
     expected = setting_cells(settings)
     body = lines[1:-1]  # the last piece follows the last newline: empty, or a torn line that is cut
-    if header != columns:
-        try:
-            row = next(csv.reader([body[0].decode()]), []) if body else []
-        except (UnicodeDecodeError, csv.Error):  # not a row: the columns' message says enough
-            row = []
-        if len(row) == len(header):  # its provenance says why the columns differ
-            _check_provenance(file, dict(zip(header, row, strict=True)), expected, 2)
-        missing = [c for c in columns if c not in header]
-        extra = [c for c in header if c not in columns]
-        raise InvalidInputError(f"out: cannot resume {file}: its columns differ from this version's "
-                                f"(missing {missing[:5]}, unexpected {extra[:5]}); it was written by another "
-                                f"mjtraj version; start a new file")
+    _check_header(file, lines[0], body, columns, expected)
     index = {c: i for i, c in enumerate(columns)}
-    provenance = [(name, index[name], value) for name, value in expected.items() if name in VERSION_COLUMNS]
-    others = [(name, index[name], value) for name, value in expected.items() if name not in VERSION_COLUMNS]
-    damaged = "; the file was damaged or edited (an interruption only tears the last line or unit): start a new file"
     offset = keep = len(lines[0]) + 1
     runs: list[tuple[tuple[str, int], int, int]] = []  # (unit, first line, rows) for each run of one unit
     for number, raw in enumerate(body, start=2):
         offset += len(raw) + 1
-        try:
-            cells = next(csv.reader([raw.decode()]), [])
-        except UnicodeDecodeError:
-            cells = []
-        if len(cells) != len(columns):
-            raise InvalidInputError(f"out: cannot resume {file}: line {number} has {len(cells)} cells, the header "
-                                    f"{len(columns)}{damaged}")
-        if any(cells[i] != value for _, i, value in provenance):
-            _check_provenance(file, {name: cells[i] for name, i, _ in provenance}, expected, number)
-        for name, i, value in others:
-            if cells[i] != value:
-                raise InvalidInputError(f"out: cannot resume {file}: setting {name!r} differs (file: {cells[i]!r}, "
-                                        f"now: {value!r}) at line {number}; resume with the same settings or start "
-                                        f"a new file")
-        try:
-            unit = (cells[index["family"]], int(cells[index["unit"]]))
-        except ValueError:
-            unit = (cells[index["family"]], -1)
-        if unit not in unit_rows:
-            raise InvalidInputError(f"out: cannot resume {file}: line {number} belongs to unit {unit[0]} "
-                                    f"{cells[index['unit']]!r}, which this sweep does not have{damaged}")
-        if runs and runs[-1][0] == unit:
-            runs[-1] = (unit, runs[-1][1], runs[-1][2] + 1)
-        else:
-            if runs and runs[-1][2] != unit_rows[runs[-1][0]]:
-                last = runs[-1]
-                raise InvalidInputError(f"out: cannot resume {file}: unit {last[0][0]} {last[0][1]} (line "
-                                        f"{last[1]}) has {last[2]} of its {unit_rows[last[0]]} rows and other "
-                                        f"units follow it{damaged}")
-            runs.append((unit, number, 1))
-        if runs[-1][2] > unit_rows[unit]:
-            raise InvalidInputError(f"out: cannot resume {file}: unit {unit[0]} {unit[1]} has more than its "
-                                    f"{unit_rows[unit]} rows (line {number}){damaged}")
+        cells = _row_cells(file, raw, number, columns, index, expected)
+        unit = _unit_of(file, cells, index, number, unit_rows)
+        _extend_runs(file, runs, unit, number, unit_rows)
         if runs[-1][2] == unit_rows[unit]:
             keep = offset
+    _check_once(file, runs)
+    done = {unit for unit, _, rows in runs if rows == unit_rows[unit]}
+    return done, keep
+
+
+def _check_header(file: Path, first: bytes, body: list[bytes], columns: list[str], expected: dict[str, str]
+                  ) -> None:
+    """InvalidInputError unless the header line is `columns` (a ProvenanceError where the first row's provenance
+    says why it is not)."""
+    try:
+        header = next(csv.reader([first.decode()]))
+    except UnicodeDecodeError as e:
+        raise InvalidInputError(f"out: cannot resume {file}: it is not a text results file (not UTF-8 at byte "
+                                f"{e.start})") from e
+    if header == columns:
+        return
+    try:
+        row = next(csv.reader([body[0].decode()]), []) if body else []
+    except (UnicodeDecodeError, csv.Error):  # not a row: the columns' message says enough
+        row = []
+    if len(row) == len(header):  # its provenance says why the columns differ
+        _check_provenance(file, dict(zip(header, row, strict=True)), expected, 2)
+    missing = [c for c in columns if c not in header]
+    extra = [c for c in header if c not in columns]
+    raise InvalidInputError(f"out: cannot resume {file}: its columns differ from this version's "
+                            f"(missing {missing[:5]}, unexpected {extra[:5]}); it was written by another "
+                            f"mjtraj version; start a new file")
+
+
+def _row_cells(file: Path, raw: bytes, number: int, columns: list[str], index: dict[str, int],
+               expected: dict[str, str]) -> list[str]:
+    """Line `number`'s cells, checked: as many as the columns, this run's provenance and settings."""
+    try:
+        cells = next(csv.reader([raw.decode()]), [])
+    except UnicodeDecodeError:
+        cells = []
+    if len(cells) != len(columns):
+        raise InvalidInputError(f"out: cannot resume {file}: line {number} has {len(cells)} cells, the header "
+                                f"{len(columns)}{_DAMAGED}")
+    provenance = [(name, index[name], value) for name, value in expected.items() if name in VERSION_COLUMNS]
+    if any(cells[i] != value for _, i, value in provenance):
+        _check_provenance(file, {name: cells[i] for name, i, _ in provenance}, expected, number)
+    for name, value in expected.items():
+        if name not in VERSION_COLUMNS and cells[index[name]] != value:
+            raise InvalidInputError(f"out: cannot resume {file}: setting {name!r} differs (file: "
+                                    f"{cells[index[name]]!r}, now: {value!r}) at line {number}; resume with the same "
+                                    f"settings or start a new file")
+    return cells
+
+
+def _unit_of(file: Path, cells: list[str], index: dict[str, int], number: int,
+             unit_rows: dict[tuple[str, int], int]) -> tuple[str, int]:
+    """The (family, unit) a row belongs to, one of this sweep's."""
+    try:
+        unit = (cells[index["family"]], int(cells[index["unit"]]))
+    except ValueError:
+        unit = (cells[index["family"]], -1)
+    if unit not in unit_rows:
+        raise InvalidInputError(f"out: cannot resume {file}: line {number} belongs to unit {unit[0]} "
+                                f"{cells[index['unit']]!r}, which this sweep does not have{_DAMAGED}")
+    return unit
+
+
+def _extend_runs(file: Path, runs: list[tuple[tuple[str, int], int, int]], unit: tuple[str, int], number: int,
+                 unit_rows: dict[tuple[str, int], int]) -> None:
+    """Count line `number`'s row into the runs of consecutive rows of one unit: a unit left unfinished before
+    another, or one with more rows than it has, is damage."""
+    if runs and runs[-1][0] == unit:
+        runs[-1] = (unit, runs[-1][1], runs[-1][2] + 1)
+    else:
+        if runs and runs[-1][2] != unit_rows[runs[-1][0]]:
+            last = runs[-1]
+            raise InvalidInputError(f"out: cannot resume {file}: unit {last[0][0]} {last[0][1]} (line "
+                                    f"{last[1]}) has {last[2]} of its {unit_rows[last[0]]} rows and other "
+                                    f"units follow it{_DAMAGED}")
+        runs.append((unit, number, 1))
+    if runs[-1][2] > unit_rows[unit]:
+        raise InvalidInputError(f"out: cannot resume {file}: unit {unit[0]} {unit[1]} has more than its "
+                                f"{unit_rows[unit]} rows (line {number}){_DAMAGED}")
+
+
+def _check_once(file: Path, runs: list[tuple[tuple[str, int], int, int]]) -> None:
+    """InvalidInputError where a unit's rows come in two runs (two sweeps wrote the file, or it was edited)."""
     seen: dict[tuple[str, int], int] = {}
     for unit, first, _ in runs:
         if unit in seen:
@@ -275,8 +313,6 @@ def _check(file: Path, columns: list[str], settings: dict[str, Any], unit_rows: 
                                     f"{seen[unit]} and {first}); two sweeps wrote this file at once, or it was "
                                     f"edited; start a new file")
         seen[unit] = first
-    done = {unit for unit, _, rows in runs if rows == unit_rows[unit]}
-    return done, keep
 
 
 def _check_provenance(file: Path, row: dict[str, str], expected: dict[str, str], number: int) -> None:
