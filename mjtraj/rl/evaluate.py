@@ -764,11 +764,39 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
                      executions: str = "", weighting: str = "", compute: str = "") -> str:
     """SUMMARY.md: how to regenerate it, the protocol in brief, the table, the by-payload table, each method's
     per-period compute, the policies."""
-    families = ", ".join(record["families"])
+    lines = [*_head(record), *_protocol_lines(record), table, ""]
+    if compact:
+        lines += ["In short (J / reference, then P(improve)):", "", compact, ""]
+    if executions:
+        lines += ["What the executions did (means over each method's episodes of the family, failed ones included "
+                  "where they ran; `success` the share at rest at the goal; the score's position, velocity and torque "
+                  "parts; errors, speeds and torques over the whole episode; `settle` the time after the motion's end "
+                  "until every joint stayed within the band, over the episodes that settled):", "", executions, ""]
+    if weighting:
+        lines += [weighting, ""]
+    if floors:
+        lines += [_floor_words(record), "", floors, ""]
+    if versus:
+        lines += [_versus_words(record), "", versus, ""]
+    if payload:
+        lines += ["By payload on the mismatch family (J / reference, seeds pooled; scenarios per bin in brackets):",
+                  "", payload, ""]
+    if compute:
+        lines += ["What each method computes per control period, for one simulation on one core (a law: its command, "
+                  "timed along its own execution of each family's first scenario; a policy: its inference on one "
+                  "observation, the law it acts on beside it; wall-clock on this run's machine, a record, not a "
+                  "benchmark):", "", compute, ""]
+    if record.get("errors"):
+        lines += ["Rows whose evaluation raised (status error), by reason:", "",
+                  *(f"- {count} x {reason}" for reason, count in record["errors"].items()), ""]
+    lines += ["![performance profiles](profiles.png)", "", "Policies:", *_policy_lines(labels, policies)]
+    return "\n".join(lines) + "\n"
+
+
+def _head(record: dict[str, Any]) -> list[str]:
+    """SUMMARY.md's title, its protocol (or what departs from it), the command and the provenance."""
     protocol = record.get("protocol", "v1")
     base = record.get("protocol_base", "v1")
-    reference = record.get("reference", REFERENCE)
-    score = SCORE_NAMES[base]
     lines = ["# Benchmark summary" + ("" if protocol == base else " (OFF-PROTOCOL)"), ""]
     if protocol != base:
         lines += [f"**Off-protocol**: {protocol.removeprefix('off-protocol: ')}. These numbers cannot be compared "
@@ -780,6 +808,15 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
         lines += [f"Regenerate: `{record['command']}`", ""]
     if record.get("versions"):
         lines += [f"Computed with {describe(record['versions'])}.", ""]
+    return lines
+
+
+def _protocol_lines(record: dict[str, Any]) -> list[str]:
+    """The protocol in brief: the settle window (v2), the scenarios, the statistics and the methods."""
+    families = ", ".join(record["families"])
+    reference = record.get("reference", REFERENCE)
+    score = SCORE_NAMES[record.get("protocol_base", "v1")]
+    lines = []
     if record.get("settle"):
         lines += [f"Every episode goes on for a settle window of {record['settle']:g} s after its motion, the "
                   f"reference holding the goal, and is scored over the whole episode ({score}: J_exec's weights on "
@@ -800,49 +837,42 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
               f"planner+CT (computed torque on the nominal model), planner+adaptive CT (computed torque that "
               f"estimates a payload, damping and friction online), {TUNED_LABEL}, {ORACLE_LABEL} where the adaptive "
               "law runs (it knows each plant's payload, damping and friction: not deployable, a floor for the "
-              "others), and each policy configuration (its seeds pooled; `seeds` counts them).", "", table, ""]
-    if compact:
-        lines += ["In short (J / reference, then P(improve)):", "", compact, ""]
-    if executions:
-        lines += ["What the executions did (means over each method's episodes of the family, failed ones included "
-                  "where they ran; `success` the share at rest at the goal; the score's position, velocity and torque "
-                  "parts; errors, speeds and torques over the whole episode; `settle` the time after the motion's end "
-                  "until every joint stayed within the band, over the episodes that settled):", "", executions, ""]
-    if weighting:
-        lines += [weighting, ""]
-    if floors:
-        reached = ("at rest at the goal when the settle window ends" if record.get("settle") else
-                   "reaching the goal")
-        starts = ("solved from every control law's execution (floor.csv also gives, per law, the floor found "
-                  "without its own: floor_without_LAW)" if record.get("settle") else
-                  "the best found from the least of the control laws' executions")
-        lines += [f"Against the floor (the clairvoyant floor of each scenario's cubic reference: the least {score} any "
-                  f"controller can score on that plant, {reached}; floor.csv) and paired with the strongest "
-                  f"classical method of each family (least mean {score} among planner+law and tuned gains). J / floor "
-                  "is the ratio of means; headroom closed (J_ref - J) / (J_ref - J_floor) with J_ref "
-                  f"{reference}'s (0: the reference, 1: the floor); 95 % intervals as above. On the mismatch and "
-                  f"noisy families (one plant, so one floor) the floor is {starts} on a plant with dry friction: an "
-                  "upper estimate of the true floor. Methods on other planners than cubic track another reference, "
-                  "whose floor differs.", "", floors, ""]
-    if versus:
-        named = record["versus"] if isinstance(record["versus"], list) else [record["versus"]]
-        each = " (a table each)" if len(named) > 1 else ""
-        lines += [f"Paired against {', '.join(v['method'] for v in named)} on the same scenarios{each}: the ratio of "
-                  f"mean {score} and the probability that an episode scores below its (ties one half), 95 % "
-                  "intervals as above.", "",
-                  versus, ""]
-    if payload:
-        lines += ["By payload on the mismatch family (J / reference, seeds pooled; scenarios per bin in brackets):",
-                  "", payload, ""]
-    if compute:
-        lines += ["What each method computes per control period, for one simulation on one core (a law: its command, "
-                  "timed along its own execution of each family's first scenario; a policy: its inference on one "
-                  "observation, the law it acts on beside it; wall-clock on this run's machine, a record, not a "
-                  "benchmark):", "", compute, ""]
-    if record.get("errors"):
-        lines += ["Rows whose evaluation raised (status error), by reason:", "",
-                  *(f"- {count} x {reason}" for reason, count in record["errors"].items()), ""]
-    lines += ["![performance profiles](profiles.png)", "", "Policies:"]
+              "others), and each policy configuration (its seeds pooled; `seeds` counts them).", ""]
+    return lines
+
+
+def _floor_words(record: dict[str, Any]) -> str:
+    """What the table against the floor reads."""
+    score = SCORE_NAMES[record.get("protocol_base", "v1")]
+    reference = record.get("reference", REFERENCE)
+    reached = ("at rest at the goal when the settle window ends" if record.get("settle") else
+               "reaching the goal")
+    starts = ("solved from every control law's execution (floor.csv also gives, per law, the floor found "
+              "without its own: floor_without_LAW)" if record.get("settle") else
+              "the best found from the least of the control laws' executions")
+    return (f"Against the floor (the clairvoyant floor of each scenario's cubic reference: the least {score} any "
+            f"controller can score on that plant, {reached}; floor.csv) and paired with the strongest "
+            f"classical method of each family (least mean {score} among planner+law and tuned gains). J / floor "
+            "is the ratio of means; headroom closed (J_ref - J) / (J_ref - J_floor) with J_ref "
+            f"{reference}'s (0: the reference, 1: the floor); 95 % intervals as above. On the mismatch and "
+            f"noisy families (one plant, so one floor) the floor is {starts} on a plant with dry friction: an "
+            "upper estimate of the true floor. Methods on other planners than cubic track another reference, "
+            "whose floor differs.")
+
+
+def _versus_words(record: dict[str, Any]) -> str:
+    """What the pairing tables read."""
+    score = SCORE_NAMES[record.get("protocol_base", "v1")]
+    named = record["versus"] if isinstance(record["versus"], list) else [record["versus"]]
+    each = " (a table each)" if len(named) > 1 else ""
+    return (f"Paired against {', '.join(v['method'] for v in named)} on the same scenarios{each}: the ratio of "
+            f"mean {score} and the probability that an episode scores below its (ties one half), 95 % "
+            "intervals as above.")
+
+
+def _policy_lines(labels: Sequence[str], policies: Sequence[ScoredPolicy]) -> list[str]:
+    """One line per policy: its source, how it was trained, the env it acts in."""
+    lines = []
     for label, p in zip(labels, policies, strict=True):
         algo = ("imitation (behaviour cloning, DAgger)" if p.record is not None and "distill" in p.record else
                 "batched PPO (skrl)" if p.record is not None and p.record.get("format") == BATCHED_RUN else
@@ -851,4 +881,4 @@ def summary_markdown(table: str, payload: str, record: dict[str, Any], labels: S
                 else p.kind)
         lines.append(f"- {label}: `{p.source}` ({what}; acts in {json.loads(p.columns()['policy_env'])}"
                      f"{', privileged: sees the plant' if p.sees_plant else ''})")
-    return "\n".join(lines) + "\n"
+    return lines
