@@ -305,63 +305,20 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
     Raises:
       InvalidInputError: an unknown argument (the valid ones are listed) or a bad value.
     """
-    if xml_file is not None:
-        from mjtraj.study import scenario_for_model
-
-        if scenario is not None:
-            raise InvalidInputError("xml_file, scenario: give one")
-        dt = options.get("dt", 0.02)
-        drawn = options.get("task") == "random" or options.get("family", "none") != "none"
-        scenario = scenario_for_model(xml_file, dt=dt if isinstance(dt, (int, float)) else 0.02,
-                                      torque_limit=torque_limit, workspace=drawn,  # gains for every drawn task
-                                      q0=q0 if options.get("task") == "explicit" else None,
-                                      qg=qg if options.get("task") == "explicit" else None)
-    elif torque_limit is not None:
-        raise InvalidInputError(f"torque_limit: only with xml_file (your own arm), got {torque_limit!r} for the "
-                                f"UR5, whose saturation is its motors' 60 N m")
+    scenario = _arm_scenario(xml_file, scenario, torque_limit, q0, qg, options)
     paper = scenario if scenario is not None else load_scenario()
     env_names = [f.name for f, _, _ in declared_options(EnvOptions)]
     loop_names = [f.name for f, _, _ in declared_options(LoopConfig)]
-    unknown = sorted(set(options) - set(env_names) - set(loop_names))
-    if unknown:
-        raise InvalidInputError(f"{unknown[0]}: unknown argument; valid: "
-                                f"{', '.join([*ENV_OWN, *env_names, *loop_names])}")
-    own = EnvOptions(**{k: v for k, v in options.items() if k in env_names})
-    if own.family != "none" and own.task != "random":
-        raise InvalidInputError(f"family: {own.family!r} draws every episode's task; use task='random', got "
-                                f"task={own.task!r}")
-    if own.family != "none" and own.plant_randomization != "none":
-        raise InvalidInputError(f"plant_randomization: with family={own.family!r} the family's rules draw the plant; "
-                                "use family='mismatch' for perturbed plants")
+    own = _own_options(options, env_names, loop_names)
     loop = dataclasses.replace(paper.loop, **{k: v for k, v in options.items() if k in loop_names})
-    if own.observe_plant == "estimate" and loop.controller != "adaptive_computed_torque":
-        raise InvalidInputError(f"observe_plant: 'estimate' observes the adaptive law's estimate; expected "
-                                f"controller='adaptive_computed_torque', got {loop.controller!r}")
-    window_steps(own.settle, own.dt)  # a whole number of periods
-    if own.floor and own.settle:
-        raise InvalidInputError(f"floor: the clairvoyant floor is derived for episodes without a settle window; got "
-                                f"settle={own.settle}")
-    if own.floor and (loop.gravity_comp != "native" or loop.substeps != 1):
-        raise InvalidInputError(f"floor: the floor models native gravity compensation at one integrator step per "
-                                f"period; got gravity_comp={loop.gravity_comp!r}, substeps={loop.substeps}")
+    _check_loop(own, loop)
     planner_name, planner_obj = _planner(planner, paper)
     if render_mode is not None and render_mode not in RENDER_MODES:
         raise InvalidInputError(f"render_mode: unsupported mode {render_mode!r}; valid: None, "
                                 f"{', '.join(RENDER_MODES)}")
     model = load_model(paper.model_path, dt=own.dt, torque_limit=paper.model_torque_limit)
     n = model.nv
-    if own.task == "explicit":
-        if q0 is None or qg is None:
-            raise InvalidInputError("task: 'explicit' needs both q0 and qg (rad)")
-    elif q0 is not None or qg is not None:
-        raise InvalidInputError(f"q0, qg: only used with task='explicit', got task={own.task!r}")
-    fixed: Task | None = None
-    if own.task == "paper":
-        fixed = Task.create(paper.task.q0, paper.task.qg, own.duration, own.dt, model=model)
-    elif own.task == "explicit":
-        fixed = Task.create(q0, qg, own.duration, own.dt, model=model)  # type: ignore[arg-type]
-    else:
-        Task.create(np.zeros(n), np.zeros(n), own.duration, own.dt)  # validates the time grid now
+    fixed = _fixed_task(own, paper, model, q0, qg)
     if (Q_exec is None) != (R_exec is None):
         raise InvalidInputError("Q_exec, R_exec: give both (diagonals of 2n and n weights), or neither for Bryson's "
                                 "rule on each task")
@@ -381,3 +338,76 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          floor=own.floor, scoring=scoring,
                          render_mode=render_mode, width=width, height=height, camera=camera,
                          render_quality=own.render_quality)
+
+
+def _arm_scenario(xml_file: str | os.PathLike[str] | None, scenario: Scenario | None,
+                  torque_limit: float | list[float] | None, q0: npt.ArrayLike | None, qg: npt.ArrayLike | None,
+                  options: dict[str, Any]) -> Scenario | None:
+    """The scenario of the user's arm `xml_file` (its gains for every drawn task where the env draws tasks), else
+    `scenario`; a torque limit only with an arm of one's own."""
+    if xml_file is not None:
+        from mjtraj.study import scenario_for_model
+
+        if scenario is not None:
+            raise InvalidInputError("xml_file, scenario: give one")
+        dt = options.get("dt", 0.02)
+        drawn = options.get("task") == "random" or options.get("family", "none") != "none"
+        scenario = scenario_for_model(xml_file, dt=dt if isinstance(dt, (int, float)) else 0.02,
+                                      torque_limit=torque_limit, workspace=drawn,  # gains for every drawn task
+                                      q0=q0 if options.get("task") == "explicit" else None,
+                                      qg=qg if options.get("task") == "explicit" else None)
+    elif torque_limit is not None:
+        raise InvalidInputError(f"torque_limit: only with xml_file (your own arm), got {torque_limit!r} for the "
+                                f"UR5, whose saturation is its motors' 60 N m")
+    return scenario
+
+
+def _own_options(options: dict[str, Any], env_names: list[str], loop_names: list[str]) -> EnvOptions:
+    """The env's own options (EnvOptions) from `options`, after refusing an unknown name and a family combined with
+    a task or plant rule of its own."""
+    unknown = sorted(set(options) - set(env_names) - set(loop_names))
+    if unknown:
+        raise InvalidInputError(f"{unknown[0]}: unknown argument; valid: "
+                                f"{', '.join([*ENV_OWN, *env_names, *loop_names])}")
+    own = EnvOptions(**{k: v for k, v in options.items() if k in env_names})
+    if own.family != "none" and own.task != "random":
+        raise InvalidInputError(f"family: {own.family!r} draws every episode's task; use task='random', got "
+                                f"task={own.task!r}")
+    if own.family != "none" and own.plant_randomization != "none":
+        raise InvalidInputError(f"plant_randomization: with family={own.family!r} the family's rules draw the plant; "
+                                "use family='mismatch' for perturbed plants")
+    return own
+
+
+def _check_loop(own: EnvOptions, loop: LoopConfig) -> None:
+    """Refuse what the loop cannot give the env's options: the adaptive law's estimate observed without that law,
+    a settle window of a fraction of a period, and the floor with a settle window or another plant step."""
+    if own.observe_plant == "estimate" and loop.controller != "adaptive_computed_torque":
+        raise InvalidInputError(f"observe_plant: 'estimate' observes the adaptive law's estimate; expected "
+                                f"controller='adaptive_computed_torque', got {loop.controller!r}")
+    window_steps(own.settle, own.dt)  # a whole number of periods
+    if own.floor and own.settle:
+        raise InvalidInputError(f"floor: the clairvoyant floor is derived for episodes without a settle window; got "
+                                f"settle={own.settle}")
+    if own.floor and (loop.gravity_comp != "native" or loop.substeps != 1):
+        raise InvalidInputError(f"floor: the floor models native gravity compensation at one integrator step per "
+                                f"period; got gravity_comp={loop.gravity_comp!r}, substeps={loop.substeps}")
+
+
+def _fixed_task(own: EnvOptions, paper: Scenario, model: mujoco.MjModel, q0: npt.ArrayLike | None,
+                qg: npt.ArrayLike | None) -> Task | None:
+    """Every episode's task for task='paper' or 'explicit' (q0 -> qg, rad, given only then), else None (drawn per
+    episode; its time grid checked now)."""
+    if own.task == "explicit":
+        if q0 is None or qg is None:
+            raise InvalidInputError("task: 'explicit' needs both q0 and qg (rad)")
+    elif q0 is not None or qg is not None:
+        raise InvalidInputError(f"q0, qg: only used with task='explicit', got task={own.task!r}")
+    fixed: Task | None = None
+    if own.task == "paper":
+        fixed = Task.create(paper.task.q0, paper.task.qg, own.duration, own.dt, model=model)
+    elif own.task == "explicit":
+        fixed = Task.create(q0, qg, own.duration, own.dt, model=model)  # type: ignore[arg-type]
+    else:
+        Task.create(np.zeros(model.nv), np.zeros(model.nv), own.duration, own.dt)  # validates the time grid now
+    return fixed

@@ -68,18 +68,35 @@ def _hold_fingers(spec: mujoco.MjSpec, file: Path) -> list[str]:
     order = {id(j): k for k, j in enumerate(joints)}
     lines = []
     for joint in fingers:
-        if home is not None and len(home.qpos) == len(joints):
-            value, where = float(home.qpos[order[id(joint)]]), "its 'home' keyframe"
-        else:
-            value, where = 0.0, "0"
-        if joint.limited == mujoco.mjtLimited.mjLIMITED_TRUE or (
-                joint.limited == mujoco.mjtLimited.mjLIMITED_AUTO and joint.range[0] < joint.range[1]):
-            low, high = float(joint.range[0]), float(joint.range[1])
-            if not low <= value <= high:
-                value, where = min(max(value, low), high), "its range's nearest end"
+        value, where = _held_value(joint, home, order[id(joint)], len(joints))
         body = joint.parent
         body.pos = np.asarray(body.pos, dtype=np.float64) + value * _rotate(body.quat, joint.axis)
         lines.append(f"{joint.name or '(unnamed slide joint)'} held at {value:g} m ({where})")
+    _delete_finger_couplings(spec, names)
+    _drop_finger_entries(spec, joints)
+    for joint in fingers:
+        spec.delete(joint)
+    spec.add_text(name=HELD_TEXT, data="; ".join(lines))
+    return lines
+
+
+def _held_value(joint: mujoco.MjsJoint, home: mujoco.MjsKey | None, index: int, count: int) -> tuple[float, str]:
+    """Where a finger (joint `index` of the model's `count`) is held, m, and why: its 'home' keyframe's value, else
+    0, moved to its range's nearest end when outside a limited range."""
+    if home is not None and len(home.qpos) == count:
+        value, where = float(home.qpos[index]), "its 'home' keyframe"
+    else:
+        value, where = 0.0, "0"
+    if joint.limited == mujoco.mjtLimited.mjLIMITED_TRUE or (
+            joint.limited == mujoco.mjtLimited.mjLIMITED_AUTO and joint.range[0] < joint.range[1]):
+        low, high = float(joint.range[0]), float(joint.range[1])
+        if not low <= value <= high:
+            value, where = min(max(value, low), high), "its range's nearest end"
+    return value, where
+
+
+def _delete_finger_couplings(spec: mujoco.MjSpec, names: set[str]) -> None:
+    """Delete the joint equalities and fixed tendons that couple the held fingers `names` only, and their sensors."""
     for equality in list(spec.equalities):
         if equality.type == mujoco.mjtEq.mjEQ_JOINT and {equality.name1, equality.name2} - {""} <= names:
             spec.delete(equality)
@@ -91,16 +108,16 @@ def _hold_fingers(spec: mujoco.MjSpec, file: Path) -> list[str]:
     for sensor in list(spec.sensors):
         if sensor.objtype == mujoco.mjtObj.mjOBJ_JOINT and sensor.objname in names:
             spec.delete(sensor)
+
+
+def _drop_finger_entries(spec: mujoco.MjSpec, joints: list[mujoco.MjsJoint]) -> None:
+    """Remove the fingers' entries from every keyframe's qpos and qvel that has one per joint of `joints`."""
     kept = [k for k, j in enumerate(joints) if not _finger(j)]
     for key in spec.keys:
         if len(key.qpos) == len(joints):
             key.qpos = np.asarray(key.qpos)[kept]
         if len(key.qvel) == len(joints):
             key.qvel = np.asarray(key.qvel)[kept]
-    for joint in fingers:
-        spec.delete(joint)
-    spec.add_text(name=HELD_TEXT, data="; ".join(lines))
-    return lines
 
 
 RK4_DAMPING_BOUND = 2.0

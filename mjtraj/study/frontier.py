@@ -100,23 +100,10 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
     alphas = _checked("alphas", alphas, 0.0, 1e12)
     splits = _checked("splits", splits, 0.0, 1.0)
     model = scenario.model
-    if family is None:
-        draws = [FamilyScenario("task", 0, scenario.task, None, 0)]
-        scoring = scenario.scoring
-    else:
-        if family not in FAMILIES:
-            raise InvalidInputError(f"family: unknown value {family!r}; valid: {', '.join(FAMILIES)}")
-        if isinstance(scenarios, bool) or not isinstance(scenarios, int) or scenarios < 2:
-            raise InvalidInputError(f"scenarios: expected a whole number >= 2 for a family, got {scenarios!r}")
-        draws = [draw_scenario(family, seed_value("seed", seed), i, model, scenario.task.dt)
-                 for i in range(scenarios)]
-        scoring = Scoring()
+    draws, scoring = _draws(scenario, family, scenarios, seed)
     tasks = [d.task for d in draws]
     weights = [scoring.weights(t, scenario.torque_limit) for t in tasks]
-    planners: list[tuple[str, float | None, float | None, Planner]] = [
-        ("optimal", a, s, optimal_at(scenario, a, s)) for s in splits for a in alphas]
-    others = tuple(name for name in default_planners() if name != "optimal")
-    planners += [(name, None, None, scenario.planner(name)) for name in others]
+    planners, others = _planners(scenario, alphas, splits)
     plans = []
     for *_, p in planners:
         plans.append(plan_all(p, tasks, model))
@@ -124,16 +111,7 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
             progress(len(plans), len(planners) + 1)
     plant = (perturbed_plant(model, scenario.model_path, scenario.model_torque_limit) if family == "mismatch"
              else None)
-    jobs, where = [], []
-    for i, refs in enumerate(plans):
-        for b, ref in enumerate(refs):
-            if isinstance(ref, Reference):
-                jobs.append(Job(ref, weights[b], draws[b].perturbation))
-                where.append((i, b))
-    outcomes: list[list[Outcome]] = [[plan_failure(ref) if isinstance(ref, MjtrajError) else Outcome("error")
-                                      for ref in refs] for refs in plans]
-    for (i, b), result in zip(where, execute(model, scenario.loop, jobs, plant=plant, total_torque=True), strict=True):
-        outcomes[i][b] = result
+    outcomes = _outcomes(scenario, plans, weights, draws, plant)
     if progress is not None:
         progress(len(planners) + 1, len(planners) + 1)
     cubic = outcomes[len(planners) - len(others) + others.index(REFERENCE)]
@@ -142,6 +120,49 @@ def frontier(scenario: Scenario, *, alphas: Sequence[float] = DEFAULT_ALPHAS,
                "score": "the scenario's (fixed)" if family is None else "Bryson's rule per task",
                "scenario": scenario.name, "controller": {k: v for k, v in scenario.as_dict()["controller"].items()}}
     return Frontier(rows, setting)
+
+
+def _draws(scenario: Scenario, family: str | None, scenarios: int, seed: int
+           ) -> tuple[list[FamilyScenario], Scoring]:
+    """The frontier's tasks and their score: the scenario's own task and score (family None), or `scenarios`
+    draws of `family` (checked) scored by Bryson's rule per task."""
+    if family is None:
+        return [FamilyScenario("task", 0, scenario.task, None, 0)], scenario.scoring
+    if family not in FAMILIES:
+        raise InvalidInputError(f"family: unknown value {family!r}; valid: {', '.join(FAMILIES)}")
+    if isinstance(scenarios, bool) or not isinstance(scenarios, int) or scenarios < 2:
+        raise InvalidInputError(f"scenarios: expected a whole number >= 2 for a family, got {scenarios!r}")
+    draws = [draw_scenario(family, seed_value("seed", seed), i, scenario.model, scenario.task.dt)
+             for i in range(scenarios)]
+    return draws, Scoring()
+
+
+def _planners(scenario: Scenario, alphas: tuple[float, ...], splits: tuple[float, ...]
+              ) -> tuple[list[tuple[str, float | None, float | None, Planner]], tuple[str, ...]]:
+    """The frontier's planners as (name, alpha, split, planner): the optimal planner at each split and alpha, then
+    the other default planners (alpha and split None); and the names of those others."""
+    planners: list[tuple[str, float | None, float | None, Planner]] = [
+        ("optimal", a, s, optimal_at(scenario, a, s)) for s in splits for a in alphas]
+    others = tuple(name for name in default_planners() if name != "optimal")
+    planners += [(name, None, None, scenario.planner(name)) for name in others]
+    return planners, others
+
+
+def _outcomes(scenario: Scenario, plans: list[list[Reference | MjtrajError]], weights: list[Any],
+              draws: list[FamilyScenario], plant: Any) -> list[list[Outcome]]:
+    """Every plan executed through the one pipeline (a failed plan's outcome says why), per planner and task."""
+    jobs, where = [], []
+    for i, refs in enumerate(plans):
+        for b, ref in enumerate(refs):
+            if isinstance(ref, Reference):
+                jobs.append(Job(ref, weights[b], draws[b].perturbation))
+                where.append((i, b))
+    outcomes: list[list[Outcome]] = [[plan_failure(ref) if isinstance(ref, MjtrajError) else Outcome("error")
+                                      for ref in refs] for refs in plans]
+    for (i, b), result in zip(where, execute(scenario.model, scenario.loop, jobs, plant=plant, total_torque=True),
+                              strict=True):
+        outcomes[i][b] = result
+    return outcomes
 
 
 def _values(outcomes: list[Outcome], metric: str) -> np.ndarray:

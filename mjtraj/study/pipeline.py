@@ -121,28 +121,57 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
     """
     clock = time.perf_counter()
     references = [job.reference for job in jobs]
+    loop = _loop(model, config, jobs, plant, nthread)
+    noise = _noise(jobs, references, model.nv)
+    rollout = _run(loop, jobs, references, noise, actor)
+    unstable = loop.unstable()
+    middle = time.perf_counter()
+    outcomes = _outcomes(model, config, jobs, rollout, unstable, total_torque)
+    if seconds is not None:
+        seconds["execute"] = seconds.get("execute", 0.0) + middle - clock
+        seconds["metrics"] = seconds.get("metrics", 0.0) + time.perf_counter() - middle
+    return rollout, outcomes
+
+
+def _loop(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], plant: mujoco.MjModel | None,
+          nthread: int) -> ClosedLoop:
+    """The ClosedLoop of `jobs`: on the nominal `model`, or on `plant` with each job's perturbation (all perturbed
+    or none)."""
     perturbed = [job.perturbation for job in jobs if job.perturbation is not None]
     if perturbed and (plant is None or len(perturbed) != len(jobs)):
         raise InvalidInputError("jobs: perturbed jobs need the perturbed plant model, and a batch is either all "
                                 "perturbed or all nominal")
     fields = plant_fields(plant, perturbed) if plant is not None and perturbed else None
-    loop = ClosedLoop(model, config, nsim=len(jobs), plant=plant, plant_fields=fields, nthread=nthread)
-    noise = None
-    if any(job.noise is not None for job in jobs):
-        N, n = references[0].steps, model.nv
-        noise = np.stack([job.noise if job.noise is not None else np.zeros((N, 2 * n)) for job in jobs], axis=1)
+    return ClosedLoop(model, config, nsim=len(jobs), plant=plant, plant_fields=fields, nthread=nthread)
+
+
+def _noise(jobs: Sequence[Job], references: list[Reference], n: int) -> NDArray[np.float64] | None:
+    """The jobs' measurement noise, shape (N, B, 2n) (zero for a job without), or None where none has any."""
+    if not any(job.noise is not None for job in jobs):
+        return None
+    N = references[0].steps
+    return np.stack([job.noise if job.noise is not None else np.zeros((N, 2 * n)) for job in jobs], axis=1)
+
+
+def _run(loop: ClosedLoop, jobs: Sequence[Job], references: list[Reference], noise: NDArray[np.float64] | None,
+         actor: Actor | None) -> Rollout:
+    """Run `loop` on `references`: by the controller alone, or with `actor`'s torque every period (added to the
+    controller's in residual mode, else in its place)."""
     if actor is None:
-        rollout = loop.run(references, noise=noise)
-    else:
-        loop.start(references, noise=noise)
-        actor.begin(loop, references, [job.perturbation for job in jobs])
-        residual = actor.action_mode == "residual"
-        for _ in range(loop.steps):
-            torque = actor.act(loop)
-            loop.step(residual=torque if residual else None, override=None if residual else torque)
-        rollout = loop.rollout()
-    unstable = loop.unstable()
-    middle = time.perf_counter()
+        return loop.run(references, noise=noise)
+    loop.start(references, noise=noise)
+    actor.begin(loop, references, [job.perturbation for job in jobs])
+    residual = actor.action_mode == "residual"
+    for _ in range(loop.steps):
+        torque = actor.act(loop)
+        loop.step(residual=torque if residual else None, override=None if residual else torque)
+    return loop.rollout()
+
+
+def _outcomes(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], rollout: Rollout,
+              unstable: NDArray[np.bool_], total_torque: bool) -> list[Outcome]:
+    """Each job's outcome from `rollout`: its metrics under its weights (and its settle window's, where the jobs
+    have one: all or none), its status (`outcome`)."""
     q_diag = np.array([job.weights[0] for job in jobs])
     r_diag = np.array([job.weights[1] for job in jobs])
     arrays = metrics_arrays(rollout, q_diag, r_diag,
@@ -152,12 +181,8 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
         if not all(settle is not None for settle in settles):
             raise InvalidInputError("jobs: a batch is either all with a settle window or all without")
         arrays.update(settle_arrays(rollout, q_diag, r_diag, settles))  # type: ignore[arg-type]
-    outcomes = [outcome(arrays, j, bool(unstable[j]), int(rollout.diverged_step[j]), config, settles[j])
-                for j in range(len(jobs))]
-    if seconds is not None:
-        seconds["execute"] = seconds.get("execute", 0.0) + middle - clock
-        seconds["metrics"] = seconds.get("metrics", 0.0) + time.perf_counter() - middle
-    return rollout, outcomes
+    return [outcome(arrays, j, bool(unstable[j]), int(rollout.diverged_step[j]), config, settles[j])
+            for j in range(len(jobs))]
 
 
 def execute(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], *, plant: mujoco.MjModel | None = None,

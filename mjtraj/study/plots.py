@@ -10,7 +10,7 @@ import numpy as np
 
 from mjtraj.core.scoring import step_cost
 from mjtraj.study.comparison import Comparison
-from mjtraj.study.frontier import Frontier
+from mjtraj.study.frontier import Frontier, FrontierRow
 
 FIGURES = {
     "fig2_planned_acceleration.png": "Planned joint accelerations",
@@ -268,36 +268,14 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
 
     s = result.setting
     fig, ax = plt.subplots(figsize=(7.5, 5.4))
-    optimal = [r for r in result.rows if r.planner == "optimal"]
-    labels: list[tuple[int, float, float, str]] = []
-    styles = ("o-", "^--", "s:", "d-.")
     color = planner_color("optimal")  # every split in the optimal planner's colour, told apart by line style
-    for k, split in enumerate(dict.fromkeys(r.split for r in optimal)):
-        curve = [r for r in optimal if r.split == split and np.isfinite(r.metrics["rms_dtau"])]
-        x = [r.metrics["rms_dtau"] for r in curve]
-        y = [r.metrics["rms_err"] for r in curve]
-        ax.plot(x, y, styles[k % len(styles)], ms=3, lw=1.2, color=color, label=f"optimal, split {split:g}")
-        best = min(range(len(curve)), key=lambda i: curve[i].metrics["cost"]) if curve else -1
-        for i, r in enumerate(curve):
-            assert r.alpha is not None
-            decade = r.alpha > 0 and abs(np.log10(r.alpha) - round(np.log10(r.alpha))) < 1e-9
-            if r.alpha == 0.0 or (decade and r.alpha >= 1e-3) or i == best:
-                text = f"α={r.alpha:.2g}" + (" (least J_exec)" if i == best else " (Bryson)" if r.alpha == 1 else "")
-                rank = 0 if i == best else 1 if r.alpha in (0.0, 1.0) else 2
-                labels.append((rank, x[i], y[i], text))
+    labels = _optimal_curves(ax, result, color)
     for r in (row for row in result.rows if row.planner != "optimal"):
         ax.plot(r.metrics["rms_dtau"], r.metrics["rms_err"], "s", ms=8, color=planner_color(r.planner),
                 label=r.planner)
     for k, (label, (effort, error)) in enumerate((points or {}).items()):
         ax.plot(effort, error, "*", ms=12, color="k", alpha=1.0 - 0.3 * k, label=label)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    plain_log_ticks(ax)
-    ax.set_xlabel("corrective effort: RMS Δτ [N m]" + (" (median)" if s["task"] != "scenario" else ""))
-    ax.set_ylabel("tracking error: RMS e [rad]" + (" (median)" if s["task"] != "scenario" else ""))
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
-    ax.set_title("Tracking error against corrective effort as the optimal planner's weight α varies", fontsize=10)
+    _frontier_axes(ax, s)
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     place_labels(ax, sorted(labels), color)
     where = "the scenario's task" if s["task"] == "scenario" else f"{s['scenarios']} {s['task']} scenarios"
@@ -309,3 +287,47 @@ def frontier_figure(result: Frontier, path: Path, *, dpi: int = 120,
     written = save_figure(fig, path, formats, dpi=dpi)
     plt.close(fig)
     return written[0]
+
+
+def _optimal_curves(ax: Any, result: Frontier, color: Any) -> list[tuple[int, float, float, str]]:
+    """Draw the optimal planner's curve over alpha for each split (one line style each); returns the labels to
+    place as (rank, x, y, text) (`_alpha_label`)."""
+    optimal = [r for r in result.rows if r.planner == "optimal"]
+    labels: list[tuple[int, float, float, str]] = []
+    styles = ("o-", "^--", "s:", "d-.")
+    for k, split in enumerate(dict.fromkeys(r.split for r in optimal)):
+        curve = [r for r in optimal if r.split == split and np.isfinite(r.metrics["rms_dtau"])]
+        x = [r.metrics["rms_dtau"] for r in curve]
+        y = [r.metrics["rms_err"] for r in curve]
+        ax.plot(x, y, styles[k % len(styles)], ms=3, lw=1.2, color=color, label=f"optimal, split {split:g}")
+        best = min(range(len(curve)), key=lambda i: curve[i].metrics["cost"]) if curve else -1
+        for i, r in enumerate(curve):
+            label = _alpha_label(r, i == best)
+            if label is not None:
+                labels.append((label[0], x[i], y[i], label[1]))
+    return labels
+
+
+def _alpha_label(row: FrontierRow, best: bool) -> tuple[int, str] | None:
+    """A curve point's label as (rank, text), or None: alpha 0, the decades from 1e-3 and the least J_exec (`best`)
+    are labelled, ranked best first, then alpha 0 and 1 (Bryson), then the decades."""
+    alpha = row.alpha
+    assert alpha is not None
+    decade = alpha > 0 and abs(np.log10(alpha) - round(np.log10(alpha))) < 1e-9
+    if not (alpha == 0.0 or (decade and alpha >= 1e-3) or best):
+        return None
+    text = f"α={alpha:.2g}" + (" (least J_exec)" if best else " (Bryson)" if alpha == 1 else "")
+    rank = 0 if best else 1 if alpha in (0.0, 1.0) else 2
+    return rank, text
+
+
+def _frontier_axes(ax: Any, setting: dict[str, Any]) -> None:
+    """The frontier's log-log axes: ticks, labels (medians over a family), grid, legend and title."""
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    plain_log_ticks(ax)
+    ax.set_xlabel("corrective effort: RMS Δτ [N m]" + (" (median)" if setting["task"] != "scenario" else ""))
+    ax.set_ylabel("tracking error: RMS e [rad]" + (" (median)" if setting["task"] != "scenario" else ""))
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    ax.set_title("Tracking error against corrective effort as the optimal planner's weight α varies", fontsize=10)

@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.core.arm import normalized_limit
+from mjtraj.core.arm import TorqueLimit, normalized_limit
 from mjtraj.core.closed_loop import LoopConfig
 from mjtraj.core.controller import PIDGains
 from mjtraj.core.model import JointInfo, load_model
@@ -224,6 +224,20 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
     if not isinstance(name, str) or not NAME.fullmatch(name):
         raise InvalidInputError(f"config: name: expected a name of letters, digits, '_', '-' and '.' (not a path), "
                                 f"got {name!r}")
+    model_path, torque_limit = _model_and_limit(data)
+    task = _task(data)
+    loop = _loop(data, task.n)
+    planners = _planner_options(data)
+    scoring = _scoring(data, task.n)
+    tuning = data.get("tuning")
+    if tuning is not None and not isinstance(tuning, dict):
+        raise InvalidInputError(f"config: [tuning] must be a table, got {tuning!r}")
+    return Scenario(name=name, task=task, loop=loop, planner_options=planners, scoring=scoring,
+                    model_path=model_path, model_torque_limit=torque_limit, source=source, tuning=tuning)
+
+
+def _model_and_limit(data: dict[str, Any]) -> tuple[str | None, TorqueLimit]:
+    """The file's `model` (a path, or None for the shipped UR5) and its `torque_limit` (N m, only with a model)."""
     model_path = data.get("model")
     if model_path is not None and not isinstance(model_path, str):
         raise InvalidInputError(f"config: model: expected a file path (a string), got {model_path!r}")
@@ -238,16 +252,29 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
             raise InvalidInputError(f"config: torque_limit: expected a positive number (N m) or a list of them (one "
                                     f"per joint), got {torque_limit!r}")
         torque_limit = normalized_limit(values)
+    return model_path, torque_limit
+
+
+def _task(data: dict[str, Any]) -> Task:
+    """The file's [task]: q0, qg (rad), duration and dt (s)."""
     t = _section(data, "task")
     _only(t, "task", TASK_KEYS)
-    task = Task.create(_numbers(t, "task", "q0"), _numbers(t, "task", "qg"), _number(t, "task", "duration"),
+    return Task.create(_numbers(t, "task", "q0"), _numbers(t, "task", "qg"), _number(t, "task", "duration"),
                        _number(t, "task", "dt"))
+
+
+def _loop(data: dict[str, Any], n: int) -> LoopConfig:
+    """The file's [controller]: the PID gains (n joints each) and the loop's options."""
     c = _section(data, "controller")
     _only(c, "controller", GAIN_KEYS + option_names(LoopConfig))
     kp, ki, kd = (_numbers(c, "controller", k) for k in GAIN_KEYS)
-    gains = PIDGains.create(kp, ki, kd, n=task.n)
-    loop = LoopConfig(gains, **from_mapping(LoopConfig, {k: v for k, v in c.items() if k not in GAIN_KEYS},
+    gains = PIDGains.create(kp, ki, kd, n=n)
+    return LoopConfig(gains, **from_mapping(LoopConfig, {k: v for k, v in c.items() if k not in GAIN_KEYS},
                                             where=" in [controller]"))
+
+
+def _planner_options(data: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The file's [planners.NAME] tables: each planner's options (lists as tuples), checked by making it."""
     planners: dict[str, dict[str, Any]] = {}
     for planner, options in _section(data, "planners", required=False).items():
         if planner not in available():
@@ -259,21 +286,20 @@ def scenario_from_dict(data: dict[str, Any], *, source: str = "") -> Scenario:
             make(planner, **planners[planner])  # validates the options now
         except TypeError as e:
             raise InvalidInputError(f"config: [planners.{planner}]: {e}") from e
+    return planners
+
+
+def _scoring(data: dict[str, Any], n: int) -> Scoring:
+    """The file's [cost]: Bryson's rule (rule = "bryson"), or the fixed Q_exec (2n,) and R_exec (n,)."""
     cost = _section(data, "cost")
     if "rule" in cost:
         _only(cost, "cost", ("rule",))
         if cost["rule"] != "bryson":
             raise InvalidInputError(f"config: rule in [cost]: unknown value {cost['rule']!r}; valid: bryson (or give "
                                     f"Q_exec and R_exec)")
-        scoring = Scoring()
-    else:
-        _only(cost, "cost", ("Q_exec", "R_exec", "rule"))
-        scoring = Scoring.fixed(_numbers(cost, "cost", "Q_exec"), _numbers(cost, "cost", "R_exec"), task.n)
-    tuning = data.get("tuning")
-    if tuning is not None and not isinstance(tuning, dict):
-        raise InvalidInputError(f"config: [tuning] must be a table, got {tuning!r}")
-    return Scenario(name=name, task=task, loop=loop, planner_options=planners, scoring=scoring,
-                    model_path=model_path, model_torque_limit=torque_limit, source=source, tuning=tuning)
+        return Scoring()
+    _only(cost, "cost", ("Q_exec", "R_exec", "rule"))
+    return Scoring.fixed(_numbers(cost, "cost", "Q_exec"), _numbers(cost, "cost", "R_exec"), n)
 
 
 MOVE = 0.5

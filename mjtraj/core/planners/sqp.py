@@ -234,6 +234,10 @@ def _step_qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float
     return None if solved is None else (*solved, 1.0, True)
 
 
+_Lagrangian = tuple[NDArray[np.float64], NDArray[np.float64], tuple[float, float, bytes], int]
+"""The last Lagrangian Hessian, its L^-T, what it was made for (scale, damping, path rows), and its reuses."""
+
+
 def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], *, curvature_scale: float,
                      shrink: float, max_iter: int, join: NDArray[np.float64] | None = None,
                      second_order_after: int | None = SECOND_ORDER_AFTER) -> SqpResult:
@@ -256,8 +260,7 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
     multipliers: tuple[NDArray[np.float64], NDArray[np.intp]] | None = None  # the last QP's, and its path rows
     slow_after, slow_run, contraction = SLOW
     slow, last_length = 0, float("inf")  # slow iterations in a row; the last QP step's length
-    # the last Lagrangian Hessian, its L^-T, what it was made for (scale, damping, path rows), and its reuses
-    lagrangian: tuple[NDArray[np.float64], NDArray[np.float64], tuple[float, float, bytes], int] | None = None
+    lagrangian: _Lagrangian | None = None
     for iteration in range(1, max_iter + 2):  # the last pass only tests the last step's iterate
         if join is not None and np.linalg.norm(u - join) <= JOIN * np.linalg.norm(join):
             return SqpResult(join, iteration - 1, int(rows.size), True, "joined the plan given", joined=True)
@@ -265,8 +268,7 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         f = problem.objective(u)
         terminal = X[-1] - problem.xg
         h = limits.values(U, X)[:4 * size]
-        if (np.abs(terminal).max() <= FEASIBLE and np.all(h >= -FEASIBLE * path_scale) and last is not None
-                and abs(last - f) <= STALL * abs(f)):
+        if _converged(terminal, h, path_scale, f, last):
             return SqpResult(u, iteration - 1, int(rows.size), True, "converged")
         if iteration > max_iter:
             break
@@ -275,21 +277,9 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         now = violation(problem, limits, u)
         rows = np.union1d(rows, np.flatnonzero(h < (1.0 - SCREEN) * path_scale))
         G = limits.jacobian(S, rows) / path_scale[rows, None]
-        H = scale * (problem.gauss_newton(u) if diagonal is None else diagonal)
-        if second_order_after is not None and iteration > slow_after and slow >= slow_run:
-            second_order_after = min(second_order_after, iteration - 1)  # converging slowly: Newton from here on
-        newton, back = False, None
-        if second_order_after is not None and iteration > second_order_after and multipliers is not None:
-            made_for = (scale, damping, rows.tobytes())
-            if lagrangian is None or lagrangian[2] != made_for or lagrangian[3] >= NEWTON_REUSE:
-                made = _lagrangian_hessian(problem, limits, u, H, *multipliers, path_scale, damping)
-                lagrangian = None if made is None else (*made, made_for, 0)
-            else:
-                lagrangian = (*lagrangian[:3], lagrangian[3] + 1)
-            if lagrangian is not None:
-                newton, (H, back) = True, lagrangian[:2]
-        if H.ndim == 2 and back is None:
-            back = _inverse_factor(H)  # once, for the step's QPs and its second-order correction
+        second_order_after = _second_order_from(second_order_after, iteration, slow, slow_after, slow_run)
+        H, back, newton, lagrangian = _hessian(problem, limits, u, diagonal, scale, damping, rows, path_scale,
+                                               multipliers, lagrangian, second_order_after, iteration)
         solved = _step_qp(H, g, S[-1], terminal, G, h[rows] / path_scale[rows], -u_max - u, u_max - u, back)
         if solved is None:
             return SqpResult(u, iteration, int(rows.size), False, "the linearised constraints admit no step")
@@ -298,36 +288,105 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         penalty = max(penalty, 2.0 * float(np.abs(lam).max(initial=0.0)))
         merit = f + penalty * now
         slope = float(g @ d) - penalty * share * now  # the merit's predicted change along d
-        full = u + d
-        point: NDArray[np.float64] | None = full  # the next iterate, as the line search tried it
-        shortened = False
-        if _merit(problem, limits, full, penalty) > merit + ARMIJO * slope:
-            correction = None if share < 1.0 else _second_order(problem, limits, u, d, H, g, S, rows, path_scale,
-                                                                soft, back)
-            point = None if correction is None else u + correction
-            if point is not None and _merit(problem, limits, point, penalty) > merit + ARMIJO * slope:
-                point = None
+        point = _full_or_corrected(problem, limits, u, d, H, g, S, rows, path_scale, soft, back, share, merit, slope,
+                                   penalty)
         if newton:
-            low, factor = DAMPING
-            damping = damping / factor if point is not None else max(low, damping * factor)
-            damping = damping if damping >= low else 0.0
+            damping = _next_damping(damping, point is not None)
+        shortened, trusted = False, True
         if point is None:
-            projected = _projected(problem, limits, u, d, merit, slope, penalty)
-            if projected is not None:
-                point, t = projected
-                shortened = t < 1.0
-        if point is None:
-            point = _backtrack(problem, limits, u, d, merit, slope, penalty)
-            if point is None:
+            searched = _searched_step(problem, limits, u, d, merit, slope, penalty)
+            if searched is None:
                 return SqpResult(u, iteration, int(rows.size), False, "the line search found no decrease")
-            shortened = True
-        else:
+            point, shortened, trusted = searched
+        if trusted:
             scale = max(1.0, scale / shrink)  # a full, corrected or projected step: trust the model more
         length = float(np.linalg.norm(d))
         slow = slow + 1 if shortened or length > contraction * last_length else 0
         last, last_length = f, length
         u = np.clip(point, -u_max, u_max)  # u + (-u_max - u) can round a few ulps past the box's end
     return SqpResult(u, max_iter, int(rows.size), False, f"no convergence in {max_iter} iterations")
+
+
+def _converged(terminal: NDArray[np.float64], h: NDArray[np.float64], path_scale: NDArray[np.float64], f: float,
+               last: float | None) -> bool:
+    """Whether an iterate has converged: its terminal residual and path violations within FEASIBLE, and its
+    objective `f` within STALL of the `last` iterate's."""
+    return bool(np.abs(terminal).max() <= FEASIBLE and np.all(h >= -FEASIBLE * path_scale) and last is not None
+                and abs(last - f) <= STALL * abs(f))
+
+
+def _second_order_from(second_order_after: int | None, iteration: int, slow: int, slow_after: int,
+                       slow_run: int) -> int | None:
+    """The iteration after which the Hessian is the Lagrangian's: `second_order_after`, or this iteration's last
+    once the iteration converges slowly (SLOW: `slow` slow iterations in a row, past `slow_after`)."""
+    if second_order_after is not None and iteration > slow_after and slow >= slow_run:
+        return min(second_order_after, iteration - 1)  # converging slowly: Newton from here on
+    return second_order_after
+
+
+def _hessian(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], diagonal: NDArray[np.float64] | None,
+             scale: float, damping: float, rows: NDArray[np.intp], path_scale: NDArray[np.float64],
+             multipliers: tuple[NDArray[np.float64], NDArray[np.intp]] | None, lagrangian: _Lagrangian | None,
+             second_order_after: int | None, iteration: int
+             ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, bool, _Lagrangian | None]:
+    """The step QP's Hessian at u, its L^-T (None for a diagonal one), whether it is the Lagrangian's, and the
+    Lagrangian Hessian kept. The Gauss-Newton Hessian times `scale` (its `diagonal` where diagonal); after
+    `second_order_after` iterations, once the last QP's `multipliers` are known, the Lagrangian's
+    (`_lagrangian_hessian`), `lagrangian` reused while made for the same scale, damping and path rows (NEWTON_REUSE),
+    where one is made."""
+    H = scale * (problem.gauss_newton(u) if diagonal is None else diagonal)
+    newton, back = False, None
+    if second_order_after is not None and iteration > second_order_after and multipliers is not None:
+        made_for = (scale, damping, rows.tobytes())
+        if lagrangian is None or lagrangian[2] != made_for or lagrangian[3] >= NEWTON_REUSE:
+            made = _lagrangian_hessian(problem, limits, u, H, *multipliers, path_scale, damping)
+            lagrangian = None if made is None else (*made, made_for, 0)
+        else:
+            lagrangian = (*lagrangian[:3], lagrangian[3] + 1)
+        if lagrangian is not None:
+            newton, (H, back) = True, lagrangian[:2]
+    if H.ndim == 2 and back is None:
+        back = _inverse_factor(H)  # once, for the step's QPs and its second-order correction
+    return H, back, newton, lagrangian
+
+
+def _full_or_corrected(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
+                       H: NDArray[np.float64], g: NDArray[np.float64], S: NDArray[np.float64],
+                       rows: NDArray[np.intp], path_scale: NDArray[np.float64], soft: bool,
+                       back: NDArray[np.float64] | None, share: float, merit: float, slope: float, penalty: float
+                       ) -> NDArray[np.float64] | None:
+    """The full step u + d where the merit decreases enough (ARMIJO), else its second-order correction
+    (`_second_order`; none after a relaxed QP, `share` < 1) where that does, else None."""
+    full = u + d
+    point: NDArray[np.float64] | None = full  # the next iterate, as the line search tried it
+    if _merit(problem, limits, full, penalty) > merit + ARMIJO * slope:
+        correction = None if share < 1.0 else _second_order(problem, limits, u, d, H, g, S, rows, path_scale,
+                                                            soft, back)
+        point = None if correction is None else u + correction
+        if point is not None and _merit(problem, limits, point, penalty) > merit + ARMIJO * slope:
+            point = None
+    return point
+
+
+def _next_damping(damping: float, accepted: bool) -> float:
+    """The Lagrangian Hessian's damping after a step (DAMPING): divided by its factor after a full or corrected
+    step (`accepted`), else at least its low end or multiplied by the factor; zero below the low end."""
+    low, factor = DAMPING
+    damping = damping / factor if accepted else max(low, damping * factor)
+    return damping if damping >= low else 0.0
+
+
+def _searched_step(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
+                   merit: float, slope: float, penalty: float) -> tuple[NDArray[np.float64], bool, bool] | None:
+    """Where neither the full nor the corrected step decreases the merit: the projected line search (`_projected`),
+    else backtracking along d (`_backtrack`). (the next iterate, whether its step was cut, whether it was
+    projected), or None where neither finds a decrease."""
+    projected = _projected(problem, limits, u, d, merit, slope, penalty)
+    if projected is not None:
+        point, t = projected
+        return point, t < 1.0, True
+    backtracked = _backtrack(problem, limits, u, d, merit, slope, penalty)
+    return None if backtracked is None else (backtracked, True, False)
 
 
 def _lagrangian_hessian(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], H: NDArray[np.float64],
