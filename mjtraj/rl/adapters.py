@@ -368,7 +368,7 @@ def import_attribute(spec: str) -> Any:
 def _batched(path: Path, *, source: str) -> ScoredPolicy:
     """A batched run's policy file (mjtraj.rl.batched) as the benchmark scores it, named `source`."""
     from mjtraj.rl.batched_policy import label, load_batched
-    from mjtraj.rl.distill import distilled_label
+    from mjtraj.rl.naming import distilled_label
 
     module = load_batched(path)
     named = distilled_label(module.record) if "distill" in module.record else label(module.record)

@@ -41,7 +41,7 @@ def law_compute(config: Any, family_tasks: Sequence[Any], model: Any, planner: A
                 references: Sequence[Any] | None = None) -> StepCompute:
     """The law of loop `config` timed per period along its own execution of each of `references` (default: the
     cubic plans of `family_tasks`, one simulation each)."""
-    from mjtraj.core.closed_loop import ClosedLoop
+    from mjtraj.core import ClosedLoop
 
     law = config.controller
     refs = list(references) if references is not None else [planner.plan(task, model) for task in family_tasks]

@@ -116,15 +116,6 @@ class DistillReport:
     rounds: list[dict[str, float]]
 
 
-def distilled_label(record: dict[str, Any]) -> str:
-    """How tables name a distilled policy's configuration (its seeds share it)."""
-    from mjtraj.rl import law_label
-
-    s, d = record["settings"], record["distill"]
-    return (f"cubic+{law_label(s['controller'])}+residual distilled from {d['teacher']} ({s['residual_scale']:g} "
-            f"N m, {'+'.join(s['families'])}, preview {d['preview']}, {d['rounds']} rounds)")
-
-
 def labels(env: Any, teacher: str, controller: str, scale: float) -> NDArray[np.float64]:
     """The student's labels at the vector env's current states, (B, n) in [-1, 1]: the residual that makes the loop
     apply the teacher's command, (tau_teacher - tau_law) / scale, clipped."""

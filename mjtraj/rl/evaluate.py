@@ -416,9 +416,11 @@ def _executions(request: _Request, plans: list[_Plan], *, progress: bool, keep_g
 
 def _computes(request: _Request, plans: list[_Plan]) -> dict[str, StepCompute]:
     """Each method's per-period compute (`mjtraj.rl.compute`): every law of the evaluation timed along its own
-    execution of the first scenario of each family (cubic, the protocol's window), and every policy's inference."""
-    from mjtraj.core.settle import held, window_steps
-    from mjtraj.study.families import draw_scenario
+    execution of the first scenario of each family (cubic, the protocol's window), and every policy's inference
+    (not a recurrent or privileged one, which a call outside its episodes would disturb or could not feed, nor one
+    that raises)."""
+    from mjtraj.core import held, window_steps
+    from mjtraj.study import draw_scenario
 
     out: dict[str, StepCompute] = {}
     for law in request.laws:
@@ -431,7 +433,11 @@ def _computes(request: _Request, plans: list[_Plan]) -> dict[str, StepCompute]:
             refs.append(held(base.planner("cubic").plan(task, base.model), window, task.qg))
         out[f"cubic+{law_label(law)}"] = law_compute(base.loop, [], base.model, None, references=refs)
     for policy, label in zip(request.loaded, request.labels, strict=True):
-        out[label] = policy_compute(policy.act, policy.settings().obs_size)
+        if policy.reset_hook is None and not policy.privileged:  # no episode state, no plants: callable alone
+            try:
+                out[label] = policy_compute(policy.act_batch, policy.settings().obs_size)
+            except Exception:  # noqa: BLE001 - a broken policy (kept going) is not timed; its rows say why
+                continue
     return out
 
 
