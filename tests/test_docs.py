@@ -162,7 +162,11 @@ def test_the_readmes_policy_interface_is_the_benchmark_envs():
     obs, _ = env.reset(seed=3)
     core = env.unwrapped
     size, = env.observation_space.shape
-    assert f"observation of shape ({size},)" in text and obs.shape == (size,)
+    assert f"the ({size},) of `UR5Track-v2`" in text and obs.shape == (size,)
+    from mjtraj.rl.adapters import load_any
+
+    declared_nothing = load_any(lambda o: np.zeros(3)).settings().obs_size  # what rl eval gives such a policy
+    assert f"receives one observation of shape ({declared_nothing},)" in text and declared_nothing == size - 2
     assert f"shape ({env.action_space.shape[0]},) in [−1, 1]" in text
     assert env.action_space.low.min() == -1 and env.action_space.high.max() == 1
     scale = float(core.settings.residual_scale)
