@@ -7,6 +7,7 @@ bars, the scenario their flags describe) is in `common`.
 
 from __future__ import annotations
 
+import argparse
 import logging
 import os
 import sys
@@ -46,7 +47,21 @@ def build_parser() -> common.Parser:
     sub = parser.add_subparsers(dest="command", parser_class=common.Parser)
     for command in COMMANDS:
         command.add(sub, laws)
+    _describe(parser)
     return parser
+
+
+def _describe(parser: argparse.ArgumentParser) -> None:
+    """Give every command's own --help its one-line summary (the help the command list shows) where it has no
+    description of its own, down the nested commands (`mjtraj rl eval --help`)."""
+    for action in parser._actions:  # noqa: SLF001 - argparse keeps subcommands there
+        if not isinstance(action, argparse._SubParsersAction):  # noqa: SLF001
+            continue
+        helps = {choice.dest: choice.help for choice in action._choices_actions}  # noqa: SLF001
+        for name, child in action.choices.items():
+            if child.description is None and helps.get(name):
+                child.description = helps[name]
+            _describe(child)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
