@@ -25,7 +25,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -138,12 +138,14 @@ class _Families:
     @property
     def actions(self) -> int:
         """n, the action's size."""
-        return int(self.mixed.single_action_space.shape[0])
+        shape = cast(tuple[int, ...], self.mixed.single_action_space.shape)  # a Box's, never None
+        return int(shape[0])
 
     def reset(self, round_: int) -> NDArray[np.float64]:
         """Every sub-env from its stream of round `round_`: [seed, TRAIN_STREAM, round_ B + i]."""
         s, m = self.settings, self.mixed
-        seeds = [stream_seed(s.seed, TRAIN_STREAM, round_ * s.num_envs + i) for i in range(s.num_envs)]
+        seeds: list[int | None] = [stream_seed(s.seed, TRAIN_STREAM, round_ * s.num_envs + i)
+                                   for i in range(s.num_envs)]
         bounds = m._bounds  # noqa: SLF001 - the mixture's own split
         return np.concatenate([env.reset(seed=seeds[a:b])[0]
                                for env, a, b in zip(m.envs, bounds, bounds[1:], strict=False)])
