@@ -274,12 +274,13 @@ def test_on_a_mismatched_plant_no_law_of_the_table_scores_below_the_floor_the_or
     assert oracle.metrics["cost"] == floor.controllers["oracle"] >= floor.cost
 
 
-def test_on_a_linear_plant_the_at_rest_floor_is_the_convex_qps_solution_by_osqp():
+def test_on_a_linear_plant_the_at_rest_floor_is_the_convex_qps_exact_solution():
     """Protocol v2's floor (`AtRest`: 4 n linear rows on the last state) on a rotor, where the problem is a convex
-    QP: its solution by OSQP (an independent solver, polished) is the floor; the rule binds (the floor without it
-    ends outside)."""
-    import osqp
-    import scipy.sparse
+    QP in the torques with two two-sided rows (the last state's position and speed): its exact solution, by
+    enumerating which bound of each row is active and solving the KKT system of each (the least feasible cost of
+    the nine is the optimum of a convex problem), is the floor; the rule binds (the floor without it ends outside).
+    (OSQP was the oracle before: its ADMM, at the oldest version pyproject allows, stopped 3e-6 above the optimum.)"""
+    import itertools
 
     from mjtraj.core.floor import DEFAULT_SETTINGS, AtRest
 
@@ -307,13 +308,20 @@ def test_on_a_linear_plant_the_at_rest_floor_is_the_convex_qps_solution_by_osqp(
     goal = np.concatenate([target, np.zeros(T)])
     aim = DEFAULT_SETTINGS.goal_margin * np.array([rule.band, rule.speed])
     centre = np.array([0.8, 0.0]) - Phi[T]
-    solver = osqp.OSQP()
-    solver.setup(scipy.sparse.csc_matrix(2 * system.T @ system), -2 * system.T @ goal,
-                 scipy.sparse.csc_matrix(Gamma[T]), centre - aim, centre + aim, eps_abs=1e-12, eps_rel=1e-12,
-                 max_iter=200000, polishing=True, verbose=False)
-    U = solver.solve().x
-    best = float(np.sum((system @ U - goal) ** 2))
-    assert found.cost == pytest.approx(best, rel=1e-6)  # the solve stops within FEASIBLE (1e-5) of the aimed rows
+    low, high, C = centre - aim, centre + aim, Gamma[T]
+    H, g = system.T @ system, system.T @ goal
+    candidates = []
+    for sides in itertools.product((None, "low", "high"), repeat=2):
+        active = [i for i in range(2) if sides[i] is not None]
+        values = np.array([low[i] if sides[i] == "low" else high[i] for i in active])
+        kkt = np.block([[H, C[active].T], [C[active], np.zeros((len(active), len(active)))]])
+        U = np.linalg.solve(kkt, np.concatenate([g, values]))[:T]
+        if np.all(C @ U >= low - 1e-12) and np.all(C @ U <= high + 1e-12):
+            candidates.append((float(np.sum((system @ U - goal) ** 2)), U))
+    best, U = min(candidates, key=lambda c: c[0])
+    assert np.abs(U).max() < 1000.0  # the torque box is inactive: the nine solves are the whole problem
+    # the solve stops within FEASIBLE (1e-5) of the aimed rows, a relative 1e-6 of the cost here
+    assert found.cost == pytest.approx(best, rel=1e-6)
     np.testing.assert_allclose(found.torques[:, 0], U, rtol=1e-5, atol=1e-5 * np.abs(U).max())
     assert found.cost > loose.cost
 

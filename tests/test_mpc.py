@@ -168,3 +168,35 @@ def test_the_iteration_cap_reaches_daqp():
     assert _qp(*args, iter_limit=1) is None
     solved = _qp(*args)
     assert solved is not None and np.all(np.abs(rows @ solved[0]) <= 0.1 + 1e-9)
+
+
+@pytest.mark.parametrize("law", ["mpc", "adaptive_mpc"])
+def test_in_protocol_v2_a_refused_solve_applies_the_last_plan_shifted(law, monkeypatch, scenario, model):
+    """Protocol v2 (a settle window): every third QP refused; from the second period on those periods apply what the
+    previous period's plan held for them (within the saturation), the others their QP's solution, which differs."""
+    import mjtraj.core.planners.sqp as sqp
+    from mjtraj.core.settle import held
+
+    calls, refused, plans = [], [], []
+    real_qp, real_keep = sqp._qp, ModelPredictive._keep
+
+    def qp(*args, **kwargs):
+        calls.append(1)
+        refused.append(len(calls) % 3 == 0)
+        return None if refused[-1] else real_qp(*args, **kwargs)
+
+    def keep(self, b, k, H, states, inputs):
+        plans.append(inputs.copy())
+        return real_keep(self, b, k, H, states, inputs)
+
+    monkeypatch.setattr(sqp, "_qp", qp)
+    monkeypatch.setattr(ModelPredictive, "_keep", keep)
+    drawn = draw_scenario("aggressive", 777, 2, model, 0.02)
+    loop = ClosedLoop(model, dataclasses.replace(scenario.loop, controller=law))
+    rollout = loop.run([held(scenario.planner("cubic").plan(drawn.task, model), 25)])
+    limit = JointInfo.of(model).torque_limit
+    assert len(refused) == rollout.dtau.shape[1] == len(plans)
+    for k in np.flatnonzero(refused):
+        np.testing.assert_allclose(rollout.dtau[0, k], np.clip(plans[k - 1][1], -limit, limit), rtol=0, atol=1e-12)
+    kept = [k for k in np.flatnonzero(~np.array(refused)) if k > 0]
+    assert any(not np.allclose(rollout.dtau[0, k], np.clip(plans[k - 1][1], -limit, limit)) for k in kept)
