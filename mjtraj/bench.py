@@ -669,6 +669,39 @@ def bench_predictive(scenario: Scenario, *, scenarios: int = 3, seed: int = 1,
     return rows
 
 
+def bench_labels(*, laws: Sequence[str] = ("mpc", "adaptive_mpc"), num_envs: int = 16, steps: int = 100,
+                 seed: int = 0) -> list[dict[str, Any]]:
+    """How fast the predictive laws label states as teachers (`ClosedLoop.teach`, what `mjtraj rl distill` asks at
+    every step): a native vector env of `num_envs` mismatch sub-envs under the adaptive law with the teacher beside
+    it (protocol v2's episodes, training streams), `steps` steps each after one untimed step, one core; the teacher's
+    labels per second and the same env's steps per second without a teacher, in one run."""
+    from mjtraj.envs import UR5TrackVectorEnv
+    from mjtraj.rl.streams import TRAIN_STREAM, stream_seed
+    from mjtraj.threads import one_blas_thread
+
+    kwargs = {"action_mode": "residual", "controller": "adaptive_computed_torque", "task": "random",
+              "family": "mismatch", "settle": 0.5, "observe_measured": True}
+    seeds: list[int | None] = [stream_seed(seed, TRAIN_STREAM, i) for i in range(num_envs)]
+    zero = np.zeros((num_envs, 3))
+
+    def rate(teacher: str | None) -> float:
+        env = UR5TrackVectorEnv(num_envs, autoreset_mode="SameStep", **kwargs,
+                                **({"teacher": teacher} if teacher else {}))
+        env.reset(seed=seeds)
+        env.step(zero)
+        with one_blas_thread():
+            start = time.perf_counter()
+            for _ in range(steps):
+                if teacher:
+                    env.loop.teach(teacher)
+                env.step(zero)
+            return num_envs * steps / (time.perf_counter() - start)
+
+    alone = rate(None)
+    return [{"law": law, "envs": num_envs, "labels_per_s": (labels := rate(law)), "env_steps_per_s": alone,
+             "minutes_1M": 1e6 / labels / 60} for law in laws]
+
+
 def bench_controllers(scenario: Scenario, *, scenarios: int = 5, seed: int = 1,
                       laws: Sequence[str] = ("pid", "adaptive_computed_torque", "mpc", "adaptive_mpc")
                       ) -> list[dict[str, Any]]:

@@ -281,6 +281,15 @@ def _floor(scenario: Any, record: Any) -> None:
     for row in record("predictive", bench_predictive(scenario)):
         print(f"{row['law']:>13} {row['period_ms']:>10.0f} {row['family']:>11} {row['median_ms']:>10.2f} "
               f"{row['p99_ms']:>7.2f} {row['max_ms']:>9.2f} {row['worst_of_period']:>15.2f}")
+    from mjtraj.bench import bench_labels
+
+    print("the predictive laws as teachers: labels per second (loop.teach beside the adaptive law in a native vector "
+          "env of 16 mismatch sub-envs, protocol v2, one core), the env's own steps per second in the same run, and "
+          "the minutes a million labels take")
+    print(f"{'teacher':>13} {'envs':>5} {'labels/s':>9} {'env steps/s':>12} {'min / 1M':>9}")
+    for row in record("labels", bench_labels()):
+        print(f"{row['law']:>13} {row['envs']:>5} {row['labels_per_s']:>9.0f} {row['env_steps_per_s']:>12.0f} "
+              f"{row['minutes_1M']:>9.1f}")
 
 
 def _startup(record: Any) -> None:
