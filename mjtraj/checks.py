@@ -37,6 +37,22 @@ def positive(name: str, value: float) -> float:
     return number
 
 
+def in_range(name: str, value: float, low: float, high: float, *, low_open: bool = True,
+             high_open: bool = True) -> float:
+    """Return `value` as a float within low..high (each end open or closed; an infinite end is open), or raise naming
+    `name` and the interval."""
+    interval = f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open or np.isinf(high) else ']'}"
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as e:
+        raise InvalidInputError(f"{name}: expected a number in {interval}, got {value!r}") from e
+    above = number > low if low_open else number >= low
+    below = number < high if high_open else number <= high
+    if not (np.isfinite(number) and above and below):
+        raise InvalidInputError(f"{name}: expected a number in {interval}, got {value!r}")
+    return number
+
+
 def choice(name: str, value: str, valid: Iterable[str]) -> str:
     """Return `value` if it is one of `valid`, or raise listing the valid choices."""
     options = list(valid)
@@ -56,6 +72,13 @@ def positive_int(name: str, value: int) -> int:
     """Return `value` as an int >= 1, or raise naming `name`."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
         raise InvalidInputError(f"{name}: expected a whole number >= 1, got {value!r}")
+    return int(value)
+
+
+def nonnegative_int(name: str, value: int) -> int:
+    """Return `value` as an int >= 0, or raise naming `name`."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise InvalidInputError(f"{name}: expected a whole number >= 0, got {value!r}")
     return int(value)
 
 

@@ -134,10 +134,77 @@ def test_an_unreachable_goal_names_the_binding_constraint(model):
     ({"solver": "newton"}, r"^solver: unknown value 'newton'; valid: auto, sqp, slsqp$"),
     ({"sqp_max_iter": 0}, r"^sqp_max_iter: expected a whole number >= 1, got 0$"),
     ({"keep": "best"}, r"^keep: unknown value 'best'; valid: first, lowest$"),
+    ({"settings": {"retry_factor": 3.0}},
+     r"^settings: expected a NonlinearSettings \(mjtraj.core.planners.nonlinear\), got \{'retry_factor': 3.0\}$"),
 ])
 def test_bad_options_are_one_line_errors(options, message):
     with pytest.raises(InvalidInputError, match=message):
         make("nonlinear_min_effort", **options)
+
+
+@pytest.mark.parametrize(("settings", "message"), [
+    ({"retry_factor": 0.0}, r"^settings.retry_factor: expected a positive number, got 0.0$"),
+    ({"max_rounds": 0}, r"^settings.max_rounds: expected a whole number >= 1, got 0$"),
+    ({"slsqp_max_torques": 1.5}, r"^settings.slsqp_max_torques: expected a whole number >= 0, got 1.5$"),
+    ({"range_margin": -1e-4}, r"^settings.range_margin: expected a number in \[0, inf\), got -0.0001$"),
+    ({"sqp": {"stall": 1e-8}}, r"^settings.sqp: expected an SqpSettings \(mjtraj.core.planners.sqp\), got "
+                               r"\{'stall': 1e-08\}$"),
+])
+def test_bad_settings_are_one_line_errors(settings, message):
+    from mjtraj.core.planners.nonlinear import NonlinearSettings
+
+    with pytest.raises(InvalidInputError, match=message):
+        NonlinearSettings(**settings)
+
+
+@pytest.mark.parametrize(("settings", "message"), [
+    ({"curvature_scale": -1.0}, r"^settings.sqp.curvature_scale: expected a positive number, got -1.0$"),
+    ({"shrink": 0.5}, r"^settings.sqp.shrink: expected a number in \[1, inf\), got 0.5$"),
+    ({"armijo": 1.0}, r"^settings.sqp.armijo: expected a number in \(0, 1\), got 1.0$"),
+    ({"min_step": 2.0}, r"^settings.sqp.min_step: expected a number in \(0, 1\], got 2.0$"),
+    ({"stall": 0.0}, r"^settings.sqp.stall: expected a positive number, got 0.0$"),
+    ({"second_order_after": -1}, r"^settings.sqp.second_order_after: expected a whole number >= 0, got -1$"),
+    ({"slow": (8, 3)}, r"^settings.sqp.slow: expected \(after, run, contraction\), got \(8, 3\)$"),
+    ({"slow": (8, 0, 0.7)}, r"^settings.sqp.slow\[1\]: expected a whole number >= 1, got 0$"),
+    ({"augment": ()}, r"^settings.sqp.augment: expected at least one number in \(0, inf\), got \(\)$"),
+    ({"damping": (0.1, 1.0)}, r"^settings.sqp.damping\[1\]: expected a number in \(1, inf\), got 1.0$"),
+    ({"newton_reuse": 1.5}, r"^settings.sqp.newton_reuse: expected a whole number >= 0, got 1.5$"),
+    ({"join_distance": 0.0}, r"^settings.sqp.join_distance: expected a positive number, got 0.0$"),
+    ({"relaxed": (0.5, 1.0)}, r"^settings.sqp.relaxed\[1\]: expected a number in \(0, 1\), got 1.0$"),
+    ({"daqp_tol": float("nan")}, r"^settings.sqp.daqp_tol: expected a positive number, got nan$"),
+])
+def test_bad_sqp_settings_are_one_line_errors(settings, message):
+    from mjtraj.core.planners.sqp import SqpSettings
+
+    with pytest.raises(InvalidInputError, match=message):
+        SqpSettings(**settings)
+
+
+def test_the_settings_reach_the_solvers_and_a_plan_records_those_changed(model):
+    """`settings=` of `make` reaches the SQP: a looser stall test (`SqpSettings.stall` 1e-3) stops the same solve
+    sooner, at the same minimum (oracle: the default solve, to 1e-9), and the plan's info names the change; a plan
+    with the defaults records none. A wider `range_margin` narrows the problem's joint ranges by it. The defaults are
+    the modules' own, and a list given for a tuple is kept as a tuple (the settings stay hashable and comparable)."""
+    from mjtraj.core.planners import nonlinear, sqp
+    from mjtraj.core.planners.nonlinear import NonlinearSettings
+    from mjtraj.core.planners.sqp import SqpSettings
+
+    assert make("nonlinear_optimal").settings == NonlinearSettings() == nonlinear.DEFAULT_SETTINGS
+    assert NonlinearSettings().sqp == SqpSettings() == sqp.DEFAULT_SETTINGS
+    assert NonlinearSettings().changes() == [] and SqpSettings(relaxed=[0.5, 0.25]) == SqpSettings()
+    task = short_task(model, 0.3)
+    default = make("nonlinear_optimal").plan(task, model)
+    loose = make("nonlinear_optimal", settings=NonlinearSettings(sqp=SqpSettings(stall=1e-3))).plan(task, model)
+    assert "settings" not in default.info and loose.info["settings"] == "sqp.stall=0.001"
+    assert loose.info["iterations"] < default.info["iterations"]
+    assert not np.array_equal(loose.u_plan, default.u_plan)
+    assert loose.info["objective"] == pytest.approx(default.info["objective"], rel=1e-9)
+    two = NonlinearSettings(sqp=SqpSettings(slow=(6, 3, 0.6)), range_margin=0.05)
+    assert two.changes() == ["sqp.slow=(6, 3, 0.6)", "range_margin=0.05"]
+    _, limits, _ = make("nonlinear_optimal", settings=two).problem(task, model)
+    joints = JointInfo.of(model)
+    np.testing.assert_array_equal(limits.q_high, np.maximum(joints.upper - 0.05, np.maximum(task.q0, task.qg)))
+    np.testing.assert_array_equal(limits.q_low, np.minimum(joints.lower + 0.05, np.minimum(task.q0, task.qg)))
 
 
 def test_the_change_of_variables_is_exact_and_starts_at_the_gauss_newton_hessian(model):
@@ -161,8 +228,8 @@ def test_the_change_of_variables_is_exact_and_starts_at_the_gauss_newton_hessian
 
 def test_a_failed_solve_is_retried_with_shorter_first_steps(model, monkeypatch):
     """The first optimisation fails (as SLSQP does when an iterate's rollout diverges): the plan comes from the retry
-    at RETRY_FACTOR times the curvature scale and says so; when it and the try from the tracked start fail too, the
-    error carries the three reasons."""
+    at `NonlinearSettings.retry_factor` times the curvature scale (5 here, 30 by default) and says so; when it and
+    the try from the tracked start fail too, the error carries the three reasons."""
     from mjtraj.core.planners import nonlinear
 
     task = short_task(model, 0.3)
@@ -176,8 +243,9 @@ def test_a_failed_solve_is_retried_with_shorter_first_steps(model, monkeypatch):
         return solve(self, problem, limits, rows, u, f_scale, t_scale, scale)
 
     monkeypatch.setattr(nonlinear.NonlinearOptimal, "_solve", first_fails)
-    plan = make("nonlinear_min_effort", solver="slsqp", curvature_scale=2.0).plan(task, model)
-    assert plan.info["retried"] == 1 and scales[0] == 2.0 and set(scales[1:]) == {2.0 * nonlinear.RETRY_FACTOR}
+    settings = nonlinear.NonlinearSettings(retry_factor=5.0)
+    plan = make("nonlinear_min_effort", solver="slsqp", curvature_scale=2.0, settings=settings).plan(task, model)
+    assert plan.info["retried"] == 1 and scales[0] == 2.0 and set(scales[1:]) == {10.0}
     check_plan(model, task, plan)
 
     def both_fail(self, problem, limits, rows, u, f_scale, t_scale, scale):
@@ -222,8 +290,8 @@ def test_lowest_keeps_the_least_of_the_starts_plans_and_first_the_first(model, m
 
 def test_a_start_heading_for_the_first_starts_plan_joins_it(model, monkeypatch):
     """keep='lowest' hands the first start's plan to the second start's solve, which stops once an iterate comes
-    within JOIN of it. Oracle: the same solve without `join`, run to its own convergence test, ends at that plan
-    (the same objective to 1e-9, the torques within 1e-3 of the plan's norm: the convergence
+    within `SqpSettings.join_distance` of it. Oracle: the same solve without `join`, run to its own convergence
+    test, ends at that plan (the same objective to 1e-9, the torques within 1e-3 of the plan's norm: the convergence
     test is on the objective and the constraints, and leaves the torques a few 1e-6 N m apart along the minimum's
     flat directions), in more iterations."""
     from mjtraj.core.planners import nonlinear
@@ -345,11 +413,11 @@ def test_the_path_rows_jacobian_is_their_derivative(model):
 
 
 def test_plans_keep_the_range_margin_but_always_reach_the_goal(model):
-    """The plan's path keeps RANGE_MARGIN inside each joint's range, except that the margin never excludes the start
+    """The plan's path keeps `NonlinearSettings.range_margin` (1e-4 rad) inside each joint's range, except that the
+    margin never excludes the start
     or the goal: with joint 0's upper end 5e-5 rad beyond the goal (inside the margin) the goal is still reached and
     the path never passes it; joint 0's range as a bound on the samples then is the goal itself."""
-    from mjtraj.core.planners.nonlinear import RANGE_MARGIN
-
+    margin = 1e-4  # the default
     task = short_task(model, 0.3)
     near = copy.deepcopy(model)
     near.jnt_range[0] = (task.q0[0] - 1.0, task.qg[0] + 5e-5)
@@ -358,9 +426,9 @@ def test_plans_keep_the_range_margin_but_always_reach_the_goal(model):
     np.testing.assert_allclose(plan.q[-1], task.qg, atol=1e-8)
     assert plan.q[:, 0].max() <= task.qg[0] + 1e-8
     problem, limits, _ = make("nonlinear_min_effort").problem(task, near)
-    assert limits.q_high[0] == task.qg[0] and limits.q_low[0] == near.jnt_range[0, 0] + RANGE_MARGIN
+    assert limits.q_high[0] == task.qg[0] and limits.q_low[0] == near.jnt_range[0, 0] + margin
     joints = JointInfo.of(model)
-    np.testing.assert_array_equal(limits.q_high[1:], joints.upper[1:] - RANGE_MARGIN)
+    np.testing.assert_array_equal(limits.q_high[1:], joints.upper[1:] - margin)
 
 
 def test_the_second_order_term_is_the_curvature_of_the_weighted_states(model):
@@ -712,15 +780,13 @@ def optimal_problem(model, task):
 def test_a_start_drifting_into_a_joints_end_is_planned_from_the_tracked_start(model, drifting):
     """From the linear start the Gauss-Newton SQP finds no step (the linearised terminal condition cannot be met);
     from the tracked start it converges, and the plan holds every constraint."""
-    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
     from mjtraj.core.planners.sqp import gauss_newton_sqp
 
     problem, limits, start = optimal_problem(model, drifting)
     joints = JointInfo.of(model)
     _, X = problem.states(start)
     assert X[:, 1].min() < joints.lower[1] + 1e-3  # into joint 1's lower end
-    stuck = gauss_newton_sqp(problem, limits, start, curvature_scale=SQP_CURVATURE_SCALE, shrink=SQP_SHRINK,
-                             max_iter=40)
+    stuck = gauss_newton_sqp(problem, limits, start, max_iter=40)
     assert not stuck.converged and stuck.message == "the linearised constraints admit no step"
     plan = make("nonlinear_optimal").plan(drifting, model)
     assert (plan.info["solver"], plan.info["start"]) == ("sqp", "tracked")
@@ -730,14 +796,12 @@ def test_a_start_drifting_into_a_joints_end_is_planned_from_the_tracked_start(mo
 def test_a_solve_allowed_exactly_the_steps_it_needs_converges(model, effort):
     """The iterate of the last allowed step is tested too: a solve capped at the number of steps in which it
     converges reports convergence, with the same iterate bit for bit; one step fewer does not."""
-    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
     from mjtraj.core.planners.sqp import gauss_newton_sqp
 
     problem, limits, start = optimal_problem(model, effort[0])
 
     def solve(max_iter):
-        return gauss_newton_sqp(problem, limits, start, curvature_scale=SQP_CURVATURE_SCALE, shrink=SQP_SHRINK,
-                                max_iter=max_iter)
+        return gauss_newton_sqp(problem, limits, start, max_iter=max_iter)
 
     free = solve(100)
     assert free.converged and 2 <= free.iterations < 100
@@ -754,11 +818,11 @@ def test_the_step_qp_closes_part_of_the_way_where_the_whole_way_is_infeasible(mo
     terminal row itself cannot be met, there is no step and no soft solve is tried. Oracle: the least-norm
     solutions by hand."""
     from mjtraj.core.planners import sqp
-    from mjtraj.core.planners.sqp import RELAXED, _step_qp
+    from mjtraj.core.planners.sqp import SqpSettings, _step_qp
 
-    qp = sqp._qp
+    qp = sqp._qp_to
 
-    assert RELAXED == (0.5, 0.25)
+    assert SqpSettings().relaxed == (0.5, 0.25)
     H, g, low, high = np.eye(2), np.zeros(2), -np.ones(2), np.ones(2)
     C, none = np.array([[1.0, 1.0]]), (np.zeros((0, 2)), np.zeros(0))
 
@@ -782,7 +846,7 @@ def test_the_step_qp_closes_part_of_the_way_where_the_whole_way_is_infeasible(mo
     assert (share, soft) == (1.0, True)
     assert d[0] + d[1] == pytest.approx(0.0, abs=1e-9)  # the terminal row stays hard
     solves = []
-    monkeypatch.setattr(sqp, "_qp", lambda *args: solves.append(args[8]) or qp(*args))
+    monkeypatch.setattr(sqp, "_qp_to", lambda *args: solves.append(args[9]) or qp(*args))
     assert step(10.0, G, [-3.0, 0.5]) is None  # |d1 + d2| <= 2 in the box: not even a quarter of 10
     assert solves == [False, False, False, False]  # the terminal row alone fails: no soft solve
 
@@ -807,10 +871,10 @@ def test_a_torque_on_its_bound_stays_there_and_the_sqp_plans_where_slsqp_had_to(
 
 def test_slow_gauss_newton_turns_to_newton_early_and_reaches_the_same_plan(model, monkeypatch):
     """Nominal 145 of seed 1 (`nonlinear_min_effort`, linear start): Gauss-Newton contracts by about 0.5 an
-    iteration. With SLOW the Hessian turns to the Lagrangian's once three slow iterations follow the 8th, not after
-    the 20th; the plan is the same minimum (oracle: the solve without SLOW, to 1e-9), in fewer iterations."""
+    iteration. With `SqpSettings.slow` the Hessian turns to the Lagrangian's once three slow iterations follow the
+    8th, not after the 20th; the plan is the same minimum (oracle: the solve without the slow switch, to 1e-9), in
+    fewer iterations."""
     from mjtraj.core.planners import sqp
-    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK
     from mjtraj.study.families import draw_scenario
     from mjtraj.study.scenario import load_scenario
 
@@ -824,21 +888,20 @@ def test_slow_gauss_newton_turns_to_newton_early_and_reaches_the_same_plan(model
         first.append(len(iterations))
         return hessian(problem, *args)
 
-    def solve():
+    def solve(settings):
         iterations.clear()
         first.clear()
-        result = sqp.gauss_newton_sqp(problem, limits, starts.get("linear"), curvature_scale=SQP_CURVATURE_SCALE,
-                                      shrink=SQP_SHRINK, max_iter=40)
+        result = sqp.gauss_newton_sqp(problem, limits, starts.get("linear"), max_iter=40, settings=settings)
         assert result.converged
         return result, first[0] - 1  # the iterations before the first Newton one
 
     monkeypatch.setattr(problem, "gradient", lambda u: iterations.append(0) or gradient(u))
     monkeypatch.setattr(sqp, "_lagrangian_hessian", counted)
-    early, gauss_newton = solve()
-    assert sqp.SLOW[0] <= gauss_newton < sqp.SECOND_ORDER_AFTER
-    monkeypatch.setattr(sqp, "SLOW", (10 ** 6, 3, 0.7))
-    late, gauss_newton = solve()
-    assert gauss_newton == sqp.SECOND_ORDER_AFTER
+    default = sqp.SqpSettings()
+    early, gauss_newton = solve(default)
+    assert default.slow[0] <= gauss_newton < default.second_order_after
+    late, gauss_newton = solve(sqp.SqpSettings(slow=(10 ** 6, 3, 0.7)))
+    assert gauss_newton == default.second_order_after
     assert early.iterations < late.iterations
     assert problem.objective(early.u) == pytest.approx(problem.objective(late.u), rel=1e-9)
 
@@ -924,17 +987,16 @@ def test_a_model_whose_geoms_can_touch_keeps_its_collision_detection():
 
 
 def test_above_the_torque_cap_auto_refuses_without_slsqp(model, monkeypatch):
-    """Where the SQP does not converge on a plan of more than SLSQP_MAX_TORQUES torques, 'auto' refuses with the
-    reason and never runs SLSQP (on a 7-hinge arm one failed SLSQP solve took 200 s)."""
-    from mjtraj.core.planners import nonlinear
+    """Where the SQP does not converge on a plan of more than `NonlinearSettings.slsqp_max_torques` torques, 'auto'
+    refuses with the reason and never runs SLSQP (on a 7-hinge arm one failed SLSQP solve took 200 s)."""
+    from mjtraj.core.planners.nonlinear import NonlinearSettings
     from mjtraj.exceptions import SolverError
 
-    planner = make("nonlinear_min_effort")
+    planner = make("nonlinear_min_effort", settings=NonlinearSettings(slsqp_max_torques=299))
     monkeypatch.setattr(type(planner), "_sqp", lambda self, *a: (SimpleNamespace(u=a[2], iterations=40, rows=0),
                                                                  "no convergence in 40 iterations"))
     monkeypatch.setattr(type(planner), "_restored", lambda self, *a: [])
     monkeypatch.setattr(type(planner), "_slsqp", lambda self, *a: pytest.fail("SLSQP ran"))
-    monkeypatch.setattr(nonlinear, "SLSQP_MAX_TORQUES", 299)
     task = Task.create([0.0, -1.57, 0.0], [0.5, -1.0, 0.5], 2.0, 0.02)
     with pytest.raises(SolverError, match=r"SLSQP, the fallback, is not run on more than 299 torques \(N n = 300"):
         planner.plan(task, model)
@@ -962,11 +1024,11 @@ def test_the_compiled_sensitivities_are_the_products_of_their_definition():
 
 
 def test_reusing_the_lagrangians_hessian_reaches_the_same_plan_with_fewer_hessians(model, monkeypatch):
-    """Nominal 145 of seed 1 (`nonlinear_min_effort`, linear start): with NEWTON_REUSE the SQP makes fewer Lagrangian
-    Hessians than with a new one every Newton iteration, and reaches the same minimum (oracle: the solve without
-    reuse, Newton's method proper, to 1e-9), every constraint met."""
+    """Nominal 145 of seed 1 (`nonlinear_min_effort`, linear start): with `SqpSettings.newton_reuse` the SQP makes
+    fewer Lagrangian Hessians than with a new one every Newton iteration, and reaches the same minimum (oracle: the
+    solve without reuse, Newton's method proper, to 1e-9), every constraint met."""
     from mjtraj.core.planners import sqp
-    from mjtraj.core.planners.nonlinear import SQP_CURVATURE_SCALE, SQP_SHRINK, NonlinearOptimal
+    from mjtraj.core.planners.nonlinear import NonlinearOptimal
     from mjtraj.study.families import draw_scenario
     from mjtraj.study.scenario import load_scenario
 
@@ -978,13 +1040,12 @@ def test_reusing_the_lagrangians_hessian_reaches_the_same_plan_with_fewer_hessia
 
     def solve(reuse: int) -> tuple[sqp.SqpResult, int]:
         made.clear()
-        monkeypatch.setattr(sqp, "NEWTON_REUSE", reuse)
-        result = sqp.gauss_newton_sqp(problem, limits, starts.get("linear"), curvature_scale=SQP_CURVATURE_SCALE,
-                                      shrink=SQP_SHRINK, max_iter=40)
+        result = sqp.gauss_newton_sqp(problem, limits, starts.get("linear"), max_iter=40,
+                                      settings=sqp.SqpSettings(newton_reuse=reuse))
         assert result.converged and NonlinearOptimal._unmet(problem, limits, result.u) is None
         return result, len(made)
 
-    reused, some = solve(sqp.NEWTON_REUSE)
+    reused, some = solve(sqp.SqpSettings().newton_reuse)
     newton, every = solve(0)
     assert 0 < some < every
     assert problem.objective(reused.u) == pytest.approx(problem.objective(newton.u), rel=1e-9)

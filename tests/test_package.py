@@ -30,7 +30,8 @@ def _design_table(heading: str) -> dict[str, tuple[str, str]]:
         if line.startswith("#"):
             break
         cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
-        if line.startswith("|") and len(cells) == 3 and cells[0] not in ("option", "") and set(cells[0]) != {"-"}:
+        if line.startswith("|") and len(cells) == 3 and cells[0] not in ("option", "setting", "") \
+                and set(cells[0]) != {"-"}:
             rows[cells[0]] = (cells[1], cells[2])
     return rows
 
@@ -65,6 +66,23 @@ def test_documented_loop_defaults_match_the_docs():
             assert values.startswith(f"≥ {declaration.minimum:g}"), name
         else:
             assert declaration.positive and values.startswith("> 0"), name
+
+
+def test_documented_nonlinear_settings_match_the_code():
+    """docs/design.md's table "The nonlinear planners' settings" names every field of NonlinearSettings and, as
+    sqp.NAME, of SqpSettings, in order, each with its default as written in the code (a Python expression)."""
+    import dataclasses
+
+    from mjtraj.core.planners.nonlinear import NonlinearSettings
+    from mjtraj.core.planners.sqp import SqpSettings
+
+    table = _design_table("### The nonlinear planners' settings")
+    code = {**{f.name: getattr(NonlinearSettings(), f.name) for f in dataclasses.fields(NonlinearSettings)
+               if f.name != "sqp"},
+            **{f"sqp.{f.name}": getattr(SqpSettings(), f.name) for f in dataclasses.fields(SqpSettings)}}
+    assert list(table) == list(code)
+    for name, (written, _) in table.items():
+        assert eval(written, {"__builtins__": {}}) == code[name], name  # noqa: S307 - the page's own literals
 
 
 @pytest.mark.slow

@@ -3,8 +3,8 @@
 min 1/2 sum_{k=1..N} (x_k - x_g)^T Q (x_k - x_g) + 1/2 sum_{k=0..N-1} u_k^T R u_k  over the corrective torques u_k,
 subject to x_{k+1} = F(x_k, u_k) (one control period of the nominal MuJoCo model: RK4, gravity compensated, the
 plant itself), x_N = x_g = [qg; 0], |u_k| <= u_max, and at every sample k = 1..N q_k within the joint ranges
-(RANGE_MARGIN inside) and |qd_k| <= the speed limit. `nonlinear_min_effort` is the case Q = 0: the least corrective
-effort with which the nominal arm can make the move, the effort bound of the study.
+(`NonlinearSettings.range_margin` inside) and |qd_k| <= the speed limit. `nonlinear_min_effort` is the case Q = 0:
+the least corrective effort with which the nominal arm can make the move, the effort bound of the study.
 
 Method: sequential quadratic programming in single-shooting form (`mjtraj.core.planners.shooting`). The variables
 are the N n torques; every iterate is rolled out exactly on the model, so every plan is realisable. The transition's
@@ -27,33 +27,35 @@ violation from both, the task is reported infeasible, locally (a stationary poin
 else SLSQP decides. Two solvers (see SOLVERS):
 
 - the Gauss-Newton SQP (`mjtraj.core.planners.sqp`): about 8 iterations with the paper's weights (0.06 s at N = 100 on
-  one core), and 10 to 20 with Q = 0 from each start (0.08 s for a bound plan); from its 21st iteration its Hessian is
-  the Lagrangian's (`sqp.SECOND_ORDER_AFTER`), with which the solves that Gauss-Newton's linear convergence left to
-  SLSQP converge. The default of both planners ('auto': SLSQP where it does not converge). `nonlinear_optimal`
-  keeps the plan from the first start from which it converges, `nonlinear_min_effort` runs it from both starts and
-  keeps the lower plan (`keep`; see KEEPS): a bound is a minimum, and with Q = 0 the starts can reach different
-  local minima (on the paper task 0.0985 from the linear start, a strict local minimum, and 0.0613 from the tracked
-  one). The second start's solve is given the first start's plan and stops once it comes within `sqp.JOIN` of it
-  (heading for the same minimum);
+  one core), and 10 to 20 with Q = 0 from each start (0.08 s for a bound plan); from its 21st iteration at the latest
+  its Hessian is the Lagrangian's (`SqpSettings.second_order_after`), with which the solves that Gauss-Newton's
+  linear convergence left to SLSQP converge. The default of both planners ('auto': SLSQP where it does not
+  converge). `nonlinear_optimal` keeps the plan from the first start from which it converges,
+  `nonlinear_min_effort` runs it from both starts and keeps the lower plan (`keep`; see KEEPS): a bound is a
+  minimum, and with Q = 0 the starts can reach different local minima (on the paper task 0.0985 from the linear
+  start, a strict local minimum, and 0.0613 from the tracked one). The second start's solve is given the first
+  start's plan and stops once it comes within `SqpSettings.join_distance` of it (heading for the same minimum);
 - scipy's SLSQP, which keeps a quasi-Newton model of the Lagrangian's curvature, the dynamics' second derivatives
   included. That model starts at the identity, so the solve runs in variables v = L^T u in which the identity is a
   multiple of the Gauss-Newton Hessian (see `_Metric`): without this SLSQP spent one iteration per variable
   learning the objective's scale (on the paper task `nonlinear_optimal` took 499 iterations; 207 with it). Rows
   left out that an iterate violates enter a new solve. Objective and constraints are scaled to order one at the
   start. A solve that fails (SLSQP's own failure, a constraint left violated, an iterate whose rollout diverged) is
-  tried once more with RETRY_FACTOR times the curvature scale. SLSQP's path is sensitive to the last bits of its
-  inputs, so the plan is the same bit for bit only under the same BLAS thread count (the `mjtraj` command and sweep
-  workers use one). A plan at N = 100 takes about half a second, some a minute.
+  tried once more with `NonlinearSettings.retry_factor` times the curvature scale. SLSQP's path is sensitive to
+  the last bits of its inputs, so the plan is the same bit for bit only under the same BLAS thread count (the
+  `mjtraj` command and sweep workers use one). A plan at N = 100 takes about half a second, some a minute.
 
 Both planners are registered on request (`mjtraj bench planners` prints their times): they are bounds for the audit,
-not planners for the inner loop, and never run unless named.
+not planners for the inner loop, and never run unless named. Their tunables besides the planners' options are
+`NonlinearSettings` (the SQP's nested, `mjtraj.core.planners.sqp.SqpSettings`), passed as `settings=`; docs/design.md
+("The nonlinear planners' settings") gives the measurements behind their defaults.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import mujoco
@@ -61,29 +63,69 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from mjtraj.checks import choice, positive, positive_int
+from mjtraj.checks import choice, in_range, nonnegative_int, positive, positive_int
 from mjtraj.core.linearize import discretize_zoh, linearize_many
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners.base import Planner, register
 from mjtraj.core.planners.optimal import Optimal, check_weight_options, planner_weights
 from mjtraj.core.planners.restoration import LeastViolation, least_violation
 from mjtraj.core.planners.shooting import PathLimits, Shooting
-from mjtraj.core.planners.sqp import SqpResult, gauss_newton_sqp
+from mjtraj.core.planners.sqp import SqpResult, SqpSettings, changes, gauss_newton_sqp
 from mjtraj.core.planners.tracking import bryson_gains
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import JOINT_SPEED_LIMIT
 from mjtraj.core.task import Task
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, SolverError
 
-RETRY_FACTOR = 30.0
-"""A plan that fails is tried once more with this multiple of `curvature_scale` (shorter first steps)."""
-MAX_ROUNDS = 8
-"""Solves with a growing set of path-constraint rows before giving up."""
-CURVATURE_SCALE = 30.0
-"""SLSQP's quasi-Newton model starts at this multiple of the Gauss-Newton Hessian (see `_Metric`), the default of the
-planners' `curvature_scale`; larger values take shorter first steps. The problem is not convex, and the choice
-decides which local minimum is found: on 12 nominal tasks 30 reached the same minima as SLSQP's own identity start in
-15 to 117 iterations where that took 16 to 152; 1 was faster still but stopped in a worse minimum on 2 of the 12."""
+
+@dataclass(frozen=True)
+class NonlinearSettings:
+    """The nonlinear planners' tunables besides their options, each with its rule; the defaults are the published
+    plans'. docs/design.md, "The nonlinear planners' settings", gives the measurements behind each default.
+
+    Pass one as `make("nonlinear_optimal", settings=NonlinearSettings(...))` (or to `nonlinear_min_effort`), the
+    SQP's inside it: `NonlinearSettings(sqp=SqpSettings(stall=1e-8))`. A plan's info records the settings that
+    differ from the defaults under 'settings' (`changes`, joined by '; ': 'sqp.stall=1e-08; retry_factor=10.0'); a
+    plan made with the defaults has no such key, so the published records read as before.
+
+    Raises:
+      InvalidInputError: a value out of its range (the message names it as `settings.NAME`).
+    """
+
+    sqp: SqpSettings = field(default_factory=SqpSettings)
+    """The Gauss-Newton SQP's (`mjtraj.core.planners.sqp.SqpSettings`)."""
+    retry_factor: float = 30.0
+    """An SLSQP solve from the linear start that fails is tried once more with this multiple of the planner's
+    `curvature_scale` (shorter first steps)."""
+    max_rounds: int = 8
+    """SLSQP solves of one start, each with the path rows the last one violated added, before the start fails."""
+    slsqp_max_torques: int = 400
+    """'auto' turns to SLSQP only where the plan has at most this many torques (N n; SLSQP factors a dense matrix of
+    them every iteration); above it a plan the Gauss-Newton SQP does not converge is refused with that reason."""
+    range_margin: float = 1e-4
+    """rad: the plans keep this far inside each joint's range (less where the start or the goal is nearer its end),
+    clear of MuJoCo's range constraint, a force the rollout's derivatives do not see."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.sqp, SqpSettings):
+            raise InvalidInputError(f"settings.sqp: expected an SqpSettings (mjtraj.core.planners.sqp), got "
+                                    f"{self.sqp!r}")
+        checked = {"retry_factor": positive("settings.retry_factor", self.retry_factor),
+                   "max_rounds": positive_int("settings.max_rounds", self.max_rounds),
+                   "slsqp_max_torques": nonnegative_int("settings.slsqp_max_torques", self.slsqp_max_torques),
+                   "range_margin": in_range("settings.range_margin", self.range_margin, 0.0, np.inf,
+                                            low_open=False)}
+        for name, value in checked.items():
+            object.__setattr__(self, name, value)  # normalised: floats and ints
+
+    def changes(self) -> list[str]:
+        """The settings that differ from the defaults, as 'name=value' in field order, the SQP's as
+        'sqp.name=value' ([]: the defaults)."""
+        return changes(self)
+
+
+DEFAULT_SETTINGS = NonlinearSettings()
+"""The published plans' settings."""
 
 
 @dataclass(frozen=True)
@@ -110,53 +152,15 @@ class _Metric:
         return scipy.linalg.solve_triangular(self.L, jac.T, lower=True).T  # type: ignore[no-any-return]
 
 
-SLSQP_MAX_TORQUES = 400
-"""'auto' turns to SLSQP only where the plan has at most this many torques (N n; the UR5's tasks of up to 2.66 s at
-the paper's period): SLSQP factors a dense matrix of them every iteration, and on a 7-hinge arm (700 torques) one
-failed solve of nonlinear_min_effort took 200 s. Above it a plan the Gauss-Newton SQP does not converge is refused
-with that reason, within the SQP's own iteration caps."""
 SOLVERS = ("auto", "sqp", "slsqp")
 """The nonlinear planners' solvers (see NonlinearOptimal.solver). The Gauss-Newton SQP ignores the dynamics' second
 derivatives; with the paper's state weight Q they are small against Q and it converges in about 8 iterations to
 SLSQP's optimum. With Q = 0 (the effort bound), weighted by the terminal condition's multipliers, they are of the
 order of R: it converges more slowly (10 to 20 iterations, some over 40, hence the Lagrangian's Hessian from the
-21st, `sqp.SECOND_ORDER_AFTER`), and from different starts it can reach different local minima, as SLSQP can. On
-the paper task the SQP from the linear start stops at 0.0985, a strict local minimum (second-order sufficiency is
-tested with the Lagrangian's exact Hessian), and from the tracked start at 0.0613, SLSQP's; hence keep='lowest' for
-the bound (KEEPS)."""
-SQP_CURVATURE_SCALE = 10.0
-"""The Gauss-Newton SQP's first model is this multiple of the Gauss-Newton Hessian ..."""
-SQP_SHRINK = 4.0
-"""... divided by this after each full step (see `gauss_newton_sqp`). Both chosen for nonlinear_optimal on a
-validation set (nominal scenarios 0-29 and aggressive 0-19 of seed 1; the study's test tasks are the paper task and
-seed 0's nominal scenarios) by the rule: most plans converged within SQP_MAX_ITER iterations, then the least median
-time, over scales 1, 3, 10 and 30 with factor 4, factors 2 and 8 at scale 10, and scales 30, 100 and 300 with
-factors 2 and 4. No setting reached another optimum than SLSQP's on that set."""
-SQP_MAX_ITER = 40
-"""The Gauss-Newton SQP's iterations from each start before 'auto' turns to SLSQP. For nonlinear_min_effort, 40, 80
-and 200 were compared on a validation set (nominal scenarios 0-129 and aggressive 0-49 of seed 1) by the rule: most
-plans at SLSQP's optimum or lower, then the least mean time. 40 had 178 of 180 (the 2 others fail under SLSQP
-too); 80 and 200 had 177, stopping in a higher local minimum on nominal 25 (by 0.8 %) where 40 turned to SLSQP.
-Run again with the analytic Jacobians: the same counts, so 40 again, though 200 had the lower mean time. Run again
-with the last step's iterate tested (`gauss_newton_sqp`), beside SLSQP warm-started from the SQP's last iterate:
-40 with SLSQP from the starts again (178); the warm start had 177 at 40, 80 and 200 (at 40 nominal 25 0.8 % higher,
-nominal 92 64 % lower, both counted once). Run again with the second start joining the first's plan (`sqp.JOIN`)
-and the compiled Jacobians: 40 had 179 (SLSQP now also plans nominal 85, a change of its path by the Jacobians'
-last bits), 80 and 200 had 178 (nominal 25 again), though their mean time was 0.42 s a plan against 1.12 s. With
-the Lagrangian's Hessian from the 21st iteration (`sqp.SECOND_ORDER_AFTER`) and RANGE_MARGIN, 40 has 179 in a
-mean of 0.113 s a plan, SLSQP planning one (nominal 25); 80 has 178 (nominal 25 again) in 0.114 s; 200 was not
-run again. The projected line search (`sqp.projector`) was judged on 480 tasks, these 180 and nominal 130-329 and
-aggressive 50-149 of seed 1 (a difference of one task in 180 settles nothing): 476 against 477 without it, in a
-mean of 0.079 s a plan against 0.116 s, SLSQP planning none against 4. The task lost is nominal 25 again: both
-starts now converge to the minimum 0.8 % above SLSQP's, where before the SQP did not converge and SLSQP planned. On
-nominal 252 the projected search reaches a minimum 18 % below SLSQP's, where before SLSQP planned. So the rule
-was revised, after these runs: most plans at the best optimum known (the least of SLSQP's and the compared
-variants'), then the least mean time. By it the two tie at 476 and the projected search is kept for its time."""
-RANGE_MARGIN = 1e-4
-"""The plans keep this far (rad) inside each joint's range (less where the start or the goal is nearer its end).
-MuJoCo's range constraint acts on a joint beyond its end, a force the rollout's derivatives do not see; a plan pressed
-exactly on the end met it in the line search's trial points, which then found no decrease (nominal 85 of the
-validation tasks, planned by the SQP in 8 iterations with the margin, and otherwise by SLSQP in 560)."""
+21st at the latest, `SqpSettings.second_order_after`), and from different starts it can reach different local
+minima, as SLSQP can. On the paper task the SQP from the linear start stops at 0.0985, a strict local minimum
+(second-order sufficiency is tested with the Lagrangian's exact Hessian), and from the tracked start at 0.0613,
+SLSQP's; hence keep='lowest' for the bound (KEEPS)."""
 CONSTRAINT_NAMES = ("the joint range (upper end)", "the joint range (lower end)", "the joint speed limit",
                     "the joint speed limit", "the torque bound", "the torque bound")
 
@@ -203,13 +207,17 @@ class NonlinearOptimal(Planner):
       tol: SLSQP's tolerance on the scaled objective; the plan must also meet x_N = x_g to 1e-8 and every path
         constraint to 1e-8 (relative to its limit).
       fd_eps: forward-difference step of the transition Jacobians where they are differenced.
-      curvature_scale: SLSQP's quasi-Newton model starts at this multiple of the Gauss-Newton Hessian (see
-        CURVATURE_SCALE).
+      curvature_scale: SLSQP's quasi-Newton model starts at this multiple of the Gauss-Newton Hessian (see `_Metric`);
+        larger values take shorter first steps. The problem is not convex, and the value decides which local
+        minimum SLSQP finds (docs/design.md, "The nonlinear planners' settings", has the measurements behind 30).
       solver: 'auto' (the default) = the Gauss-Newton SQP (`mjtraj.core.planners.sqp`) for at most sqp_max_iter
         iterations from each start, then SLSQP if it has not converged from either; 'sqp' = the Gauss-Newton SQP
         alone (an error if it does not converge from either start); 'slsqp' = SLSQP alone (see SOLVERS).
-      sqp_max_iter: the Gauss-Newton SQP's iterations from each start.
+      sqp_max_iter: the Gauss-Newton SQP's iterations from each start, after which 'auto' turns to SLSQP (40 by the
+        validation rule of docs/design.md, "The nonlinear planners' settings").
       keep: which of the Gauss-Newton SQP's plans (see KEEPS): 'first' here, 'lowest' for nonlinear_min_effort.
+      settings: the solvers' tunables (`NonlinearSettings`, the SQP's nested; the default: the published plans').
+        A plan's info records those that differ from the defaults ('settings').
     """
 
     state_weight: tuple[float, ...] | None = None
@@ -221,10 +229,11 @@ class NonlinearOptimal(Planner):
     max_iter: int = 1000
     tol: float = 1e-10
     fd_eps: float = 1e-7
-    curvature_scale: float = CURVATURE_SCALE
+    curvature_scale: float = 30.0
     solver: str = "auto"
-    sqp_max_iter: int = SQP_MAX_ITER
+    sqp_max_iter: int = 40
     keep: str = "first"
+    settings: NonlinearSettings = DEFAULT_SETTINGS
     name: ClassVar[str] = "nonlinear_optimal"
 
     def __post_init__(self) -> None:
@@ -237,6 +246,9 @@ class NonlinearOptimal(Planner):
         positive("tol", self.tol)
         positive("fd_eps", self.fd_eps)
         positive("curvature_scale", self.curvature_scale)
+        if not isinstance(self.settings, NonlinearSettings):
+            raise InvalidInputError(f"settings: expected a NonlinearSettings (mjtraj.core.planners.nonlinear), got "
+                                    f"{self.settings!r}")
         self.linear()  # validates torque_bound now
 
     def linear(self) -> Optimal:
@@ -282,9 +294,10 @@ class NonlinearOptimal(Planner):
             failure = "; ".join(failures)
             if self.solver == "sqp":
                 raise SolverError(f"{self.name}: the Gauss-Newton SQP stopped {failure}")
-            if problem.steps * problem.n > SLSQP_MAX_TORQUES:
+            cap = self.settings.slsqp_max_torques
+            if problem.steps * problem.n > cap:
                 raise SolverError(f"{self.name}: the Gauss-Newton SQP stopped {failure}; SLSQP, the fallback, is not "
-                                  f"run on more than {SLSQP_MAX_TORQUES} torques (N n = {problem.steps * problem.n}: "
+                                  f"run on more than {cap} torques (N n = {problem.steps * problem.n}: "
                                   f"it factors a dense matrix of them every iteration; solver='slsqp' runs it anyway)")
             try:
                 u, name, rounds, iterations, rows, retried = self._slsqp(problem, limits, starts)
@@ -298,7 +311,7 @@ class NonlinearOptimal(Planner):
 
     def problem(self, task: Task, model: mujoco.MjModel) -> tuple[Shooting, PathLimits, _Starts]:
         """`task`'s problem on `model` as `plan` solves it: the shooting problem, its path limits (the joint ranges
-        RANGE_MARGIN inside), and its starts.
+        `settings.range_margin` inside), and its starts.
 
         Raises:
           InfeasibleError: the linearised arm cannot make the move within the torque bound (no start).
@@ -309,8 +322,9 @@ class NonlinearOptimal(Planner):
         n = task.n
         Q, R = planner_weights(task, bound, self.state_weight, self.input_weight, self.alpha, self.split)
         inside = np.minimum(task.q0, task.qg), np.maximum(task.q0, task.qg)  # a margin never excludes these
-        limits = PathLimits(bound, np.minimum(joints.lower + RANGE_MARGIN, inside[0]),
-                            np.maximum(joints.upper - RANGE_MARGIN, inside[1]), np.full(n, float(self.speed_limit)))
+        margin = self.settings.range_margin
+        limits = PathLimits(bound, np.minimum(joints.lower + margin, inside[0]),
+                            np.maximum(joints.upper - margin, inside[1]), np.full(n, float(self.speed_limit)))
         x0 = np.concatenate([task.q0, np.zeros(n)])
         xg = np.concatenate([task.qg, np.zeros(n)])
         problem = Shooting(model, x0, xg, Q, R, task.steps, self.fd_eps)
@@ -325,8 +339,8 @@ class NonlinearOptimal(Planner):
         Raises:
           SolverError: the rollout of u diverged.
         """
-        result = gauss_newton_sqp(problem, limits, u, curvature_scale=SQP_CURVATURE_SCALE, shrink=SQP_SHRINK,
-                                  max_iter=self.sqp_max_iter, join=join)
+        result = gauss_newton_sqp(problem, limits, u, max_iter=self.sqp_max_iter, join=join,
+                                  settings=self.settings.sqp)
         return result, result.message if not result.converged else self._unmet(problem, limits, result.u)
 
     def _restored(self, problem: Shooting, limits: PathLimits, stopped: list[tuple[str, NDArray[np.float64]]],
@@ -379,9 +393,9 @@ class NonlinearOptimal(Planner):
 
     def _slsqp(self, problem: Shooting, limits: PathLimits, starts: _Starts
                ) -> tuple[NDArray[np.float64], str, int, int, int, int]:
-        """SLSQP from the linear start, once more with RETRY_FACTOR times the curvature scale if it fails, then from
-        the tracked start: (u, the start's name, rounds, iterations, path rows, retries before it)."""
-        tries = (("linear", 1.0), ("linear", RETRY_FACTOR), ("tracked", 1.0))
+        """SLSQP from the linear start, once more with `settings.retry_factor` times the curvature scale if it fails,
+        then from the tracked start: (u, the start's name, rounds, iterations, path rows, retries before it)."""
+        tries = (("linear", 1.0), ("linear", self.settings.retry_factor), ("tracked", 1.0))
         failures: list[InfeasibleError | SolverError] = []
         for retried, (name, factor) in enumerate(tries):
             try:
@@ -407,8 +421,9 @@ class NonlinearOptimal(Planner):
 
     def _optimise(self, problem: Shooting, limits: PathLimits, u: NDArray[np.float64], scale: float
                   ) -> tuple[NDArray[np.float64], int, int, int]:
-        """SLSQP solves from u (N n,) with a growing set of path-constraint rows, `scale` times the Gauss-Newton
-        Hessian as the first curvature model: (the plan's u, rounds, SLSQP iterations, path rows).
+        """SLSQP solves from u (N n,) with a growing set of path-constraint rows (at most `settings.max_rounds`
+        solves), `scale` times the Gauss-Newton Hessian as the first curvature model: (the plan's u, rounds, SLSQP
+        iterations, path rows).
 
         Raises:
           InfeasibleError, SolverError: no plan meets every constraint (names which), or SLSQP failed.
@@ -421,7 +436,7 @@ class NonlinearOptimal(Planner):
         f_scale = 1.0 / max(problem.objective(u), 1e-12)
         t_scale = 1.0 / np.maximum(np.linalg.norm(S[-1], axis=1), 1e-12)
         iterations, rounds = 0, 0
-        for rounds in range(1, MAX_ROUNDS + 1):  # noqa: B007 (reported in info)
+        for rounds in range(1, self.settings.max_rounds + 1):  # noqa: B007 (reported in info)
             try:
                 result = self._solve(problem, limits, rows, u, f_scale, t_scale, scale)
             except SolverError as e:
@@ -534,7 +549,8 @@ class NonlinearOptimal(Planner):
                    jacobians: dict[str, int], *, converged: int = 0) -> Reference:
         """The rollout X (N+1, 2n) under U (N, n) as a Reference: qdd is the ZOH acceleration per step. `jacobians`:
         how many linearisations were analytic and how many differenced (see `Shooting.jacobians`); `converged`: the
-        starts from which the Gauss-Newton SQP converged (0 where SLSQP planned)."""
+        starts from which the Gauss-Newton SQP converged (0 where SLSQP planned). Where `settings` differ from the
+        defaults, info['settings'] names those that do (`NonlinearSettings.changes`, joined by '; ')."""
         n = task.n
         terminal = float(np.max(np.abs(X[-1] - np.concatenate([task.qg, np.zeros(n)]))))
         q, qd = X[:, :n].copy(), X[:, n:].copy()
@@ -546,6 +562,9 @@ class NonlinearOptimal(Planner):
                 "path_rows": rows, "retried": retried, "terminal_residual": terminal, "plan_time": wall,
                 "sqp_converged": converged, "analytic_jacobians": jacobians["analytic"],
                 "differenced_jacobians": jacobians["differenced"]}
+        changed = self.settings.changes()
+        if changed:
+            info["settings"] = "; ".join(changed)
         return Reference(planner=self.name, t=task.times, q=q, qd=qd, qdd=qdd, u_plan=U.copy(), info=info)
 
 

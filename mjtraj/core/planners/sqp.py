@@ -22,115 +22,178 @@ factor s starts at `curvature_scale` (short first steps, the role of SLSQP's fir
 by `shrink` after every full, corrected or projected step down to 1, where the iteration is Gauss-Newton's: linear
 convergence, fast where the dynamics' second derivatives, weighted by the multipliers, are small against R and Q
 (with the paper's weights: about 8 iterations), slow where they are not (the effort bound's Q = 0; see
-`mjtraj.core.planners.nonlinear.SOLVERS`). So once the iteration is seen converging slowly (SLOW), and after
-SECOND_ORDER_AFTER iterations in any case, the Hessian becomes the Lagrangian's: H_GN plus that curvature, weighted
-by the last QP's multipliers (`Shooting.second_order`, about 10 ms at N = 100), made positive definite on the
-constraints' null space by an augmented term (AUGMENT) and damped where a step is cut (DAMPING): Newton's method,
-locally quadratic. A solve given the plan of an earlier start (`join`) stops
-once its iterate comes within JOIN of it: it is converging to the same minimum.
+`mjtraj.core.planners.nonlinear.SOLVERS`). So once the iteration is seen converging slowly (`slow`), and after
+`second_order_after` iterations in any case, the Hessian becomes the Lagrangian's: H_GN plus that curvature,
+weighted by the last QP's multipliers (`Shooting.second_order`, about 10 ms at N = 100), made positive definite on
+the constraints' null space by an augmented term (`augment`) and damped where a step is cut (`damping`): Newton's
+method, locally quadratic. A solve given the plan of an earlier start (`join`) stops once its iterate comes within
+`join_distance` of it: it is converging to the same minimum.
 
 The torque bound is a box on u: iterates never leave it (each is put back on the box's end that rounding took it a
-few ulps past). Path rows are screened as in SLSQP's solve (SCREEN); a row left out enters once an iterate nears
-it. A QP whose linearised constraints cannot all hold is solved again asking them to close only part of the way
-(RELAXED), then with the path rows soft (DAQP's soft constraints), so that the terminal condition still holds and
-the merit decides.
+few ulps past). Path rows are screened as in SLSQP's solve (`shooting.SCREEN`); a row left out enters once an
+iterate nears it. A QP whose linearised constraints cannot all hold is solved again asking them to close only part
+of the way (`relaxed`), then with the path rows soft (DAQP's soft constraints), so that the terminal condition
+still holds and the merit decides.
+
+`curvature_scale`, `shrink`, `slow`, `second_order_after`, `augment`, `damping`, `join_distance` and `relaxed`
+are fields of `SqpSettings`, each with its rule; docs/design.md ("The nonlinear planners' settings") gives the
+measurements behind their defaults.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from mjtraj.checks import in_range, nonnegative_int, positive, positive_int
 from mjtraj.core.planners.shooting import SCREEN, PathLimits, Shooting, input_blocks
 from mjtraj.core.planners.tracking import bryson_gains
-from mjtraj.exceptions import SolverError
+from mjtraj.exceptions import InvalidInputError, SolverError
 
-ARMIJO = 1e-4
-"""Sufficient decrease of the merit, as a fraction of its predicted decrease."""
-MIN_STEP = 2.0 ** -20
-"""The line search gives up below this step."""
-FEASIBLE = 1e-10
-"""Converged once |x_N - x_g| (rad, rad/s) and every path violation (relative to its limit) are within this ..."""
-STALL = 1e-10
-"""... and the objective changed by at most this fraction over the last step."""
-SECOND_ORDER_AFTER = 20
-"""From the iteration after this at the latest (SLOW: sooner where the iteration converges slowly), each QP's Hessian
-adds the dynamics' curvature weighted by the last QP's
-multipliers (`Shooting.second_order`): the Lagrangian's Hessian, with which the iteration converges as Newton's
-method does where Gauss-Newton's converges slowly (the effort bound's Q = 0; see the module docstring). Chosen by
-`mjtraj.core.planners.nonlinear.SQP_MAX_ITER`'s validation rule (180 tasks: most plans at SLSQP's optimum or lower,
-then the least mean time) over 5, 10, 20 and never: each had 179, in a mean of 0.53, 0.53, 0.48 and 1.26 s a plan
-(SLSQP planned 3, 3, 2 and 8 of them); with 5, 10 and 20 nominal 92 costs 0.123, 64 % less than SLSQP's 0.344."""
-SLOW = (8, 3, 0.7)
-"""(after, run, contraction): from the iteration after `after`, the Hessian becomes the Lagrangian's once `run`
-iterations in a row were slow: the line search shortened the step (a projected step below t = 1, or a backtracked
-one), or the QP's step was longer than `contraction` times the one before. On the bound's slowest tasks Gauss-Newton
-contracts by 0.5 to 0.8 an iteration for 20 iterations (nominal 92 and 145 of seed 1). Chosen for the tail targets
-of `mjtraj bench planners` (its 298 tasks of seed 1; the study's test tasks are seed 0's and the paper's) by the
-rule: every plan at the optimum known or lower, then both targets met (90th percentile <= 100, largest <= 300
-times the linear plan, each timed beside its task), then the least mean time, over (10, 3, 0.5), (8, 4, 0.6),
-(8, 3, 0.7), (5, 5, 0.5), (5, 3, 0.5) and none. Every one kept every plan within 5e-11 of its optimum. (8, 4, 0.6)
-and (8, 3, 0.7) met both targets (90th percentile 99 and 95, largest 253 and 289; none: 95 and 386); their mean
-times, 0.0725 and 0.0739 s, differ by less than two runs of the same code do (5 %), so the last step could not
-separate them, and (8, 3, 0.7) was kept for its margin at the 90th percentile. Those runs preceded the compiled
-gains and the tree-linearised tracked start; `mjtraj bench planners` times the linear plans together, first, and
-reports higher multiples (docs/speed.md)."""
-AUGMENT = 10.0 ** np.arange(8)
-"""The Lagrangian's Hessian is indefinite; where it is positive definite on the null space of the terminal rows and
-the last QP's active path rows A, H + rho A^T A is positive definite for a large enough rho, and the QP's solution on
-those rows is unchanged. rho is tried at these multiples of max diag(H) / max diag(A^T A), smallest first; where none
-makes H positive definite, the iteration keeps the Gauss-Newton Hessian."""
-DAMPING = (0.1, 4.0)
-"""Levenberg-Marquardt damping of the second-order Hessian, as a multiple of R's diagonal: a step neither full nor
-corrected (projected or backtracked) sets it to at least the first number, or multiplies it by the second; a full
-(or corrected) step divides it by the second, and below the first it is zero."""
-NEWTON_REUSE = 5
-"""The Lagrangian's Hessian (and its factor) is used again for up to this many iterations after the one it was made
-in, while the curvature scale, the damping and the path rows are unchanged (every step full or corrected, no row
-added): near the solution the multipliers and the torques move little, and the Hessian (about 10 ms at N = 100,
-the dynamics' curvature by differences) would be made again for a step of 1e-4. Newton's method with a Hessian so
-reused converges linearly, at a small rate. Chosen over 0 (made every iteration), 2, 5 and 1000, each with SLOW and
-with SLOW (6, 3, 0.6), on the 298 tasks of `mjtraj bench planners`' tail (seed 1; the study's test tasks are seed 0's
-and the paper's), timed in turn beside each task, by the rule: every plan within 1e-9 of the best objective found
-for its task (all eight settings kept every plan within 5.3e-11), then the least mean time, where settings within
-1 % of it tie, and among those the least worst multiple of the linear plan. Means 0.0436, 0.0424, 0.0422 and
-0.0423 s with SLOW (0.0429, 0.0418, 0.0416 and 0.0416 with (6, 3, 0.6), within the noise between runs of the same
-code, so SLOW was kept); 2, 5 and 1000 tie, and 5 had the least worst multiple (181 against 196 and 184; 218
-without reuse)."""
-JOIN = 1e-1
-"""An iterate within this distance of an earlier start's plan, relative to that plan's norm, joins it. On the 180
-validation tasks of `mjtraj.core.planners.nonlinear.SQP_MAX_ITER`, the bound's second start headed for another
-point on 3 (none of them converged there) and came no closer than 5.8e-2 to the first plan; on the 166 where it
-reached the first plan, it crossed 1e-3 a median of 4 iterations before its own convergence test passed (43 % of
-those solves' iterations). With the projected line search, 1e-2 and 1e-3 gave the same plans, bit for bit, on all
-480 validation tasks, in a mean of 0.073 s a plan against 0.078 s. With the slow switch (SLOW), the second start run
-to its own convergence on those 480 tasks (none joined) reached another point on 7, all converged there (6 lower, so
-kept); none came within 0.31 of the first plan, and no second start that came within 0.2 of it went elsewhere. So
-the threshold was raised to the largest of 2e-2, 5e-2, 1e-1 and 2e-1 below a third of that closest approach, 1e-1:
-the same plans, bit for bit, on the 298 tasks of `mjtraj bench planners`' tail, 1.4 iterations fewer a plan on the
-480 (7 % of the tail's time; its 90th percentile 109 became 101 times the linear plan in a paired run)."""
-RELAXED = (0.5, 0.25)
-"""Where the linearised constraints admit no step, the QP asks them to close only this share of the way, largest
-first: the terminal residual and each violated path row's violation scaled by it (d = 0 meets the constraints at
-share 0, so a small enough share always admits a step); where neither does, the path rows are made soft. On
-nominal 110 of seed 1 the soft QP's step had raised the merit's penalty to 1.5e7, after which the line search took
-10 steps of 1e-4 to 1e-6 of d (22 iterations, 0.75 s); half the way, once, makes it 16 (0.30 s). Shares down to
-2^-10 kept alive starts whose soft QP fails at once, and the next start is quicker there (nominal 57 and 120: 0.1 s
-became 0.6 s)."""
 DAQP_TOL = 1e-12
-"""DAQP's primal and dual tolerances (the QP's rows are of order one)."""
+"""DAQP's primal and dual tolerances in `_qp` (the floor's and the predictive laws' QPs; the SQP's own are
+`SqpSettings.daqp_tol`, the same by default): the QPs' rows are of order one."""
 SENSE_FREE, SENSE_EQUAL, SENSE_SOFT = 0, 5, 8
 """DAQP's constraint kinds: inequality, equality, soft inequality."""
 
 
 @dataclass(frozen=True)
+class SqpSettings:
+    """The Gauss-Newton SQP's tunables, each with its rule; the defaults are the published plans'. docs/design.md,
+    "The nonlinear planners' settings", gives the measurements behind each default.
+
+    Pass one to the nonlinear planners inside their settings, `make("nonlinear_optimal",
+    settings=NonlinearSettings(sqp=SqpSettings(...)))` (`mjtraj.core.planners.nonlinear.NonlinearSettings`), or to
+    `gauss_newton_sqp(settings=...)`. A plan records the ones that differ from the defaults (`changes`).
+
+    Raises:
+      InvalidInputError: a value out of its range (the message names it as `settings.sqp.NAME`).
+    """
+
+    curvature_scale: float = 10.0
+    """The first QP's Hessian is this multiple of the Gauss-Newton Hessian: larger values take shorter first steps
+    (the role of SLSQP's first curvature model)."""
+    shrink: float = 4.0
+    """The multiple is divided by this after every full, corrected or projected step, down to 1 (Gauss-Newton's own
+    Hessian); >= 1."""
+    armijo: float = 1e-4
+    """A trial step is accepted where the merit falls by at least this fraction of its predicted fall; in (0, 1)."""
+    min_step: float = 2.0 ** -20
+    """The line search gives up below this fraction of the QP's step; in (0, 1]."""
+    feasible: float = 1e-10
+    """An iterate has converged only where |x_N - x_g| (rad, rad/s) and every path violation (relative to its
+    limit) are within this, ..."""
+    stall: float = 1e-10
+    """... and its objective changed by at most this fraction over the last step."""
+    second_order_after: int | None = 20
+    """From the iteration after this at the latest (`slow`: sooner), each QP's Hessian is the Lagrangian's, the
+    dynamics' curvature weighted by the last QP's multipliers added (Newton's method); None: never (Gauss-Newton
+    throughout)."""
+    slow: tuple[int, int, float] = (8, 3, 0.7)
+    """(after, run, contraction): past iteration `after`, the Hessian becomes the Lagrangian's once `run` iterations
+    in a row were slow: the line search shortened the step (a projected step below t = 1, or a backtracked one), or
+    the QP's step was longer than `contraction` times the one before."""
+    augment: tuple[float, ...] = tuple(float(10.0 ** k) for k in range(8))
+    """rho of H + rho A^T A (A: the terminal rows and the last QP's active path rows), which makes the indefinite
+    Lagrangian's Hessian positive definite without changing the QP's solution on those rows, is tried at these
+    multiples of max diag(H) / max diag(A^T A), smallest first; where none does, the iteration keeps the
+    Gauss-Newton Hessian."""
+    damping: tuple[float, float] = (0.1, 4.0)
+    """(low, factor): the Lagrangian Hessian's Levenberg-Marquardt damping, a multiple of R's diagonal. A step
+    neither full nor corrected sets it to at least `low` or multiplies it by `factor`; a full or corrected one
+    divides it by `factor`; below `low` it is zero."""
+    newton_reuse: int = 5
+    """The Lagrangian's Hessian (and its factor) is used again for up to this many iterations after the one it was
+    made in, while the curvature scale, the damping and the path rows are unchanged (0: made every iteration)."""
+    join_distance: float = 1e-1
+    """A solve given an earlier start's plan (`gauss_newton_sqp`'s `join`) stops once an iterate is within this
+    distance of it, relative to its norm: it is converging to the same minimum."""
+    relaxed: tuple[float, ...] = (0.5, 0.25)
+    """Where the linearised constraints admit no step, the QP asks them to close only these shares of the way, the
+    largest first (the terminal residual and each violated path row scaled by it); where none admits a step, the
+    path rows go soft. Each in (0, 1); () goes soft at once."""
+    daqp_tol: float = DAQP_TOL
+    """DAQP's primal and dual tolerances for the SQP's QPs (their rows are of order one)."""
+
+    def __post_init__(self) -> None:
+        checked = {
+            "curvature_scale": positive("settings.sqp.curvature_scale", self.curvature_scale),
+            "shrink": in_range("settings.sqp.shrink", self.shrink, 1.0, np.inf, low_open=False),
+            "armijo": in_range("settings.sqp.armijo", self.armijo, 0.0, 1.0),
+            "min_step": in_range("settings.sqp.min_step", self.min_step, 0.0, 1.0, high_open=False),
+            "feasible": positive("settings.sqp.feasible", self.feasible),
+            "stall": positive("settings.sqp.stall", self.stall),
+            "second_order_after": None if self.second_order_after is None else
+            nonnegative_int("settings.sqp.second_order_after", self.second_order_after),
+            "slow": _slow(self.slow),
+            "augment": _shares("settings.sqp.augment", self.augment, np.inf, at_least=1),
+            "damping": _damping(self.damping),
+            "newton_reuse": nonnegative_int("settings.sqp.newton_reuse", self.newton_reuse),
+            "join_distance": positive("settings.sqp.join_distance", self.join_distance),
+            "relaxed": _shares("settings.sqp.relaxed", self.relaxed, 1.0),
+            "daqp_tol": positive("settings.sqp.daqp_tol", self.daqp_tol),
+        }
+        for name, value in checked.items():
+            object.__setattr__(self, name, value)  # normalised: floats, ints and tuples
+
+    def changes(self) -> list[str]:
+        """The settings that differ from the defaults, as 'name=value' in field order ([]: the defaults)."""
+        return changes(self)
+
+
+def changes(settings: Any, prefix: str = "") -> list[str]:
+    """The fields of the settings dataclass `settings` that differ from its class's defaults, as 'name=value' (the
+    value's repr) in field order; a nested settings dataclass's as 'name.field=value'."""
+    default = type(settings)()
+    out = []
+    for f in dataclasses.fields(settings):
+        value = getattr(settings, f.name)
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            out += changes(value, f"{prefix}{f.name}.")
+        elif value != getattr(default, f.name):
+            out.append(f"{prefix}{f.name}={value!r}")
+    return out
+
+
+def _slow(value: Any) -> tuple[int, int, float]:
+    """`SqpSettings.slow` checked: (a whole number >= 0, a whole number >= 1, a number > 0)."""
+    if not (isinstance(value, (tuple, list)) and len(value) == 3):
+        raise InvalidInputError(f"settings.sqp.slow: expected (after, run, contraction), got {value!r}")
+    after, run, contraction = value
+    return (nonnegative_int("settings.sqp.slow[0]", after), positive_int("settings.sqp.slow[1]", run),
+            positive("settings.sqp.slow[2]", contraction))
+
+
+def _damping(value: Any) -> tuple[float, float]:
+    """`SqpSettings.damping` checked: (a number > 0, a number > 1)."""
+    if not (isinstance(value, (tuple, list)) and len(value) == 2):
+        raise InvalidInputError(f"settings.sqp.damping: expected (low, factor), got {value!r}")
+    return (positive("settings.sqp.damping[0]", value[0]), in_range("settings.sqp.damping[1]", value[1], 1.0, np.inf))
+
+
+def _shares(name: str, value: Any, high: float, *, at_least: int = 0) -> tuple[float, ...]:
+    """`value` as a tuple of at least `at_least` numbers in (0, high), or InvalidInputError naming `name`."""
+    if not isinstance(value, (tuple, list)) or len(value) < at_least:
+        raise InvalidInputError(f"{name}: expected {'at least one number' if at_least else 'numbers'} in (0, "
+                                f"{high:g}), got {value!r}")
+    return tuple(in_range(f"{name}[{i}]", v, 0.0, high) for i, v in enumerate(value))
+
+
+DEFAULT_SETTINGS = SqpSettings()
+"""The published plans' settings."""
+
+
+@dataclass(frozen=True)
 class SqpResult:
-    """u: the last iterate (N n,), or the plan it joined; converged: whether it met FEASIBLE and STALL or joined;
-    rows: path rows in the last QP; joined: whether it stopped at JOIN from the plan given."""
+    """u: the last iterate (N n,), or the plan it joined; converged: whether it met the convergence test
+    (`SqpSettings.feasible` and `stall`) or joined; rows: path rows in the last QP; joined: whether it stopped within
+    `SqpSettings.join_distance` of the plan given."""
 
     u: NDArray[np.float64]
     iterations: int
@@ -151,7 +214,16 @@ def _qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], 
         G: NDArray[np.float64], h: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
         soft: bool, back: NDArray[np.float64] | None = None, iter_limit: int | None = None
         ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
-    """argmin 1/2 d^T H d + g^T d s.t. C d = -c, G d >= -h, low <= d <= high by DAQP: (d, the multipliers of the
+    """argmin 1/2 d^T H d + g^T d s.t. C d = -c, G d >= -h, low <= d <= high by DAQP at DAQP_TOL (`_qp_to`)."""
+    return _qp_to(DAQP_TOL, H, g, C, c, G, h, low, high, soft, back, iter_limit)
+
+
+def _qp_to(tol: float, H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64],
+           c: NDArray[np.float64], G: NDArray[np.float64], h: NDArray[np.float64], low: NDArray[np.float64],
+           high: NDArray[np.float64], soft: bool, back: NDArray[np.float64] | None = None,
+           iter_limit: int | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """argmin 1/2 d^T H d + g^T d s.t. C d = -c, G d >= -h, low <= d <= high by DAQP, to its primal and dual
+    tolerance `tol`: (d, the multipliers of the
     rows C, G), or None if DAQP finds no solution. H is a matrix, or the diagonal (its 1-d array) of a diagonal one.
     Solved in z = L^T d (H = L L^T), where the Hessian is the identity: DAQP's own factorisation of a dense H of 300
     rows took 5 ms of the 5.5, this takes 2.5 in all. Where H is diagonal (the effort bound's: Q = 0 and a diagonal
@@ -188,8 +260,8 @@ def _qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], 
     sense = np.concatenate([np.full(len(g), SENSE_FREE), np.full(len(c), SENSE_EQUAL),
                             np.full(rows, SENSE_SOFT if soft else SENSE_FREE)]).astype(np.intc)
     capped = {} if iter_limit is None else {"iter_limit": iter_limit}
-    z, _, status, info = daqp.solve(np.eye(len(g)), f, general, upper, lower, sense, primal_tol=DAQP_TOL,
-                                    dual_tol=DAQP_TOL, **capped)
+    z, _, status, info = daqp.solve(np.eye(len(g)), f, general, upper, lower, sense, primal_tol=tol, dual_tol=tol,
+                                    **capped)
     if status < 1:
         return None
     return to_d(np.asarray(z, dtype=np.float64)), np.asarray(info["lam"], dtype=np.float64)[len(g):]
@@ -213,24 +285,26 @@ def _inverse_factor(H: NDArray[np.float64], factor: NDArray[np.float64] | None =
 
 def _step_qp(H: NDArray[np.float64], g: NDArray[np.float64], C: NDArray[np.float64], c: NDArray[np.float64],
              G: NDArray[np.float64], h: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
-             back: NDArray[np.float64] | None = None
+             back: NDArray[np.float64] | None = None, *, settings: SqpSettings = DEFAULT_SETTINGS
              ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, bool] | None:
-    """The SQP's step QP (`_qp`'s arguments, the constraints C d = -c, G d >= -h): (d, multipliers, share, soft).
-    Where the constraints admit no step, they are asked to close only `share` of the way (RELAXED: c and every
-    negative h scaled by it); where no share does, the rows G are made soft (share 1). None where even that fails,
+    """The SQP's step QP (`_qp`'s arguments, the constraints C d = -c, G d >= -h; DAQP at `settings.daqp_tol`):
+    (d, multipliers, share, soft). Where the constraints admit no step, they are asked to close only `share` of the
+    way (`settings.relaxed`: c and every negative h scaled by it); where no share does, the rows G are made soft
+    (share 1). None where even that fails,
     or where the rows C alone admit no step in the box: the soft solve is then not tried (on a dense Hessian DAQP
     took 0.23 s to give it up, nominal 120 of seed 1 for `nonlinear_optimal`; the check took 0.03 s). `back`: a
     dense H's L^-T where already known (`gauss_newton_sqp` factors it once per step), else each solve factors H."""
-    solved = _qp(H, g, C, c, G, h, low, high, False, back)
+    tol = settings.daqp_tol
+    solved = _qp_to(tol, H, g, C, c, G, h, low, high, False, back)
     if solved is not None:
         return (*solved, 1.0, False)
-    for share in RELAXED:
-        solved = _qp(H, g, C, share * c, G, np.maximum(h, share * h), low, high, False, back)
+    for share in settings.relaxed:
+        solved = _qp_to(tol, H, g, C, share * c, G, np.maximum(h, share * h), low, high, False, back)
         if solved is not None:
             return (*solved, share, False)
-    if _qp(H, g, C, c, G[:0], h[:0], low, high, False, back) is None:
+    if _qp_to(tol, H, g, C, c, G[:0], h[:0], low, high, False, back) is None:
         return None  # the terminal rows alone admit no step in the box: no soft path row can change that
-    solved = _qp(H, g, C, c, G, h, low, high, True, back)
+    solved = _qp_to(tol, H, g, C, c, G, h, low, high, True, back)
     return None if solved is None else (*solved, 1.0, True)
 
 
@@ -238,13 +312,12 @@ _Lagrangian = tuple[NDArray[np.float64], NDArray[np.float64], tuple[float, float
 """The last Lagrangian Hessian, its L^-T, what it was made for (scale, damping, path rows), and its reuses."""
 
 
-def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], *, curvature_scale: float,
-                     shrink: float, max_iter: int, join: NDArray[np.float64] | None = None,
-                     second_order_after: int | None = SECOND_ORDER_AFTER) -> SqpResult:
+def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], *, max_iter: int,
+                     join: NDArray[np.float64] | None = None, settings: SqpSettings = DEFAULT_SETTINGS) -> SqpResult:
     """Minimise `problem`'s objective from u (N n,), within the torque box, subject to x_N = x_g and the path limits
-    (module docstring). Returns the last iterate whether or not it converged, or `join` (a converged plan of the
-    same problem, (N n,)) once an iterate comes within JOIN of it (see SqpResult). After `second_order_after`
-    iterations (None: never) the Hessian is the Lagrangian's (SECOND_ORDER_AFTER).
+    (module docstring), in at most `max_iter` iterations, with the tunables `settings`. Returns the last iterate
+    whether or not it converged, or `join` (a converged plan of the same problem, (N n,)) once an iterate comes
+    within `settings.join_distance` of it (see SqpResult).
 
     Raises:
       SolverError: the rollout of u diverged.
@@ -254,21 +327,22 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
     u_max = np.tile(limits.u_max, N)
     path_scale = limits.scale(N)[:4 * size]
     diagonal = problem.diagonal_hessian  # the Hessian as its diagonal where it is diagonal (the effort bound's)
-    scale, penalty, damping = float(curvature_scale), 0.0, 0.0
+    scale, penalty, damping = settings.curvature_scale, 0.0, 0.0
+    second_order_after = settings.second_order_after
     last: float | None = None
     rows = np.zeros(0, dtype=np.intp)
     multipliers: tuple[NDArray[np.float64], NDArray[np.intp]] | None = None  # the last QP's, and its path rows
-    slow_after, slow_run, contraction = SLOW
+    slow_after, slow_run, contraction = settings.slow
     slow, last_length = 0, float("inf")  # slow iterations in a row; the last QP step's length
     lagrangian: _Lagrangian | None = None
     for iteration in range(1, max_iter + 2):  # the last pass only tests the last step's iterate
-        if join is not None and np.linalg.norm(u - join) <= JOIN * np.linalg.norm(join):
+        if join is not None and np.linalg.norm(u - join) <= settings.join_distance * np.linalg.norm(join):
             return SqpResult(join, iteration - 1, int(rows.size), True, "joined the plan given", joined=True)
         U, X = problem.states(u)
         f = problem.objective(u)
         terminal = X[-1] - problem.xg
         h = limits.values(U, X)[:4 * size]
-        if _converged(terminal, h, path_scale, f, last):
+        if _converged(terminal, h, path_scale, f, last, settings):
             return SqpResult(u, iteration - 1, int(rows.size), True, "converged")
         if iteration > max_iter:
             break
@@ -279,8 +353,9 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         G = limits.jacobian(S, rows) / path_scale[rows, None]
         second_order_after = _second_order_from(second_order_after, iteration, slow, slow_after, slow_run)
         H, back, newton, lagrangian = _hessian(problem, limits, u, diagonal, scale, damping, rows, path_scale,
-                                               multipliers, lagrangian, second_order_after, iteration)
-        solved = _step_qp(H, g, S[-1], terminal, G, h[rows] / path_scale[rows], -u_max - u, u_max - u, back)
+                                               multipliers, lagrangian, second_order_after, iteration, settings)
+        solved = _step_qp(H, g, S[-1], terminal, G, h[rows] / path_scale[rows], -u_max - u, u_max - u, back,
+                          settings=settings)
         if solved is None:
             return SqpResult(u, iteration, int(rows.size), False, "the linearised constraints admit no step")
         d, lam, share, soft = solved
@@ -289,17 +364,17 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
         merit = f + penalty * now
         slope = float(g @ d) - penalty * share * now  # the merit's predicted change along d
         point = _full_or_corrected(problem, limits, u, d, H, g, S, rows, path_scale, soft, back, share, merit, slope,
-                                   penalty)
+                                   penalty, settings)
         if newton:
-            damping = _next_damping(damping, point is not None)
+            damping = _next_damping(damping, point is not None, settings.damping)
         shortened, trusted = False, True
         if point is None:
-            searched = _searched_step(problem, limits, u, d, merit, slope, penalty)
+            searched = _searched_step(problem, limits, u, d, merit, slope, penalty, settings)
             if searched is None:
                 return SqpResult(u, iteration, int(rows.size), False, "the line search found no decrease")
             point, shortened, trusted = searched
         if trusted:
-            scale = max(1.0, scale / shrink)  # a full, corrected or projected step: trust the model more
+            scale = max(1.0, scale / settings.shrink)  # a full, corrected or projected step: trust the model more
         length = float(np.linalg.norm(d))
         slow = slow + 1 if shortened or length > contraction * last_length else 0
         last, last_length = f, length
@@ -308,17 +383,18 @@ def gauss_newton_sqp(problem: Shooting, limits: PathLimits, u: NDArray[np.float6
 
 
 def _converged(terminal: NDArray[np.float64], h: NDArray[np.float64], path_scale: NDArray[np.float64], f: float,
-               last: float | None) -> bool:
-    """Whether an iterate has converged: its terminal residual and path violations within FEASIBLE, and its
-    objective `f` within STALL of the `last` iterate's."""
-    return bool(np.abs(terminal).max() <= FEASIBLE and np.all(h >= -FEASIBLE * path_scale) and last is not None
-                and abs(last - f) <= STALL * abs(f))
+               last: float | None, settings: SqpSettings) -> bool:
+    """Whether an iterate has converged: its terminal residual and path violations within `settings.feasible`, and
+    its objective `f` within `settings.stall` of the `last` iterate's."""
+    feasible = settings.feasible
+    return bool(np.abs(terminal).max() <= feasible and np.all(h >= -feasible * path_scale) and last is not None
+                and abs(last - f) <= settings.stall * abs(f))
 
 
 def _second_order_from(second_order_after: int | None, iteration: int, slow: int, slow_after: int,
                        slow_run: int) -> int | None:
     """The iteration after which the Hessian is the Lagrangian's: `second_order_after`, or this iteration's last
-    once the iteration converges slowly (SLOW: `slow` slow iterations in a row, past `slow_after`)."""
+    once the iteration converges slowly (`SqpSettings.slow`: `slow` slow iterations in a row, past `slow_after`)."""
     if second_order_after is not None and iteration > slow_after and slow >= slow_run:
         return min(second_order_after, iteration - 1)  # converging slowly: Newton from here on
     return second_order_after
@@ -327,19 +403,19 @@ def _second_order_from(second_order_after: int | None, iteration: int, slow: int
 def _hessian(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], diagonal: NDArray[np.float64] | None,
              scale: float, damping: float, rows: NDArray[np.intp], path_scale: NDArray[np.float64],
              multipliers: tuple[NDArray[np.float64], NDArray[np.intp]] | None, lagrangian: _Lagrangian | None,
-             second_order_after: int | None, iteration: int
+             second_order_after: int | None, iteration: int, settings: SqpSettings
              ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, bool, _Lagrangian | None]:
     """The step QP's Hessian at u, its L^-T (None for a diagonal one), whether it is the Lagrangian's, and the
     Lagrangian Hessian kept. The Gauss-Newton Hessian times `scale` (its `diagonal` where diagonal); after
     `second_order_after` iterations, once the last QP's `multipliers` are known, the Lagrangian's
-    (`_lagrangian_hessian`), `lagrangian` reused while made for the same scale, damping and path rows (NEWTON_REUSE),
-    where one is made."""
+    (`_lagrangian_hessian`), `lagrangian` reused while made for the same scale, damping and path rows
+    (`settings.newton_reuse`), where one is made."""
     H = scale * (problem.gauss_newton(u) if diagonal is None else diagonal)
     newton, back = False, None
     if second_order_after is not None and iteration > second_order_after and multipliers is not None:
         made_for = (scale, damping, rows.tobytes())
-        if lagrangian is None or lagrangian[2] != made_for or lagrangian[3] >= NEWTON_REUSE:
-            made = _lagrangian_hessian(problem, limits, u, H, *multipliers, path_scale, damping)
+        if lagrangian is None or lagrangian[2] != made_for or lagrangian[3] >= settings.newton_reuse:
+            made = _lagrangian_hessian(problem, limits, u, H, *multipliers, path_scale, damping, settings.augment)
             lagrangian = None if made is None else (*made, made_for, 0)
         else:
             lagrangian = (*lagrangian[:3], lagrangian[3] + 1)
@@ -353,49 +429,54 @@ def _hessian(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], diag
 def _full_or_corrected(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
                        H: NDArray[np.float64], g: NDArray[np.float64], S: NDArray[np.float64],
                        rows: NDArray[np.intp], path_scale: NDArray[np.float64], soft: bool,
-                       back: NDArray[np.float64] | None, share: float, merit: float, slope: float, penalty: float
-                       ) -> NDArray[np.float64] | None:
-    """The full step u + d where the merit decreases enough (ARMIJO), else its second-order correction
+                       back: NDArray[np.float64] | None, share: float, merit: float, slope: float, penalty: float,
+                       settings: SqpSettings) -> NDArray[np.float64] | None:
+    """The full step u + d where the merit decreases enough (`settings.armijo`), else its second-order correction
     (`_second_order`; none after a relaxed QP, `share` < 1) where that does, else None."""
     full = u + d
     point: NDArray[np.float64] | None = full  # the next iterate, as the line search tried it
-    if _merit(problem, limits, full, penalty) > merit + ARMIJO * slope:
+    armijo = settings.armijo
+    if _merit(problem, limits, full, penalty) > merit + armijo * slope:
         correction = None if share < 1.0 else _second_order(problem, limits, u, d, H, g, S, rows, path_scale,
-                                                            soft, back)
+                                                            soft, back, settings.daqp_tol)
         point = None if correction is None else u + correction
-        if point is not None and _merit(problem, limits, point, penalty) > merit + ARMIJO * slope:
+        if point is not None and _merit(problem, limits, point, penalty) > merit + armijo * slope:
             point = None
     return point
 
 
-def _next_damping(damping: float, accepted: bool) -> float:
-    """The Lagrangian Hessian's damping after a step (DAMPING): divided by its factor after a full or corrected
-    step (`accepted`), else at least its low end or multiplied by the factor; zero below the low end."""
-    low, factor = DAMPING
+def _next_damping(damping: float, accepted: bool, rule: tuple[float, float]) -> float:
+    """The Lagrangian Hessian's damping after a step (`rule`: `SqpSettings.damping`, (low, factor)): divided by the
+    factor after a full or corrected step (`accepted`), else at least `low` or multiplied by the factor; zero below
+    `low`."""
+    low, factor = rule
     damping = damping / factor if accepted else max(low, damping * factor)
     return damping if damping >= low else 0.0
 
 
 def _searched_step(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
-                   merit: float, slope: float, penalty: float) -> tuple[NDArray[np.float64], bool, bool] | None:
+                   merit: float, slope: float, penalty: float, settings: SqpSettings
+                   ) -> tuple[NDArray[np.float64], bool, bool] | None:
     """Where neither the full nor the corrected step decreases the merit: the projected line search (`_projected`),
-    else backtracking along d (`_backtrack`). (the next iterate, whether its step was cut, whether it was
-    projected), or None where neither finds a decrease."""
-    projected = _projected(problem, limits, u, d, merit, slope, penalty)
+    else backtracking along d (`_backtrack`), each with `settings.armijo` and `settings.min_step`. (the next
+    iterate, whether its step was cut, whether it was projected), or None where neither finds a decrease."""
+    projected = _projected(problem, limits, u, d, merit, slope, penalty, settings.armijo, settings.min_step)
     if projected is not None:
         point, t = projected
         return point, t < 1.0, True
-    backtracked = _backtrack(problem, limits, u, d, merit, slope, penalty)
+    backtracked = _backtrack(problem, limits, u, d, merit, slope, penalty, settings.armijo, settings.min_step)
     return None if backtracked is None else (backtracked, True, False)
 
 
 def _lagrangian_hessian(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], H: NDArray[np.float64],
                         lam: NDArray[np.float64], rows: NDArray[np.intp], path_scale: NDArray[np.float64],
-                        damping: float) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+                        damping: float, augment: tuple[float, ...]
+                        ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """The Lagrangian's Hessian at u, (N n, N n), and its L^-T (`_inverse_factor`): H (the Gauss-Newton Hessian, or
     its diagonal) plus the dynamics' curvature weighted by the QP multipliers `lam` (the terminal rows', then the
-    path `rows`'), made positive definite by AUGMENT and damped by `damping` times R's diagonal; None where the
-    curvature is not the plant's or no rho of AUGMENT makes it positive definite."""
+    path `rows`'), made positive definite by a multiple rho of A^T A (`augment`: `SqpSettings.augment`) and damped
+    by `damping` times R's diagonal; None where the curvature is not the plant's or no rho of `augment` makes it
+    positive definite."""
     N, n = problem.steps, problem.n
     U, X, _, S = problem.evaluate(u)
     terminal, path = lam[:2 * n], lam[2 * n:]
@@ -412,7 +493,7 @@ def _lagrangian_hessian(problem: Shooting, limits: PathLimits, u: NDArray[np.flo
     AtA = A.T @ A
     unit = float(np.max(np.diag(hessian))) / max(float(np.max(np.diag(AtA))), np.finfo(float).tiny)
     damped = damping * np.tile(np.diag(problem.R), N)
-    for rho in unit * AUGMENT:
+    for rho in unit * np.asarray(augment):
         augmented = hessian + rho * AtA
         augmented[np.diag_indices_from(augmented)] += damped
         factor, info = scipy.linalg.lapack.dpotrf(augmented, lower=1, clean=1)
@@ -430,28 +511,31 @@ def _merit(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], penalt
 
 
 def _backtrack(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
-               merit: float, slope: float, penalty: float) -> NDArray[np.float64] | None:
-    """u + t d for the largest t = 1/2, 1/4, ... >= MIN_STEP with enough decrease, else None."""
+               merit: float, slope: float, penalty: float, armijo: float, min_step: float
+               ) -> NDArray[np.float64] | None:
+    """u + t d for the largest t = 1/2, 1/4, ... >= `min_step` with enough decrease (`armijo`), else None."""
     t = 0.5
-    while t >= MIN_STEP:
+    while t >= min_step:
         trial = u + t * d
-        if _merit(problem, limits, trial, penalty) <= merit + ARMIJO * t * slope:
+        if _merit(problem, limits, trial, penalty) <= merit + armijo * t * slope:
             return trial
         t *= 0.5
     return None
 
 
 def _projected(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
-               merit: float, slope: float, penalty: float) -> tuple[NDArray[np.float64], float] | None:
-    """(`projector`'s torques, t) for the largest t = 1, 1/2, ... >= MIN_STEP with enough decrease, else None."""
+               merit: float, slope: float, penalty: float, armijo: float, min_step: float
+               ) -> tuple[NDArray[np.float64], float] | None:
+    """(`projector`'s torques, t) for the largest t = 1, 1/2, ... >= `min_step` with enough decrease (`armijo`),
+    else None."""
     project = projector(problem, limits, u, d)
     t = 1.0
-    while t >= MIN_STEP:
+    while t >= min_step:
         try:
             trial: NDArray[np.float64] | None = project(t)
         except SolverError:
             trial = None
-        if trial is not None and _merit(problem, limits, trial, penalty) <= merit + ARMIJO * t * slope:
+        if trial is not None and _merit(problem, limits, trial, penalty) <= merit + armijo * t * slope:
             return trial, t
         t *= 0.5
     return None
@@ -478,10 +562,10 @@ def projector(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: 
 
 def _second_order(problem: Shooting, limits: PathLimits, u: NDArray[np.float64], d: NDArray[np.float64],
                   H: NDArray[np.float64], g: NDArray[np.float64], S: NDArray[np.float64], rows: NDArray[np.intp],
-                  path_scale: NDArray[np.float64], soft: bool, back: NDArray[np.float64] | None
+                  path_scale: NDArray[np.float64], soft: bool, back: NDArray[np.float64] | None, tol: float
                   ) -> NDArray[np.float64] | None:
-    """The second-order correction of a refused step d: the QP again (`back`: its Hessian's L^-T where known) with
-    the constraints' values at u + d linearised back to u (their curvature along d), or None."""
+    """The second-order correction of a refused step d: the QP again (`back`: its Hessian's L^-T where known; DAQP
+    at `tol`) with the constraints' values at u + d linearised back to u (their curvature along d), or None."""
     try:
         U, X = problem.states(u + d)
     except SolverError:
@@ -491,5 +575,5 @@ def _second_order(problem: Shooting, limits: PathLimits, u: NDArray[np.float64],
     terminal = X[-1] - problem.xg - S[-1] @ d
     h = limits.values(U, X)[:4 * size][rows] / path_scale[rows] - G @ d
     u_max = np.tile(limits.u_max, problem.steps)
-    solved = _qp(H, g, S[-1], terminal, G, h, -u_max - u, u_max - u, soft, back)
+    solved = _qp_to(tol, H, g, S[-1], terminal, G, h, -u_max - u, u_max - u, soft, back)
     return None if solved is None else solved[0]

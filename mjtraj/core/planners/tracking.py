@@ -16,9 +16,9 @@ from mjtraj.core.planners.numba_cache import njit
 TRACKING_ERROR = (0.01, 0.1)
 """The feedback is LQR with Bryson's weights for these largest tracking errors (rad, rad/s) and the torque bound
 (`bryson_gains`). For the projected line search, errors of (0.001, 0.01) and (0.1, 1) were run beside these on
-the validation tasks of `mjtraj.core.planners.nonlinear.SQP_MAX_ITER`: objectives equal to 1e-10 on the first 180
-for both, and on all 480 for (0.1, 1), in a mean time 4 % lower. Two runs of the same code on the 180 differed by
-3 %, so the tracked start's errors serve both."""
+the nonlinear planners' validation tasks (docs/design.md, "The nonlinear planners' settings"): objectives equal to
+1e-10 on the first 180 for both, and on all 480 for (0.1, 1), in a mean time 4 % lower. Two runs of the same code
+on the 180 differed by 3 %, so the tracked start's errors serve both."""
 
 
 def tracking_gains(Ad: NDArray[np.float64], Bd: NDArray[np.float64], Q: NDArray[np.float64], R: NDArray[np.float64]
