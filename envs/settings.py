@@ -29,9 +29,7 @@ from mjtraj.core import (
     random_task,
     window_steps,
 )
-from mjtraj.exceptions import InvalidInputError
-from mjtraj.media import RENDER_QUALITIES, check_render_options
-from mjtraj.study import (
+from mjtraj.domain import (
     FAMILIES,
     FamilyScenario,
     Perturbation,
@@ -43,6 +41,8 @@ from mjtraj.study import (
     load_scenario,
     noise_scale,
 )
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.media import RENDER_QUALITIES, check_render_options
 
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
@@ -170,7 +170,7 @@ class TrackSettings:
     settle: float
     """The settle window, s (0: none)."""
     plant_randomization: str
-    """'none' or 'mismatch' (`mjtraj.study.families` rules, drawn per episode)."""
+    """'none' or 'mismatch' (`mjtraj.domain.families` rules, drawn per episode)."""
     family: str
     """'none', or the sweep family whose rules draw every episode's task and plant."""
     measurement_noise: float
@@ -346,7 +346,7 @@ def _arm_scenario(xml_file: str | os.PathLike[str] | None, scenario: Scenario | 
     """The scenario of the user's arm `xml_file` (its gains for every drawn task where the env draws tasks), else
     `scenario`; a torque limit only with an arm of one's own."""
     if xml_file is not None:
-        from mjtraj.study import scenario_for_model
+        from mjtraj.domain import scenario_for_model
 
         if scenario is not None:
             raise InvalidInputError("xml_file, scenario: give one")

@@ -159,7 +159,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
 
     ## Plant randomisation
     With `plant_randomization="mismatch"` each episode runs on its own plant, drawn from the reset's generator
-    after the task by the rules of the sweeps' mismatch family (`mjtraj.study.families`): a payload of U(0, 5) kg
+    after the task by the rules of the sweeps' mismatch family (`mjtraj.domain.families`): a payload of U(0, 5) kg
     at the flange, each link's mass and inertia scaled by U(0.8, 1.2), joint damping U(0, 1) N m s/rad and
     friction U(0, 3) N m. The planner and the feedforward keep the nominal model, as in the sweeps. On a user's
     arm (`xml_file`) the links are the bodies its joints move and the flange its `attachment_site`, else the last

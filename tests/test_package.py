@@ -166,7 +166,7 @@ def test_one_version_string_everywhere():
 def test_every_shipped_baseline_folder_is_a_declared_package():
     """setuptools ships a data-only folder without warning only where it is declared (pyproject.toml's packages):
     a baseline added without its line would warn at every build (and a future setuptools may leave it out)."""
-    from mjtraj.study.scenario import tomllib
+    from mjtraj.domain.scenario import tomllib
 
     declared = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     folders = {f"mjtraj.rl.baselines.{p.name}" for p in (ROOT / "mjtraj/rl/baselines").iterdir()

@@ -138,7 +138,7 @@ class Scenario:
 
 def scenario_text(scenario: Scenario, header: str = "") -> str:
     """A scenario as the TOML text of a scenario file (`header` as comments); `load_scenario` reads it back."""
-    from mjtraj.study.toml_text import dumps
+    from mjtraj.domain.toml_text import dumps
 
     return dumps(scenario.as_dict(), header=header)
 
