@@ -74,7 +74,7 @@ def test_wheel_contains_model_and_scenario(tmp_path):
     wheel = next(tmp_path.glob("mjtraj-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
     assert "mjtraj/assets/ur5_3dof.xml" in names
-    assert "mjtraj/study/scenarios/paper.toml" in names
+    assert "mjtraj/domain/scenarios/paper.toml" in names
     assert {"mjtraj/envs/__init__.py", "mjtraj/envs/ur5_track.py", "mjtraj/core/closed_loop.py"} <= set(names)
     assert "mjtraj/py.typed" in names
     assert not any(n.startswith(("envs/", "tests/")) for n in names)

@@ -145,7 +145,7 @@ def scenario_text(scenario: Scenario, header: str = "") -> str:
 
 def default_scenario_path() -> Path:
     """The shipped `paper.toml`."""
-    return Path(str(resources.files("mjtraj.study.scenarios").joinpath("paper.toml")))
+    return Path(str(resources.files("mjtraj.domain.scenarios").joinpath("paper.toml")))
 
 
 def shipped_scenarios() -> tuple[str, ...]:
