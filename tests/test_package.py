@@ -115,6 +115,18 @@ def test_lazy_names_resolve_to_their_modules():
     assert out == "mjtraj.study.comparison True"
 
 
+def test_an_episode_loads_nothing_of_study():
+    """The env stands on the domain layer and core at run time too (the layer test reads the imports): a mismatch
+    episode with its clairvoyant floor, rendered, loads no module of mjtraj.study."""
+    out = _fresh("import sys, gymnasium as gym, numpy as np; import mjtraj.envs; "
+                 "env = gym.make('UR5TrackMismatch-v1', floor=True, render_mode='rgb_array', width=64, height=48); "
+                 "env.reset(seed=0); done = False\n"
+                 "while not done: *_, done, _, info = env.step(np.zeros(3, np.float32))\n"
+                 "env.render(); print(np.isfinite(info['metrics']['floor']), "
+                 "sorted(m for m in sys.modules if m.startswith('mjtraj.study')))", MUJOCO_GL="osmesa")
+    assert out.splitlines()[-1] == "True []"
+
+
 @pytest.mark.parametrize(("code", "made"), [
     ("import gymnasium as gym; import mjtraj; env = gym.make('UR5Track-v0')", "UR5TrackEnv"),
     ("import mjtraj; import gymnasium as gym; env = gym.make('UR5Track-v0')", "UR5TrackEnv"),
