@@ -4,6 +4,7 @@ and resolved against the paper scenario's controller."""
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import os
 from dataclasses import dataclass
 from typing import Any
@@ -131,6 +132,34 @@ def argument_defaults() -> dict[str, Any]:
     loop = {f.name: getattr(paper.loop, f.name) for f, _, _ in declared_options(LoopConfig)}
     return {"planner": "cubic", **own, "q0": None, "qg": None, "Q_exec": None, "R_exec": None, "render_mode": None,
             "xml_file": None, "torque_limit": None, **loop}
+
+
+
+def argument_parameters() -> list[inspect.Parameter]:
+    """Every env argument as a keyword-only parameter with its default (`argument_defaults`) and its type: the
+    declared options' types, `resolve`'s annotations for the others."""
+    kinds = {f.name: kind for cls in (EnvOptions, LoopConfig) for f, _, kind in declared_options(cls)}
+    own = inspect.signature(resolve).parameters
+    return [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default,
+                              annotation=kinds[name] if name in kinds else own[name].annotation)
+            for name, default in argument_defaults().items()]
+
+
+class ArgumentsSignature:
+    """An env class's `__signature__`, for `help()`, `inspect.signature` and the editors that ask them: the class's
+    own named parameters, then every env argument keyword-only with its default (`argument_parameters`), where its
+    `__init__` takes them as `**kwargs` and passes them to `resolve`. Built when asked (it reads the paper
+    scenario); a subclass with an `__init__` of its own gets that one's signature."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._init = owner.__init__  # type: ignore[misc]
+
+    def __get__(self, instance: object, owner: type) -> inspect.Signature | None:
+        if owner.__init__ is not self._init:  # type: ignore[misc]
+            return None  # inspect then reads the subclass's own __init__
+        leading = [p for p in inspect.signature(self._init).parameters.values()
+                   if p.name != "self" and p.kind is not inspect.Parameter.VAR_KEYWORD]
+        return inspect.Signature([*leading, *argument_parameters()])
 
 
 @dataclass(frozen=True)

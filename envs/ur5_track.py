@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
 from mjtraj.envs.core import TrackCore
-from mjtraj.envs.settings import RENDER_MODES, TrackSettings, resolve
+from mjtraj.envs.settings import RENDER_MODES, ArgumentsSignature, TrackSettings, resolve
 from numpy.typing import NDArray
 
 from mjtraj.core import ClosedLoop, JointInfo, Task
@@ -258,8 +258,12 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
+    __signature__ = ArgumentsSignature()
+    """What `help()` and `inspect.signature` show: every argument with its default (the Arguments table)."""
 
     def __init__(self, **kwargs: Any) -> None:
+        """Every argument is keyword-only, with the default of the Arguments table (`inspect.signature(UR5TrackEnv)`
+        lists them); an unknown one is an InvalidInputError naming the valid ones."""
         self.settings = resolve(**kwargs)
         render_mode = self.settings.render_mode
         self.render_mode = render_mode
