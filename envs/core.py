@@ -33,8 +33,7 @@ from mjtraj.core import (
     step_cost,
     unsettled,
 )
-from mjtraj.exceptions import InvalidInputError
-from mjtraj.study import (
+from mjtraj.domain import (
     FamilyScenario,
     Job,
     Perturbation,
@@ -44,6 +43,7 @@ from mjtraj.study import (
     plant_fields,
     true_parameters,
 )
+from mjtraj.exceptions import InvalidInputError
 
 STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort", "reward_baseline")
 """Keys of every step's info (arrays of shape (B, n), or (B,) for the reward terms)."""
@@ -223,7 +223,7 @@ class TrackCore:
     def replay(self, scenario: FamilyScenario) -> Episode:
         """The episode of a sweep scenario, as sweeps run it: its task planned by this env's planner, Bryson's
         weights, its plant (None: nominal) and, for a perturbed one under measurement noise, the noise drawn from
-        its own seed (`mjtraj.study.families.measurement_noise`)."""
+        its own seed (`mjtraj.domain.families.measurement_noise`)."""
         s, task = self.settings, scenario.task
         noise = None
         if scenario.perturbation is not None and s.measurement_noise > 0:
@@ -369,11 +369,11 @@ class TrackCore:
                 for j, row in enumerate(ids)]
 
     def floors(self, ids: NDArray[np.intp], costs: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-        """The clairvoyant floors of the episodes of simulations `ids` (`mjtraj.study.floor.floors_of`: their
+        """The clairvoyant floors of the episodes of simulations `ids` (`mjtraj.domain.floor.floors_of`: their
         reference, weights and plant, the laws' executions as starts; measurement noise does not reach a torque
         sequence; with a settle window protocol v2's floor, J_settle at rest at the goal), and their scores `costs`
         (len(ids),) over them: "floor" and "cost_over_floor", (len(ids),), NaN where the floor failed."""
-        from mjtraj.study import Floor, floors_of
+        from mjtraj.domain import Floor, floors_of
 
         window = self.settings.settle_steps
         jobs = [Job(self.references[i], (self._q_diag[i].copy(), self._r_diag[i].copy()),  # type: ignore[arg-type]

@@ -4,6 +4,7 @@ and resolved against the paper scenario's controller."""
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import os
 from dataclasses import dataclass
 from typing import Any
@@ -29,9 +30,7 @@ from mjtraj.core import (
     random_task,
     window_steps,
 )
-from mjtraj.exceptions import InvalidInputError
-from mjtraj.media import RENDER_QUALITIES, check_render_options
-from mjtraj.study import (
+from mjtraj.domain import (
     FAMILIES,
     FamilyScenario,
     Perturbation,
@@ -43,6 +42,8 @@ from mjtraj.study import (
     load_scenario,
     noise_scale,
 )
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.media import RENDER_QUALITIES, check_render_options
 
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
@@ -133,6 +134,34 @@ def argument_defaults() -> dict[str, Any]:
             "xml_file": None, "torque_limit": None, **loop}
 
 
+
+def argument_parameters() -> list[inspect.Parameter]:
+    """Every env argument as a keyword-only parameter with its default (`argument_defaults`) and its type: the
+    declared options' types, `resolve`'s annotations for the others."""
+    kinds = {f.name: kind for cls in (EnvOptions, LoopConfig) for f, _, kind in declared_options(cls)}
+    own = inspect.signature(resolve).parameters
+    return [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default,
+                              annotation=kinds[name] if name in kinds else own[name].annotation)
+            for name, default in argument_defaults().items()]
+
+
+class ArgumentsSignature:
+    """An env class's `__signature__`, for `help()`, `inspect.signature` and the editors that ask them: the class's
+    own named parameters, then every env argument keyword-only with its default (`argument_parameters`), where its
+    `__init__` takes them as `**kwargs` and passes them to `resolve`. Built when asked (it reads the paper
+    scenario); a subclass with an `__init__` of its own gets that one's signature."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._init = owner.__init__  # type: ignore[misc]
+
+    def __get__(self, instance: object, owner: type) -> inspect.Signature | None:
+        if owner.__init__ is not self._init:  # type: ignore[misc]
+            return None  # inspect then reads the subclass's own __init__
+        leading = [p for p in inspect.signature(self._init).parameters.values()
+                   if p.name != "self" and p.kind is not inspect.Parameter.VAR_KEYWORD]
+        return inspect.Signature([*leading, *argument_parameters()])
+
+
 @dataclass(frozen=True)
 class TrackSettings:
     """Everything an env instance needs, validated."""
@@ -170,7 +199,7 @@ class TrackSettings:
     settle: float
     """The settle window, s (0: none)."""
     plant_randomization: str
-    """'none' or 'mismatch' (`mjtraj.study.families` rules, drawn per episode)."""
+    """'none' or 'mismatch' (`mjtraj.domain.families` rules, drawn per episode)."""
     family: str
     """'none', or the sweep family whose rules draw every episode's task and plant."""
     measurement_noise: float
@@ -346,7 +375,7 @@ def _arm_scenario(xml_file: str | os.PathLike[str] | None, scenario: Scenario | 
     """The scenario of the user's arm `xml_file` (its gains for every drawn task where the env draws tasks), else
     `scenario`; a torque limit only with an arm of one's own."""
     if xml_file is not None:
-        from mjtraj.study import scenario_for_model
+        from mjtraj.domain import scenario_for_model
 
         if scenario is not None:
             raise InvalidInputError("xml_file, scenario: give one")

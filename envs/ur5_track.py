@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
 from mjtraj.envs.core import TrackCore
-from mjtraj.envs.settings import RENDER_MODES, TrackSettings, resolve
+from mjtraj.envs.settings import RENDER_MODES, ArgumentsSignature, TrackSettings, resolve
 from numpy.typing import NDArray
 
 from mjtraj.core import ClosedLoop, JointInfo, Task
@@ -159,7 +159,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
 
     ## Plant randomisation
     With `plant_randomization="mismatch"` each episode runs on its own plant, drawn from the reset's generator
-    after the task by the rules of the sweeps' mismatch family (`mjtraj.study.families`): a payload of U(0, 5) kg
+    after the task by the rules of the sweeps' mismatch family (`mjtraj.domain.families`): a payload of U(0, 5) kg
     at the flange, each link's mass and inertia scaled by U(0.8, 1.2), joint damping U(0, 1) N m s/rad and
     friction U(0, 3) N m. The planner and the feedforward keep the nominal model, as in the sweeps. On a user's
     arm (`xml_file`) the links are the bodies its joints move and the flange its `attachment_site`, else the last
@@ -258,8 +258,12 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
+    __signature__ = ArgumentsSignature()
+    """What `help()` and `inspect.signature` show: every argument with its default (the Arguments table)."""
 
     def __init__(self, **kwargs: Any) -> None:
+        """Every argument is keyword-only, with the default of the Arguments table (`inspect.signature(UR5TrackEnv)`
+        lists them); an unknown one is an InvalidInputError naming the valid ones."""
         self.settings = resolve(**kwargs)
         render_mode = self.settings.render_mode
         self.render_mode = render_mode

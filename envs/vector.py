@@ -10,7 +10,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from mjtraj.envs.core import STEP_INFO, TrackCore
-from mjtraj.envs.settings import RENDER_MODES, resolve
+from mjtraj.envs.settings import RENDER_MODES, ArgumentsSignature, resolve
 from mjtraj.envs.ur5_track import action_space, observation_space
 from numpy.typing import NDArray
 
@@ -44,9 +44,14 @@ class UR5TrackVectorEnv(VectorEnv):
 
     metadata = {"render_modes": [m for m in RENDER_MODES if m != "human"], "render_fps": 50,
                 "autoreset_mode": AutoresetMode.NEXT_STEP}
+    __signature__ = ArgumentsSignature()
+    """What `help()` and `inspect.signature` show: every argument with its default (the Arguments table)."""
 
     def __init__(self, num_envs: int = 1, *, max_episode_steps: int | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs: Any) -> None:
+        """`kwargs` are UR5TrackEnv's arguments, keyword-only with their defaults
+        (`inspect.signature(UR5TrackVectorEnv)` lists them); an unknown one is an InvalidInputError naming the valid
+        ones."""
         self.settings = resolve(**kwargs)
         render_mode = self.settings.render_mode
         if render_mode == "human":

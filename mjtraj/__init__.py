@@ -46,10 +46,10 @@ _EXPORTS = {
     "Rollout": "mjtraj.core.rollout",
     "Scoring": "mjtraj.core.scoring",
     "Task": "mjtraj.core.task",
-    "Comparison": "mjtraj.study.comparison",
+    "Comparison": "mjtraj.domain.comparison",
     "compare": "mjtraj.study.comparison",
-    "Scenario": "mjtraj.study.scenario",
-    "load_scenario": "mjtraj.study.scenario",
+    "Scenario": "mjtraj.domain.scenario",
+    "load_scenario": "mjtraj.domain.scenario",
     "SweepSettings": "mjtraj.study.sweep",
     "run_sweep": "mjtraj.study.runner",
 }
@@ -65,10 +65,11 @@ if TYPE_CHECKING:
     from mjtraj.core.rollout import Rollout
     from mjtraj.core.scoring import Scoring
     from mjtraj.core.task import Task
+    from mjtraj.domain.comparison import Comparison
+    from mjtraj.domain.scenario import Scenario, load_scenario
     from mjtraj.envs import ENV_ID
-    from mjtraj.study.comparison import Comparison, compare
+    from mjtraj.study.comparison import compare
     from mjtraj.study.runner import run_sweep
-    from mjtraj.study.scenario import Scenario, load_scenario
     from mjtraj.study.sweep import SweepSettings
 
 _registration.register()  # gym.make("UR5Track-v0") after `import mjtraj`, whichever is imported first

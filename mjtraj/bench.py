@@ -12,7 +12,7 @@ from mujoco.batch import Batch
 
 from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.task import Task
-from mjtraj.study.scenario import Scenario
+from mjtraj.domain.scenario import Scenario
 
 PLAN_STEPS = (100, 200, 400, 800)
 LOOP_SIZES = (1, 64, 1024, 4096)
@@ -131,8 +131,8 @@ def bench_new_planners(scenario: Scenario, *, scenarios: int = 12, repeats: int 
     `Shooting.jacobians`)."""
     from mjtraj.core.planners import make
     from mjtraj.core.planners.nonlinear import NonlinearOptimal
+    from mjtraj.domain.families import draw_scenario
     from mjtraj.exceptions import MjtrajError
-    from mjtraj.study.families import draw_scenario
 
     model, task = scenario.model, scenario.task
     scurve = scenario.planner("scurve")
@@ -194,8 +194,8 @@ def bench_tail(scenario: Scenario, tasks: dict[str, int], *, seed: int = 1) -> d
     plan is infeasible, as aggressive ones can be, is left out and counted). Returns the multiples' median, 90th
     percentile and largest per planner, the slowest task, and the failures."""
     from mjtraj.core.planners import make
+    from mjtraj.domain.families import draw_scenario
     from mjtraj.exceptions import MjtrajError
-    from mjtraj.study.families import draw_scenario
 
     model, dt = scenario.model, scenario.task.dt
     drawn = [(family, i, draw_scenario(family, seed, i, model, dt).task)
@@ -609,7 +609,7 @@ def bench_store(rows: int = 100_000, timed: Sequence[str] = STORE_STAGES) -> dic
 
 
 def bench_floor(scenario: Scenario, *, scenarios: int = 20, mismatch: int = 20, seed: int = 1) -> list[dict[str, Any]]:
-    """The floor's solve time per scenario (`mjtraj.study.floor.floor_of`, one core) on `scenarios` nominal and
+    """The floor's solve time per scenario (`mjtraj.domain.floor.floor_of`, one core) on `scenarios` nominal and
     aggressive scenarios and `mismatch` mismatch ones of `seed`: median, 90th percentile and worst, s."""
     from mjtraj.study.floor import family_floors
 
@@ -637,8 +637,8 @@ def bench_predictive(scenario: Scenario, *, scenarios: int = 3, seed: int = 1,
     import dataclasses
 
     from mjtraj.core import SETTLE_WINDOW, default_model_path, held, window_steps
-    from mjtraj.study.families import FAMILIES, draw_scenario, perturbed_plant, plant_fields
-    from mjtraj.study.scenario import scenario_for_model
+    from mjtraj.domain.families import FAMILIES, draw_scenario, perturbed_plant, plant_fields
+    from mjtraj.domain.scenario import scenario_for_model
 
     rows = []
     for dt in periods:
@@ -710,7 +710,7 @@ def bench_controllers(scenario: Scenario, *, scenarios: int = 5, seed: int = 1,
     of the control period."""
     import dataclasses
 
-    from mjtraj.study.families import draw_scenario, perturbed_plant, plant_fields
+    from mjtraj.domain.families import draw_scenario, perturbed_plant, plant_fields
 
     model = scenario.model
     plant = perturbed_plant(model, scenario.model_path, scenario.model_torque_limit)

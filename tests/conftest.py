@@ -11,7 +11,7 @@ import pytest
 
 from mjtraj.core.model import load_model
 from mjtraj.core.task import Task
-from mjtraj.study.scenario import Scenario, load_scenario
+from mjtraj.domain.scenario import Scenario, load_scenario
 
 
 @pytest.fixture(scope="session")

@@ -224,7 +224,7 @@ PAPER_TOML = None
 def _paper_text() -> str:
     from importlib import resources
 
-    return resources.files("mjtraj.study.scenarios").joinpath("paper.toml").read_text()
+    return resources.files("mjtraj.domain.scenarios").joinpath("paper.toml").read_text()
 
 
 def _config_case(label: str, make: Callable[[str], str | bytes], names: str, planners: str = "cubic") -> Case:

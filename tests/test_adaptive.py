@@ -14,8 +14,8 @@ from mjtraj.core.dynamics import DynamicsProbe
 from mjtraj.core.model import load_model
 from mjtraj.core.payload import with_point_mass
 from mjtraj.core.reference import Reference
+from mjtraj.domain.families import Perturbation, no_perturbation, perturbed_plant, plant_fields
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.study.families import Perturbation, no_perturbation, perturbed_plant, plant_fields
 
 
 @pytest.fixture(scope="module")
@@ -167,7 +167,7 @@ def test_is_computed_torques_gains_at_zero_estimate(model):
 
 
 def test_oracle_actor_starts_the_estimate_at_each_plants_truth(model):
-    from mjtraj.study.oracle import TrueParameters, true_parameters
+    from mjtraj.domain.oracle import TrueParameters, true_parameters
 
     plant = perturbed_plant(model)
     plants = [Perturbation(2.0, np.ones(3), np.ones(3), np.array([0.1, 0.2, 0.3]), np.array([1.0, 2.0, 3.0])),

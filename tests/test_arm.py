@@ -19,8 +19,8 @@ from mjtraj.core.dynamics import DynamicsProbe
 from mjtraj.core.feedforward import feedforward
 from mjtraj.core.model import default_model_path, load_model
 from mjtraj.core.planners import make
+from mjtraj.domain.scenario import scenario_for_model
 from mjtraj.exceptions import ModelError
-from mjtraj.study.scenario import scenario_for_model
 
 PLANAR = default_model_path().parent / "planar_2link.xml"
 M1, L1, LC1, M2, LC2, G = 2.0, 0.5, 0.25, 1.0, 0.2, 9.81
@@ -248,9 +248,9 @@ def test_a_sweep_and_its_audit_on_a_user_arm(tmp_path, capsys):
 
 
 def test_torque_limit_sets_every_joints_saturation_and_travels_with_the_scenario(tmp_path):
-    from mjtraj.study.scenario import load_scenario, scenario_from_dict
+    from mjtraj.domain.scenario import load_scenario, scenario_from_dict
+    from mjtraj.domain.toml_text import dumps
     from mjtraj.study.sweep import SweepSettings
-    from mjtraj.study.toml_text import dumps
 
     own = prepare_arm(PLANAR)
     np.testing.assert_array_equal(own.actuator_ctrlrange, [[-20, 20], [-20, 20]])  # the file's servo force ranges
@@ -303,8 +303,8 @@ def test_bad_torque_limits_are_one_line(argv, message, capsys):
 def test_bad_torque_limits_in_files_and_the_env(tmp_path):
     import gymnasium as gym
 
+    from mjtraj.domain.scenario import load_scenario, scenario_from_dict
     from mjtraj.exceptions import InvalidInputError
-    from mjtraj.study.scenario import load_scenario, scenario_from_dict
 
     paper = load_scenario().as_dict()
     with pytest.raises(InvalidInputError, match=r'^config: torque_limit: only with model = "PATH"'):
@@ -324,7 +324,7 @@ def test_the_mismatch_plant_of_a_user_arm_carries_its_payload_by_the_flange_rule
     torque of a point mass m there, m g (l1 cos q1 + lc2 cos(q1 + q2)) and m g lc2 cos(q1 + q2), is what the
     plant adds at rest, not compensated; with no payload, unit scales and no damping or friction the plant
     executes as the nominal model."""
-    from mjtraj.study.families import Perturbation, perturbed_plant, plant_fields
+    from mjtraj.domain.families import Perturbation, perturbed_plant, plant_fields
 
     model = prepare_arm(PLANAR)
     plant = perturbed_plant(model, str(PLANAR))
@@ -373,7 +373,7 @@ def test_the_mismatch_family_on_a_user_arm_in_a_sweep_and_the_env(tmp_path):
 
 
 def test_a_body_moved_by_two_joints_cannot_be_scaled_one_link_per_joint(tmp_path):
-    from mjtraj.study.families import perturbed_plant
+    from mjtraj.domain.families import perturbed_plant
 
     two = tmp_path / "two.xml"
     two.write_text(PLANAR.read_text().replace(

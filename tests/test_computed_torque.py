@@ -15,7 +15,7 @@ from mjtraj.core.controller import ComputedTorque
 from mjtraj.core.dynamics import DynamicsProbe
 from mjtraj.core.planners import make
 from mjtraj.core.reference import Reference
-from mjtraj.study.scenario import default_scenario_path
+from mjtraj.domain.scenario import default_scenario_path
 from mjtraj.study.store import read_rows
 
 

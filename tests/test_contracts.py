@@ -18,9 +18,9 @@ from mjtraj.core.model import JointInfo, load_model
 from mjtraj.core.planners import default_names, make
 from mjtraj.core.reference import Reference
 from mjtraj.core.task import Task
+from mjtraj.domain.pipeline import STATUSES, Job, execute
+from mjtraj.domain.scenario import default_scenario_path, load_scenario
 from mjtraj.exceptions import InfeasibleError, MjtrajError
-from mjtraj.study.pipeline import STATUSES, Job, execute
-from mjtraj.study.scenario import default_scenario_path, load_scenario
 
 MODEL = load_model()
 JOINTS = JointInfo.of(MODEL)

@@ -17,8 +17,7 @@ from mjtraj.core import random_task
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners import make
 from mjtraj.core.scoring import Scoring
-from mjtraj.exceptions import InvalidInputError
-from mjtraj.study.families import (
+from mjtraj.domain.families import (
     DAMPING,
     FRICTION,
     LINK_SCALE,
@@ -27,7 +26,8 @@ from mjtraj.study.families import (
     noise_scale,
     perturbed_plant,
 )
-from mjtraj.study.pipeline import Job, execute
+from mjtraj.domain.pipeline import Job, execute
+from mjtraj.exceptions import InvalidInputError
 
 SIGMA = 2e-4
 """rad, the measurement noise of the noisy cases."""

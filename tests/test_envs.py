@@ -296,13 +296,19 @@ def test_vector_env_reports_metrics_of_ended_episodes(scenario):
 
 
 
-def test_docstring_arguments_table_matches_the_code():
-    """The Arguments table documents every argument the env accepts, with the default the code applies."""
+def card_table() -> tuple[str, dict[str, str]]:
+    """The env card's Arguments section: its table of the benchmark envs (text), and its arguments table, name ->
+    default as the card writes it."""
     doc = inspect.getdoc(UR5TrackEnv)
     table = doc.split("## Arguments")[1].split("##")[0]
     benchmark, arguments = table.split("| argument         | default ")
     rows = re.findall(r"^\| (\w+)\s+\| (\S+)\s+\|", "| argument " + arguments, flags=re.M)
-    documented = {name: value for name, value in rows if name != "argument"}
+    return benchmark, {name: value for name, value in rows if name != "argument"}
+
+
+def test_docstring_arguments_table_matches_the_code():
+    """The Arguments table documents every argument the env accepts, with the default the code applies."""
+    benchmark, documented = card_table()
     code = {name: repr(value).replace("'", '"') for name, value in argument_defaults().items()}
     assert documented == code
     lines = [[cell.strip() for cell in line.strip().strip("|").split("|")] for line in benchmark.splitlines()
@@ -328,6 +334,37 @@ def test_docstring_arguments_table_matches_the_code():
     assert applied == {k: v for k, v in argument_defaults().items()
                        if k not in ("q0", "qg", "Q_exec", "R_exec", "xml_file", "torque_limit")}
     env.close()
+
+
+@pytest.mark.parametrize("cls", [UR5TrackEnv, UR5TrackVectorEnv])
+def test_the_signature_shows_every_argument_with_its_default(cls):
+    """`help()` and `inspect.signature` (what editors ask) show every argument of the card's table, keyword-only, with
+    the card's default; the vector env's own arguments come first. An unknown keyword is still the one-line error."""
+    import pydoc
+
+    _, documented = card_table()
+    parameters = inspect.signature(cls).parameters
+    env_args = {name: p for name, p in parameters.items() if name in documented}
+    assert {name: repr(p.default).replace("'", '"') for name, p in env_args.items()} == documented
+    assert all(p.kind is inspect.Parameter.KEYWORD_ONLY for p in env_args.values())
+    own = [name for name in parameters if name not in documented]
+    assert own == ([] if cls is UR5TrackEnv else ["num_envs", "max_episode_steps", "autoreset_mode"])
+    assert f"{cls.__name__}(" + ("*, planner" if cls is UR5TrackEnv else "num_envs") in pydoc.render_doc(
+        cls, renderer=pydoc.plaintext)
+    with pytest.raises(InvalidInputError, match=r"^speed: unknown argument; valid: planner, q0, qg, [^\n]*, delay$"):
+        cls(speed=2)
+
+
+def test_a_subclass_with_its_own_init_shows_its_own_signature():
+    class Mine(UR5TrackEnv):
+        def __init__(self, gain, **kwargs):
+            super().__init__(**kwargs)
+
+    class Same(UR5TrackEnv):
+        pass
+
+    assert str(inspect.signature(Mine)) == "(gain, **kwargs)"
+    assert inspect.signature(Same) == inspect.signature(UR5TrackEnv)
 
 
 def test_docstring_defaults_are_the_paper_scenario(scenario):

@@ -9,7 +9,7 @@ import pytest
 
 from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.planners import make
-from mjtraj.study.families import Perturbation, draw_scenario, perturbed_plant, plant_fields
+from mjtraj.domain.families import Perturbation, draw_scenario, perturbed_plant, plant_fields
 
 
 def test_unperturbed_plant_reproduces_the_nominal_one(model, scenario):
@@ -57,8 +57,8 @@ def test_the_heaviest_payload_of_a_weak_arm_is_one_it_can_hold_and_the_ur5s_rang
     from mjtraj.core.gains import workspace_poses
     from mjtraj.core.model import JointInfo
     from mjtraj.core.payload import with_point_mass
-    from mjtraj.study.families import HOLD_FRACTION, PAYLOAD_MASS, arm_scales
-    from mjtraj.study.scenario import scenario_for_model
+    from mjtraj.domain.families import HOLD_FRACTION, PAYLOAD_MASS, arm_scales
+    from mjtraj.domain.scenario import scenario_for_model
 
     assert arm_scales(model)[0] == 1.0  # the UR5 holds more than its range: its draws are unchanged
     path = tmp_path / "weak.xml"
@@ -88,7 +88,7 @@ def test_the_drawn_damping_and_friction_add_to_the_arms_own_and_the_ur5s_plants_
     fields are the draws bit for bit."""
     from arm_suite import THREE, chain
 
-    from mjtraj.study.scenario import scenario_for_model
+    from mjtraj.domain.scenario import scenario_for_model
 
     draw = draw_scenario("mismatch", 0, 3, model, 0.02).perturbation
     fields = plant_fields(perturbed_plant(model), [draw])

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import pytest
 
+from mjtraj.domain.scenario import default_scenario_path
 from mjtraj.study.audit import weights_label, write_audit
 from mjtraj.study.comparison import compare
 from mjtraj.study.fixed_tasks import TASKS, task_rows
 from mjtraj.study.runner import run_sweep
-from mjtraj.study.scenario import default_scenario_path
 from mjtraj.study.store import read_rows
 from mjtraj.study.sweep import SweepSettings
 

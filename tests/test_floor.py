@@ -13,10 +13,10 @@ from mjtraj.core.floor import _Problem, clairvoyant_floor
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners.shooting import Shooting
 from mjtraj.core.settle import held
+from mjtraj.domain.families import draw_scenario, perturbed_plant
+from mjtraj.domain.floor import STARTS, floor_of, replay
+from mjtraj.domain.pipeline import GOAL_TOLERANCE, Job, execute_batch
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.study.families import draw_scenario, perturbed_plant
-from mjtraj.study.floor import STARTS, floor_of, replay
-from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, execute_batch
 
 ROTOR = """
 <mujoco>
@@ -156,7 +156,7 @@ def test_bad_configuration_and_starts_are_refused_by_name(scenario, model):
 def _mismatch_problem(scenario, model, index: int) -> tuple[_Problem, np.ndarray]:
     """The floor's problem on mismatch scenario `index`'s true plant (dry friction, per-link gravity compensation),
     and the torques PID applies there."""
-    from mjtraj.study.floor import true_plant
+    from mjtraj.domain.floor import true_plant
 
     fs = draw_scenario("mismatch", 1, index, model, scenario.task.dt)
     plant = perturbed_plant(model)
@@ -260,7 +260,7 @@ def test_on_a_mismatched_plant_no_law_of_the_table_scores_below_the_floor_the_or
     """Mismatch scenario 6 of seed 1, where the adaptive law told the true plant had scored 1.5 % below the floor
     of the four classical starts: every law of the benchmark's table starts a solve, so none scores below it
     (the oracle's execution replayed independently through the pipeline)."""
-    from mjtraj.study.oracle import TrueParameters
+    from mjtraj.domain.oracle import TrueParameters
 
     fs = draw_scenario("mismatch", 1, 6, model, scenario.task.dt)
     plant = perturbed_plant(model)

@@ -13,9 +13,9 @@ import pytest
 from mjtraj.core.floor import DEFAULT_SETTINGS
 from mjtraj.core.model import JointInfo
 from mjtraj.core.settle import SETTLE_SPEED, Settle, held
-from mjtraj.study.families import draw_scenario
-from mjtraj.study.floor import floor_of
-from mjtraj.study.pipeline import Job
+from mjtraj.domain.families import draw_scenario
+from mjtraj.domain.floor import floor_of
+from mjtraj.domain.pipeline import Job
 
 WINDOW = 25
 """The settle window in periods (0.5 s at 0.02 s)."""

@@ -39,7 +39,7 @@ def test_split_moves_the_weight_between_positions_and_velocities(scenario):
 
 def test_family_rows_are_medians(scenario):
     result = frontier(scenario, alphas=(1.0,), family="nominal", scenarios=5, seed=3)
-    from mjtraj.study.families import draw_scenario
+    from mjtraj.domain.families import draw_scenario
 
     draws = [draw_scenario("nominal", 3, i, scenario.model, 0.02) for i in range(5)]
     costs = []

@@ -1,5 +1,6 @@
 """The layers: every import (function-level ones included) goes down or sideways, never up, and forms no cycle;
-envs and rl use only the public names of the layers below them; no public name hides a submodule."""
+envs and media never import study (they build on the domain and core); envs and rl use only the public names of the
+layers below them; no public name hides a submodule."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ SOURCES = {"mjtraj": ROOT / "mjtraj", "mjtraj.envs": ROOT / "envs"}
 BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj.plugins", "mjtraj._lazy",
         "mjtraj._checkout", "mjtraj._registration", "mjtraj.threads")
 APP = ("mjtraj", "mjtraj.cli", "mjtraj.bench", "mjtraj.bench_busy", "mjtraj.golden", "mjtraj.__main__")
-LAYERS = ["base", "core", "study", "media", "envs", "rl", "app"]
+LAYERS = ["base", "core", "domain", "study", "media", "envs", "rl", "app"]
 PUBLIC_BASE = ("mjtraj.exceptions", "mjtraj.checks", "mjtraj.files", "mjtraj.versions", "mjtraj.plugins",
                "mjtraj.threads")
 
@@ -26,7 +27,7 @@ def layer(module: str) -> str:
     if module in APP or module.startswith("mjtraj.cli."):  # the command, one module per subcommand
         return "app"
     part = module.split(".")[1]
-    if part in ("core", "study", "media", "envs", "rl"):
+    if part in ("core", "domain", "study", "media", "envs", "rl"):
         return part
     raise AssertionError(f"{module}: not placed in a layer; add it to a layer folder")
 
@@ -122,6 +123,22 @@ def test_no_import_cycles():
     assert cycles == []
 
 
+@pytest.mark.parametrize("user", ["envs", "media"])
+def test_envs_and_media_never_import_study(user):
+    """The env and the media layer stand on the domain layer and core alone: no import of study at any depth
+    (TYPE_CHECKING ones included), so that the experiments can change without touching the env."""
+    found = [f"{module} imports {target}" for module, path in modules().items() if layer(module) == user
+             for target, _, _ in imports(path, module) if layer(target) == "study"]
+    assert found == []
+
+
+def test_the_study_rule_sees_a_study_import(tmp_path):
+    """The oracle of the rule: an import of study, even a type-only one, is found in a file that has it."""
+    path = tmp_path / "probe.py"
+    path.write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from mjtraj.study.sweep import Row\n")
+    assert [layer(target) for target, _, _ in imports(path, "mjtraj.media.probe")] == ["study"]
+
+
 @pytest.mark.parametrize("user", ["envs", "rl"])
 def test_envs_and_rl_use_only_public_names(user):
     """Below their own layer, envs and rl import from a layer's package (names in its __all__) or from the public
@@ -135,7 +152,7 @@ def test_envs_and_rl_use_only_public_names(user):
                 continue
             if target == "mjtraj._lazy" and path.name == "__init__.py":
                 continue
-            if target not in ("mjtraj.core", "mjtraj.study", "mjtraj.media", "mjtraj.envs"):
+            if target not in ("mjtraj.core", "mjtraj.domain", "mjtraj.study", "mjtraj.media", "mjtraj.envs"):
                 leaks.append(f"{module} imports the inner module {target}")
                 continue
             leaks += [f"{module} imports {target}.{name}, not in its __all__" for name in names
@@ -147,8 +164,8 @@ def test_no_public_name_hides_a_submodule():
     """`mjtraj.study.compare` must not be a function where a module `mjtraj/study/compare.py` exists, and so on."""
     found = modules()
     hidden = []
-    for package in ("mjtraj", "mjtraj.core", "mjtraj.study", "mjtraj.media", "mjtraj.envs", "mjtraj.rl",
-                    "mjtraj.core.planners"):
+    for package in ("mjtraj", "mjtraj.core", "mjtraj.domain", "mjtraj.study", "mjtraj.media", "mjtraj.envs",
+                    "mjtraj.rl", "mjtraj.core.planners"):
         hidden += [f"{package}.{name}" for name in exported(package) if f"{package}.{name}" in found]
     assert hidden == []
 

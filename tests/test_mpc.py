@@ -13,9 +13,9 @@ import pytest
 from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.model import JointInfo
 from mjtraj.core.mpc import ModelPredictive, linearised_steps
-from mjtraj.study.families import draw_scenario, perturbed_plant, plant_fields
-from mjtraj.study.floor import floor_of
-from mjtraj.study.pipeline import GOAL_TOLERANCE, Job, execute_batch
+from mjtraj.domain.families import draw_scenario, perturbed_plant, plant_fields
+from mjtraj.domain.floor import floor_of
+from mjtraj.domain.pipeline import GOAL_TOLERANCE, Job, execute_batch
 from mjtraj.study.sweep import SCORING
 
 

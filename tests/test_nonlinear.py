@@ -531,8 +531,8 @@ def test_the_effort_bound_is_slsqps_optimum_or_lower_on_the_paper_task_and_50_no
     """The issue's bar for the bound's solver, with SLSQP alone as the oracle: on the paper task and nominal
     scenarios 0-49 of seed 0 the default plan's objective is within 1e-4 of SLSQP's or below it, and the plan holds
     every constraint."""
-    from mjtraj.study.families import draw_scenario
-    from mjtraj.study.scenario import load_scenario
+    from mjtraj.domain.families import draw_scenario
+    from mjtraj.domain.scenario import load_scenario
 
     tasks = [load_scenario(None).task] + [draw_scenario("nominal", 0, i, model, 0.02).task for i in range(50)]
     solvers = []
@@ -612,7 +612,7 @@ def test_the_gauss_newton_sqp_from_the_linear_start_stops_at_another_local_minim
     import scipy.linalg
 
     from mjtraj.core.planners.optimal import planner_weights
-    from mjtraj.study.scenario import load_scenario
+    from mjtraj.domain.scenario import load_scenario
 
     task = load_scenario(None).task
     linear = make("nonlinear_min_effort", keep="first").plan(task, model)
@@ -739,7 +739,7 @@ def test_the_projected_step_is_the_open_loop_step_to_first_order_and_stays_near_
     two agree to first order, so the line search's predicted decrease holds); at t = 1 its states stay far nearer
     the linearised prediction x + S d than the open-loop step's, which single shooting's rollout amplifies."""
     from mjtraj.core.planners.sqp import projector
-    from mjtraj.study.scenario import load_scenario
+    from mjtraj.domain.scenario import load_scenario
 
     task = load_scenario(None).task
     problem, limits, starts = make("nonlinear_min_effort").problem(task, model)
@@ -765,7 +765,7 @@ def test_the_projected_step_is_the_open_loop_step_to_first_order_and_stays_near_
 def drifting(model):
     """Nominal scenario 605 of seed 0: the linear plan's open-loop torques drive joint 1 into its end on the
     nonlinear arm, where the rollout's sensitivities vanish."""
-    from mjtraj.study.families import draw_scenario
+    from mjtraj.domain.families import draw_scenario
 
     return draw_scenario("nominal", 0, 605, model, 0.02).task
 
@@ -857,8 +857,8 @@ def test_a_torque_on_its_bound_stays_there_and_the_sqp_plans_where_slsqp_had_to(
     Jacobian was zero: each QP then moved it 60 N m for free, every trial was refused, and SLSQP planned (0.5 s,
     objective 25.3219). Iterates now stay on the box: the SQP converges. Oracle: SLSQP alone, whose plan is no
     lower; the plan's torques never pass the bound."""
-    from mjtraj.study.families import draw_scenario
-    from mjtraj.study.scenario import load_scenario
+    from mjtraj.domain.families import draw_scenario
+    from mjtraj.domain.scenario import load_scenario
 
     task = draw_scenario("aggressive", 1, 39, model, load_scenario(None).task.dt).task
     plan = make("nonlinear_optimal").plan(task, model)
@@ -875,8 +875,8 @@ def test_slow_gauss_newton_turns_to_newton_early_and_reaches_the_same_plan(model
     8th, not after the 20th; the plan is the same minimum (oracle: the solve without the slow switch, to 1e-9), in
     fewer iterations."""
     from mjtraj.core.planners import sqp
-    from mjtraj.study.families import draw_scenario
-    from mjtraj.study.scenario import load_scenario
+    from mjtraj.domain.families import draw_scenario
+    from mjtraj.domain.scenario import load_scenario
 
     task = draw_scenario("nominal", 1, 145, model, load_scenario(None).task.dt).task
     problem, limits, starts = make("nonlinear_min_effort").problem(task, model)
@@ -1029,8 +1029,8 @@ def test_reusing_the_lagrangians_hessian_reaches_the_same_plan_with_fewer_hessia
     solve without reuse, Newton's method proper, to 1e-9), every constraint met."""
     from mjtraj.core.planners import sqp
     from mjtraj.core.planners.nonlinear import NonlinearOptimal
-    from mjtraj.study.families import draw_scenario
-    from mjtraj.study.scenario import load_scenario
+    from mjtraj.domain.families import draw_scenario
+    from mjtraj.domain.scenario import load_scenario
 
     task = draw_scenario("nominal", 1, 145, model, load_scenario(None).task.dt).task
     problem, limits, starts = make("nonlinear_min_effort").problem(task, model)

@@ -10,7 +10,7 @@ from mjtraj.envs.ur5_track import UR5TrackEnv
 from mjtraj.envs.vector import UR5TrackVectorEnv
 
 from mjtraj.core import parameter_bounds
-from mjtraj.study.pipeline import Job, execute
+from mjtraj.domain.pipeline import Job, execute
 
 
 def _rollout(env, actions):

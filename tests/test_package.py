@@ -92,7 +92,7 @@ def test_wheel_contains_model_and_scenario(tmp_path):
     wheel = next(tmp_path.glob("mjtraj-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
     assert "mjtraj/assets/ur5_3dof.xml" in names
-    assert "mjtraj/study/scenarios/paper.toml" in names
+    assert "mjtraj/domain/scenarios/paper.toml" in names
     assert {"mjtraj/envs/__init__.py", "mjtraj/envs/ur5_track.py", "mjtraj/core/closed_loop.py"} <= set(names)
     assert "mjtraj/py.typed" in names
     assert not any(n.startswith(("envs/", "tests/")) for n in names)
@@ -131,6 +131,18 @@ def test_lazy_names_resolve_to_their_modules():
     out = _fresh("import sys, mjtraj; c = mjtraj.compare; "
                  "print(c.__module__, 'mjtraj.study.comparison' in sys.modules)")
     assert out == "mjtraj.study.comparison True"
+
+
+def test_an_episode_loads_nothing_of_study():
+    """The env stands on the domain layer and core at run time too (the layer test reads the imports): a mismatch
+    episode with its clairvoyant floor, rendered, loads no module of mjtraj.study."""
+    out = _fresh("import sys, gymnasium as gym, numpy as np; import mjtraj.envs; "
+                 "env = gym.make('UR5TrackMismatch-v1', floor=True, render_mode='rgb_array', width=64, height=48); "
+                 "env.reset(seed=0); done = False\n"
+                 "while not done: *_, done, _, info = env.step(np.zeros(3, np.float32))\n"
+                 "env.render(); print(np.isfinite(info['metrics']['floor']), "
+                 "sorted(m for m in sys.modules if m.startswith('mjtraj.study')))", MUJOCO_GL="osmesa")
+    assert out.splitlines()[-1] == "True []"
 
 
 @pytest.mark.parametrize(("code", "made"), [
@@ -184,7 +196,7 @@ def test_one_version_string_everywhere():
 def test_every_shipped_baseline_folder_is_a_declared_package():
     """setuptools ships a data-only folder without warning only where it is declared (pyproject.toml's packages):
     a baseline added without its line would warn at every build (and a future setuptools may leave it out)."""
-    from mjtraj.study.scenario import tomllib
+    from mjtraj.domain.scenario import tomllib
 
     declared = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     folders = {f"mjtraj.rl.baselines.{p.name}" for p in (ROOT / "mjtraj/rl/baselines").iterdir()

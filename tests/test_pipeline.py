@@ -11,8 +11,8 @@ from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.metrics import METRIC_NAMES, gravity_along, metrics_arrays
 from mjtraj.core.planners import make
 from mjtraj.core.task import Task
+from mjtraj.domain.pipeline import Job, Outcome, execute, execute_batch, plan_failure
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, SolverError
-from mjtraj.study.pipeline import Job, Outcome, execute, execute_batch, plan_failure
 
 
 def test_a_batch_is_the_loop_run_by_hand(model, scenario):
@@ -60,7 +60,7 @@ def test_an_actor_adding_nothing_is_the_controller_alone(model, scenario):
 def test_plan_failures_and_bad_jobs(model, scenario):
     assert plan_failure(InfeasibleError("too short")) == Outcome("infeasible", "InfeasibleError: too short")
     assert plan_failure(SolverError("stuck")).status == "solver_error"
-    from mjtraj.study.families import Perturbation
+    from mjtraj.domain.families import Perturbation
 
     job = Job(make("cubic").plan(scenario.task, model), (scenario.Q_exec, scenario.R_exec),
               Perturbation(1.0, np.ones(3), np.ones(3), np.zeros(3), np.zeros(3)))

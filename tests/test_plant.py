@@ -14,7 +14,7 @@ from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.planners import make
 from mjtraj.core.plant import BatchPlant
 from mjtraj.core.reference import Reference
-from mjtraj.study.families import draw_perturbation, perturbed_plant, plant_fields
+from mjtraj.domain.families import draw_perturbation, perturbed_plant, plant_fields
 
 
 def test_zoh_differs_from_native_on_a_moving_arm(model, scenario, task):

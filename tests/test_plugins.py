@@ -100,7 +100,7 @@ def test_broken_or_clashing_plugins_are_one_line_errors(installed):
 
 
 def _gains():
-    from mjtraj.study.scenario import load_scenario
+    from mjtraj.domain.scenario import load_scenario
 
     return load_scenario().loop.gains
 

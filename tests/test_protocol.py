@@ -507,9 +507,9 @@ def test_every_summary_gives_each_methods_per_period_compute(tmp_path):
     (the oracle for the count: those episodes' periods, motion and window), every policy on its inference calls;
     SUMMARY.md shows the table."""
     from mjtraj.core.settle import SETTLE_WINDOW, window_steps
+    from mjtraj.domain.families import draw_scenario
     from mjtraj.rl.compute import POLICY_CALLS
     from mjtraj.study import load_scenario
-    from mjtraj.study.families import draw_scenario
 
     def policy(obs):
         return np.zeros(3)

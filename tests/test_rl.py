@@ -23,6 +23,7 @@ from mjtraj.core import random_task
 from mjtraj.core.metrics import METRIC_NAMES
 from mjtraj.core.model import JointInfo
 from mjtraj.core.planners.optimal import bryson_weights
+from mjtraj.domain.families import FAMILIES, PAYLOAD_MASS, draw_perturbation, draw_scenario
 from mjtraj.exceptions import InvalidInputError, MissingExtraError
 from mjtraj.rl.episodes import run_episodes
 from mjtraj.rl.evaluate import check_held_out, configurations, evaluate
@@ -31,7 +32,6 @@ from mjtraj.rl.policy import Normalization, Policy, load_policy
 from mjtraj.rl.sb3_env import SB3TrackVecEnv
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, shared_streams, stream_seed, training_entropies
 from mjtraj.rl.train import TrainSettings, train, validation_set
-from mjtraj.study.families import FAMILIES, PAYLOAD_MASS, draw_perturbation, draw_scenario
 from mjtraj.study.store import numeric, read_rows
 from mjtraj.study.sweep import SweepSettings, plan_scenarios, run_unit
 
@@ -119,9 +119,9 @@ def test_gymnasium_same_step_mode_matches_next_step_mode():
 def test_pid_through_the_policy_path_is_the_sweep(model):
     """Fairness oracle: the policy path without actions gives the sweep's planner rows bit for bit, on the nominal
     and on the perturbed plants (same plant, controller, saturation and scoring); a zero residual is PID alone."""
+    from mjtraj.domain.families import perturbed_plant
+    from mjtraj.domain.pipeline import Job, execute
     from mjtraj.rl.episodes import PolicyActor
-    from mjtraj.study.families import perturbed_plant
-    from mjtraj.study.pipeline import Job, execute
 
     for family in FAMILIES:
         settings = SweepSettings(families=(family,), scenarios=6, seed=2, planners=("cubic",))
@@ -145,8 +145,8 @@ def test_pid_through_the_policy_path_is_the_sweep(model):
 def test_the_policy_path_scales_actions_as_the_env(scale):
     """A constant residual action through the policy path (evaluation) gives the env's episode, cost bit for bit, at
     any residual_scale; the scale changes the torque (oracle: the env's own step)."""
+    from mjtraj.domain.pipeline import Job, execute
     from mjtraj.rl.episodes import PolicyActor
-    from mjtraj.study.pipeline import Job, execute
 
     action = np.array([0.4, -0.3, 0.2], dtype=np.float32)
     env = UR5TrackEnv(action_mode="residual", residual_scale=scale)
@@ -166,8 +166,8 @@ def test_the_policy_path_scales_actions_as_the_env(scale):
 def test_the_policy_path_observes_as_the_env_with_observe_control():
     """A policy acting on the appended feedforward and integral gives, through the evaluation path, the env's own
     episode (cost bit for bit): both paths build the same observation."""
+    from mjtraj.domain.pipeline import Job, execute
     from mjtraj.rl.episodes import PolicyActor
-    from mjtraj.study.pipeline import Job, execute
 
     def policy(obs):
         return np.clip(obs[:, -3:] / 30.0 - 5.0 * obs[:, -6:-3], -1, 1).astype(np.float32)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 from mjtraj.core.metrics import METRIC_NAMES
-from mjtraj.study.families import draw_scenario
-from mjtraj.study.pipeline import Outcome
+from mjtraj.domain.families import draw_scenario
+from mjtraj.domain.pipeline import Outcome
 from mjtraj.study.rows import EXTRA_METRICS, Row
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mjtraj.domain.scenario import default_scenario_path, load_scenario
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.study.scenario import default_scenario_path, load_scenario
 
 
 def write(tmp_path, text):
@@ -106,7 +106,7 @@ def test_a_binary_file_is_not_a_scenario(tmp_path):
 
 
 def test_shipped_scenarios_load_by_name():
-    from mjtraj.study.scenario import shipped_scenarios
+    from mjtraj.domain.scenario import shipped_scenarios
 
     assert shipped_scenarios() == ("paper", "paper_adaptive", "paper_computed_torque", "paper_oracle", "paper_tuned")
     assert load_scenario("paper_tuned").tuning["mode"] == "held out"

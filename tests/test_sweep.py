@@ -96,8 +96,8 @@ def test_variants_run_on_a_tuned_scenario():
 @pytest.mark.parametrize("settle", [0.0, 0.5])
 def test_a_sweep_with_floors_gives_each_row_its_floor_and_no_row_scores_below_it(model, settle):
     """Protocol v1's floor (J_exec, the goal reached) and, with a settle window, v2's (J_settle, at rest)."""
-    from mjtraj.study.families import perturbed_plant
-    from mjtraj.study.floor import floor_of
+    from mjtraj.domain.families import perturbed_plant
+    from mjtraj.domain.floor import floor_of
     from mjtraj.study.sweep import jobs_for, plan_scenarios, scoring_weights, unit_scenarios
 
     settings = SweepSettings(families=("mismatch",), scenarios=2, seed=4, planners=("cubic", "quintic"), floors=True,

@@ -12,8 +12,8 @@ import pytest
 
 from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.settle import held
+from mjtraj.domain.families import draw_scenario
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.study.families import draw_scenario
 
 LAWS = ("pid", "computed_torque", "adaptive_computed_torque", "mpc", "adaptive_mpc")
 

@@ -8,9 +8,9 @@ import pytest
 
 from mjtraj.cli import main
 from mjtraj.core.scoring import Scoring
+from mjtraj.domain.families import FAMILIES, FAMILY_ID, draw_scenario
+from mjtraj.domain.scenario import load_scenario
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.study.families import FAMILIES, FAMILY_ID, draw_scenario
-from mjtraj.study.scenario import load_scenario
 from mjtraj.study.tuning import PARAMETERS, TRAIN_STREAM, objective, planner_with, points, training_stream, tune
 
 SMALL = {"scenarios": 3, "budget": 4}

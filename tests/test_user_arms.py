@@ -13,10 +13,10 @@ from mjtraj.envs import UR5TrackEnv
 
 from mjtraj.core.arm import prepare_arm
 from mjtraj.core.gains import free_inertia, free_inertia_at, workspace_poses
+from mjtraj.domain.pipeline import GOAL_TOLERANCE, goal_checked
+from mjtraj.domain.scenario import scenario_for_model
 from mjtraj.exceptions import ModelError
 from mjtraj.study import Outcome, SweepSettings, perturbed_plant, run_unit
-from mjtraj.study.pipeline import GOAL_TOLERANCE, goal_checked
-from mjtraj.study.scenario import scenario_for_model
 
 LIGHT = """<mujoco model="light">
   <compiler angle="radian"/>
@@ -245,8 +245,8 @@ def test_the_mismatch_ranges_scale_with_the_arm_and_not_for_the_ur5(arms):
     light-arm draw within its scaled ranges; the UR5's draws are those of the unscaled rule, bit for bit, at its
     20 ms period and at a finer one."""
     from mjtraj.core.gains import gain_rule
+    from mjtraj.domain.families import HOLD_FRACTION, holding_torque
     from mjtraj.study import arm_scales, draw_perturbation, draw_scenario, load_scenario
-    from mjtraj.study.families import HOLD_FRACTION, holding_torque
 
     ur5 = load_scenario().model
     light = scenario_for_model(arms["light"], workspace=True).model

@@ -59,7 +59,7 @@ def store_stages(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from mjtraj.study.scenario import load_scenario
+    from mjtraj.domain.scenario import load_scenario
 
     scenario = load_scenario(args.config)
     results: dict[str, Any] = {}

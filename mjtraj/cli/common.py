@@ -142,7 +142,7 @@ def arm_options(parser: argparse.ArgumentParser, *, config: str = "scenario TOML
     """--config, --model and --torque-limit: the scenario file, or an MJCF arm and its saturation."""
     parser.add_argument("--config", type=Path, help=config)
     parser.add_argument("--model", type=Path, help="your MJCF arm instead of the UR5 (its scenario follows the "
-                        "stated rules: mjtraj.core.arm.ARM_RULES, mjtraj.study.scenario.ARM_TASK_RULE; docs/arms.md)")
+                        "stated rules: mjtraj.core.arm.ARM_RULES, mjtraj.domain.scenario.ARM_TASK_RULE; docs/arms.md)")
     torque_limit_option(parser)
 
 
@@ -202,7 +202,7 @@ def scenario_of(args: argparse.Namespace, *, workspace: bool = False):  # noqa: 
 
 def base_scenario(args: argparse.Namespace, *, workspace: bool = False, **task: Any):  # noqa: ANN202
     """The scenario of --config, or of --model PATH by the arm rules (with `task` overrides), never both."""
-    from mjtraj.study.scenario import load_scenario, scenario_for_model
+    from mjtraj.domain.scenario import load_scenario, scenario_for_model
 
     if getattr(args, "model", None) is None:
         if getattr(args, "torque_limit", None) is not None:

@@ -43,10 +43,10 @@ def add(sub: Any, laws: str) -> None:
 def run(args: argparse.Namespace) -> int:
     import csv
 
+    from mjtraj.domain.scenario import load_scenario
     from mjtraj.exceptions import InvalidInputError
     from mjtraj.rl.protocol import SETTLE
     from mjtraj.study.floor import family_floors
-    from mjtraj.study.scenario import load_scenario
 
     unknown = [f for f in args.families if f not in FAMILIES]
     if unknown:

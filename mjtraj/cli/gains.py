@@ -19,7 +19,7 @@ def run(args: argparse.Namespace) -> int:
 
     from mjtraj.core.gains import GAIN_RULE, gain_rule
     from mjtraj.core.scoring import bryson_weights
-    from mjtraj.study.scenario import load_scenario
+    from mjtraj.domain.scenario import load_scenario
 
     scenario = load_scenario(args.config)
     model = scenario.model

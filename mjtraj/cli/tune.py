@@ -34,8 +34,8 @@ def add(sub: Any, laws: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from mjtraj.domain.toml_text import dumps
     from mjtraj.files import write_text_atomic
-    from mjtraj.study.toml_text import dumps
     from mjtraj.study.tuning import tune
 
     base = base_scenario(args, workspace=not args.on_task)  # drawn tasks: gains over the workspace

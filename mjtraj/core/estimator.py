@@ -12,7 +12,7 @@ with x = [q; qd] (2n), the measurement y of the whole state, and independent Gau
 deviations `KalmanSettings.state_noise` (what the linear model mispredicts besides d), w_d of `torque_noise` N m per
 period (how fast the torque the model leaves out changes as the arm moves), w_t of `parameter_drift` times each
 parameter's bound, v of the sensor's `sensor` rad on q and sqrt(2) sensor / dt rad/s on qd (the benchmark's noise
-model: a finite-difference velocity, `mjtraj.study.families`). The filter (Kalman 1960; the augmented model of
+model: a finite-difference velocity, `mjtraj.domain.families`). The filter (Kalman 1960; the augmented model of
 offset-free MPC, Pannocchia and Rawlings 2003) propagates the covariance P of z = [x; d; theta] with
 F_k = [[A_k, B_k, B_k Y_k], [0, I, 0], [0, 0, I]] and corrects the law's own prediction by
 

@@ -24,7 +24,7 @@ the steps. The starts (the executed torques of the controllers) are ranked and t
 (`every_start`), the lowest goal-reaching result kept. The problem is not convex: on a smooth plant (nominal,
 aggressive) the starts agree to solver precision; with dry friction (the mismatch plants) the objective is not
 smooth and the best found is an upper estimate of the true floor. The caller replays the torques through the one
-closed loop (`mjtraj.study.floor`), which is the floor's own check.
+closed loop (`mjtraj.domain.floor`), which is the floor's own check.
 """
 
 from __future__ import annotations

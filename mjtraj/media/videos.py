@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from mjtraj.domain.comparison import Comparison
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path
 from mjtraj.media.render import ArmRenderer
-from mjtraj.study.comparison import Comparison
 
 VIDEO_FORMATS = ("mp4", "gif")
 SNAPSHOT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)

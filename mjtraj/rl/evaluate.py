@@ -1,7 +1,7 @@
 """`mjtraj rl eval`: the benchmark protocol. Any policies, the planners and every control law on the same
 held-out sweep scenarios, in one table with the field's statistics (docs/benchmark.md).
 
-The scenarios are sweep families' (mjtraj.study.families: seed streams [seed, FAMILY_ID, i]), which no training run
+The scenarios are sweep families' (mjtraj.domain.families: seed streams [seed, FAMILY_ID, i]), which no training run
 draws from (checked against each zip's recorded training and validation streams). The planners' rows are the
 sweep's own (`run_unit`) under each control law; each policy tracks its planner's reference for the same scenario
 on the same plant (perturbed per scenario in `mismatch`), on the control law it acts on, with the same saturation,
@@ -258,7 +258,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
       threads: PyTorch CPU threads (mjtraj.rl.train.THREADS_RULE; None: PyTorch's default), recorded; without
         PyTorch installed (plain callables need none) there is nothing to set.
       command: the command line that regenerates the files (written into SUMMARY.md).
-      floor: also compute each scenario's clairvoyant floor (`mjtraj.study.floor`, of the cubic reference's
+      floor: also compute each scenario's clairvoyant floor (`mjtraj.domain.floor`, of the cubic reference's
         execution, which the reference and every policy on cubic track): rows gain the columns floor and
         cost_over_floor, floor.csv holds the floors, and the summary reads every method against the floor and the
         strongest classical method (FloorSummary).

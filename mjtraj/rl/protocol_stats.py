@@ -295,7 +295,7 @@ def interval_figure(summaries: Mapping[str, Mapping[str, Any]], path: Any, *, re
 
 @dataclass(frozen=True)
 class FloorSummary:
-    """One method on one family read against the clairvoyant floor of the reference's reference (`mjtraj.study.floor`)
+    """One method on one family read against the clairvoyant floor of the reference's reference (`mjtraj.domain.floor`)
     and against the strongest classical method, each paired on the same scenarios, with 95 % bootstrap intervals.
 
     Attributes:

@@ -1,6 +1,6 @@
 """Seed streams: which random streams train, validate and evaluate a policy, and why they never meet.
 
-Every stream is numpy's `default_rng([seed, stream, index])`. Sweep families (mjtraj.study.families) use streams 0-2
+Every stream is numpy's `default_rng([seed, stream, index])`. Sweep families (mjtraj.domain.families) use streams 0-2
 (their FAMILY_ID); sub-env i of a training run uses TRAIN_STREAM, the learning curve's validation tasks
 VALIDATION_STREAM. Gymnasium seeds are single ints, so `stream_seed` packs (seed, stream, index) into the int
 whose SeedSequence is that of [seed, stream, index]: SeedSequence reads an int as little-endian 32-bit words and,
@@ -45,7 +45,7 @@ def training_entropies(seed: int, num_envs: int) -> list[int]:
 
 
 def family_entropies(family: str, seed: int, indices: Iterable[int]) -> list[list[int]]:
-    """The entropy of each scenario of a sweep family (as mjtraj.study.families.scenario seeds it)."""
+    """The entropy of each scenario of a sweep family (as mjtraj.domain.families.scenario seeds it)."""
     return [[seed, FAMILY_ID[family], i] for i in indices]
 
 

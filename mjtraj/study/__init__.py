@@ -1,6 +1,7 @@
-"""The study layer: scenarios and their families, the evaluation pipeline, comparisons, sweeps and their
-store, backends, statistics, the audit, reports and plots. It never imports envs or rl. Every name below loads
-on first use."""
+"""The study layer, the experiments: comparisons, sweeps and their store, backends, the floors of a family,
+tuning, statistics, the audit, reports and plots. They build on the domain layer (scenarios, families, jobs and
+their execution, the floor of a job), whose names are also exported here as before. It never imports envs or rl.
+Every name below loads on first use."""
 
 from __future__ import annotations
 
@@ -11,45 +12,45 @@ from mjtraj._lazy import lazy_exports
 _EXPORTS = {
     "FIGURE_FORMATS": "mjtraj.study.plots",
     "save_figure": "mjtraj.study.plots",
-    "Scenario": "mjtraj.study.scenario",
-    "load_scenario": "mjtraj.study.scenario",
-    "scenario_text": "mjtraj.study.scenario",
-    "scenario_for_model": "mjtraj.study.scenario",
-    "scenario_from_dict": "mjtraj.study.scenario",
-    "default_scenario_path": "mjtraj.study.scenario",
-    "FAMILIES": "mjtraj.study.families",
-    "FAMILY_ID": "mjtraj.study.families",
-    "FamilyScenario": "mjtraj.study.families",
-    "PAYLOAD_MASS": "mjtraj.study.families",
-    "Perturbation": "mjtraj.study.families",
-    "draw_scenario": "mjtraj.study.families",
-    "draw_family": "mjtraj.study.families",
-    "arm_scales": "mjtraj.study.families",
-    "perturbed_plant": "mjtraj.study.families",
-    "plant_fields": "mjtraj.study.families",
-    "measurement_noise": "mjtraj.study.families",
-    "draw_perturbation": "mjtraj.study.families",
-    "no_perturbation": "mjtraj.study.families",
-    "noise_scale": "mjtraj.study.families",
-    "Actor": "mjtraj.study.pipeline",
-    "Floor": "mjtraj.study.floor",
-    "floor_of": "mjtraj.study.floor",
-    "floors_of": "mjtraj.study.floor",
+    "Scenario": "mjtraj.domain.scenario",
+    "load_scenario": "mjtraj.domain.scenario",
+    "scenario_text": "mjtraj.domain.scenario",
+    "scenario_for_model": "mjtraj.domain.scenario",
+    "scenario_from_dict": "mjtraj.domain.scenario",
+    "default_scenario_path": "mjtraj.domain.scenario",
+    "FAMILIES": "mjtraj.domain.families",
+    "FAMILY_ID": "mjtraj.domain.families",
+    "FamilyScenario": "mjtraj.domain.families",
+    "PAYLOAD_MASS": "mjtraj.domain.families",
+    "Perturbation": "mjtraj.domain.families",
+    "draw_scenario": "mjtraj.domain.families",
+    "draw_family": "mjtraj.domain.families",
+    "arm_scales": "mjtraj.domain.families",
+    "perturbed_plant": "mjtraj.domain.families",
+    "plant_fields": "mjtraj.domain.families",
+    "measurement_noise": "mjtraj.domain.families",
+    "draw_perturbation": "mjtraj.domain.families",
+    "no_perturbation": "mjtraj.domain.families",
+    "noise_scale": "mjtraj.domain.families",
+    "Actor": "mjtraj.domain.pipeline",
+    "Floor": "mjtraj.domain.floor",
+    "floor_of": "mjtraj.domain.floor",
+    "floors_of": "mjtraj.domain.floor",
     "family_floors": "mjtraj.study.floor",
-    "ORACLE_LABEL": "mjtraj.study.oracle",
-    "TrueParameters": "mjtraj.study.oracle",
-    "true_parameters": "mjtraj.study.oracle",
-    "Job": "mjtraj.study.pipeline",
-    "Outcome": "mjtraj.study.pipeline",
-    "execute": "mjtraj.study.pipeline",
-    "execute_batch": "mjtraj.study.pipeline",
-    "plan_failure": "mjtraj.study.pipeline",
-    "one_line": "mjtraj.study.pipeline",
-    "goal_checked": "mjtraj.study.pipeline",
-    "STATUSES": "mjtraj.study.pipeline",
+    "ORACLE_LABEL": "mjtraj.domain.oracle",
+    "TrueParameters": "mjtraj.domain.oracle",
+    "true_parameters": "mjtraj.domain.oracle",
+    "Job": "mjtraj.domain.pipeline",
+    "Outcome": "mjtraj.domain.pipeline",
+    "execute": "mjtraj.domain.pipeline",
+    "execute_batch": "mjtraj.domain.pipeline",
+    "plan_failure": "mjtraj.domain.pipeline",
+    "one_line": "mjtraj.domain.pipeline",
+    "goal_checked": "mjtraj.domain.pipeline",
+    "STATUSES": "mjtraj.domain.pipeline",
     "Row": "mjtraj.study.rows",
     "EXTRA_METRICS": "mjtraj.study.rows",
-    "Comparison": "mjtraj.study.comparison",
+    "Comparison": "mjtraj.domain.comparison",
     "compare": "mjtraj.study.comparison",
     "comparison_record": "mjtraj.study.comparison",
     "SweepSettings": "mjtraj.study.sweep",
@@ -89,10 +90,8 @@ _EXPORTS = {
 __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
-    from mjtraj.study.audit import Condition, SweepData, write_audit
-    from mjtraj.study.backends import BACKENDS
-    from mjtraj.study.comparison import Comparison, compare, comparison_record
-    from mjtraj.study.families import (
+    from mjtraj.domain.comparison import Comparison
+    from mjtraj.domain.families import (
         FAMILIES,
         FAMILY_ID,
         PAYLOAD_MASS,
@@ -108,10 +107,9 @@ if TYPE_CHECKING:
         perturbed_plant,
         plant_fields,
     )
-    from mjtraj.study.floor import Floor, family_floors, floor_of, floors_of
-    from mjtraj.study.oracle import ORACLE_LABEL, TrueParameters, true_parameters
-    from mjtraj.study.paper import PAPER_TABLE
-    from mjtraj.study.pipeline import (
+    from mjtraj.domain.floor import Floor, floor_of, floors_of
+    from mjtraj.domain.oracle import ORACLE_LABEL, TrueParameters, true_parameters
+    from mjtraj.domain.pipeline import (
         STATUSES,
         Actor,
         Job,
@@ -122,17 +120,23 @@ if TYPE_CHECKING:
         one_line,
         plan_failure,
     )
-    from mjtraj.study.plots import FIGURE_FORMATS, save_figure
-    from mjtraj.study.report import format_report, results_csv
-    from mjtraj.study.rows import EXTRA_METRICS, Row
-    from mjtraj.study.runner import SweepReport, run_sweep
-    from mjtraj.study.scenario import (
+    from mjtraj.domain.scenario import (
         Scenario,
         default_scenario_path,
         load_scenario,
         scenario_for_model,
         scenario_from_dict,
+        scenario_text,
     )
+    from mjtraj.study.audit import Condition, SweepData, write_audit
+    from mjtraj.study.backends import BACKENDS
+    from mjtraj.study.comparison import compare, comparison_record
+    from mjtraj.study.floor import family_floors
+    from mjtraj.study.paper import PAPER_TABLE
+    from mjtraj.study.plots import FIGURE_FORMATS, save_figure
+    from mjtraj.study.report import format_report, results_csv
+    from mjtraj.study.rows import EXTRA_METRICS, Row
+    from mjtraj.study.runner import SweepReport, run_sweep
     from mjtraj.study.stats import PairedRatio, cvar, paired_ratio, ratio_of_means
     from mjtraj.study.store import VERSION_COLUMNS, ResultsFile, append_rows, csv_text, numeric, read_rows
     from mjtraj.study.sweep import (

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -12,41 +11,15 @@ from mjtraj.core.gains import GAIN_RULE
 from mjtraj.core.metrics import GOAL_TOLERANCE, Metrics
 from mjtraj.core.planners import check_name, default_names
 from mjtraj.core.reference import Reference
-from mjtraj.core.rollout import Rollout
 from mjtraj.core.stability import spectral_radii
+from mjtraj.domain.comparison import Comparison
+from mjtraj.domain.pipeline import Job, execute_batch, goal_checked, one_line
+from mjtraj.domain.scenario import Scenario
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, MjtrajError, SolverError
 from mjtraj.study.paper import PAPER_TABLE
-from mjtraj.study.pipeline import Job, Outcome, execute_batch, goal_checked, one_line
-from mjtraj.study.scenario import Scenario
 from mjtraj.versions import versions
 
 PAPER_ORDER = ("optimal", "cubic", "quintic", "trapezoidal")
-
-
-@dataclass(frozen=True)
-class Comparison:
-    """Planners' references, the batched rollout (row b = planners[b]) and each planner's Metrics."""
-
-    scenario: Scenario
-    planners: tuple[str, ...]
-    references: dict[str, Reference]
-    rollout: Rollout
-    metrics: dict[str, Metrics]
-    stability: dict[str, float]
-    """Frozen-time spectral radii of the linearised closed loop: 'at_rest' and 'moving' (see mjtraj.core.stability)."""
-    failed: dict[str, str] = field(default_factory=dict)
-    """Planners that could not plan the task -> the one-line reason (they have no row)."""
-    outcomes: dict[str, Outcome] = field(default_factory=dict)
-    """Each executed planner's outcome, the goal rule applied (status ok, missed_goal, diverged, unstable)."""
-
-    def reduction(self, planner: str, metric: str) -> float:
-        """100 (M_planner - M_optimal) / M_planner in %; NaN without an optimal row."""
-        if "optimal" not in self.metrics:
-            return float("nan")
-        value = getattr(self.metrics[planner], metric)
-        if value == 0.0:
-            return float("nan")  # no reduction of nothing (a zero move)
-        return 100.0 * (value - getattr(self.metrics["optimal"], metric)) / value
 
 
 def default_planners() -> tuple[str, ...]:

@@ -13,8 +13,8 @@ import csv
 import io
 
 from mjtraj.core.task import Task
+from mjtraj.domain.families import FamilyScenario
 from mjtraj.exceptions import MjtrajError
-from mjtraj.study.families import FamilyScenario
 from mjtraj.study.store import csv_text
 from mjtraj.study.sweep import SweepSettings, columns, plan_scenarios, scenario_rows, scoring_weights
 
@@ -48,14 +48,14 @@ def task_rows(record: dict[str, str]) -> tuple[list[dict[str, str]], str]:
 
 def task_floors(record: dict[str, str]) -> tuple[list[dict[str, object]], str]:
     """On the two fixed motions, each planner of the sweep that wrote `record`: its execution's J_exec under the
-    sweep's controller (first controller variant) and the clairvoyant floor of its reference (`mjtraj.study.floor`):
+    sweep's controller (first controller variant) and the clairvoyant floor of its reference (`mjtraj.domain.floor`):
     how well each reference can be executed at best. Or no records and why they cannot be computed."""
     import dataclasses
 
     import numpy as np
 
-    from mjtraj.study.floor import floor_of
-    from mjtraj.study.pipeline import Job, execute_batch
+    from mjtraj.domain.floor import floor_of
+    from mjtraj.domain.pipeline import Job, execute_batch
 
     try:
         settings = SweepSettings.from_record(record)

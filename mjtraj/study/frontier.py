@@ -18,11 +18,11 @@ from mjtraj.checks import seed_value
 from mjtraj.core.planners import Planner, make, plan_all
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
+from mjtraj.domain.families import FAMILIES, FamilyScenario, draw_scenario, perturbed_plant
+from mjtraj.domain.pipeline import Job, Outcome, execute, plan_failure
+from mjtraj.domain.scenario import Scenario
 from mjtraj.exceptions import InvalidInputError, MjtrajError
 from mjtraj.study.comparison import default_planners
-from mjtraj.study.families import FAMILIES, FamilyScenario, draw_scenario, perturbed_plant
-from mjtraj.study.pipeline import Job, Outcome, execute, plan_failure
-from mjtraj.study.scenario import Scenario
 from mjtraj.study.stats import Median, median_interval
 
 DEFAULT_ALPHAS = (0.0, *(float(a) for a in np.logspace(-6, 2, 33)))

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from mjtraj.core.scoring import step_cost
-from mjtraj.study.comparison import Comparison
+from mjtraj.domain.comparison import Comparison
 from mjtraj.study.frontier import Frontier, FrontierRow
 
 FIGURES = {

@@ -13,7 +13,7 @@ from mjtraj.core.arm import held_joints, integrator_note
 from mjtraj.core.controller import CT_RULE
 from mjtraj.core.gains import GAIN_RULE
 from mjtraj.core.metrics import GOAL_TOLERANCE, METRIC_UNITS
-from mjtraj.study.comparison import Comparison
+from mjtraj.domain.comparison import Comparison
 from mjtraj.study.frontier import TABLE_METRICS, Frontier
 from mjtraj.study.paper import PAPER_TABLE
 

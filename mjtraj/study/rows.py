@@ -12,8 +12,8 @@ import numpy as np
 from mjtraj.core.metrics import METRIC_NAMES
 from mjtraj.core.settle import SETTLE_METRICS
 from mjtraj.core.task import Task
-from mjtraj.study.families import PERTURBATION_FIELDS, Perturbation
-from mjtraj.study.pipeline import Outcome
+from mjtraj.domain.families import PERTURBATION_FIELDS, Perturbation
+from mjtraj.domain.pipeline import Outcome
 
 EXTRA_METRICS = ("model_error", "plan_effort")
 """model_error: RMS of q_pred - q over the open-loop nonlinear rollout of u_plan on the nominal plant (rad;
@@ -28,7 +28,7 @@ class Row:
       family, scenario, unit: which scenario (and the unit of work that computed it).
       planner: the planner, variant or policy label.
       ff_accel, gravity_comp: the controller variant.
-      outcome: status, reason and metrics (`mjtraj.study.pipeline.Outcome`).
+      outcome: status, reason and metrics (`mjtraj.domain.pipeline.Outcome`).
       extras: EXTRA_METRICS values measured for this row.
       solver: the solver that planned the reference ('' for kinematic planners or failures).
       task: the motion; perturbation: how the plant differed from the nominal model (None: it did not).

@@ -35,11 +35,11 @@ from mjtraj.core.planners import Planner, available, make, plan_all
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
 from mjtraj.core.settle import Settle, held, window_steps
+from mjtraj.domain.families import FAMILIES, FamilyScenario, draw_scenario, measurement_noise, perturbed_plant
+from mjtraj.domain.pipeline import Actor, Job, Outcome, execute, goal_checked, one_line, plan_failure
+from mjtraj.domain.scenario import Scenario, load_scenario, scenario_for_model
 from mjtraj.exceptions import InvalidInputError, MjtrajError
-from mjtraj.study.families import FAMILIES, FamilyScenario, draw_scenario, measurement_noise, perturbed_plant
-from mjtraj.study.pipeline import Actor, Job, Outcome, execute, goal_checked, one_line, plan_failure
 from mjtraj.study.rows import Row
-from mjtraj.study.scenario import Scenario, load_scenario, scenario_for_model
 from mjtraj.versions import provenance
 
 DEFAULT_PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
@@ -67,7 +67,7 @@ class SweepSettings:
     """Everything that determines a sweep's rows (all of it is written into every row).
 
     Attributes:
-      families: scenario families (see mjtraj.study.families).
+      families: scenario families (see mjtraj.domain.families).
       scenarios: scenarios per family.
       seed: the sweep's seed.
       planners: registered planners and VARIANTS.
@@ -80,7 +80,7 @@ class SweepSettings:
       model: an MJCF arm instead (its scenario by the arm rules, `scenario_for_model`); not with `config`.
       torque_limit: with `model`, the corrective saturation, N m: one value for every joint, or one per joint
         (None: from the model).
-      floors: also each row's clairvoyant floor (`mjtraj.study.floor.floors_of`: its planner's reference on its
+      floors: also each row's clairvoyant floor (`mjtraj.domain.floor.floors_of`: its planner's reference on its
         plant under its controller variant) and the row's score over it, columns FLOOR_COLUMNS (NaN where the
         variant's gravity compensation is not native, which the floor does not model, or the floor failed); with a
         settle window, protocol v2's floor (J_settle, at rest at the goal).
@@ -382,7 +382,7 @@ def _executions(settings: SweepSettings, family: str, scenarios: list[FamilyScen
                                          strict=True):
                 outcomes[(b, name, ff, gc)] = result
             if settings.floors and gc == "native" and config.substeps == 1:
-                from mjtraj.study.floor import Floor, floors_of
+                from mjtraj.domain.floor import Floor, floors_of
 
                 clock = time.perf_counter()
                 moves = [float(np.max(np.abs(scenarios[b].task.displacement))) for b, _ in live]

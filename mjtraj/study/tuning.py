@@ -28,10 +28,10 @@ from mjtraj.core.controller import PIDGains
 from mjtraj.core.planners import Planner, check_name, make, plan_all
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
+from mjtraj.domain.families import FAMILIES, FAMILY_ID, FamilyScenario, draw_scenario, perturbed_plant
+from mjtraj.domain.pipeline import Job, execute
+from mjtraj.domain.scenario import Scenario
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.study.families import FAMILIES, FAMILY_ID, FamilyScenario, draw_scenario, perturbed_plant
-from mjtraj.study.pipeline import Job, execute
-from mjtraj.study.scenario import Scenario
 from mjtraj.versions import versions
 
 TRAIN_STREAM = 32

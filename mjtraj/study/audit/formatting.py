@@ -44,7 +44,7 @@ def header(data: SweepData, paths: Sequence[str | os.PathLike[str]]) -> list[str
             f"{s.get('sweep_seed')}, planners {s.get('sweep_planners')}, ff_accel {s.get('sweep_ff_accel')}, "
             f"gravity_comp {s.get('sweep_gravity_comp')}, sensor noise {s.get('sensor_noise')} rad, delay "
             f"{s.get('delay')}; {data.count} rows. Versions: {describe(data.versions)}.", "",
-            "Scenario rules are in `mjtraj/study/families.py`; controller and weights rules in "
+            "Scenario rules are in `mjtraj/domain/families.py`; controller and weights rules in "
             "`mjtraj/study/sweep.py`.", ""] + (
         [f"Weights compared, each a sweep's scenario file, never mixed: {', '.join(data.weights)}. Each column of "
          "the verdicts reads only its own sweep's rows; the sweep settings above are the first file's.", ""]

@@ -16,10 +16,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.core.metrics import METRIC_NAMES
+from mjtraj.domain.families import FAMILIES
+from mjtraj.domain.scenario import load_scenario
 from mjtraj.exceptions import InvalidInputError, MjtrajError
-from mjtraj.study.families import FAMILIES
 from mjtraj.study.fixed_tasks import TASKS, task_rows
-from mjtraj.study.scenario import load_scenario
 from mjtraj.study.store import VERSION_COLUMNS, expected_rows, iter_cells, iter_rows
 from mjtraj.study.sweep import SHIPPED_CONFIG
 from mjtraj.study.sweep_store import is_sqlite_file, iter_store_cells, unit_row_counts

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.study.families import Perturbation
+from mjtraj.domain.families import Perturbation
 
 ORACLE_LABEL = "cubic+adaptive CT from the true parameters (oracle)"
 """The oracle's method label in `mjtraj rl eval`'s tables."""
@@ -25,7 +25,7 @@ def true_parameters(plants: Sequence[Perturbation | None], n: int) -> NDArray[np
 
 
 class TrueParameters:
-    """An actor (mjtraj.study.pipeline.Actor) that adds no torque and, as each batch starts, sets the adaptive
+    """An actor (mjtraj.domain.pipeline.Actor) that adds no torque and, as each batch starts, sets the adaptive
     law's estimate to the plants' true parameters (the law then adapts from there as usual)."""
 
     action_mode = "residual"

@@ -138,14 +138,14 @@ class Scenario:
 
 def scenario_text(scenario: Scenario, header: str = "") -> str:
     """A scenario as the TOML text of a scenario file (`header` as comments); `load_scenario` reads it back."""
-    from mjtraj.study.toml_text import dumps
+    from mjtraj.domain.toml_text import dumps
 
     return dumps(scenario.as_dict(), header=header)
 
 
 def default_scenario_path() -> Path:
     """The shipped `paper.toml`."""
-    return Path(str(resources.files("mjtraj.study.scenarios").joinpath("paper.toml")))
+    return Path(str(resources.files("mjtraj.domain.scenarios").joinpath("paper.toml")))
 
 
 def shipped_scenarios() -> tuple[str, ...]:

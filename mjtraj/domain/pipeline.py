@@ -21,8 +21,8 @@ from mjtraj.core.metrics import GOAL_TOLERANCE, METRIC_NAMES, gravity_along, met
 from mjtraj.core.reference import Reference
 from mjtraj.core.rollout import Rollout
 from mjtraj.core.settle import SETTLE_METRICS, Settle, settle_arrays, unsettled
+from mjtraj.domain.families import Perturbation, plant_fields
 from mjtraj.exceptions import InfeasibleError, InvalidInputError, MjtrajError
-from mjtraj.study.families import Perturbation, plant_fields
 
 STATUSES = ("ok", "infeasible", "solver_error", "diverged", "unstable", "missed_goal", "not_settled", "error")
 """Every status a row can have: executed (ok), planning failed (infeasible, solver_error), execution failed
@@ -112,7 +112,7 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
     """Execute `jobs` (references of one length N) together on one ClosedLoop; the rollout and each outcome.
 
     Args:
-      plant: the simulated model whose fields the jobs' perturbations set (`mjtraj.study.families.perturbed_plant`);
+      plant: the simulated model whose fields the jobs' perturbations set (`mjtraj.domain.families.perturbed_plant`);
         None for the nominal `model` (the jobs must then carry no perturbation).
       actor: adds torque every period (None: the controller alone).
       seconds: if given, 'execute' and 'metrics' accumulate the wall time of each stage.
