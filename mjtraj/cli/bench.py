@@ -277,10 +277,11 @@ def _floor(scenario: Any, record: Any) -> None:
     print("the predictive laws on protocol v2's episodes (motion and 0.5 s settle window), one simulation on one "
           "core, 3 scenarios per family; target: the worst period below the control period at 20 ms")
     print(f"{'law':>13} {'period ms':>10} {'family':>11} {'median ms':>10} {'p99 ms':>7} {'worst ms':>9} "
-          f"{'worst / period':>15}")
+          f"{'worst / period':>15} {'QP median ms':>13} {'QP worst ms':>12}")
     for row in record("predictive", bench_predictive(scenario)):
         print(f"{row['law']:>13} {row['period_ms']:>10.0f} {row['family']:>11} {row['median_ms']:>10.2f} "
-              f"{row['p99_ms']:>7.2f} {row['max_ms']:>9.2f} {row['worst_of_period']:>15.2f}")
+              f"{row['p99_ms']:>7.2f} {row['max_ms']:>9.2f} {row['worst_of_period']:>15.2f} "
+              f"{row['qp_median_ms']:>13.3f} {row['qp_max_ms']:>12.3f}")
     from mjtraj.bench import bench_labels
 
     print("the predictive laws as teachers: labels per second (loop.teach beside the adaptive law in a native vector "
