@@ -837,3 +837,23 @@ def test_a_batched_run_ships_as_a_baseline_that_acts_as_its_run(tmp_path, monkey
     np.testing.assert_array_equal(policy.act(obs), expected)
     assert json.dumps(policy.record) == json.dumps(mine.record)  # (NaN where no episode had ended)
     assert policy.source == "baseline:ppo_tiny" and len(policy.sha256) == 64
+
+
+def test_a_callable_that_declares_its_training_streams_is_held_to_them():
+    """`policy.streams`: a callable that trained on the seed stream of nominal scenario 4 under seed 3 is refused
+    there, scored elsewhere; a declaration that is not a list of seeds is refused in one line."""
+    from mjtraj.rl.adapters import from_object
+
+    def policy(obs):
+        return np.zeros(3)
+
+    policy.streams = [[3, 0, 4], 17]  # type: ignore[attr-defined]
+    scored = from_object(policy)
+    with pytest.raises(InvalidInputError, match=r"^seed: 1 of the nominal scenarios under seed 3 share a seed stream "
+                                                r"with the streams .* declares it trained on"):
+        check_held_out(scored, "nominal", 3, 10)
+    check_held_out(scored, "nominal", 3, 4)  # scenarios 0..3: not 4
+    check_held_out(scored, "aggressive", 3, 10)
+    policy.streams = "seed 3"  # type: ignore[attr-defined]
+    with pytest.raises(InvalidInputError, match=r"^policy: its streams attribute must be a list of seeds"):
+        from_object(policy)

@@ -13,7 +13,10 @@ The protocol a user's policy follows (every part optional but the call):
 - `policy.env = {...}`: the env settings it acts in (ENV_KEYS); missing ones come from the caller's settings, then
   BENCHMARK_ENV (UR5Track-v1's defaults);
 - `policy.files = [...]`: files its actions depend on beyond its source (weights it loads), relative to the source
-  file's folder: every row's policy_sha256 covers them (`fingerprint`), as it covers a torch module's weights.
+  file's folder: every row's policy_sha256 covers them (`fingerprint`), as it covers a torch module's weights;
+- `policy.streams = [...]`: the seeds of the episodes it trained or was validated on (what each env's `reset(seed=)`
+  got: ints or entropy lists, `mjtraj.rl.streams`): `rl eval` refuses to score it on any scenario drawn from one of
+  them, as it refuses a run of `mjtraj rl train` on its recorded streams.
 """
 
 from __future__ import annotations
@@ -60,6 +63,7 @@ class ScoredPolicy:
       sha256: of the zip, or the callable's `fingerprint` ('' if none).
       timesteps: training steps (a zip), else ''.
       record: a zip's training record (None otherwise).
+      streams: the seeds a policy without a record declares it trained or validated on (`policy.streams`).
     """
 
     label: str
@@ -73,6 +77,7 @@ class ScoredPolicy:
     timesteps: int | str = ""
     record: dict[str, Any] | None = field(default=None, repr=False)
     path: Path | None = None
+    streams: list[Any] | None = field(default=None, repr=False)
     _settings: TrackSettings | None = field(default=None, repr=False)
     _given: int = field(default=0, repr=False)
     """Observations given so far (where a failing call's first observation is)."""
@@ -224,6 +229,7 @@ def from_object(obj: Any, *, label: str | None = None, source: str | None = None
     reset = getattr(obj, "reset", None)
     if reset is not None and not callable(reset):
         raise InvalidInputError(f"policy: its reset attribute must be callable(starts), got {reset!r}")
+    streams = _declared_streams(getattr(obj, "streams", None))
     name = label or getattr(obj, "name", None) or source or getattr(obj, "__qualname__", type(obj).__name__)
     if _is_torch_module(obj):
         import torch
@@ -235,7 +241,7 @@ def from_object(obj: Any, *, label: str | None = None, source: str | None = None
             return y.numpy()
 
         return ScoredPolicy(str(name), source or repr(type(obj).__name__), "torch", env, act_torch, reset,
-                            privileged, fingerprint(obj, file))
+                            privileged, fingerprint(obj, file), streams=streams)
     if getattr(obj, "batched", False):
         act = obj
     else:
@@ -245,7 +251,26 @@ def from_object(obj: Any, *, label: str | None = None, source: str | None = None
             return np.stack([np.asarray(obj(o, p), dtype=np.float64) for o, p in zip(obs, plants, strict=True)])
 
     return ScoredPolicy(str(name), source or str(name), "callable", env, act, reset, privileged,
-                        fingerprint(obj, file))
+                        fingerprint(obj, file), streams=streams)
+
+
+def _declared_streams(streams: Any) -> list[Any] | None:
+    """A policy's `streams` declaration checked: a list of seeds (ints >= 0 or lists of them), or None.
+
+    Raises:
+      InvalidInputError: anything else."""
+    if streams is None:
+        return None
+
+    def seed(x: Any) -> bool:
+        if isinstance(x, (list, tuple)):
+            return len(x) > 0 and all(seed(v) for v in x)
+        return isinstance(x, (int, np.integer)) and not isinstance(x, bool) and x >= 0
+
+    if not isinstance(streams, (list, tuple)) or not all(seed(x) for x in streams):
+        raise InvalidInputError(f"policy: its streams attribute must be a list of seeds (ints >= 0 or lists of them, "
+                                f"what its envs' reset(seed=) got), got {streams!r}")
+    return list(streams)
 
 
 SB3_POLICY_MODULES = {"sb3_contrib.common.recurrent.policies": "recurrent_ppo",

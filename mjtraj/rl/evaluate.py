@@ -93,9 +93,16 @@ TUNED_LABEL = "cubic+PID (tuned gains)"
 
 
 def check_held_out(policy: Any, family: str, seed: int, scenarios: int) -> None:
-    """InvalidInputError if any evaluation scenario's stream is one the policy (a zip: its record) trained or
-    validated on; a policy without a record (a user's callable) declares no streams."""
+    """InvalidInputError if any evaluation scenario's stream is one the policy (a zip: its record; a callable or
+    module: its declared `streams`) trained or validated on; a policy that declares none is not checked."""
     if policy.record is None:
+        declared = getattr(policy, "streams", None)
+        if declared:
+            shared = shared_streams(declared, family_entropies(sweep_family(family), seed, range(scenarios)))
+            if shared:
+                raise InvalidInputError(f"seed: {len(shared)} of the {family} scenarios under seed {seed} share a "
+                                        f"seed stream with the streams {policy.label} declares it trained on; choose "
+                                        f"another seed")
         return
     streams = policy.record["streams"]
     train_seed = int(policy.record["settings"]["seed"])
