@@ -117,7 +117,11 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     observe_control); t = p (+ 7 with observe_plant); N the motion's periods (without the settle window). With
     observe_measured, q, qd, e and ed are what the control law measures, noisy under measurement_noise (else the
     true state, which a policy then sees and the law does not); theta_max: `mjtraj.core.adaptive.BOUND_RULE`; 'true'
-    gives the episode's plant (privileged), 'estimate' the adaptive law's online estimate. With `history` h the
+    gives the episode's plant (privileged), 'estimate' the adaptive law's online estimate. observe_control's integral
+    is the PID integral the loop keeps: `pid` integrates e into it (its I term, in torque mode too, where it does not
+    command); under computed torque, the adaptive law and the predictive laws it stays 0; those laws'
+    own states (the adaptive estimate, the predictive laws' filter) are read through `env.unwrapped.loop.law_state()`
+    (`observe_plant='estimate'` for the adaptive law's). With `history` h the
     whole observation above, of size d, is followed by the h previous ones (latest first, each of size d; an
     episode's first observation fills them): size d (1 + h).)
 

@@ -4,6 +4,8 @@ the same sequence, and a deployable policy's observation carries no privileged i
 
 from __future__ import annotations
 
+import gymnasium as gym
+import mjtraj.envs  # noqa: F401
 import numpy as np
 import pytest
 from mjtraj.envs.ur5_track import UR5TrackEnv
@@ -176,3 +178,16 @@ def test_a_time_limit_truncation_carries_the_metrics_of_the_periods_run():
     assert cut.all()
     np.testing.assert_allclose(vinfo["metrics"]["cost"], -returns, rtol=1e-12)
     vec.close()
+
+
+@pytest.mark.parametrize("law, mode, integrates", [("pid", "residual", True), ("pid", "torque", True),
+                                                   ("adaptive_computed_torque", "residual", False),
+                                                   ("mpc", "torque", False)])
+def test_observe_controls_integral_is_what_the_env_card_says(law, mode, integrates):
+    """The integral entries: pid integrates e (in torque mode too), the other laws leave them 0 (the env card)."""
+    env = gym.make("UR5Track-v2", controller=law, action_mode=mode, observe_control=True)
+    obs, _ = env.reset(seed=1)
+    for _ in range(10):
+        obs, *_ = env.step(np.zeros(3))
+    integral = obs[19:22]
+    assert np.any(integral != 0.0) if integrates else np.all(integral == 0.0)
