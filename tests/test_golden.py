@@ -203,3 +203,12 @@ def test_the_command_writes_and_checks(tmp_path, capsys, monkeypatch):
     assert f"`{COMMAND}`" in out
     assert main(["golden", "--set", "fast", "--write", "--dir", str(tmp_path)]) == 0
     assert "1 value(s) moved" in capsys.readouterr().out
+
+
+def test_a_round_off_value_passes_on_another_machine_within_the_absolute_floor():
+    """An at-rest speed of 2.3e-10 that another machine moves by 2.8e-17 passes (ROUND_OFF); a move of 1e-14 fails."""
+    old = Entry(values={"end_speed": 2.3198275480617465e-10})
+    assert compare_entries(_one(old), _one(Entry(values={"end_speed": 2.3198278300590025e-10})), exact=False) == ([], [])
+    moved, _ = compare_entries(_one(old), _one(Entry(values={"end_speed": 2.3198275480617465e-10 + 1e-14})),
+                               exact=False)
+    assert [d.key for d in moved] == ["end_speed"]
