@@ -704,14 +704,13 @@ def bench_labels(*, laws: Sequence[str] = ("mpc", "adaptive_mpc"), num_envs: int
     from mjtraj.rl.streams import TRAIN_STREAM, stream_seed
     from mjtraj.threads import one_blas_thread
 
-    kwargs = {"action_mode": "residual", "controller": "adaptive_computed_torque", "task": "random",
-              "family": "mismatch", "settle": 0.5, "observe_measured": True}
+    kwargs: dict[str, Any] = {"action_mode": "residual", "controller": "adaptive_computed_torque", "task": "random",
+                              "family": "mismatch", "settle": 0.5, "observe_measured": True}
     seeds: list[int | None] = [stream_seed(seed, TRAIN_STREAM, i) for i in range(num_envs)]
     zero = np.zeros((num_envs, 3))
 
     def rate(teacher: str | None) -> float:
-        env = UR5TrackVectorEnv(num_envs, autoreset_mode="SameStep", **kwargs,
-                                **({"teacher": teacher} if teacher else {}))
+        env = UR5TrackVectorEnv(num_envs, autoreset_mode="SameStep", **kwargs, teacher=teacher or "none")
         env.reset(seed=seeds)
         env.step(zero)
         with one_blas_thread():

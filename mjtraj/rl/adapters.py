@@ -265,7 +265,7 @@ def _declared_streams(streams: Any) -> list[Any] | None:
     def seed(x: Any) -> bool:
         if isinstance(x, (list, tuple)):
             return len(x) > 0 and all(seed(v) for v in x)
-        return isinstance(x, (int, np.integer)) and not isinstance(x, bool) and x >= 0
+        return isinstance(x, (int, np.integer)) and not isinstance(x, bool) and bool(x >= 0)
 
     if not isinstance(streams, (list, tuple)) or not all(seed(x) for x in streams):
         raise InvalidInputError(f"policy: its streams attribute must be a list of seeds (ints >= 0 or lists of them, "
