@@ -200,3 +200,23 @@ def test_in_protocol_v2_a_refused_solve_applies_the_last_plan_shifted(law, monke
         np.testing.assert_allclose(rollout.dtau[0, k], np.clip(plans[k - 1][1], -limit, limit), rtol=0, atol=1e-12)
     kept = [k for k in np.flatnonzero(~np.array(refused)) if k > 0]
     assert any(not np.allclose(rollout.dtau[0, k], np.clip(plans[k - 1][1], -limit, limit)) for k in kept)
+
+
+def test_the_payloads_inertia_in_the_plans_response_is_the_loaded_arms(model, rng):
+    """`payload_inertia`: the nominal model's response B_j D_j (D_j + m D1_j)^-1 to torque is the response B of the
+    arm that carries m kg at its flange (MuJoCo's model `with_point_mass`, linearised on its own): at rest, anywhere in
+    the joint ranges, to round-off (the step's torque response there is its inverse mass matrix's); the nominal B is
+    far from it."""
+    from mjtraj.core.mpc import AdaptiveModelPredictive
+    from mjtraj.core.payload import with_point_mass
+
+    M, n, payload = 6, 3, 3.0
+    q = rng.uniform(model.jnt_range[:, 0], model.jnt_range[:, 1], (M, n))
+    X = np.concatenate([q, np.zeros((M, n))], axis=1)
+    law = AdaptiveModelPredictive(model, 0.02, 1)
+    _, _, B = linearised_steps(model, X, np.zeros((M, n)))
+    _, _, B_loaded = linearised_steps(with_point_mass(model, payload), X, np.zeros((M, n)))
+    law._plan = law._inertias(np.concatenate([X, X[-1:]])[None])  # the mass matrices at the states X
+    response = law._loaded_response(0, 0, M, B, payload)
+    np.testing.assert_allclose(response, B_loaded, rtol=0, atol=1e-12 * np.abs(B_loaded).max())
+    assert np.abs(B - B_loaded).max() >= 0.2 * np.abs(B_loaded).max()
