@@ -71,8 +71,10 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     """Track a planned joint-space reference with a 3-DoF UR5 under the paper's controller.
 
     ## Description
-    Registered as UR5Track-v0 (the defaults below) and as the benchmark UR5Track-v1 with its variants
-    UR5TrackAggressive-v1 and UR5TrackMismatch-v1 (see Version History). The plant is MuJoCo's model of a UR5
+    Registered as UR5Track-v0 (the defaults below), as the benchmark UR5Track-v2 with its variants
+    UR5TrackAggressive-v2, UR5TrackMismatch-v2 and UR5TrackNoisy-v2 (protocol v2: a settle window after each motion,
+    success at rest at the goal), and as v1's UR5Track-v1, UR5TrackAggressive-v1 and UR5TrackMismatch-v1, kept for
+    earlier results (see Version History). The plant is MuJoCo's model of a UR5
     reduced to shoulder_pan, shoulder_lift and elbow (`assets/ur5_3dof.xml`, RK4, gravity compensated). Each episode
     a planner (cubic, quintic, trapezoidal, optimal or your own) plans a point-to-point move q0 -> qg of `duration`
     seconds; every step is one control period dt, in which the corrective torque dtau = clip(tau_ff + tau_fb [+
@@ -128,7 +130,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     ## Rewards
     r_k = reward_tracking + reward_effort = -(x_k^T Q_exec x_k) - (dtau_k^T R_exec dtau_k), x_k = [e_k; ed_k] the
     error before control in period k. The return of an episode is therefore -J_exec, the executed cost the
-    planners are scored on (Q_exec, R_exec diagonal). By default both follow Bryson's rule for the episode's task,
+    planners are scored on (Q_exec, R_exec diagonal); with a settle window (v2's envs) it is -J_settle, the same
+    sum over the motion and the window. By default both follow Bryson's rule for the episode's task,
     as sweeps score every scenario: 1/move^2 on positions (move = the largest joint displacement), 1/pi^2 on
     velocities, 1/60^2 on torques; for the paper task these are the paper scenario's weights.
 

@@ -16,6 +16,15 @@ class ProvenanceError(InvalidInputError):
     results store: `--resume` of a store written elsewhere, or a worker that runs other code or libraries."""
 
 
+class UnnamedPolicyEnvError(InvalidInputError):
+    """A policy that records no env (a zip saved by stable-baselines3 itself) was given none; `flags` are the
+    `--policy-env KEY=VALUE` arguments that would score it, as a command line's words."""
+
+    def __init__(self, message: str, flags: list[str]) -> None:
+        super().__init__(message)
+        self.flags = flags
+
+
 class ModelError(MjtrajError):
     """The MuJoCo model is missing, unreadable or lacks what mjtraj needs."""
 

@@ -450,6 +450,29 @@ def test_a_broken_policy_stops_the_evaluation_with_its_error(tmp_path, capsys, p
     assert "Rows whose evaluation raised (status error), by reason:\n\n- 2 x PolicyError: policy " in summary
 
 
+class _RaisesOnItsSixthCall:
+    """A callable policy that raises on the sixth observation it is given (index 5, the second of its batch)."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def __call__(self, obs):
+        self.calls += 1
+        if self.calls == 6:
+            raise RuntimeError("boom on the sixth call")
+        return np.zeros(3)
+
+
+def test_a_callable_that_raises_is_named_on_the_observation_it_failed_on(tmp_path):
+    """A callable policy is called once per observation, so its error names that observation's index (not the first
+    of the batch it came in)."""
+    from mjtraj.exceptions import PolicyError
+
+    with pytest.raises(PolicyError, match=r"^policy .*: on observation 5 \(shape \(19,\)\) it raised RuntimeError: "
+                                          r"boom on the sixth call$"):
+        evaluate([_RaisesOnItsSixthCall()], families=("nominal",), scenarios=2, seed=3, reps=10, out=tmp_path)
+
+
 def test_the_cli_says_a_broken_policy_in_one_line(tmp_path, capsys):
     (tmp_path / "mine.py").write_text("import numpy as np\n\ndef policy(obs):\n    return np.zeros(4)\n")
     code = main(["rl", "eval", "--policy", f"{tmp_path / 'mine.py'}:policy", "--family", "nominal", "--scenarios",
@@ -457,12 +480,23 @@ def test_the_cli_says_a_broken_policy_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
     assert err.startswith("mjtraj: error: policy ") and "it returned actions of shape (4,); expected (3,)" in err
+    # --keep-going: the rows record it, the terminal says why they failed, and the policy, which ran no episode, is
+    # not ranked
+    code = main(["rl", "eval", "--policy", f"{tmp_path / 'mine.py'}:policy", "--family", "nominal", "--scenarios",
+                 "2", "--reps", "10", "--out", str(tmp_path / "kept"), "--no-progress", "--keep-going"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "Rows whose evaluation raised (status error), by reason:\n\n- 2 x PolicyError: policy " in out
+    ranking = next(line for line in out.splitlines() if line.startswith("| nominal | ") and " < " in line)
+    assert "mine.py:policy" not in ranking and "cubic+PID" in ranking
+    assert "Not ranked, no episode of theirs ran (every row an error): mine.py:policy (nominal)." in out
 
 
 @pytest.mark.slow
 def test_a_plain_sb3_zip_scores_once_its_env_is_named(tmp_path, capsys):
     """A PPO trained with plain stable-baselines3 on `benchmark_vec_env` and saved by `model.save`: refused without
-    --policy-env by a message that holds the command that scores it; that command scores it, on v2's observation."""
+    --policy-env by a message that holds the command that scores it (the user's own, every option kept); that command
+    scores it, on v2's observation."""
     from stable_baselines3 import PPO
 
     from mjtraj.rl.sb3_env import benchmark_vec_env
@@ -474,10 +508,10 @@ def test_a_plain_sb3_zip_scores_once_its_env_is_named(tmp_path, capsys):
             "--reps", "10", "--out", str(tmp_path / "out"), "--no-progress"]
     assert main(args) == 2
     err = capsys.readouterr().err
-    command = err.split("e.g. ")[1].strip()
-    assert command == (f"mjtraj rl eval --policy {tmp_path / 'plain.zip'} --policy-env observe_task=true "
-                       "--policy-env observe_measured=true")
-    assert main([*command.split()[1:], *args[4:]]) == 0
+    command = err.split("e.g. ")[1].strip()  # the user's own command, with the env it lacks
+    assert command == " ".join(["mjtraj", *args, "--policy-env", "observe_task=true", "--policy-env",
+                                "observe_measured=true"])
+    assert main(command.split()[1:]) == 0
     rows = read_rows(tmp_path / "out" / "eval.csv")
     assert {r["method"] for r in rows if r["policy"]} == {"plain.zip (PPO)"}
 

@@ -398,7 +398,7 @@ def _versus(given: list[str] | None) -> str | tuple[str, ...] | None:
 
 def run_eval(args: argparse.Namespace) -> int:
     """`mjtraj rl eval`."""
-    from mjtraj.rl.evaluate import evaluate
+    from mjtraj.exceptions import InvalidInputError, UnnamedPolicyEnvError
 
     command = command_line(args)
     policies = list(args.policies)
@@ -406,14 +406,13 @@ def run_eval(args: argparse.Namespace) -> int:
         from mjtraj.rl.baselines import baseline_names
 
         policies += [f"baseline:{name}" for name in baseline_names()]
-    evaluation = evaluate(policies, families=None if args.family is None else tuple(args.family),
-                          scenarios=args.scenarios, seed=args.seed, protocol=args.protocol,
-                          planners=tuple(args.planners), controllers=tuple(args.controllers),
-                          tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
-                          settings=overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
-                          progress=not args.no_progress, floor=args.floor,
-                          figure_formats=tuple(args.figure_format), versus=_versus(args.versus),
-                          keep_going=args.keep_going)
+    try:
+        evaluation = _evaluate(args, policies, command)
+    except UnnamedPolicyEnvError as e:  # the user's own command, with what it lacks
+        import shlex
+
+        example = "mjtraj " + " ".join(shlex.quote(a) for a in [*args.argv, *e.flags])
+        raise InvalidInputError(f"{str(e).split(', e.g. ')[0]}, e.g. {example}") from e
     print(f"Protocol {evaluation.protocol}, OFF-PROTOCOL ({'; '.join(evaluation.departures)}): these numbers "
           "cannot be compared with published ones." if evaluation.departures else f"Protocol {evaluation.protocol}.")
     print()
@@ -427,6 +426,23 @@ def run_eval(args: argparse.Namespace) -> int:
     if evaluation.floor_table:
         print("\nAgainst the floor and the strongest classical method:\n")
         print(evaluation.floor_table)
+    if evaluation.errors:
+        print("\nRows whose evaluation raised (status error), by reason:\n")
+        print("\n".join(f"- {count} x {reason}" for reason, count in evaluation.errors.items()))
     figures = f"{evaluation.figure}" + (f" and {evaluation.intervals}" if evaluation.intervals else "")
     print(f"\nwrote {evaluation.csv}, {evaluation.summary_json}, {evaluation.markdown}, {figures}")
     return 0
+
+
+def _evaluate(args: argparse.Namespace, policies: list[Any], command: str) -> Any:
+    """`rl eval`'s evaluation with the command's options."""
+    from mjtraj.rl.evaluate import evaluate
+
+    return evaluate(policies, families=None if args.family is None else tuple(args.family),
+                    scenarios=args.scenarios, seed=args.seed, protocol=args.protocol,
+                    planners=tuple(args.planners), controllers=tuple(args.controllers),
+                    tuned_gains=args.tuned_gains, reps=args.reps, threads=args.threads,
+                    settings=overrides(None, args.policy_env, "policy-env"), out=args.out, command=command,
+                    progress=not args.no_progress, floor=args.floor,
+                    figure_formats=tuple(args.figure_format), versus=_versus(args.versus),
+                    keep_going=args.keep_going)

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.envs import RESIDUAL_SCALE, TrackSettings, resolve
-from mjtraj.exceptions import InvalidInputError, PolicyError
+from mjtraj.exceptions import InvalidInputError, PolicyError, UnnamedPolicyEnvError
 from mjtraj.rl import ALGORITHM_NAMES
 
 BENCHMARK_ENV: dict[str, Any] = {"planner": "cubic", "controller": "pid", "action_mode": "residual",
@@ -48,6 +48,14 @@ observe_measured)."""
 ENV_KEYS = tuple(BENCHMARK_ENV)
 """The env settings a policy acts in (a zip's come from its training record)."""
 KINDS = ("sb3-zip", "callable", "torch")
+
+
+class _FailedOn(Exception):
+    """A callable policy raised on observation `row` of a batch (its exception `cause`)."""
+
+    def __init__(self, row: int, cause: Exception) -> None:
+        super().__init__(row, cause)
+        self.row, self.cause = row, cause
 
 
 @dataclass
@@ -111,8 +119,9 @@ class ScoredPolicy:
 
         Raises:
           PolicyError: the policy raised, or returned actions of another shape than one action (n,) per observation,
-            or non-finite ones; the message names the policy, what went wrong and the index of the first
-            observation of the failing call among those this policy was given (0 the first).
+            or non-finite ones; the message names the policy, what went wrong and the index, among the observations
+            this policy was given (0 the first), of the one it failed on (a callable's, called per observation, or
+            a non-finite action's) or else of the failing batch call's first.
         """
         first = self._given
         self._given += obs.shape[0]
@@ -121,6 +130,9 @@ class ScoredPolicy:
         try:
             out = self.act_batch(obs, plants) if self.privileged else self.act_batch(obs)
             actions = np.asarray(out, dtype=np.float64)
+        except _FailedOn as e:  # a callable, called once per observation: the one it failed on
+            raise PolicyError(f"policy {self.label}: on observation {first + e.row} (shape {obs.shape[1:]}) it raised "
+                              f"{type(e.cause).__name__}: {' '.join(str(e.cause).split())}") from e.cause
         except Exception as e:  # noqa: BLE001 - a bug in the user's policy: said in one line, with where
             raise PolicyError(f"{where} it raised {type(e).__name__}: {' '.join(str(e).split())}") from e
         single = self.kind == "callable" and actions.ndim >= 1 and actions.shape[0] == obs.shape[0]
@@ -246,9 +258,13 @@ def from_object(obj: Any, *, label: str | None = None, source: str | None = None
         act = obj
     else:
         def act(obs: NDArray[np.float64], plants: Sequence[dict[str, float]] | None = None) -> Any:
-            if plants is None:
-                return np.stack([np.asarray(obj(o), dtype=np.float64) for o in obs])
-            return np.stack([np.asarray(obj(o, p), dtype=np.float64) for o, p in zip(obs, plants, strict=True)])
+            out = []
+            for row, o in enumerate(obs):
+                try:
+                    out.append(np.asarray(obj(o) if plants is None else obj(o, plants[row]), dtype=np.float64))
+                except Exception as e:  # noqa: BLE001 - the user's policy: which observation it failed on
+                    raise _FailedOn(row, e) from e
+            return np.stack(out)
 
     return ScoredPolicy(str(name), source or str(name), "callable", env, act, reset, privileged,
                         fingerprint(obj, file), streams=streams)
@@ -328,9 +344,10 @@ def from_plain_zip(path: Path, settings: Mapping[str, Any] | None) -> ScoredPoli
         guess = suggested_settings(size) or {}
         flags = [f"--policy-env {k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in guess.items()
                  if v != BENCHMARK_ENV.get(k, False)] or ["--policy-env action_mode=residual"]
-        raise InvalidInputError(f"policy: {path} has no mjtraj record beside it (a zip saved by stable-baselines3 "
-                                f"itself); say which env it acts in (UR5Track-v1's settings unless named), e.g. "
-                                f"mjtraj rl eval --policy {path} {' '.join(flags)}")
+        raise UnnamedPolicyEnvError(f"policy: {path} has no mjtraj record beside it (a zip saved by "
+                                    f"stable-baselines3 itself); say which env it acts in (UR5Track-v1's settings "
+                                    f"unless named), e.g. mjtraj rl eval --policy {path} {' '.join(flags)}",
+                                    [word for flag in flags for word in flag.split(" ", 1)])
     env = _env_of(None, settings)
     track = resolve(**env)
     if size != track.obs_size or actions != (track.n,):

@@ -17,7 +17,7 @@ import importlib.util
 import json
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -142,6 +142,8 @@ class EvalReport:
     reference: str = REFERENCES[PROTOCOL]
     departures: tuple[str, ...] = ()
     """How the run departs from its protocol's scenarios and resamples (`mjtraj.rl.protocol.departures`)."""
+    errors: dict[str, int] = field(default_factory=dict)
+    """Rows whose evaluation raised (status error, under keep_going): reason -> count."""
 
 
 def _labels(policies: Sequence[ScoredPolicy]) -> list[str]:
@@ -508,7 +510,7 @@ def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str,
                                                 floors_md, versus_md, executions, weighting,
                                                 compute_table(dict(computes)) if computes else ""))
     return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals,
-                      executions, weighting, protocol, reference, tuple(off))
+                      executions, weighting, protocol, reference, tuple(off), dict(record["errors"]))
 
 
 def acting_settings(policy: ScoredPolicy, protocol: str) -> Any:

@@ -98,15 +98,19 @@ def weighting_agreement(rows: Sequence[dict[str, Any]], groups: Mapping[str, Seq
     """Per family, the methods ranked by mean J_settle and by mean tracking-heavy score, both over the scenarios on
     which every method ran (whether or not it ended at rest: the success column says that), and Kendall's tau-b
     between the two rankings (NaN with fewer than two methods or no such scenario): a markdown table and the same
-    as a dict."""
+    as a dict. A method none of whose episodes ran (every row an error, under --keep-going) is not ranked and is
+    named below the table."""
     record: dict[str, dict[str, Any]] = {}
     lines = [f"Rankings under J_settle and under a tracking-heavy weighting (position weight from "
              f"{TRACKING_SHARE:.0%} of the move, {1 / TRACKING_SHARE**2:,.0f} times J_settle's), best first, each "
              "a mean over the scenarios on which every method ran (at rest or not), and Kendall's tau between them "
              "(1: the same order, -1: reversed):", "",
              "| family | scenarios | by J_settle | by tracking-heavy J | Kendall's tau |", "|---|---|---|---|---|"]
+    unranked: list[str] = []
     for family in families:
-        methods = _by_method(rows, groups, family)
+        every = _by_method(rows, groups, family)
+        methods = {m: mine for m, mine in every.items() if any(r["status"] in RAN for r in mine)}
+        unranked += [f"{m} ({family})" for m in every if m not in methods]
         common = _common(methods)
         shared = {m: [r for r in mine if int(r["scenario"]) in common] for m, mine in methods.items()}
         nan = float("nan")
@@ -120,6 +124,9 @@ def weighting_agreement(rows: Sequence[dict[str, Any]], groups: Mapping[str, Seq
         first = sorted(names, key=lambda m: bryson[m])
         second = sorted(names, key=lambda m: heavy[m])
         record[family] = {"scenarios": len(common), "by_score": first, "by_tracking_heavy": second,
-                          "kendall_tau": tau, "score": bryson, "tracking_heavy": heavy}
+                          "kendall_tau": tau, "score": bryson, "tracking_heavy": heavy,
+                          "not_ranked": [m for m in every if m not in methods]}
         lines.append(f"| {family} | {len(common)} | {' < '.join(first)} | {' < '.join(second)} | {tau:.2f} |")
+    if unranked:
+        lines += ["", f"Not ranked, no episode of theirs ran (every row an error): {', '.join(unranked)}."]
     return "\n".join(lines), record
