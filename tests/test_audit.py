@@ -137,6 +137,7 @@ def test_effort_left_on_the_table_is_each_planners_effort_over_the_nonlinear_bou
     assert "(not measured: add `nonlinear_min_effort` to the sweep's planners" in without
 
 
+@pytest.mark.slow
 def test_truncated_and_unfinished_sweeps_are_refused(tmp_path):
     from mjtraj.cli import main
     from mjtraj.study.runner import run_sweep
@@ -183,6 +184,7 @@ def test_a_claim_holding_on_the_paper_task_only_depends_on_it(tmp_path):
             "+1.0 % (one motion)" if optimal < 1 else "-1.0 % (one motion)") in text
 
 
+@pytest.mark.slow
 def test_progress_names_each_stage_as_it_begins(tmp_path):
     costs = {"nominal": {"optimal": 1.0, "cubic": 2.0, "quintic": 3.0, "trapezoidal": 3.0}}
     stages: list[str] = []

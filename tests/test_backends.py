@@ -34,6 +34,7 @@ def _blas_threads() -> str | None:
     return os.environ.get("OPENBLAS_NUM_THREADS")
 
 
+@pytest.mark.slow
 def test_pool_workers_get_one_blas_thread_unless_the_user_chose(monkeypatch):
     from concurrent.futures import ProcessPoolExecutor
 

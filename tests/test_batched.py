@@ -18,6 +18,7 @@ from mjtraj.rl.episodes import run_episodes
 TINY = {"steps": 96, "num_envs": 6, "rollouts": 8, "evaluations": 2, "validation": 2, "seed": 3}
 
 
+@pytest.mark.slow
 def test_the_untrained_policy_is_the_law_alone(tmp_path):
     """Oracle: the law with no policy. The mean's last layer starts at zero, so on every family's validation tasks
     the exported policy scores exactly what the law scores alone."""
@@ -34,6 +35,7 @@ def test_the_untrained_policy_is_the_law_alone(tmp_path):
         assert mine == alone
 
 
+@pytest.mark.slow
 def test_a_tiny_run_writes_its_files_and_its_policy_acts_as_skrls_mean(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["rl", "train", "--algo", "ppo", "--batched", "--steps", "96", "--num-envs", "6", "--evaluations",
@@ -60,6 +62,7 @@ def test_a_tiny_run_writes_its_files_and_its_policy_acts_as_skrls_mean(tmp_path,
     assert torch.equal(module(obs), expected) and float(module.clip) == 5.0
 
 
+@pytest.mark.slow
 def test_a_batched_policy_is_scored_by_the_protocol(tmp_path):
     from mjtraj.rl.evaluate import evaluate
 
@@ -88,6 +91,7 @@ def test_bad_batched_settings_are_refused_in_one_line(argv, message, capsys, tmp
     assert capsys.readouterr().err == f"mjtraj: error: {message}\n"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("extra", [{}, {"controller": "adaptive_computed_torque", "reward_baseline": "controller",
                                       "preview": 3, "observe_control": True, "measurement_noise": 1e-4}])
 def test_aggressive_sub_envs_run_episodes_of_every_length_side_by_side(extra):
@@ -128,6 +132,7 @@ def test_aggressive_sub_envs_run_episodes_of_every_length_side_by_side(extra):
     assert len(lengths) > 2
 
 
+@pytest.mark.slow
 def test_bench_train_reports_both_rates_and_their_ratio():
     from mjtraj.bench import TRAIN_MIXES, bench_train
 
@@ -149,6 +154,7 @@ def test_a_file_that_is_not_a_batched_policy_is_refused(tmp_path):
         load_any(str(other))
 
 
+@pytest.mark.slow
 def test_a_run_that_sees_the_preview_stops_on_patience_and_its_policy_observes_the_same(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["rl", "train", "--algo", "ppo", "--batched", "--steps", "192", "--num-envs", "6", "--evaluations",
@@ -199,6 +205,7 @@ def test_a_search_writes_its_trials_and_best_continues_its_study_and_trains_with
     assert all(settings[name] == best[name] for name in best if name not in ("value", "trial"))
 
 
+@pytest.mark.slow
 def test_an_interrupted_run_resumed_ends_as_the_uninterrupted_one_bit_for_bit(tmp_path, capsys, monkeypatch):
     """Oracle: the same run uninterrupted. Interrupted after its second validation point (of three), `rl train
     --resume` goes on from the resume point and writes the same policies and learning curve, bit for bit (but the

@@ -250,6 +250,7 @@ def test_busy_bench_reports_quiet_and_busy_times_of_the_public_api(monkeypatch):
     assert "OPENBLAS_NUM_THREADS" not in env and env["MKL_NUM_THREADS"] == "4"
 
 
+@pytest.mark.slow
 def test_api_timings_time_every_planner_and_the_env(monkeypatch):
     """`repeats` timed plans of the linear planner, `slow_repeats` of each nonlinear one, five passes of `env_steps`
     steps: the medians of the scripted spans, per plan and per step."""

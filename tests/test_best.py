@@ -60,6 +60,7 @@ def _env_costs(env, scenarios, act, monkeypatch) -> np.ndarray:
     return np.array(costs)
 
 
+@pytest.mark.slow
 def test_scores_are_ratios_to_cubic_pid_on_the_same_scenarios(monkeypatch):
     """One baseline, two scenarios per family. Oracle: the validation scenarios drawn here from the stated stream
     [VALIDATION_SEED, VALIDATION_STREAM, family id, i] and replayed in UR5TrackEnv, stepped by hand: the policy acting

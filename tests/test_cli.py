@@ -16,6 +16,7 @@ from mjtraj.study.comparison import compare
 from mjtraj.study.plots import FIGURES
 
 
+@pytest.mark.slow
 def test_compare_writes_everything(tmp_path, capsys, scenario):
     assert main(["compare", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
@@ -83,6 +84,7 @@ def test_argparse_errors_are_one_line(capsys):
 
 
 
+@pytest.mark.slow
 def test_python_dash_m(tmp_path):
     done = subprocess.run([sys.executable, "-m", "mjtraj", "gains"], capture_output=True, text=True, check=True)
     assert done.stdout.startswith("# gain rule: ")
@@ -131,6 +133,7 @@ def test_interrupt_exits_130_with_one_line(monkeypatch, capsys):
     assert capsys.readouterr().err == "mjtraj: interrupted; run the same command to continue\n"
 
 
+@pytest.mark.slow
 def test_a_closed_pipe_is_not_a_traceback(tmp_path):
     command = f"{sys.executable} -m mjtraj compare --json --no-figures --out {tmp_path} | head -1"
     done = subprocess.run(["bash", "-o", "pipefail", "-c", command], capture_output=True, text=True)

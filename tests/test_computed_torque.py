@@ -90,6 +90,7 @@ def test_batch_equals_single(scenario):
             np.testing.assert_array_equal(getattr(batch, name)[b], getattr(single, name)[0])
 
 
+@pytest.mark.slow
 def test_selectable_from_the_cli_and_recorded_in_sweep_rows(tmp_path, capsys):
     assert main(["compare", "--controller", "computed_torque", "--planners", "cubic", "--no-figures", "--out",
                  str(tmp_path / "c")]) == 0

@@ -151,6 +151,7 @@ def check_mutated(tmp_path_factory: pytest.TempPathFactory, line: int, value: ob
         assert "\n" not in str(e)
 
 
+@pytest.mark.slow
 @FAST
 @seed(20261122)
 @given(line=st.integers(0, 100), value=VALUES)

@@ -31,6 +31,7 @@ def test_acting_on_the_labels_makes_the_loop_apply_the_teachers_command():
         np.testing.assert_allclose(applied, wanted, rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, monkeypatch):
     whole = distill(SMALL, tmp_path / "whole", progress=False)
     train = distill_module._train

@@ -35,6 +35,7 @@ def test_the_readmes_env_example_prints_what_the_readme_shows():
     assert out.getvalue() == shown
 
 
+@pytest.mark.slow
 def test_the_benchmark_pages_example_policy_is_scored(tmp_path):
     page = (ROOT / "docs" / "benchmark.md").read_text()
     code = next(body for lang, body in blocks(page) if lang == "python" and "class Damped" in body)
@@ -57,6 +58,7 @@ def test_every_relative_link_of_the_readme_and_the_docs_resolves_in_the_reposito
     assert broken == []
 
 
+@pytest.mark.slow
 def test_the_benchmark_pages_torch_module_is_scored_as_the_controller_alone(tmp_path):
     """The page's torch example starts at a zero residual: it scores exactly cubic+PID, row by row."""
     from mjtraj.study.store import read_rows
@@ -108,6 +110,7 @@ def test_the_result_tables_are_the_cited_summarys_cells(page, section, cited, he
             assert cells == {column: source[method][column] for column in cells}, method
 
 
+@pytest.mark.slow
 def test_the_env_pages_headline_example_prints_what_the_page_shows(tmp_path, monkeypatch):
     """docs/env.md's first example (the benchmark env on the paper's move, a video written) prints its pasted
     output, with no warning that the env is out of date."""

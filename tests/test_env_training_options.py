@@ -89,6 +89,7 @@ def test_randomisation_changes_the_execution_and_the_same_seed_repeats_it():
     assert c[2]["metrics"]["rms_err"] != a[2]["metrics"]["rms_err"]
 
 
+@pytest.mark.slow
 def test_vector_env_sub_env_i_is_the_single_env_seeded_s_plus_i_under_randomisation():
     kwargs = {"task": "random", "action_mode": "residual", "plant_randomization": "mismatch",
               "measurement_noise": SIGMA}

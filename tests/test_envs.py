@@ -72,6 +72,7 @@ def test_reset_options_run_one_episode_of_that_task(scenario):
     assert paper.reference.steps == 75
 
 
+@pytest.mark.slow
 def test_make_with_module_prefix_needs_no_prior_import():
     code = ("import gymnasium as gym, sys; env = gym.make('mjtraj:UR5Track-v0'); env.reset(seed=1); "
             "print(type(env.unwrapped).__module__, 'envs' in sys.modules)")
@@ -93,6 +94,7 @@ print("checked")
 """
 
 
+@pytest.mark.slow
 def test_gymnasium_check_env_without_warnings(display):
     """Gymnasium's checker, warnings as errors, in every action mode; it renders every declared mode, so it runs
     where a window can open (a virtual display, MUJOCO_GL unset: off-screen frames on OSMesa, the window on GLFW)."""

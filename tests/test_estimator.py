@@ -102,6 +102,7 @@ def test_the_settings_refuse_what_is_not_a_noise_level():
         KalmanSettings(state_noise=(1e-4,))  # type: ignore[arg-type]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("law", ["mpc", "adaptive_mpc"])
 def test_a_residual_enters_the_prediction_so_the_filter_does_not_cancel_it(law):
     """On the nominal plant without noise (v2), a constant residual of 3 N m on joint 0: the filter's torque

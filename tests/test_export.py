@@ -34,6 +34,7 @@ def same(cell, value):
     return cell not in ("", "nan") and numeric(cell) == value and not math.isnan(value)
 
 
+@pytest.mark.slow
 def test_sqlite_and_jsonl_hold_every_cell_typed(sweep, tmp_path):
     rows = read_rows(sweep)
     assert main(["export", str(sweep), "--out", str(tmp_path / "s.sqlite")]) == 0
@@ -54,6 +55,7 @@ def test_sqlite_and_jsonl_hold_every_cell_typed(sweep, tmp_path):
     assert count.fetchone()[0] == 3
 
 
+@pytest.mark.slow
 def test_torn_unfinished_or_unknown_are_refused_and_leave_nothing(sweep, tmp_path):
     text = sweep.read_text()
     torn = tmp_path / "torn.csv"
@@ -72,6 +74,7 @@ def test_torn_unfinished_or_unknown_are_refused_and_leave_nothing(sweep, tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir()) == ["torn.csv", "unfinished.csv"]
 
 
+@pytest.mark.slow
 def test_csv_export_is_the_rows_text_byte_for_byte(sweep, tmp_path):
     """Oracle: the whole file formatted at once (csv_text of every row), what export wrote before it streamed."""
     from mjtraj.study.store import csv_text
@@ -102,6 +105,7 @@ def test_csv_lines_are_csv_writers_lines(cells):
     assert list(csv_lines([cells, cells])) == [buffer.getvalue()] * 2
 
 
+@pytest.mark.slow
 def test_a_store_cell_that_is_not_text_reads_as_str_has_it(sweep, tmp_path):
     """A store edited by hand (a number or NULL where the sweep wrote text) is read as before: str() of the value,
     '' for NULL; export's CSV equals csv_text of those rows."""
@@ -167,6 +171,7 @@ def _edited_store(store, edit):
     return store
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("edit", [None, TURNS_TEXT, TURNS_WHOLE])
 def test_a_store_read_once_gives_the_two_pass_output(tmp_path, monkeypatch, edit):
     """A store's typed exports are written as its rows are read; where a later row changes a column's kind (a
@@ -202,6 +207,7 @@ TURNS_ONE_PART = "UPDATE rows SET payload_kg = '3' WHERE NOT (family = 'nominal'
 """Whole payloads everywhere but in the second row: in parts of a row each, that part alone is read as REAL."""
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("edit", [None, TURNS_TEXT, TURNS_WHOLE, TURNS_ONE_PART])
 def test_an_export_on_several_processes_is_the_one_process_export(tmp_path, edit):
     """A store exported in parts on 2 and 3 processes, appended in order, is the export on one: CSV and JSON Lines
@@ -252,6 +258,7 @@ def turned(tmp_path_factory):
     return store, rows, folder / "rows.csv"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("suffix", [".csv", ".jsonl", ".sqlite"])
 def test_progress_counts_the_rows_written_up_to_the_sweeps_rows(tmp_path, monkeypatch, turned, suffix):
     """export's progress(done, total): total is the sweep's row count, done grows chunk by chunk to it, and starts
@@ -271,6 +278,7 @@ def test_progress_counts_the_rows_written_up_to_the_sweeps_rows(tmp_path, monkey
         assert len(calls) > rows // 3 or source.suffix == ".csv" == suffix  # a CSV copied as it is: one report
 
 
+@pytest.mark.slow
 def test_an_infinity_is_refused_by_json_lines_and_other_nans_are_missing(tmp_path):
     """'NaN' (any spelling float() reads as nan) is a missing value, null in JSON; an infinity is a number SQLite
     stores and JSON cannot hold: JSON Lines export refuses it naming the column, and leaves no file."""

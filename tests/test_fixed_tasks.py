@@ -64,6 +64,7 @@ def test_an_oracle_scenario_file_is_labelled_and_bryson_named():
     assert weights_label("no/such/file.toml") == "no/such/file.toml"
 
 
+@pytest.mark.slow
 def test_the_audit_draws_the_frontier_and_places_each_weight_set_on_it(tmp_path):
     for config, name in ((None, "b.csv"), ("paper_tuned", "t.csv")):
         run_sweep(SweepSettings(scenarios=2, batch=2, planners=PLANNERS, config=config), tmp_path / name,

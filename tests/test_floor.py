@@ -97,6 +97,7 @@ def test_the_gauss_newton_gradient_and_the_goal_constraints_gradient_match_finit
     assert (plus[1] - minus[1]) / (2 * step) == pytest.approx(terminal @ direction, rel=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("family", ["nominal", "aggressive"])
 def test_the_floors_torques_replayed_through_the_closed_loop_give_its_cost_and_every_start_agrees(
         family, scenario, model):
@@ -170,6 +171,7 @@ def _mismatch_problem(scenario, model, index: int) -> tuple[_Problem, np.ndarray
     return _Problem(shooting, x_ref, np.sqrt(job.weights[0]), np.sqrt(job.weights[1]), 0.05), rollout.dtau[0]
 
 
+@pytest.mark.slow
 def test_on_a_plant_with_dry_friction_and_per_link_gravity_compensation_the_step_jacobians_match_differences(
         scenario, model):
     problem, torques = _mismatch_problem(scenario, model, 3)
@@ -234,6 +236,7 @@ def test_by_default_only_the_best_ranked_start_is_solved_and_every_start_finds_n
     assert all(not np.isnan(cost) for cost in every.starts.values())
 
 
+@pytest.mark.slow
 def test_the_env_reports_an_episodes_floor_where_asked_and_it_is_that_episodes_floor(scenario, model):
     import gymnasium as gym
 
@@ -256,6 +259,7 @@ def test_the_env_reports_an_episodes_floor_where_asked_and_it_is_that_episodes_f
         gym.make("UR5Track-v1", floor=True, gravity_comp="zoh")
 
 
+@pytest.mark.slow
 def test_on_a_mismatched_plant_no_law_of_the_table_scores_below_the_floor_the_oracle_included(scenario, model):
     """Mismatch scenario 6 of seed 1, where the adaptive law told the true plant had scored 1.5 % below the floor
     of the four classical starts: every law of the benchmark's table starts a solve, so none scores below it
@@ -360,6 +364,7 @@ def test_the_at_rest_rows_gradient_matches_finite_differences(scenario, model):
                                atol=1e-7 * np.abs(terminal @ direction).max())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("family, index", [("nominal", 0), ("aggressive", 3), ("mismatch", 3)])
 def test_protocol_v2s_floor_replays_at_rest_and_no_law_at_rest_scores_below_it(family, index, scenario, model):
     """The v2 floor's torques replayed through the closed loop (settle window and all) end at rest at the goal with

@@ -27,6 +27,7 @@ print("shown")
 """
 
 
+@pytest.mark.slow
 def test_a_window_shows_the_episode_and_closes_silently(display):
     env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
     env["DISPLAY"] = display
@@ -80,6 +81,7 @@ print("ghost")
 """
 
 
+@pytest.mark.slow
 def test_the_window_draws_the_ghost_where_the_reference_is(display):
     """The ghost's geoms enter the window's scene through mjv_initGeom, one per moving geom, at the reference pose's
     geom positions and orientations, in the ghost colour (Gymnasium before 1.2 wrote markers in MuJoCo < 3.2's

@@ -90,6 +90,7 @@ def test_every_module_is_in_a_layer_and_imports_go_down():
     assert upward == []
 
 
+@pytest.mark.slow
 def test_no_import_cycles():
     graph = {module: sorted({target for target, _, runtime in imports(path, module) if runtime and target != module})
              for module, path in modules().items()}

@@ -16,6 +16,7 @@ from mjtraj.exceptions import InvalidInputError
 from mjtraj.media.render import ArmRenderer
 
 
+@pytest.mark.slow
 def test_env_frame_shows_the_arm(model):
     env = gym.make("UR5Track-v0", render_mode="rgb_array", width=320, height=240)
     env.reset(seed=0)
@@ -55,6 +56,7 @@ def test_renderer_rejects_a_large_image(model):
 
 
 
+@pytest.mark.slow
 def test_render_command_writes_playable_files(tmp_path, capsys):
     assert main(["render", "--planners", "cubic,optimal", "--format", "mp4,gif", "--width", "160", "--height",
                  "120", "--every", "10", "--out", str(tmp_path)]) == 0
@@ -77,6 +79,7 @@ def test_render_command_writes_playable_files(tmp_path, capsys):
 
 
 
+@pytest.mark.slow
 def test_one_planner_gets_no_grid_and_four_get_two_by_two(tmp_path):
     assert main(["render", "--planners", "cubic", "--format", "gif", "--width", "64", "--height", "48", "--every",
                  "50", "--out", str(tmp_path / "one")]) == 0
@@ -103,6 +106,7 @@ def mujoco_frame(model, q, off=()):
         return plain.render()
 
 
+@pytest.mark.slow
 def test_fast_frames_are_the_scene_without_shadows_reflection_skybox_or_fine_facets(model):
     """The fast scene equals MuJoCo's own renderer with those features off, and the caller's model is untouched."""
     import mujoco
@@ -124,6 +128,7 @@ def test_fast_frames_are_the_scene_without_shadows_reflection_skybox_or_fine_fac
     assert model.light_castshadow.all()  # high casts one shadow on its own copy
 
 
+@pytest.mark.slow
 def test_high_frames_cast_the_brightest_light_s_shadow_alone(model):
     """High frames equal MuJoCo's renderer on a copy where only the brightest light casts a shadow, at the high
     shadow map's size and clip; a second shadow-casting light changes the image (the setting is not a no-op)."""
@@ -145,6 +150,7 @@ def test_high_frames_cast_the_brightest_light_s_shadow_alone(model):
     assert np.abs(images[1].astype(int) - images[0]).max() > 20
 
 
+@pytest.mark.slow
 def test_gif_is_small_and_true_to_the_frames(tmp_path):
     """A 51-frame 320x240 clip stays under 0.5 MB (0.13 MB with Pillow 11.3; 0.41 MB with Pillow 10.1, the declared
     floor, since the camera frames the workspace), and its shared palette keeps every frame close to the render."""
@@ -185,6 +191,7 @@ def test_render_command_bad_input(capsys):
 
 
 
+@pytest.mark.slow
 def test_doctor_reports_a_working_backend(capsys):
     assert main(["doctor"]) == 0
     out = capsys.readouterr().out
@@ -193,6 +200,7 @@ def test_doctor_reports_a_working_backend(capsys):
 
 
 
+@pytest.mark.slow
 def test_the_backend_is_chosen_at_the_first_renderer_and_never_overrides_the_user():
     code = ("import os, numpy as np; from mjtraj.core import load_model; from mjtraj.media import ArmRenderer, "
             "active_backend; m = load_model(); r = ArmRenderer(m, width=64, height=48); "
@@ -207,6 +215,7 @@ def test_the_backend_is_chosen_at_the_first_renderer_and_never_overrides_the_use
     assert "egl" in (user.stdout + user.stderr)  # the user's choice is used (it may fail here), never replaced
 
 
+@pytest.mark.slow
 def test_depth_frames_see_the_arm_at_its_distance():
     """depth_array: the arm is nearer to the camera than the background, and the image has the requested size."""
     import gymnasium as gym
@@ -223,6 +232,7 @@ def test_depth_frames_see_the_arm_at_its_distance():
     rgb.close()
 
 
+@pytest.mark.slow
 def test_a_script_that_renders_and_never_closes_exits_quietly():
     script = ("from mjtraj.envs import UR5TrackEnv\n"
               "env = UR5TrackEnv(render_mode='rgb_array', width=32, height=24)\n"
@@ -268,6 +278,7 @@ def test_an_arm_without_geoms_is_framed_by_its_bodies():
     assert image.shape == (48, 64, 3)
 
 
+@pytest.mark.slow
 def test_the_strobe_paths_are_drawn_whatever_the_scene_memory_held(model):
     """The flange paths and marks are decor geoms appended after the model's. mjv_initGeom leaves their object type,
     object id, category and transparency as the scene's memory had them, and a fresh scene's memory is whatever the

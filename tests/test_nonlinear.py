@@ -869,6 +869,7 @@ def test_a_torque_on_its_bound_stays_there_and_the_sqp_plans_where_slsqp_had_to(
     check_plan(model, task, plan)
 
 
+@pytest.mark.slow
 def test_slow_gauss_newton_turns_to_newton_early_and_reaches_the_same_plan(model, monkeypatch):
     """Nominal 145 of seed 1 (`nonlinear_min_effort`, linear start): Gauss-Newton contracts by about 0.5 an
     iteration. With `SqpSettings.slow` the Hessian turns to the Lagrangian's once three slow iterations follow the
@@ -1023,6 +1024,7 @@ def test_the_compiled_sensitivities_are_the_products_of_their_definition():
         assert np.all(np.isnan(S[k, :, k * n:]))
 
 
+@pytest.mark.slow
 def test_reusing_the_lagrangians_hessian_reaches_the_same_plan_with_fewer_hessians(model, monkeypatch):
     """Nominal 145 of seed 1 (`nonlinear_min_effort`, linear start): with `SqpSettings.newton_reuse` the SQP makes
     fewer Lagrangian Hessians than with a new one every Newton iteration, and reaches the same minimum (oracle: the

@@ -83,6 +83,7 @@ def _child_environment(**extra: str) -> dict[str, str]:
     return {**{k: v for k, v in os.environ.items() if k not in (VARIABLE, "XDG_CACHE_HOME")}, **extra}
 
 
+@pytest.mark.slow
 def test_a_read_only_installation_compiles_the_kernels_once_across_processes(tmp_path):
     """A copy of the package whose planners' __pycache__ is a plain file (numba cannot cache beside the source, as in
     a read-only installation): the first process compiles the Riccati kernel into the user cache folder, the second
@@ -105,6 +106,7 @@ def test_a_read_only_installation_compiles_the_kernels_once_across_processes(tmp
     assert any(path.suffix == ".nbi" for path in Path(cache).rglob("*"))  # numba's index of the cached kernel
 
 
+@pytest.mark.slow
 def test_doctor_warm_up_compiles_or_loads_every_kernel_and_says_where(tmp_path):
     """In a fresh process no kernel is in memory: the warm-up compiles or loads the three called from Python (the
     RK4 steps with the dynamics' derivatives, the sensitivities, the Riccati recursion), beside this installation's

@@ -127,12 +127,14 @@ def test_import_is_light_and_sets_no_environment():
     assert out.splitlines() == ["[]", "None"]
 
 
+@pytest.mark.slow
 def test_lazy_names_resolve_to_their_modules():
     out = _fresh("import sys, mjtraj; c = mjtraj.compare; "
                  "print(c.__module__, 'mjtraj.study.comparison' in sys.modules)")
     assert out == "mjtraj.study.comparison True"
 
 
+@pytest.mark.slow
 def test_an_episode_loads_nothing_of_study():
     """The env stands on the domain layer and core at run time too (the layer test reads the imports): a mismatch
     episode with its clairvoyant floor, rendered, loads no module of mjtraj.study."""
@@ -145,6 +147,7 @@ def test_an_episode_loads_nothing_of_study():
     assert out.splitlines()[-1] == "True []"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("code", "made"), [
     ("import gymnasium as gym; import mjtraj; env = gym.make('UR5Track-v0')", "UR5TrackEnv"),
     ("import mjtraj; import gymnasium as gym; env = gym.make('UR5Track-v0')", "UR5TrackEnv"),

@@ -31,6 +31,7 @@ def costs(rows, method, family="nominal"):
     return [r["cost"] for r in rows if r["method"] == method and r["family"] == family]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("protocol", ["v1", "v2"])
 def test_a_zero_residual_is_the_controller_alone_bit_for_bit_under_each_law(tmp_path, protocol):
     """A user's callable (one observation), a torch module and a computed-torque callable that add nothing score
@@ -70,6 +71,7 @@ def test_a_zero_residual_is_the_controller_alone_bit_for_bit_under_each_law(tmp_
     assert (s.ratio_of_means.value, s.iqm.value, s.probability_of_improvement.value, s.failures) == (1.0, 0.0, 0.5, 0)
 
 
+@pytest.mark.slow
 def test_a_recurrent_policy_is_told_when_its_episodes_start(tmp_path):
     """Oracle: the phase in the observation is 0 exactly at the first call after each reset, on every batch (the
     aggressive family's episodes come in batches of one length each)."""
@@ -97,6 +99,7 @@ def test_a_recurrent_policy_is_told_when_its_episodes_start(tmp_path):
         assert (phase == 0).all() if k == 0 else (phase > 0).all()
 
 
+@pytest.mark.slow
 def test_a_privileged_policy_receives_each_scenarios_plant(tmp_path):
     class Privileged:
         batched = True
@@ -117,6 +120,7 @@ def test_a_privileged_policy_receives_each_scenarios_plant(tmp_path):
     assert policy.seen == expected + [no_perturbation(3).as_dict()] * 3
 
 
+@pytest.mark.slow
 def test_the_cli_scores_a_users_file_beside_the_classical_methods(tmp_path, capsys, monkeypatch):
     (tmp_path / "mine.py").write_text("import numpy as np\n\ndef policy(obs):\n    return np.full(3, 0.1)\n")
     tuned = tmp_path / "gains.toml"
@@ -351,6 +355,7 @@ def test_a_policys_fingerprint_covers_its_file_its_weights_and_the_files_it_decl
     assert fingerprint(net) != before and len(before) == 64
 
 
+@pytest.mark.slow
 def test_every_method_is_paired_against_the_named_one_and_an_unknown_name_is_refused(tmp_path):
     """Oracles: the ratio is the ratio of the two methods' mean J_exec in eval.csv; a method against itself is
     1 [1, 1], better with probability one half."""
@@ -384,6 +389,7 @@ def test_every_method_is_paired_against_the_named_one_and_an_unknown_name_is_ref
     assert "Paired against cubic+CT, cubic+PID on the same scenarios (a table each)" in several.markdown.read_text()
 
 
+@pytest.mark.slow
 def test_protocol_v2_scores_the_window_and_its_noisy_family_is_the_sweeps_own(tmp_path):
     """v2's rows are the sweep's under a 0.5 s window (the noisy family: the mismatch scenarios measured with 1 mrad
     of noise), bit for bit; the summary names the protocol, its score and reference, and carries the execution
@@ -425,6 +431,7 @@ def _raises(obs):
     return np.zeros(3)[obs.size]  # an IndexError, as a bug in a user's policy would raise
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("policy, message", [
     (_wrong_signature, r"^policy _wrong_signature: on observation 0 \(shape \(19,\)\) it raised TypeError: "
                        r"_wrong_signature\(\) missing 1 required positional argument: 'extra'$"),
@@ -473,6 +480,7 @@ def test_a_callable_that_raises_is_named_on_the_observation_it_failed_on(tmp_pat
         evaluate([_RaisesOnItsSixthCall()], families=("nominal",), scenarios=2, seed=3, reps=10, out=tmp_path)
 
 
+@pytest.mark.slow
 def test_the_cli_says_a_broken_policy_in_one_line(tmp_path, capsys):
     (tmp_path / "mine.py").write_text("import numpy as np\n\ndef policy(obs):\n    return np.zeros(4)\n")
     code = main(["rl", "eval", "--policy", f"{tmp_path / 'mine.py'}:policy", "--family", "nominal", "--scenarios",
@@ -536,6 +544,7 @@ def test_a_zip_of_another_algorithm_is_refused_by_name(tmp_path):
         sb3_algorithm(saved("sb3_contrib.tqc.policies"))
 
 
+@pytest.mark.slow
 def test_every_summary_gives_each_methods_per_period_compute(tmp_path):
     """summary.json's compute: every law timed on each period of its own execution of each family's first scenario
     (the oracle for the count: those episodes' periods, motion and window), every policy on its inference calls;

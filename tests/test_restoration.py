@@ -20,6 +20,7 @@ def impossible(model):
     return task, make("nonlinear_min_effort", speed_limit=0.5)
 
 
+@pytest.mark.slow
 def test_an_impossible_move_is_reported_locally_infeasible(model, impossible):
     """The SQP stops short from both starts, and the least violation is positive from both: InfeasibleError, local,
     naming a joint that misses its goal."""
@@ -89,6 +90,7 @@ def test_a_search_that_does_not_converge_leaves_the_verdict_to_slsqp(model, impo
         make("nonlinear_min_effort", speed_limit=0.5, solver="sqp").plan(task, model)
 
 
+@pytest.mark.slow
 def test_a_large_problem_searches_without_the_dense_svd_and_within_its_cap(model, impossible, monkeypatch):
     """LARGE_TORQUES cut to 0, so the UR5's impossible move takes the path of a 6- or 7-hinge arm: scipy's 'lsmr'
     subproblems approach the dense search's stationary point (the same positive violation, the projected gradient

@@ -149,6 +149,7 @@ def test_what_the_conversion_does_not_hold_is_named_and_differenced(change, reas
 
 
 
+@pytest.mark.slow
 def test_every_arm_of_the_suite_converts_exactly_or_is_declined_with_its_reason(tmp_path):
     """The arms users bring (tests/arm_suite.py), as `load_model` prepares them: where the conversion holds a model,
     a short motion from the middle of its ranges keeps Pinocchio's step equal to MuJoCo's and its Jacobians equal to
@@ -195,6 +196,7 @@ def test_the_compiled_dynamics_and_derivatives_are_pinocchios(which, rng):
             np.testing.assert_allclose(mine[k], oracle, rtol=1e-11, atol=1e-11 * (1.0 + np.abs(oracle).max()))
 
 
+@pytest.mark.slow
 def test_the_steps_curvature_is_mujocos_second_differences(rng):
     """RigidBody.curvature (forward differences of the analytic Jacobian) against the Hessian of p^T step(z) by second
     differences of MuJoCo's own step, on the general tree: central ones, and at a sample whose control sits on its

@@ -333,6 +333,7 @@ def test_a_wrapped_zip_scores_as_the_zip_bit_for_bit(trained, tmp_path):
         assert zipped == wrapped and len(zipped) == 4
 
 
+@pytest.mark.slow
 def test_configurations_sharing_a_label_are_told_apart_by_their_settings(trained):
     """Seeds of one configuration share a row; two budgets of it get their own, named by what differs."""
     def variant(seed, steps, stem="policy"):
@@ -347,6 +348,7 @@ def test_configurations_sharing_a_label_are_told_apart_by_their_settings(trained
     assert groups == {f"{label} [steps=240]": ["a", "b"], f"{label} [steps=480]": ["c"], f"{label} best": ["d"]}
 
 
+@pytest.mark.slow
 def test_eval_under_mismatch_splits_by_payload(trained, tmp_path):
     """Oracle: each payload bin's ratio of mean J_exec, recomputed from the rows with numpy by the failure rule (a
     row that is not ok, a missed goal included, is +inf; scenarios where the reference failed leave the ratio)."""
@@ -728,6 +730,7 @@ def test_tensorboard_logs_the_validation_curve(tmp_path):
     np.testing.assert_allclose([e.value for e in logged], [numeric(r["val_cost_mean"]) for r in curve], rtol=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", [0, -1])  # a recurrent policy on running statistics; a SAC on fixed scales
 def test_a_policy_whose_spaces_this_numpy_cannot_unpickle_loads_from_its_record(monkeypatch, which):
     """Under numpy 1.x the spaces a numpy-2 SB3 zip pickled raise ImportError (numpy._core): load_policy rebuilds
@@ -776,6 +779,7 @@ def test_rl_baselines_lists_each_shipped_policy_with_its_checkpoint(capsys):
         assert f"the checkpoint at {record['timesteps']:,} of {steps:,} trained steps" in line
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["rppo_act_100k_s2", "sac_act_history4_100k_s3"])
 def test_a_baseline_loads_to_act_without_building_an_optimiser(name, monkeypatch):
     """Oracle: SB3's own load (optimisers built) acts the same, bit for bit, on the same observations; with every
@@ -806,6 +810,7 @@ def test_a_baseline_loads_to_act_without_building_an_optimiser(name, monkeypatch
         optimizer.step()
 
 
+@pytest.mark.slow
 def test_a_batched_run_ships_as_a_baseline_that_acts_as_its_run(tmp_path, monkeypatch, capsys):
     """Oracle: the run's own best.pt. `rl ship` of a batched run writes policy.pt, run.json and the curve; as
     baseline:NAME it loads (listed, described) and acts as the run's module, bit for bit; `rl baselines` says what

@@ -29,6 +29,7 @@ def one_by_one(model, gains, references, *, moving):
     return worst
 
 
+@pytest.mark.slow
 def test_batched_check_equals_the_one_by_one_oracle(model, scenario):
     refs = [scenario.planner(name).plan(scenario.task, model) for name in default_names()]
     radii = spectral_radii(model, scenario.loop.gains, refs)  # on every core's thread

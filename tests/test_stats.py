@@ -35,6 +35,7 @@ def test_paired_ratio_exact_cases_and_coverage():
 
 
 
+@pytest.mark.slow
 def test_chunked_bootstrap_draws_what_one_draw_does(monkeypatch):
     """The bootstrap in chunks (bounded memory) gives the intervals of one draw of every index, bit for bit."""
     import mjtraj.study.stats as stats

@@ -18,6 +18,7 @@ SMALL = dict(scenarios=6, batch=3, planners=("optimal", "cubic"))
 
 
 
+@pytest.mark.slow
 def test_unit_rows_are_deterministic_and_backend_independent(tmp_path):
     settings = SweepSettings(**SMALL)
     one, two = run_unit(settings, ("nominal", 1)), run_unit(settings, ("nominal", 1))

@@ -246,6 +246,7 @@ def test_resume_after_a_kill_at_any_moment_gives_the_uninterrupted_rows(tmp_path
     assert read_rows(cut) == read_rows(whole)  # one worker stores units in order: the same rows in the same order
 
 
+@pytest.mark.slow
 def test_export_and_audit_read_stores(stored, tmp_path, capsys):
     csv, store = stored
     assert main(["export", str(store), "--out", str(tmp_path / "back.csv")]) == 0

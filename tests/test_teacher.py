@@ -26,6 +26,7 @@ def _references(scenario, model, family: str, indices, window: int = 0):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("law", LAWS)
 def test_a_teacher_of_the_loops_own_law_answers_the_loops_command_bit_for_bit(law, scenario, model):
     """Two nominal references with measurement noise and a settle window (the predictive laws' v2 path)."""
@@ -61,6 +62,7 @@ def test_off_the_fast_path_a_teacher_still_answers_the_loops_command(law, scenar
         np.testing.assert_array_equal(answer.dtau[live], step.control.dtau[live])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("teacher", ["adaptive_computed_torque", "mpc"])
 def test_a_teacher_shadows_every_period_whether_or_not_it_is_asked(teacher, scenario, model):
     """PID drives; the teacher's state (the adaptive estimate, the predictive law's prediction and disturbance)

@@ -217,6 +217,7 @@ def test_dry_friction_is_left_out_of_linearisations_and_every_planner_plans(arms
     assert all(np.isfinite(m.cost) for m in result.metrics.values()) and "optimal" in result.planners
 
 
+@pytest.mark.slow
 def test_shipped_arms_by_name_and_a_tuned_file_that_works_from_any_folder(tmp_path, capsys, monkeypatch):
     from mjtraj.cli import main
 
