@@ -485,6 +485,7 @@ def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str,
     weighting, weighting_record = weighting_agreement(rows, groups, families) if window else ("", {})
     off = departures(families, request.scenarios, request.seed, reps, request.protocol)
     protocol = request.protocol
+    errors = error_counts(rows)
     record = {"format": "mjtraj-benchmark-summary/1", "reference": reference, "failure_rule": FAILURE_RULE,
               "protocol": f"off-protocol: {'; '.join(off)}" if off else protocol,
               "protocol_base": protocol, "score": SCORE_NAMES[protocol], "settle": window,
@@ -500,7 +501,7 @@ def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str,
               "versus": _versus_record(paired, several=not isinstance(versus, str)) if paired else {},
               "executions": execution_record, "weightings": weighting_record,
               "compute": {method: c.as_dict() for method, c in computes.items()},
-              "errors": error_counts(rows)}
+              "errors": errors}
     json_path = out / "summary.json"
     write_text_atomic(json_path, json.dumps(record, indent=1) + "\n")
     md_path = out / "SUMMARY.md"
@@ -510,7 +511,7 @@ def _reports(request: _Request, rows: list[dict[str, Any]], floors: Mapping[str,
                                                 floors_md, versus_md, executions, weighting,
                                                 compute_table(dict(computes)) if computes else ""))
     return EvalReport(out, csv_path, json_path, md_path, figure, table, summaries, compact, floors_md, intervals,
-                      executions, weighting, protocol, reference, tuple(off), dict(record["errors"]))
+                      executions, weighting, protocol, reference, tuple(off), errors)
 
 
 def acting_settings(policy: ScoredPolicy, protocol: str) -> Any:
