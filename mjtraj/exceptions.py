@@ -17,12 +17,13 @@ class ProvenanceError(InvalidInputError):
 
 
 class UnnamedPolicyEnvError(InvalidInputError):
-    """A policy that records no env (a zip saved by stable-baselines3 itself) was given none; `flags` are the
-    `--policy-env KEY=VALUE` arguments that would score it, as a command line's words."""
+    """A policy that records no env (a zip saved by stable-baselines3 itself) was given none: `reason` says so,
+    `flags` are the `--policy-env KEY=VALUE` arguments that would score it (a command line's words) and the message
+    ends with `example`, a command that does."""
 
-    def __init__(self, message: str, flags: list[str]) -> None:
-        super().__init__(message)
-        self.flags = flags
+    def __init__(self, reason: str, flags: list[str], example: str) -> None:
+        super().__init__(f"{reason}, e.g. {example}")
+        self.reason, self.flags = reason, flags
 
 
 class ModelError(MjtrajError):

@@ -412,7 +412,7 @@ def run_eval(args: argparse.Namespace) -> int:
         import shlex
 
         example = "mjtraj " + " ".join(shlex.quote(a) for a in [*args.argv, *e.flags])
-        raise InvalidInputError(f"{str(e).split(', e.g. ')[0]}, e.g. {example}") from e
+        raise InvalidInputError(f"{e.reason}, e.g. {example}") from e
     print(f"Protocol {evaluation.protocol}, OFF-PROTOCOL ({'; '.join(evaluation.departures)}): these numbers "
           "cannot be compared with published ones." if evaluation.departures else f"Protocol {evaluation.protocol}.")
     print()

@@ -346,8 +346,8 @@ def from_plain_zip(path: Path, settings: Mapping[str, Any] | None) -> ScoredPoli
                  if v != BENCHMARK_ENV.get(k, False)] or ["--policy-env action_mode=residual"]
         raise UnnamedPolicyEnvError(f"policy: {path} has no mjtraj record beside it (a zip saved by "
                                     f"stable-baselines3 itself); say which env it acts in (UR5Track-v1's settings "
-                                    f"unless named), e.g. mjtraj rl eval --policy {path} {' '.join(flags)}",
-                                    [word for flag in flags for word in flag.split(" ", 1)])
+                                    f"unless named)", [word for flag in flags for word in flag.split(" ", 1)],
+                                    f"mjtraj rl eval --policy {path} {' '.join(flags)}")
     env = _env_of(None, settings)
     track = resolve(**env)
     if size != track.obs_size or actions != (track.n,):
