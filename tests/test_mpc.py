@@ -10,9 +10,10 @@ import mjtraj.envs  # noqa: F401
 import numpy as np
 import pytest
 
+import mjtraj.core.laws as laws
 from mjtraj.core.closed_loop import ClosedLoop
 from mjtraj.core.model import JointInfo
-from mjtraj.core.mpc import ModelPredictive, linearised_steps
+from mjtraj.core.mpc import DEFAULT_SETTINGS, ModelPredictive, linearised_steps
 from mjtraj.domain.families import draw_scenario, perturbed_plant, plant_fields
 from mjtraj.domain.floor import floor_of
 from mjtraj.domain.pipeline import GOAL_TOLERANCE, Job, execute_batch
@@ -220,3 +221,41 @@ def test_the_payloads_inertia_in_the_plans_response_is_the_loaded_arms(model, rn
     response = law._loaded_response(0, 0, M, B, payload)
     np.testing.assert_allclose(response, B_loaded, rtol=0, atol=1e-12 * np.abs(B_loaded).max())
     assert np.abs(B - B_loaded).max() >= 0.2 * np.abs(B_loaded).max()
+
+
+@pytest.mark.parametrize("hold", [1, 5])
+def test_in_protocol_v2_the_plan_holds_the_windows_last_states_at_rest(hold, monkeypatch, scenario, model):
+    """`rest_hold`: in every plan that reaches the window's end, each of the window's last `rest_hold` predicted
+    states lies within the aim's share of the at-rest rule (the band of the move on q, the speed limit on qd) about the
+    goal; an aggressive motion's plans held at the last state alone (1) reach the box only at that state, the one
+    before it outside."""
+    from mjtraj.core.settle import SETTLE_BAND, SETTLE_SPEED, held
+
+    settings = dataclasses.replace(DEFAULT_SETTINGS, rest_hold=hold)
+    plans = []
+    real_keep = ModelPredictive._keep
+
+    def keep(self, b, k, H, states, inputs):
+        plans.append((k, states.copy(), float(self._plan["move"][b])))
+        return real_keep(self, b, k, H, states, inputs)
+
+    monkeypatch.setattr(ModelPredictive, "_keep", keep)
+    monkeypatch.setitem(laws._BUILT_IN, "mpc", lambda config, dt, n, nsim, m: ModelPredictive(m, dt, nsim,
+                                                                                               settings=settings))
+    drawn = draw_scenario("aggressive", 777, 2, model, 0.02)
+    reference = held(scenario.planner("cubic").plan(drawn.task, model), 25)
+    ClosedLoop(model, dataclasses.replace(scenario.loop, controller="mpc")).run([reference])
+    N, goal = reference.t.size - 1, np.concatenate([reference.q[-1], np.zeros(3)])
+    s, before = settings, []
+    for k, states, move in plans:
+        end = N - k
+        if end < 1 or end >= states.shape[0]:
+            continue
+        aim = s.aim_last - (s.aim_last - s.goal_aim) * min(1.0, (end - 1) / (s.aim_ramp - 1))
+        box = aim * np.concatenate([np.full(3, SETTLE_BAND * move), np.full(3, SETTLE_SPEED)])
+        for j in range(max(end - hold + 1, 1), end + 1):
+            assert np.all(np.abs(states[j] - goal) <= box + 1e-6), (k, j)  # DAQP's feasibility tolerance
+        if end > 1:
+            before.append(np.max(np.abs(states[end - 1] - goal) / box))
+    assert len(before) > 20
+    assert (max(before) > 1.05) == (hold == 1)
