@@ -227,8 +227,8 @@ def test_the_payloads_inertia_in_the_plans_response_is_the_loaded_arms(model, rn
 def test_in_protocol_v2_the_plan_holds_the_windows_last_states_at_rest(hold, monkeypatch, scenario, model):
     """`rest_hold`: in every plan that reaches the window's end, each of the window's last `rest_hold` predicted
     states lies within the aim's share of the at-rest rule (the band of the move on q, the speed limit on qd) about the
-    goal; an aggressive motion's plans held at the last state alone (1) reach the box only at that state, the one
-    before it outside."""
+    goal; held at the last state alone (1), most of an aggressive motion's plans reach the box only at that state, the
+    one before it outside."""
     from mjtraj.core.settle import SETTLE_BAND, SETTLE_SPEED, held
 
     settings = dataclasses.replace(DEFAULT_SETTINGS, rest_hold=hold)
@@ -251,11 +251,12 @@ def test_in_protocol_v2_the_plan_holds_the_windows_last_states_at_rest(hold, mon
         end = N - k
         if end < 1 or end >= states.shape[0]:
             continue
-        aim = s.aim_last - (s.aim_last - s.goal_aim) * min(1.0, (end - 1) / (s.aim_ramp - 1))
+        aim = s.aim_last - (s.aim_last - s.goal_aim) * min(1.0, (end - 1) / max(s.aim_ramp - 1, 1))
         box = aim * np.concatenate([np.full(3, SETTLE_BAND * move), np.full(3, SETTLE_SPEED)])
         for j in range(max(end - hold + 1, 1), end + 1):
             assert np.all(np.abs(states[j] - goal) <= box + 1e-6), (k, j)  # DAQP's feasibility tolerance
         if end > 1:
             before.append(np.max(np.abs(states[end - 1] - goal) / box))
+    outside = np.mean(np.array(before) > 1.05)
     assert len(before) > 20
-    assert (max(before) > 1.05) == (hold == 1)
+    assert outside > 0.5 if hold == 1 else outside == 0.0

@@ -26,12 +26,12 @@ The two protocols (docs/design.md) differ in what the law knows and how the epis
   real-time iteration).
 - Protocol v2 (the settle window: episodes that end at rest at the goal, J_settle): the horizon runs a whole H past
   every period, through the window and past the episode's end with the goal held and scored; the terminal rows hold
-  the window's last state within the at-rest rule (`goal_aim` of the settling band and of the speed limit, widening
-  to `aim_last` over the last `aim_ramp` periods); the model is linearised along the reference; and the law plans from
-  a Kalman filter's estimate (`mjtraj.core.estimator`): the state, a torque disturbance w_j = d (the same on every
-  step) and, for `adaptive_mpc`, the adaptive law's parameters (a payload at the flange, viscous damping and dry
-  friction per joint), whose torque along the reference enters every predicted step. A residual added to the
-  command enters the prediction, so that the filter does not take it for a disturbance.
+  the window's last `rest_hold` states within the at-rest rule (`goal_aim` of the settling band and of the speed
+  limit, widening to `aim_last` over the last `aim_ramp` periods); the model is linearised along the reference; and
+  the law plans from a Kalman filter's estimate (`mjtraj.core.estimator`): the state, a torque disturbance w_j = d
+  (the same on every step) and, for `adaptive_mpc`, the adaptive law's parameters (a payload at the flange, viscous
+  damping and dry friction per joint), whose torque along the reference enters every predicted step. A residual
+  added to the command enters the prediction, so that the filter does not take it for a disturbance.
 
 `adaptive_mpc` in protocol v1 plans on the adaptive law's online estimate (`mjtraj.core.adaptive`): it adds the
 estimated torque Y theta_hat (held over the horizon, inside the saturation) and updates theta_hat by the adaptive
@@ -100,7 +100,8 @@ class PredictiveSettings:
     """Protocol v2: the aim at the last period (the whole rule, 1, left episodes ending at 0.05 rad/s exactly:
     aggressive successes 96 of 100 against 100)."""
     rest_hold: int = 5
-    """Protocol v2: the terminal rows hold this many of the window's last states, each within the at-rest aim. Held
+    """Protocol v2: the terminal rows hold this many of the window's last states, each within the at-rest aim (at
+    most the window's periods, 25 at 20 ms: a state before the window would be held at the goal too). Held
     at the last state alone (1) the plan reached the box at that state only, the state before it outside (a late
     correction whose speed the noisy family's filter mispredicts: the held-out noisy failures ended at 0.05 to 0.15
     rad/s). Rule: settle_real_time_iteration's, with the filter's initial_parameter (chosen together); for
