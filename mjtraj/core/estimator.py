@@ -40,8 +40,8 @@ class KalmanSettings:
     "Protocol v2" (chosen on the validation stream, never on evaluation scenarios)."""
 
     sensor: float = 1e-3
-    """rad: the position sensor's standard deviation the filter assumes (the noisy family's 1 mrad); the velocity's
-    is sqrt(2) sensor / dt."""
+    """rad: the position sensor's standard deviation the filter assumes (the noisy family's 1 mrad; `adaptive_mpc`'s
+    filter assumes 2, `mjtraj.core.mpc.ADAPTIVE_SETTINGS`); the velocity's is sqrt(2) sensor / dt."""
     state_noise: tuple[float, float] = (1e-4, 5e-3)
     """(rad, rad/s): standard deviations per period of what the linear model mispredicts on q and on qd besides the
     torques."""
