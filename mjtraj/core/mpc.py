@@ -104,9 +104,10 @@ class PredictiveSettings:
     most the window's periods, 25 at 20 ms: a state before the window would be held at the goal too). Held
     at the last state alone (1) the plan reached the box at that state only, the state before it outside (a late
     correction whose speed the noisy family's filter mispredicts: the held-out noisy failures ended at 0.05 to 0.15
-    rad/s). Rule: settle_real_time_iteration's, with the filter's initial_parameter (chosen together); for
-    `adaptive_mpc` on 300 validation draws of the noise-free families and 1000 noisy ones, 1876 episodes at rest
-    against 1874 with 1 (docs/floor.md, "Protocol v2"); `mpc` on 100 of each, 384 against 377."""
+    rad/s). Rule: settle_real_time_iteration's, with the filter's initial_parameter (chosen together, before
+    `adaptive_mpc`'s sensor of 2 mrad); for `adaptive_mpc` on 300 validation draws of the noise-free families and 1000
+    noisy ones, 1876 episodes at rest against 1874 with 1 (docs/floor.md, "Protocol v2"); `mpc` on 100 of each, 384
+    against 377."""
     past_end: bool = True
     """Protocol v2: plan a whole horizon from every period, past the episode's end with the goal held and scored
     (True), or stop the horizon at the episode's end (False; a horizon of one period at the end is a dead-beat plan
