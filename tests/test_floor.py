@@ -386,7 +386,8 @@ def test_protocol_v2s_floor_replays_at_rest_and_no_law_at_rest_scores_below_it(f
     assert at_rest and all(cost >= floor.cost for cost in at_rest.values()), at_rest
     if fs.perturbation is not None:
         assert not any(np.isnan(list(floor.starts.values())))  # every start solved
-        assert all(floor.without(law) >= floor.cost for law in floor.controllers)
+        # the starts hold the solver's costs (the floor's own is its replay's, equal to round-off)
+        assert all(floor.without(law) >= floor.solver_cost for law in floor.controllers)
 
 
 def test_the_solvers_tunables_are_settings_in_the_open(scenario, model):
