@@ -227,8 +227,9 @@ def test_the_payloads_inertia_in_the_plans_response_is_the_loaded_arms(model, rn
 def test_in_protocol_v2_the_plan_holds_the_windows_last_states_at_rest(hold, monkeypatch, scenario, model):
     """`rest_hold`: in every plan that reaches the window's end, each of the window's last `rest_hold` predicted
     states lies within the aim's share of the at-rest rule (the band of the move on q, the speed limit on qd) about the
-    goal; held at the last state alone (1), most of an aggressive motion's plans reach the box only at that state, the
-    one before it outside."""
+    goal, to 5 % (the rows are soft: the declared floor's DAQP, 0.5, leaves the first plans that reach the end up to
+    3 % outside); held at the last state alone (1), most of an aggressive motion's plans reach the box only at that
+    state, the one before it more than 5 % outside."""
     from mjtraj.core.settle import SETTLE_BAND, SETTLE_SPEED, held
 
     settings = dataclasses.replace(DEFAULT_SETTINGS, rest_hold=hold)
@@ -254,7 +255,7 @@ def test_in_protocol_v2_the_plan_holds_the_windows_last_states_at_rest(hold, mon
         aim = s.aim_last - (s.aim_last - s.goal_aim) * min(1.0, (end - 1) / max(s.aim_ramp - 1, 1))
         box = aim * np.concatenate([np.full(3, SETTLE_BAND * move), np.full(3, SETTLE_SPEED)])
         for j in range(max(end - hold + 1, 1), end + 1):
-            assert np.all(np.abs(states[j] - goal) <= box + 1e-6), (k, j)  # DAQP's feasibility tolerance
+            assert np.all(np.abs(states[j] - goal) <= 1.05 * box), (k, j)
         if end > 1:
             before.append(np.max(np.abs(states[end - 1] - goal) / box))
     outside = np.mean(np.array(before) > 1.05)
