@@ -261,3 +261,13 @@ def test_in_protocol_v2_the_plan_holds_the_windows_last_states_at_rest(hold, mon
     outside = np.mean(np.array(before) > 1.05)
     assert len(before) > 20
     assert outside > 0.5 if hold == 1 else outside == 0.0
+
+
+def test_a_rest_hold_below_one_state_is_refused_by_name():
+    from mjtraj.core.mpc import PredictiveSettings
+    from mjtraj.exceptions import InvalidInputError
+
+    for bad in (0, -2, 2.5, True):
+        with pytest.raises(InvalidInputError) as caught:
+            PredictiveSettings(rest_hold=bad)
+        assert str(caught.value) == f"rest_hold: expected a whole number >= 1, got {bad!r}"
