@@ -160,7 +160,8 @@ def scale_action(action: npt.ArrayLike, limit: NDArray[np.float64]) -> NDArray[n
 
 class Episode(NamedTuple):
     """What one episode runs: its reference, the diagonal weights that score it (Q_exec (2n,), R_exec (n,)), its
-    plant (None: the nominal one) and its measurement noise on [q; qd] ((N, 2n), or None)."""
+    plant (None: the nominal one), its measurement noise on [q; qd] ((N, 2n), or None) and the noise's standard
+    deviation on q declared to the control law (rad, 0 without noise; `ClosedLoop.start`)."""
 
     reference: Reference
     weights: tuple[NDArray[np.float64], NDArray[np.float64]]
@@ -168,6 +169,7 @@ class Episode(NamedTuple):
     noise: NDArray[np.float64] | None = None
     task: Task | None = None
     """The task the reference was planned for (reset's info reports it)."""
+    sensor: float = 0.0
 
 
 class TrackCore:
@@ -217,8 +219,9 @@ class TrackCore:
         else:
             task, plant = s.sample_episode(rng)
             reference, weights = self._planned(task), s.weights(task)
-        return Episode(reference, weights, plant, s.sample_noise(rng, reference.steps),
-                       task if task is not None else s.fixed_task)
+        noise = s.sample_noise(rng, reference.steps)
+        return Episode(reference, weights, plant, noise, task if task is not None else s.fixed_task,
+                       s.measurement_noise if noise is not None else 0.0)
 
     def replay(self, scenario: FamilyScenario) -> Episode:
         """The episode of a sweep scenario, as sweeps run it: its task planned by this env's planner, Bryson's
@@ -229,7 +232,8 @@ class TrackCore:
         if scenario.perturbation is not None and s.measurement_noise > 0:
             noise = measurement_noise([scenario], task.steps + s.settle_steps, s.n, s.measurement_noise,
                                       self.model.opt.timestep)[:, 0]
-        return Episode(self._planned(task), s.weights(task), scenario.perturbation, noise, task)
+        return Episode(self._planned(task), s.weights(task), scenario.perturbation, noise, task,
+                       s.measurement_noise if noise is not None else 0.0)
 
     def reset(self, rngs: Sequence[np.random.Generator], ids: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
         """Start new episodes on simulations `ids` (all if None), one rng each; their observations (len, d)."""
@@ -255,12 +259,12 @@ class TrackCore:
             for b, e in enumerate(episodes):
                 if e.noise is not None:
                     noise[:e.reference.steps, b] = e.noise
-        references = [e.reference for e in episodes]
+        references, sensor = [e.reference for e in episodes], np.array([e.sensor for e in episodes])
         for loop in loops:
             if ids is None:
-                loop.start(references, noise=noise)
+                loop.start(references, noise=noise, sensor=sensor)
             else:
-                loop.restart(ids, references, noise=noise)
+                loop.restart(ids, references, noise=noise, sensor=sensor)
         self._observer.start(rows, [e.plant for e in episodes], references)
         return self._observer(self.loop, rows)
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from mjtraj._checkout import MAPPED, checkout_root
 
-__version__ = "0.4.0.dev3"
+__version__ = "0.4.0.dev4"
 """Changes whenever rows can move (a CHANGELOG entry says why), so that a result's version names its numbers."""
 
 LIBRARIES = ("mujoco", "numpy", "scipy", "osqp", "daqp", "numba", "llvmlite", "pin", "ruckig", "torch", "gymnasium")
@@ -133,7 +133,7 @@ _LABELS = {"blas": "BLAS", "cpu": "CPU", "commit": "commit", "python": "Python"}
 
 
 def describe(record: Mapping[str, str], names: Sequence[str] | None = None) -> str:
-    """The provenance `record` (its fields `names`, default all) as text: "mjtraj 0.4.0.dev3, numpy 2.4.6, no torch,
+    """The provenance `record` (its fields `names`, default all) as text: "mjtraj 0.4.0.dev4, numpy 2.4.6, no torch,
     BLAS 'openblas 0.3.30 SkylakeX', CPU 'Intel(R) Xeon(R) Processor', commit 1a2b...", or "no git commit"."""
     parts = []
     for name in record if names is None else names:

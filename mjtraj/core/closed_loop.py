@@ -388,7 +388,8 @@ class ClosedLoop:
         qdd = reference_accelerations(references, self.config.ff_accel) if reads else None
         return q_ref, qd_ref, ff, qdd
 
-    def start(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None) -> None:
+    def start(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None,
+              sensor: npt.ArrayLike = 0.0) -> None:
         """(Re)start every simulation at its reference's first sample, with I_{-1} = 0.
 
         Args:
@@ -396,7 +397,11 @@ class ClosedLoop:
             preview the reference (each simulation ends at its own N, `ends`).
           noise: measurement noise added to [q; qd] before control, shape (N, B, 2n) in rad and rad/s (N the
             longest reference's); None for exact measurements.
+          sensor: the standard deviation of the position noise declared to the control law, rad, one for all or
+            (B,) (0: exact measurements); a law may design its estimator for it (the predictive laws' filter,
+            `mjtraj.core.estimator`), none reads `noise` itself.
         """
+        declared = self._declared(sensor, self.nsim)
         q_ref, qd_ref, ff, checked, qdd, lengths = self._prepare(references, self.nsim, noise)
         N, B, n = ff.shape
         records: dict[str, NDArray[Any]] = {name: np.full((N, B, n), np.nan) for name in RECORDED}
@@ -408,11 +413,11 @@ class ClosedLoop:
                                  law_state=self._initial_law_state(B), ends=lengths,
                                  teachers={name: _TeacherState(np.zeros((B, n)), _initial_state(law, B))
                                            for name, law in self._teachers.items()})
-        self._track(slice(None), q_ref, qd_ref, ff, references)
+        self._track(slice(None), q_ref, qd_ref, ff, references, declared)
         self._plant.reset(q_ref[0], qd_ref[0])
 
     def restart(self, ids: npt.ArrayLike, references: Sequence[Reference], *,
-                noise: npt.ArrayLike | None = None) -> None:
+                noise: npt.ArrayLike | None = None, sensor: npt.ArrayLike = 0.0) -> None:
         """Restart simulations `ids` (the vector env's autoreset) on `references`; the others go on. Restarting every
         simulation on references of another N starts the batch afresh (`start`); restarting some on references of
         another length runs references of several lengths side by side (`start`), which a law that previews the
@@ -420,13 +425,16 @@ class ClosedLoop:
 
         Args:
           noise: as in `start`, shape (N, len(ids), 2n) (N the longest of `references`).
+          sensor: as in `start`, one for all or (len(ids),).
         """
         s = self._running()
         rows = np.asarray(ids, dtype=np.intp).reshape(-1)
+        declared = self._declared(sensor, rows.size)
         if (len(references) and references[0].steps != s.steps
                 and np.array_equal(np.sort(rows), np.arange(self.nsim))):
             order = np.argsort(rows)
-            self.start([references[i] for i in order], noise=None if noise is None else np.asarray(noise)[:, order])
+            self.start([references[i] for i in order], noise=None if noise is None else np.asarray(noise)[:, order],
+                       sensor=declared[order])
             return
         q_ref, qd_ref, ff, checked, qdd, lengths = self._prepare(references, rows.size, noise)
         if q_ref.shape[0] != s.q_ref.shape[0] and self.previews:
@@ -462,7 +470,7 @@ class ClosedLoop:
             taught.answered = None
         s.set_ends(where, lengths)
         s.resync()
-        self._track(where, q_ref, qd_ref, ff, references)
+        self._track(where, q_ref, qd_ref, ff, references, declared)
         self._plant.reset(q_ref[0], qd_ref[0], rows)
 
     def step(self, *, residual: NDArray[np.float64] | None = None,
@@ -614,19 +622,36 @@ class ClosedLoop:
             taught.answered = None
 
     def _track(self, rows: slice | NDArray[np.intp], q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64],
-               ff: NDArray[np.float64], references: Sequence[Reference]) -> None:
+               ff: NDArray[np.float64], references: Sequence[Reference], declared: NDArray[np.float64]) -> None:
         """Give a law that previews the reference (one with `track`, the model-predictive ones) the references of
-        simulations `rows`: q_ref, qd_ref (N+1, R, n), the feedforward (N, R, n); and, where they end with a settle
-        window (`mjtraj.core.settle.held`), its periods (R,) as `windows`."""
+        simulations `rows`: q_ref, qd_ref (N+1, R, n), the feedforward (N, R, n); where they end with a settle
+        window (`mjtraj.core.settle.held`), its periods (R,) as `windows`; where a sensor is declared noisy, the
+        declared standard deviations `declared` (R,), rad, as `sensors`."""
         windows = np.array([int(r.info.get("settle_steps", 0)) for r in references], dtype=np.intp)
+        extra: dict[str, NDArray[Any]] = {}
+        if windows.any():
+            extra["windows"] = windows
+        if declared.any():
+            extra["sensors"] = declared
         for law in (self._law, *self._teachers.values()):
             track = getattr(law, "track", None)
-            if track is None:
-                continue
-            if windows.any():
-                track(rows, q_ref, qd_ref, ff, windows=windows)
-            else:
-                track(rows, q_ref, qd_ref, ff)
+            if track is not None:
+                track(rows, q_ref, qd_ref, ff, **extra)
+
+    @staticmethod
+    def _declared(sensor: npt.ArrayLike, count: int) -> NDArray[np.float64]:
+        """The declared sensors' standard deviations (count,), rad, from one for all or one each.
+
+        Raises:
+          InvalidInputError: not finite numbers >= 0 of that shape.
+        """
+        value = np.asarray(sensor, dtype=np.float64)
+        if value.ndim == 0:
+            value = np.full(count, float(value))
+        if value.shape != (count,) or not np.all(np.isfinite(value)) or np.any(value < 0):
+            raise InvalidInputError(f"sensor: expected one or {count} finite standard deviations >= 0 (rad), got "
+                                    f"{np.asarray(sensor).tolist()!r}")
+        return value
 
     def _initial_law_state(self, rows: int) -> NDArray[np.float64] | None:
         """A stateful law's initial state for `rows` simulations, (rows, state_size); None for other laws."""
@@ -694,13 +719,14 @@ class ClosedLoop:
         return Rollout(**rec, q_final=q_final, qd_final=qd_final, e_final=s.q_ref[ends, rows] - q_final,
                        diverged_step=s.diverged_step[rows].copy(), dt=self.dt)
 
-    def run(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None) -> Rollout:
+    def run(self, references: Sequence[Reference], *, noise: npt.ArrayLike | None = None,
+            sensor: npt.ArrayLike = 0.0) -> Rollout:
         """Execute one reference per simulation from its first sample to its end; all share N and dt.
 
-        `noise`: measurement noise, shape (N, B, 2n), as in `start`.
+        `noise`: measurement noise, shape (N, B, 2n), and `sensor` its declared standard deviation, as in `start`.
         """
         self._check(references)
-        self.start(references, noise=noise)
+        self.start(references, noise=noise, sensor=sensor)
         for _ in range(self.steps):
             self.step()
         return self.rollout()

@@ -143,12 +143,14 @@ class PredictiveSettings:
 DEFAULT_SETTINGS = PredictiveSettings()
 """`mpc`'s settings."""
 
-ADAPTIVE_SETTINGS = PredictiveSettings(kalman=KalmanSettings(sensor=2e-3))
-"""`adaptive_mpc`'s settings: `mpc`'s, but its filter assumes a sensor twice as noisy as the noisy family's (2 mrad;
-the margin absorbs what the parameters' torque along the reference mispredicts). Rule: the settings' own, on 300
-validation draws of each noise-free family and 1000 noisy ones: at rest on 1883 with 2 mrad, 1882 with 1.5, 1876
-with 1 and, on the noisy draws, 973 of 1000 with 3 (987, 985, 978); `mpc`, which estimates no parameters, came to
-rest on fewer draws with 2 mrad (371 of 400 against 384), so it keeps 1 (docs/floor.md, "Protocol v2")."""
+ADAPTIVE_SETTINGS = PredictiveSettings(kalman=KalmanSettings(sensor_margin=2.0))
+"""`adaptive_mpc`'s settings: `mpc`'s, but its filter assumes a sensor twice as noisy as the loop declares, at least
+1 mrad (the noisy family's 2 mrad, exact measurements' 1: the margin absorbs what the parameters' torque along the
+reference mispredicts under noise). Rule: the settings' own, on 300 validation draws of each noise-free family and
+1000 noisy ones: at rest on 1885 with this rule, 1883 with 2 mrad everywhere, 1882 with 1.5, 1876 with 1 and, on the
+noisy draws, 973 of 1000 with 3 (987, 985, 978); a fixed 2 mrad also cost 1.7 % mean J_settle on the mismatched
+plants without noise. `mpc`, which estimates no parameters, came to rest on fewer draws with 2 mrad (371 of 400
+against 384), so it keeps 1 (docs/floor.md, "Protocol v2")."""
 
 
 def linearised_steps(model: mujoco.MjModel, X: NDArray[np.float64], U: NDArray[np.float64], *, tree: Any = False
@@ -247,11 +249,14 @@ class ModelPredictive:
         return out
 
     def track(self, rows: NDArray[np.intp] | slice, q_ref: NDArray[np.float64], qd_ref: NDArray[np.float64],
-              tau_ff: NDArray[np.float64], *, windows: NDArray[np.intp] | None = None) -> None:
+              tau_ff: NDArray[np.float64], *, windows: NDArray[np.intp] | None = None,
+              sensors: NDArray[np.float64] | None = None) -> None:
         """Linearise the model along the references of simulations `rows`: q_ref, qd_ref (N+1, R, n), the
         feedforward tau_ff (N, R, n). Past N the reference holds its last pose at rest, with zero torque. `windows`
         (R,): the periods of a settle window that ends each reference (protocol v2; None or 0: none), whose at-rest
-        rule then is the terminal constraint."""
+        rule then is the terminal constraint. `sensors` (R,): the standard deviation of the position noise the loop
+        declares for each simulation, rad (None: exact measurements), which protocol v2's filter is designed for
+        (`KalmanSettings.assumed`)."""
         N, R, n = tau_ff.shape
         H = self.horizon
         x_ref = np.concatenate([q_ref, qd_ref], axis=2).transpose(1, 0, 2)  # (R, N+1, 2n)
@@ -270,6 +275,7 @@ class ModelPredictive:
                   "steps": np.full(R, N, dtype=np.float64),
                   "move": np.max(np.abs(q_ref[-1] - q_ref[0]), axis=1),
                   "window": np.zeros(R) if windows is None else np.asarray(windows, dtype=np.float64),
+                  "sensor": np.zeros(R) if sensors is None else np.asarray(sensors, dtype=np.float64),
                   "guess_x": np.zeros((R, H + 1, 2 * n)), "guess_u": np.zeros((R, H, n)),
                   "guess_k": np.full(R, -1.0), "regressor": self._regressors(x_ext),
                   **self._inertias(x_ext)}
@@ -494,8 +500,10 @@ class ModelPredictive:
             fresh: NDArray[np.bool_] = np.asarray(np.isnan(expected[rows]).any(axis=1))  # the first period, or one
             # after a period the law did not command
             prior = np.where(fresh[:, None], measured[rows], expected[rows])
-            P = np.where(fresh[:, None, None], self.filter.initial(rows.size), covariance[rows])
-            x, z, P = self.filter.correct(prior, np.where(fresh[:, None], 0.0, torque[rows]), P, measured[rows])
+            declared = self._plan["sensor"][rows]
+            P = np.where(fresh[:, None, None], self.filter.initial(rows.size, declared), covariance[rows])
+            x, z, P = self.filter.correct(prior, np.where(fresh[:, None], 0.0, torque[rows]), P, measured[rows],
+                                          declared)
             out.state[rows], out.torque[rows], out.covariance[rows] = x, z, P
             out.disturbance[rows] = 0.0
         return out

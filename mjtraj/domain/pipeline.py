@@ -62,13 +62,15 @@ class Job:
     """One execution to run: a reference, the diagonal weights that score it (Q_exec (2n,), R_exec (n,)), and
     optionally how the plant differs from the nominal one, the measurement noise on [q; qd] ((N, 2n)) and, for an
     episode of protocol v2, its settle window (the reference then ends with the window's held goal:
-    `mjtraj.core.settle.held`; the outcome carries SETTLE_METRICS and is not_settled unless at rest at the goal)."""
+    `mjtraj.core.settle.held`; the outcome carries SETTLE_METRICS and is not_settled unless at rest at the goal);
+    `sensor`: the noise's standard deviation on q declared to the control law, rad (`ClosedLoop.start`)."""
 
     reference: Reference
     weights: tuple[NDArray[np.float64], NDArray[np.float64]]
     perturbation: Perturbation | None = None
     noise: NDArray[np.float64] | None = None
     settle: Settle | None = None
+    sensor: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -157,9 +159,10 @@ def _run(loop: ClosedLoop, jobs: Sequence[Job], references: list[Reference], noi
          actor: Actor | None) -> Rollout:
     """Run `loop` on `references`: by the controller alone, or with `actor`'s torque every period (added to the
     controller's in residual mode, else in its place)."""
+    sensor = np.array([job.sensor for job in jobs])
     if actor is None:
-        return loop.run(references, noise=noise)
-    loop.start(references, noise=noise)
+        return loop.run(references, noise=noise, sensor=sensor)
+    loop.start(references, noise=noise, sensor=sensor)
     actor.begin(loop, references, [job.perturbation for job in jobs])
     residual = actor.action_mode == "residual"
     for _ in range(loop.steps):

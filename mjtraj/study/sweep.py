@@ -274,8 +274,9 @@ def scoring_weights(settings: SweepSettings, scenarios: Sequence[FamilyScenario]
 def jobs_for(settings: SweepSettings, scenarios: Sequence[FamilyScenario], references: Sequence[Reference],
              weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]]) -> list[Job]:
     """The pipeline's jobs of scenarios[b] tracking references[b]: their perturbation, for mismatch scenarios under
-    sensor noise their measurement noise, and with a settle window the reference holding the task's goal for it
-    (the noise drawn for the whole episode: its first N periods are the motion's draw)."""
+    sensor noise their measurement noise (declared to the control law), and with a settle window the reference
+    holding the task's goal for it (the noise drawn for the whole episode: its first N periods are the motion's
+    draw)."""
     model = settings.base.model
     window = settings.settle_steps
     out = []
@@ -284,10 +285,11 @@ def jobs_for(settings: SweepSettings, scenarios: Sequence[FamilyScenario], refer
         if window:
             settle = Settle.of(s.task, ref.steps, window)
             ref = held(ref, window, s.task.qg)
-        noise = None
+        noise, sensor = None, 0.0
         if s.perturbation is not None and settings.sensor_noise > 0:
             noise = measurement_noise([s], ref.steps, model.nv, settings.sensor_noise, model.opt.timestep)[:, 0]
-        out.append(Job(ref, w, s.perturbation, noise, settle))
+            sensor = settings.sensor_noise
+        out.append(Job(ref, w, s.perturbation, noise, settle, sensor))
     return out
 
 
