@@ -125,3 +125,66 @@ def test_a_residual_enters_the_prediction_so_the_filter_does_not_cancel_it(law):
     pushed, pushed_cost = run(np.array([0.5, 0.0, 0.0]))
     assert np.max(np.abs(pushed[5:, 0] - quiet[5:, 0])) < 0.3  # 3 N m of residual: not in the estimate
     assert pushed_cost > cost
+
+
+def test_the_filter_assumes_the_declared_sensor_times_its_margin_at_least_its_least():
+    """`sensor_margin` 2, `sensor` 1 mrad: simulations declared exact, 1 mrad and 3 mrad are filtered as three
+    filters that assume a fixed 1, 2 and 6 mrad (the covariance before the first measurement and every correction)."""
+    rng = np.random.default_rng(8)
+    n = 3
+    dt, A, B = _model(rng, n)
+    declared = np.array([0.0, 1e-3, 3e-3])
+    ours = DisturbanceKalman(n, dt, KalmanSettings(sensor_margin=2.0), bounds=[5.0])
+    fixed = [DisturbanceKalman(n, dt, KalmanSettings(sensor=s), bounds=[5.0]) for s in (1e-3, 2e-3, 6e-3)]
+    P = ours.initial(3, declared)
+    for b, f in enumerate(fixed):
+        np.testing.assert_array_equal(P[b], f.initial(1)[0])
+    x, z = np.zeros((3, 2 * n)), np.zeros((3, n + 1))
+    for _ in range(5):
+        Y = rng.normal(size=(3, n, 1))
+        P = ours.predict(P, np.broadcast_to(A, (3, *A.shape)), np.broadcast_to(B, (3, *B.shape)), Y)
+        y = rng.normal(size=(3, 2 * n)) * 0.01
+        theirs = [f.correct(x[b:b + 1], z[b:b + 1], P[b:b + 1], y[b:b + 1]) for b, f in enumerate(fixed)]
+        x, z, P = ours.correct(x, z, P, y, declared)
+        for b, (xb, zb, Pb) in enumerate(theirs):
+            np.testing.assert_array_equal(x[b], xb[0])
+            np.testing.assert_array_equal(z[b], zb[0])
+            np.testing.assert_array_equal(P[b], Pb[0])
+    assert not np.array_equal(P[0], P[1])
+    with pytest.raises(Exception, match="sensor_margin"):
+        KalmanSettings(sensor_margin=0.0)
+
+
+@pytest.mark.slow
+def test_the_loop_declares_its_sensor_to_the_predictive_laws_filter(monkeypatch, scenario, model):
+    """A noisy mismatch episode of protocol v2 under `adaptive_mpc` (margin 2) with 1 mrad declared is, bit for bit,
+    the episode of a law whose filter assumes a fixed 2 mrad with nothing declared; declaring nothing to the shipped
+    law (so that it assumes 1 mrad) changes the execution."""
+    import dataclasses
+
+    import mjtraj.core.laws as laws
+    from mjtraj.core.model import JointInfo
+    from mjtraj.core.mpc import ADAPTIVE_SETTINGS, AdaptiveModelPredictive
+    from mjtraj.core.settle import Settle, held
+    from mjtraj.domain.families import draw_scenario, measurement_noise, perturbed_plant
+    from mjtraj.domain.pipeline import Job, execute_batch
+    from mjtraj.study.sweep import SCORING
+
+    drawn = draw_scenario("mismatch", 777, 1, model, 0.02)
+    reference = held(scenario.planner("cubic").plan(drawn.task, model), 25, drawn.task.qg)
+    noise = measurement_noise([drawn], reference.steps, 3, 1e-3, 0.02)[:, 0]
+    weights = SCORING.weights(drawn.task, JointInfo.of(model).torque_limit)
+    settle = Settle.of(drawn.task, reference.steps - 25, 25)
+    config, plant = dataclasses.replace(scenario.loop, controller="adaptive_mpc"), perturbed_plant(model)
+
+    def run(sensor):
+        job = Job(reference, weights, drawn.perturbation, noise, settle, sensor)
+        return execute_batch(model, config, [job], plant=plant)[0].dtau
+
+    declared, silent = run(1e-3), run(0.0)
+    fixed = dataclasses.replace(ADAPTIVE_SETTINGS, kalman=dataclasses.replace(ADAPTIVE_SETTINGS.kalman, sensor=2e-3,
+                                                                               sensor_margin=1.0))
+    monkeypatch.setitem(laws._BUILT_IN, "adaptive_mpc", lambda config, dt, n, nsim, m: AdaptiveModelPredictive(
+        m, dt, nsim, rate=config.adaptation_rate, settings=fixed))
+    np.testing.assert_array_equal(run(0.0), declared)
+    assert not np.array_equal(silent, declared)

@@ -148,6 +148,23 @@ def _check_at_rest_rule(config, scenarios):
     assert "ok" in seen
 
 
+@pytest.mark.slow
+def test_the_noisy_env_declares_its_sensor_to_the_law_as_the_sweep_does(tmp_path):
+    """UR5TrackNoisy-v2 under `adaptive_mpc`, whose filter is designed for the sensor the loop declares, replays the
+    sweep's noisy row (1 mrad declared there too) bit for bit."""
+    from mjtraj.rl.evaluate import _law_config
+
+    row = run_unit(SweepSettings(families=("mismatch",), scenarios=1, seed=4, planners=("cubic",),
+                                 config=_law_config("adaptive_mpc", tmp_path),
+                                 settle=0.5, sensor_noise=1e-3), ("mismatch", 0)).rows[0]
+    env = gym.make("UR5TrackNoisy-v2", controller="adaptive_mpc")
+    env.reset(options={"scenario": {"family": "mismatch", "seed": 4, "index": row["scenario"]}})
+    done = False
+    while not done:
+        _, _, done, _, info = env.step(np.zeros(3))
+    assert info["metrics"]["cost"] == row["cost"] and info["metrics"]["end_speed"] == row["end_speed"]
+
+
 def test_the_v2_env_replays_the_sweeps_v2_rows_bit_for_bit():
     """UR5TrackAggressive-v2 and UR5TrackMismatch-v2 with a zero residual are the sweep's cubic+PID rows under a
     0.5 s window: the same score, parts, end speed and at-rest verdict; the return is minus J_settle."""
