@@ -4,6 +4,8 @@ their bounds; and in the predictive laws: a residual is not taken for a disturba
 
 from __future__ import annotations
 
+import re
+
 import gymnasium as gym
 import mjtraj.envs  # noqa: F401
 import numpy as np
@@ -188,3 +190,16 @@ def test_the_loop_declares_its_sensor_to_the_predictive_laws_filter(monkeypatch,
         m, dt, nsim, rate=config.adaptation_rate, settings=fixed))
     np.testing.assert_array_equal(run(0.0), declared)
     assert not np.array_equal(silent, declared)
+
+
+def test_a_declared_sensor_that_is_not_a_standard_deviation_per_simulation_is_refused(scenario, model):
+    from mjtraj.core.closed_loop import ClosedLoop
+    from mjtraj.exceptions import InvalidInputError
+
+    loop = ClosedLoop(model, scenario.loop, nsim=2)
+    references = [scenario.planner("cubic").plan(scenario.task, model)] * 2
+    for bad, shown in ((-1e-3, "-0.001"), ([1e-3, 0.0, 0.0], "[0.001, 0.0, 0.0]"), ("noisy", "'noisy'")):
+        with pytest.raises(InvalidInputError, match=r"^sensor: expected one or 2 finite standard deviations >= 0 "
+                                                    r"\(rad\), got " + re.escape(shown) + "$"):
+            loop.start(references, sensor=bad)
+    loop.start(references, sensor=[0.0, 1e-3])  # one each is accepted

@@ -645,12 +645,15 @@ class ClosedLoop:
         Raises:
           InvalidInputError: not finite numbers >= 0 of that shape.
         """
-        value = np.asarray(sensor, dtype=np.float64)
+        wanted = f"sensor: expected one or {count} finite standard deviations >= 0 (rad), got"
+        try:
+            value = np.asarray(sensor, dtype=np.float64)
+        except (TypeError, ValueError) as e:
+            raise InvalidInputError(f"{wanted} {sensor!r}") from e
         if value.ndim == 0:
             value = np.full(count, float(value))
         if value.shape != (count,) or not np.all(np.isfinite(value)) or np.any(value < 0):
-            raise InvalidInputError(f"sensor: expected one or {count} finite standard deviations >= 0 (rad), got "
-                                    f"{np.asarray(sensor).tolist()!r}")
+            raise InvalidInputError(f"{wanted} {np.asarray(sensor).tolist()!r}")
         return value
 
     def _initial_law_state(self, rows: int) -> NDArray[np.float64] | None:
