@@ -80,6 +80,9 @@ def test_a_batched_policy_is_scored_by_the_protocol(tmp_path):
      "hyperparameter: unknown name 'gamma' for --batched; valid: discount, epochs, gae_lambda, hidden, "
      "initial_std, learning_rate, minibatches, observe_control, preview, residual_scale, rollouts"),
     (["--algo", "ppo", "--batched", "--preview", "-1"], "preview: expected an integer >= 0, got -1"),
+    (["--algo", "ppo", "--batched", "--observe-plant", "true"],
+     "observe_plant: unknown value 'true'; valid: none, estimate"),
+    (["--algo", "ppo", "--batched", "--history", "-2"], "history: expected an integer >= 0, got -2"),
     (["--algo", "ppo", "--batched", "--families", "nominal,extreme"],
      "families: unknown value 'extreme'; valid: nominal, aggressive, mismatch"),
     (["--algo", "ppo", "--batched", "--num-envs", "2"],

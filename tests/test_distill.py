@@ -56,11 +56,49 @@ def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, m
         distill(SMALL, tmp_path / "whole", progress=False)
 
 
+def test_balanced_weights_make_each_family_count_at_its_own_scale():
+    """Two rounds of three steps on four sub-envs (two per family), one family's labels a hundred times the other's:
+    with balance "family" each family's weighted mean squared label is the same and the weights average 1 (the
+    oracle: the definition, computed by hand per family); without balance every weight is 1."""
+    settings = DistillSettings(teacher="computed_torque", controller="pid", families=("nominal", "aggressive"),
+                               num_envs=4, balance="family")
+    rng = np.random.default_rng(2)
+    envs = np.array([0, 0, 1, 1])
+    y = rng.normal(size=(2 * 3 * 4, 3)) * np.where(np.tile(envs, 6) == 0, 0.01, 1.0)[:, None]
+    w = distill_module.sample_weights(y, settings)
+    family = np.tile(envs, 6)
+    weighted = [np.mean(w[family == g, None] * y[family == g] ** 2) for g in (0, 1)]
+    assert weighted[0] == pytest.approx(weighted[1], rel=1e-12) and w.mean() == pytest.approx(1.0, rel=1e-12)
+    assert w[family == 0][0] / w[family == 1][0] == pytest.approx(np.mean(y[family == 1] ** 2)
+                                                                  / np.mean(y[family == 0] ** 2), rel=1e-12)
+    assert np.all(distill_module.sample_weights(y, SMALL) == 1.0)
+
+
+def test_a_student_declares_what_it_observes_and_the_env_gives_it():
+    """A student that observes the task and the adaptive law's estimate: its deployable module declares both (what
+    `rl eval` builds its env from), and that env's observation is the size the student was trained on."""
+    from mjtraj.envs import resolve
+
+    from mjtraj.rl.batched_policy import batched_policy_class
+
+    settings = DistillSettings(teacher="computed_torque", families=("nominal",), num_envs=2, hidden=(8,), preview=3,
+                               observe_task=True, observe_plant="estimate", history=1)
+    trained = resolve(**settings.env_kwargs("nominal")).obs_size
+    module = batched_policy_class()(trained, 3, settings.policy_settings())
+    assert {k: module.env[k] for k in ("observe_task", "observe_plant", "history", "preview")} == {
+        "observe_task": True, "observe_plant": "estimate", "history": 1, "preview": 3}
+    assert resolve(**module.env).obs_size == trained == (6 * 3 + 1 + 6 * 3 + 7 + 2) * 2
+
+
 def test_settings_are_refused_by_name():
     with pytest.raises(InvalidInputError, match=r"^teacher: "):
         DistillSettings(teacher="oracle")
     with pytest.raises(InvalidInputError, match=r"^num_envs: expected at least one sub-env per family \(3\), got 2$"):
         DistillSettings(num_envs=2)
+    with pytest.raises(InvalidInputError, match=r"^balance: "):
+        DistillSettings(balance="equal")
+    with pytest.raises(InvalidInputError, match=r"^observe_plant: "):
+        DistillSettings(observe_plant="true")
 
 
 @pytest.mark.slow

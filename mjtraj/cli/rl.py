@@ -129,6 +129,13 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--hidden", type=counts, default=[256, 256, 256],
                    help="hidden layer widths, comma-separated (default 256,256,256)")
     p.add_argument("--preview", type=int, default=10, help="future reference samples observed (default 10)")
+    p.add_argument("--observe-task", dest="observe_task", action="store_true",
+                   help="also observe the move and the time to the motion's end (UR5Track-v2's observation)")
+    p.add_argument("--observe-plant", dest="observe_plant", choices=("none", "estimate"), default="none",
+                   help="estimate: also observe the adaptive law's estimate of the plant (default none)")
+    p.add_argument("--history", type=int, default=0, help="previous observations also observed (default 0)")
+    p.add_argument("--balance", choices=("none", "family"), default="none",
+                   help="family: each family's squared errors divided by its mean squared label (default none)")
     p.add_argument("--seed", type=int, default=0, help="the training streams' seed (default 0)")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1)")
     p.add_argument("--out", type=Path, default=Path("runs/distill"), help="output folder (default runs/distill)")
@@ -290,7 +297,8 @@ def _run_batched(args: argparse.Namespace) -> int:
         tuned["hidden"] = tuple(tuned["hidden"]) if isinstance(tuned["hidden"], list) else tuned["hidden"]
     given = {"steps": args.steps, "num_envs": args.num_envs, "controller": args.controller}
     flags = {"residual_scale": args.residual_scale, "initial_std": args.initial_std, "preview": args.preview,
-             "observe_control": args.observe_control or None}
+             "observe_control": args.observe_control or None, "history": args.history or None,
+             "observe_plant": None if args.observe_plant == "none" else args.observe_plant}
     settings = BatchedSettings(**{**{k: v for k, v in given.items() if v is not None}, **tuned,
                                   **{k: v for k, v in flags.items() if v is not None},
                                   "families": tuple(args.families), "seed": args.seed, "threads": args.threads,
@@ -317,8 +325,9 @@ def run_distill(args: argparse.Namespace) -> int:
         settings = DistillSettings(teacher=args.teacher, controller=args.controller,
                                    residual_scale=args.residual_scale, families=tuple(args.families),
                                    num_envs=args.num_envs, rounds=args.rounds, steps=args.steps, epochs=args.epochs,
-                                   hidden=tuple(args.hidden), preview=args.preview, seed=args.seed,
-                                   threads=args.threads)
+                                   hidden=tuple(args.hidden), preview=args.preview,
+                                   observe_task=args.observe_task, observe_plant=args.observe_plant,
+                                   history=args.history, balance=args.balance, seed=args.seed, threads=args.threads)
         report = distill(settings, args.out, progress=not args.no_progress, command=command_line(args))
     print(f"wrote {report.policy} ({int(report.rounds[-1]['samples'])} labelled states); score it: mjtraj rl eval "
           f"--policy {report.policy}")

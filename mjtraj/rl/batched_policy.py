@@ -45,12 +45,19 @@ class BatchedSettings:
     """The policy also observes the law's integral state and the next feedforward torque (the env's option)."""
     patience: int = 0
     """Stop once this many validation points in a row have not improved the best worst-family ratio (0: never)."""
+    observe_task: bool = False
+    """The policy also observes the move and the time to the motion's end (the env's option; UR5Track-v2's)."""
+    observe_plant: str = "none"
+    """none, or estimate: the policy also observes the adaptive law's estimate of the plant (the env's option; a
+    memory of the disturbance)."""
+    history: int = 0
+    """Previous observations the policy also observes (the env's option)."""
 
     def __post_init__(self) -> None:
         for name in ("steps", "num_envs", "rollouts", "epochs", "minibatches", "threads", "evaluations",
                      "validation"):
             positive_int(name, getattr(self, name))
-        for name in ("preview", "patience"):
+        for name in ("preview", "patience", "history"):
             if not isinstance(getattr(self, name), int) or getattr(self, name) < 0:
                 raise InvalidInputError(f"{name}: expected an integer >= 0, got {getattr(self, name)!r}")
         for name in ("learning_rate", "initial_std", "residual_scale"):
@@ -68,6 +75,7 @@ class BatchedSettings:
         if not self.hidden or any(int(h) < 1 for h in self.hidden):
             raise InvalidInputError(f"hidden: expected layer widths >= 1, got {self.hidden!r}")
         check_seed("seed", self.seed)
+        choice("observe_plant", self.observe_plant, ("none", "estimate"))
         from mjtraj.core import controller_names
 
         choice("controller", self.controller, controller_names())
@@ -85,8 +93,13 @@ class BatchedSettings:
     def env_kwargs(self, family: str) -> dict[str, Any]:
         """The UR5Track arguments of the sub-envs of `family`."""
         return {"action_mode": "residual", "residual_scale": self.residual_scale, "controller": self.controller,
-                "task": "random", "family": family, "reward_baseline": "controller", "preview": self.preview,
-                "observe_control": self.observe_control}
+                "task": "random", "family": family, "reward_baseline": "controller", **self.observation()}
+
+    def observation(self) -> dict[str, Any]:
+        """The env options that shape what the policy observes (a deployed policy declares them: `env`)."""
+        extra = {name: getattr(self, name) for name, default in (("observe_task", False), ("observe_plant", "none"),
+                                                                 ("history", 0)) if getattr(self, name) != default}
+        return {"preview": self.preview, "observe_control": self.observe_control, **extra}
 
 
 def mlp(inputs: int, outputs: int, hidden: tuple[int, ...]) -> Any:
@@ -118,8 +131,7 @@ def batched_policy_class() -> type:
             self.register_buffer("epsilon", torch.zeros(()))
             self.register_buffer("clip", torch.zeros(()))
             self.env = {"planner": "cubic", "controller": settings.controller, "action_mode": "residual",
-                        "residual_scale": settings.residual_scale, "preview": settings.preview,
-                        "observe_control": settings.observe_control}
+                        "residual_scale": settings.residual_scale, **settings.observation()}
 
         def forward(self, obs: Any) -> Any:
             mean, std, epsilon, clip = self.mean, self.std, self.epsilon, self.clip

@@ -64,6 +64,17 @@ class DistillSettings:
     hidden: tuple[int, ...] = (256, 256, 256)
     preview: int = 10
     """Future reference samples the student observes (the env's `preview`)."""
+    observe_task: bool = False
+    """The student also observes the move and the time to the motion's end (UR5Track-v2's observation)."""
+    observe_plant: str = "none"
+    """none, or estimate: the student also observes the adaptive law's estimate of the plant (a memory of the
+    disturbance: payload, damping, friction)."""
+    history: int = 0
+    """Previous observations the student also observes."""
+    balance: str = "none"
+    """How the loss weighs the families: none (every labelled state alike: the largest labels, an aggressive motion's,
+    dominate), or family (each state's squared error divided by its family's mean squared label in the data, so that
+    each family's corrections count at their own scale)."""
     settle: float = 0.5
     """The episodes' settle window, s (protocol v2's)."""
     task: str = "random"
@@ -86,6 +97,7 @@ class DistillSettings:
         if not (np.isfinite(self.settle) and self.settle >= 0):
             raise InvalidInputError(f"settle: expected a window >= 0 s, got {self.settle!r}")
         choice("task", self.task, ("random", "paper"))
+        choice("balance", self.balance, ("none", "family"))
         self.policy_settings()  # the mixture's checks (families, sub-envs, widths, seed): the batched runs'
 
     def split(self) -> list[int]:
@@ -97,14 +109,19 @@ class DistillSettings:
         it, the measured state observed (as protocol v2 gives it)."""
         return {"action_mode": "residual", "residual_scale": self.residual_scale, "controller": self.controller,
                 "task": self.task, **({"family": family} if self.task == "random" else {}),
-                "preview": self.preview, "settle": self.settle,
+                **self.policy_settings().observation(), "settle": self.settle,
                 "observe_measured": True, "teacher": self.teacher}
 
     def policy_settings(self) -> BatchedSettings:
         """The deployable policy's settings in the batched runs' format (what `load_batched` rebuilds)."""
         return BatchedSettings(num_envs=self.num_envs, residual_scale=self.residual_scale, controller=self.controller,
                                families=self.families, hidden=self.hidden, seed=self.seed, threads=self.threads,
-                               preview=self.preview)
+                               preview=self.preview, observe_task=self.observe_task,
+                               observe_plant=self.observe_plant, history=self.history)
+
+    def families_of_envs(self) -> NDArray[np.intp]:
+        """(num_envs,): the position in `families` of each sub-env's family."""
+        return np.repeat(np.arange(len(self.families)), self.split())
 
 
 @dataclass(frozen=True)
@@ -240,14 +257,15 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
 
 def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.float64], settings: DistillSettings,
            rng: np.random.Generator) -> float:
-    """`settings.epochs` passes of mean-squared error over (x, y) in shuffled minibatches, the standardisation
-    refitted to all of x first; the last epoch's mean loss."""
+    """`settings.epochs` passes of mean-squared error over (x, y) in shuffled minibatches (each state weighted by
+    `sample_weights`), the standardisation refitted to all of x first; the last epoch's mean loss."""
     import torch
 
     module.mean.copy_(torch.as_tensor(x.mean(axis=0), dtype=torch.float32))
     module.std.copy_(torch.as_tensor(x.std(axis=0), dtype=torch.float32))
     inputs = torch.as_tensor(x, dtype=torch.float32)
     targets = torch.as_tensor(y, dtype=torch.float32)
+    weights = torch.as_tensor(sample_weights(y, settings), dtype=torch.float32)[:, None]
     normal = torch.clamp((inputs - module.mean) / (module.std + module.epsilon), -module.clip, module.clip)
     loss_sum = 0.0
     for _ in range(settings.epochs):
@@ -255,13 +273,26 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
         loss_sum, batches = 0.0, 0
         for k in range(0, len(x), settings.batch):
             pick = order[k:k + settings.batch]
-            loss = torch.mean((module.net(normal[pick]) - targets[pick]) ** 2)
+            loss = torch.mean(weights[pick] * (module.net(normal[pick]) - targets[pick]) ** 2)
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
             loss_sum, batches = loss_sum + loss.item(), batches + 1
         loss_sum /= max(batches, 1)
     return loss_sum
+
+
+def sample_weights(y: NDArray[np.float64], settings: DistillSettings) -> NDArray[np.float64]:
+    """(M,): each labelled state's weight in the loss, for labels y (M, n) gathered round by round, step-major (a
+    round's states are steps x num_envs, sub-env i's family `families_of_envs()[i]`): 1 without balance; with
+    balance "family", 1 / its family's mean squared label (mean over the family's states and joints), scaled so that
+    the weights average 1."""
+    if settings.balance == "none":
+        return np.ones(len(y))
+    groups = np.tile(settings.families_of_envs(), len(y) // settings.num_envs)
+    scale = np.array([np.mean(y[groups == g] ** 2) for g in range(len(settings.families))])
+    weights = 1.0 / np.maximum(scale, 1e-12)[groups]
+    return weights / weights.mean()  # type: ignore[no-any-return]
 
 
 def _save_resume(path: Path, module: Any, optimiser: Any, rng: np.random.Generator, data_x: list[Any],
