@@ -198,8 +198,10 @@ def test_a_declared_sensor_that_is_not_a_standard_deviation_per_simulation_is_re
 
     loop = ClosedLoop(model, scenario.loop, nsim=2)
     references = [scenario.planner("cubic").plan(scenario.task, model)] * 2
-    for bad, shown in ((-1e-3, "-0.001"), ([1e-3, 0.0, 0.0], "[0.001, 0.0, 0.0]"), ("noisy", "'noisy'")):
-        with pytest.raises(InvalidInputError, match=r"^sensor: expected one or 2 finite standard deviations >= 0 "
-                                                    r"\(rad\), got " + re.escape(shown) + "$"):
+    for bad, message in ((-1e-3, "expected standard deviations >= 0 (rad), got [-0.001, -0.001]"),
+                         ([1e-3, 0.0, 0.0], "expected 2 values, got shape (3,)"),
+                         ("noisy", "expected 2 numbers, got 'noisy'"),
+                         (np.nan, "expected finite values, got [nan, nan]")):
+        with pytest.raises(InvalidInputError, match="^sensor: " + re.escape(message) + "$"):
             loop.start(references, sensor=bad)
     loop.start(references, sensor=[0.0, 1e-3])  # one each is accepted

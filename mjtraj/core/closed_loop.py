@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 from numpy.typing import NDArray
 
+from mjtraj.checks import vector
 from mjtraj.core.adaptive import ADAPTATION_RATE
 from mjtraj.core.controller import ANTI_WINDUP, Controller, ControlOutput, PIDGains
 from mjtraj.core.dynamics import DynamicsProbe
@@ -645,15 +646,9 @@ class ClosedLoop:
         Raises:
           InvalidInputError: not finite numbers >= 0 of that shape.
         """
-        wanted = f"sensor: expected one or {count} finite standard deviations >= 0 (rad), got"
-        try:
-            value = np.asarray(sensor, dtype=np.float64)
-        except (TypeError, ValueError) as e:
-            raise InvalidInputError(f"{wanted} {sensor!r}") from e
-        if value.ndim == 0:
-            value = np.full(count, float(value))
-        if value.shape != (count,) or not np.all(np.isfinite(value)) or np.any(value < 0):
-            raise InvalidInputError(f"{wanted} {np.asarray(sensor).tolist()!r}")
+        value = vector("sensor", sensor, count)
+        if np.any(value < 0):
+            raise InvalidInputError(f"sensor: expected standard deviations >= 0 (rad), got {value.tolist()}")
         return value
 
     def _initial_law_state(self, rows: int) -> NDArray[np.float64] | None:
