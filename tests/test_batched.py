@@ -29,7 +29,7 @@ def test_the_untrained_policy_is_the_law_alone(tmp_path):
                           dtype=torch.float32)
     assert torch.equal(module(obs), torch.zeros(7, 3))
     policy = from_object(module)
-    for _, s, refs, weights, plants in validation_sets(settings):
+    for _, s, refs, weights, plants, _ in validation_sets(settings):
         mine = [o.metrics["cost"] for o in run_episodes(policy, s, refs, weights, plants)]
         alone = [o.metrics["cost"] for o in run_episodes(None, s, refs, weights, plants)]
         assert mine == alone
@@ -257,3 +257,67 @@ def test_a_search_refuses_a_bad_budget_in_one_line_and_writes_nothing(flag, valu
     name = flag.removeprefix("--")
     assert capsys.readouterr().err == f"mjtraj: error: {name}: expected a whole number >= 1, got {value}\n"
     assert not out.exists()
+
+
+def _distilled(tmp_path):
+    """A tiny distillation's deployable policy file (a residual on PID imitating computed torque, preview 2)."""
+    from mjtraj.rl.distill import DistillSettings, distill
+
+    settings = DistillSettings(teacher="computed_torque", controller="pid", families=("nominal", "mismatch"),
+                               num_envs=4, rounds=1, steps=20, epochs=2, hidden=(16, 16), preview=2,
+                               residual_scale=6.0)
+    return distill(settings, tmp_path / "distilled", progress=False).policy
+
+
+@pytest.mark.slow
+def test_a_run_started_from_a_distilled_policy_acts_as_it_before_training(tmp_path):
+    """`init`: before any update the run's exported policy is the distilled one, bit for bit, on observations of
+    every family (the oracle: the distilled module itself); the settings it must share are refused by name when they
+    differ."""
+    from mjtraj.exceptions import InvalidInputError
+    from mjtraj.rl.batched import new_agent
+    from mjtraj.rl.batched_policy import load_batched
+
+    path = _distilled(tmp_path)
+    shared = {"controller": "pid", "residual_scale": 6.0, "hidden": (16, 16), "preview": 2}
+    settings = BatchedSettings(**{**TINY, **shared, "families": ("nominal", "mismatch"), "num_envs": 4,
+                                  "settle": 0.5, "init": str(path)})
+    env = MixedFamilies(settings)
+    obs = torch.as_tensor(env.reset(), dtype=torch.float32)
+    started = export_policy(new_agent(settings, env, tmp_path / "run"), settings)
+    distilled = load_batched(path)
+    assert torch.equal(started(obs), distilled(obs)) and started(obs).abs().max() > 0
+    with pytest.raises(InvalidInputError, match=r"^init: .* was trained with other settings: hidden \(16, 16\) "
+                                                r"\(this run: \(8,\)\)$"):
+        new_agent(BatchedSettings(**{**TINY, **shared, "hidden": (8,), "families": ("nominal", "mismatch"),
+                                     "num_envs": 4, "init": str(path)}), env, tmp_path / "other")
+
+
+def test_with_a_settle_window_validation_scores_the_window_and_the_rest_rule():
+    """`settle`: each validation reference ends with the window holding its task's goal, and the law alone's
+    outcomes are scored over it (J_settle above the motion's J_exec) and held to the at-rest rule."""
+    settings = BatchedSettings(**{**TINY, "families": ("nominal",), "num_envs": 2, "settle": 0.5})
+    (_, s, refs, weights, plants, settles), = validation_sets(settings)
+    assert s.settle_steps == 25 and settles is not None and plants is None
+    for ref, settle in zip(refs, settles, strict=True):
+        assert ref.info["settle_steps"] == 25 and ref.steps == settle.motion_steps + 25
+        assert np.array_equal(ref.q[-1], settle.goal)
+    outcomes = run_episodes(None, s, refs, weights, plants, settles)
+    assert all(o.status == "ok" and o.metrics["cost"] > o.metrics["cost_motion"] > 0 for o in outcomes)
+    assert all(o.metrics["end_speed"] < 0.05 for o in outcomes)
+
+
+def test_protocol_v2s_validation_ratio_is_paired_with_the_law_alone():
+    """`_paired_ratio` by hand: a failure where the law came to rest is +inf; episodes the law failed do not count;
+    else the ratio of the sums of J_settle over the episodes both came to rest on."""
+    from mjtraj.rl.batched import _paired_ratio
+    from mjtraj.study import Outcome
+
+    def rows(*cells):
+        return [Outcome("ok", metrics={"cost": c}) if c is not None else Outcome("not_settled", "moving")
+                for c in cells]
+
+    assert _paired_ratio(rows(1.0, 2.0, None), rows(2.0, 2.0, None)) == 3.0 / 4.0
+    assert _paired_ratio(rows(1.0, None, 5.0), rows(2.0, None, None)) == 0.5
+    assert _paired_ratio(rows(1.0, None), rows(2.0, 3.0)) == float("inf")
+    assert _paired_ratio(rows(None), rows(None)) == 1.0

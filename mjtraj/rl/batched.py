@@ -12,7 +12,12 @@ The recipe (every setting in BatchedSettings, recorded in run.json):
   episodes from the training stream [seed, 16, i] (mjtraj.rl.streams), never an evaluation scenario;
 - every `steps / evaluations` steps the deterministic policy runs `validation` tasks per family from the validation
   stream [seed, 17, i]; the curve records each family's mean J_exec over the law alone's on the same tasks, and the
-  best point by the worst family's ratio is kept as best.pt.
+  best point by the worst family's ratio is kept as best.pt;
+- with a settle window (`settle`, 0.5 s: protocol v2's episodes) training and validation episodes go on after the
+  motion with the goal held, the policy observes the measured state, and validation scores J_settle paired with
+  the law alone (`_paired_ratio`: +inf where the policy fails an episode the law came to rest on);
+- `init` starts the policy from a distilled (mjtraj.rl.distill) or earlier batched policy (`start_from`): PPO then
+  fine-tunes it, and the untrained policy is that policy, not the law alone.
 
 The deployable policy is exported as a `BatchedPolicy` (a torch.nn.Module: the standardisation and the mean
 network, actions clipped to [-1, 1]) in policy.pt and best.pt, which `mjtraj rl eval --policy RUN/best.pt` scores
@@ -166,9 +171,12 @@ def export_policy(agent: Any, settings: BatchedSettings) -> Any:
     return module
 
 
-def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any], list[Any], list[Any] | None]]:
-    """Per family: (family, its env settings, references, weights, plants or None), `validation` tasks drawn by
-    the env's own rules from the validation stream [seed, 17, k x validation + i] (k the family's position)."""
+def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any], list[Any], list[Any] | None,
+                                                             list[Any] | None]]:
+    """Per family: (family, its env settings, references, weights, plants or None, settle windows or None),
+    `validation` tasks drawn by the env's own rules from the validation stream [seed, 17, k x validation + i] (k the
+    family's position); with a settle window each reference ends with it, as the env's episodes do."""
+    from mjtraj.core.settle import Settle, held
     from mjtraj.envs import resolve
 
     out = []
@@ -179,12 +187,28 @@ def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any]
         tasks = [env.sample_task(rng) for rng in rngs]
         plants = [env.sample_plant(rng) for rng in rngs]
         references = [env.planner.plan(task, env.model) for task in tasks]
-        out.append((family, env, references, [env.weights(task) for task in tasks], plants if env.perturbs else None))
+        window = env.settle_steps
+        settles = [Settle.of(task, ref.steps, window) for task, ref in zip(tasks, references, strict=True)]
+        references = [held(ref, window, task.qg) for task, ref in zip(tasks, references, strict=True)]
+        out.append((family, env, references, [env.weights(task) for task in tasks], plants if env.perturbs else None,
+                    settles if window else None))
     return out
 
 
+def _paired_ratio(mine: Sequence[Any], alone: Sequence[Any]) -> float:
+    """Protocol v2's validation ratio of a policy's outcomes to the law alone's on the same episodes: +inf if the
+    policy failed an episode the law came to rest on, else its mean J_settle over the episodes both came to rest on
+    over the law's there (1 where there are none); episodes the law failed do not count against the policy."""
+    ok = [a.status == "ok" for a in alone]
+    if any(o.status != "ok" and fine for o, fine in zip(mine, ok, strict=True)):
+        return float("inf")
+    both = [(o.metrics["cost"], a.metrics["cost"]) for o, a in zip(mine, alone, strict=True) if o.status == "ok"
+            and a.status == "ok"]
+    return float(sum(c for c, _ in both) / sum(c for _, c in both)) if both else 1.0
+
+
 def _mean_cost(outcomes: Sequence[Any]) -> float:
-    """Mean J_exec, +inf if any episode failed (the protocol's rule)."""
+    """Mean cost (J_exec, or J_settle with a settle window), +inf if any episode failed (the protocol's rule)."""
     if any(o.status != "ok" for o in outcomes):
         return float("inf")
     return float(np.mean([o.metrics["cost"] for o in outcomes]))
@@ -236,8 +260,44 @@ def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
     set_seed(settings.seed)
     agent = _agent(settings, env, out)
     agent.init()
+    if settings.init:
+        start_from(agent, settings)
     agent.enable_training_mode(True)
     return agent
+
+
+INIT_SHARED = ("controller", "residual_scale", "hidden", "preview", "observe_control", "observe_task",
+               "observe_plant", "history")
+"""The settings a policy that starts a run (`BatchedSettings.init`) must share with it: what it observes, how its
+action acts, its network."""
+
+
+def start_from(agent: Any, settings: BatchedSettings) -> None:
+    """Start the agent's policy from the policy file `settings.init`: its mean network, and the observation
+    standardiser at its mean and standard deviation (counted as the states they came from, its clip and epsilon),
+    so that the untrained policy acts as that policy does; the value network and the exploration start afresh.
+
+    Raises:
+      InvalidInputError: not a policy file, or one trained with other INIT_SHARED settings.
+    """
+    import torch
+
+    from mjtraj.rl.batched_policy import load_batched
+
+    module = load_batched(settings.init)
+    fields = {k: tuple(v) if isinstance(v, list) else v for k, v in module.record["settings"].items()}
+    theirs, mine = dataclasses.asdict(BatchedSettings(**fields)), dataclasses.asdict(settings)
+    differ = [f"{k} {theirs[k]!r} (this run: {mine[k]!r})" for k in INIT_SHARED
+              if json.dumps(theirs[k]) != json.dumps(mine[k])]
+    if differ:
+        raise InvalidInputError(f"init: {settings.init} was trained with other settings: {'; '.join(differ)}")
+    policy, scaler = agent.models["policy"], agent._observation_preprocessor
+    with torch.no_grad():
+        policy.net.load_state_dict(module.net.state_dict())
+        scaler.running_mean.copy_(module.mean.double())
+        scaler.running_variance.copy_(module.std.double() ** 2)
+        scaler.current_count.fill_(float(module.record.get("timesteps", 1)))
+    scaler.clip_threshold, scaler.epsilon = float(module.clip), float(module.epsilon)
 
 
 RESUME_FILE = "resume.pt"
@@ -325,7 +385,9 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
     env = MixedFamilies(settings)
     agent = new_agent(settings, env, out)
     validation = validation_sets(settings)
-    alone = {family: _mean_cost(run_episodes(None, s, refs, w, p)) for family, s, refs, w, p in validation}
+    alone_outcomes = {family: run_episodes(None, s, refs, w, p, settle)
+                      for family, s, refs, w, p, settle in validation}
+    alone = {family: _mean_cost(outcomes) for family, outcomes in alone_outcomes.items()}
     record: dict[str, Any] = {
         "format": BATCHED_RUN, "settings": dataclasses.asdict(settings), "command": command,
         "library": "skrl PPO", "versions": {**rl_versions(), "skrl": _skrl_version()},
@@ -372,10 +434,13 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
             episodes += len(env.finished)
             env.finished.clear()
             ratios = []
-            for family, s, refs, w, p in validation:
-                cost = _mean_cost(run_episodes(scored, s, refs, w, p))
-                row[f"{family}_cost"], row[f"{family}_ratio"] = cost, cost / alone[family]
-                ratios.append(cost / alone[family])
+            for family, s, refs, w, p, settle in validation:
+                outcomes = run_episodes(scored, s, refs, w, p, settle)
+                cost = _mean_cost(outcomes)
+                ratio = (_paired_ratio(outcomes, alone_outcomes[family]) if settings.settle
+                         else cost / alone[family])
+                row[f"{family}_cost"], row[f"{family}_ratio"] = cost, ratio
+                ratios.append(ratio)
             row["worst_ratio"] = max(ratios)
             rows.append(row)
             _write_curve(curve_path, columns, rows)

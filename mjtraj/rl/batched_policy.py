@@ -52,6 +52,13 @@ class BatchedSettings:
     memory of the disturbance)."""
     history: int = 0
     """Previous observations the policy also observes (the env's option)."""
+    settle: float = 0.0
+    """The episodes' settle window, s, in training and validation (0: protocol v1's episodes scored by J_exec; 0.5:
+    protocol v2's, scored by J_settle, held to the at-rest rule, the measured state observed)."""
+    init: str = ""
+    """A policy file (a batched run's or a distillation's policy.pt or best.pt) whose mean network and observation
+    standardisation start the policy ('' : the law alone, the mean's last layer zeroed); its observation, action and
+    network settings must be these."""
 
     def __post_init__(self) -> None:
         for name in ("steps", "num_envs", "rollouts", "epochs", "minibatches", "threads", "evaluations",
@@ -60,6 +67,10 @@ class BatchedSettings:
         for name in ("preview", "patience", "history"):
             if not isinstance(getattr(self, name), int) or getattr(self, name) < 0:
                 raise InvalidInputError(f"{name}: expected an integer >= 0, got {getattr(self, name)!r}")
+        if not (isinstance(self.settle, (int, float)) and self.settle >= 0 and self.settle < float("inf")):
+            raise InvalidInputError(f"settle: expected a window >= 0 s, got {self.settle!r}")
+        if not isinstance(self.init, str):
+            raise InvalidInputError(f"init: expected a policy file's path, got {self.init!r}")
         for name in ("learning_rate", "initial_std", "residual_scale"):
             positive(name, getattr(self, name))
         for name in ("discount", "gae_lambda"):
@@ -93,7 +104,8 @@ class BatchedSettings:
     def env_kwargs(self, family: str) -> dict[str, Any]:
         """The UR5Track arguments of the sub-envs of `family`."""
         return {"action_mode": "residual", "residual_scale": self.residual_scale, "controller": self.controller,
-                "task": "random", "family": family, "reward_baseline": "controller", **self.observation()}
+                "task": "random", "family": family, "reward_baseline": "controller", **self.observation(),
+                **({"settle": self.settle, "observe_measured": True} if self.settle else {})}
 
     def observation(self) -> dict[str, Any]:
         """The env options that shape what the policy observes (a deployed policy declares them: `env`)."""

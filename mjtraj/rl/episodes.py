@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.core import ClosedLoop, Reference
+from mjtraj.core.settle import Settle
 from mjtraj.envs import Observer, TrackSettings, scale_action
 from mjtraj.rl.adapters import ScoredPolicy
 from mjtraj.study import Job, Outcome, Perturbation, execute, no_perturbation, perturbed_plant
@@ -55,12 +56,16 @@ class PolicyActor:
 
 def run_episodes(policy: Policy | ScoredPolicy | None, settings: TrackSettings, references: Sequence[Reference],
                  weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
-                 plants: Sequence[Perturbation | None] | None = None) -> list[Outcome]:
+                 plants: Sequence[Perturbation | None] | None = None,
+                 settles: Sequence[Settle] | None = None) -> list[Outcome]:
     """One episode per reference with `policy` acting (None: the controller alone), on the nominal plant or on
     one perturbed plant each (`plants`), scored with per-episode diagonal `weights` ((2n,), (n,)) as sweeps score
-    them; an Outcome each."""
+    them; with `settles` (protocol v2), each reference ends with its settle window (`mjtraj.core.settle.held`) and
+    its episode is scored over it and held to the at-rest rule; an Outcome each."""
     actor = None if policy is None or settings.action_mode == "pid" else PolicyActor(policy, settings)
     perturbations = [None] * len(references) if plants is None else list(plants)
-    jobs = [Job(ref, w, p) for ref, w, p in zip(references, weights, perturbations, strict=True)]
+    windows = [None] * len(references) if settles is None else list(settles)
+    jobs = [Job(ref, w, p, settle=settle)
+            for ref, w, p, settle in zip(references, weights, perturbations, windows, strict=True)]
     plant = perturbed_plant(settings.model) if plants is not None else None
     return execute(settings.model, settings.loop, jobs, actor=actor, plant=plant)
