@@ -16,12 +16,16 @@ SMALL = DistillSettings(teacher="computed_torque", controller="pid", families=("
                         rounds=2, steps=30, epochs=3, hidden=(16, 16), preview=2)
 
 
-def test_acting_on_the_labels_makes_the_loop_apply_the_teachers_command():
-    """A PID env with a computed-torque teacher, stepped with the labels as its actions: every period the loop
-    applies what the teacher answered (to rounding: the label divides and the loop multiplies by the scale)."""
+@pytest.mark.parametrize("mode", ["residual", "torque"])
+def test_acting_on_the_labels_makes_the_loop_apply_the_teachers_command(mode):
+    """A PID env with a computed-torque teacher, stepped with the labels as its actions (a residual on PID, or the
+    whole torque): every period the loop applies what the teacher answered (to rounding: the label divides and the
+    loop multiplies by the scale)."""
+    import dataclasses
+
     from mjtraj.envs import UR5TrackVectorEnv
 
-    env = UR5TrackVectorEnv(3, **SMALL.env_kwargs("mismatch"))
+    env = UR5TrackVectorEnv(3, **dataclasses.replace(SMALL, action_mode=mode).env_kwargs("mismatch"))
     env.reset(seed=[11, 12, 13])
     for _ in range(60):
         k = env.loop.periods.copy()
@@ -99,6 +103,8 @@ def test_settings_are_refused_by_name():
         DistillSettings(balance="equal")
     with pytest.raises(InvalidInputError, match=r"^observe_plant: "):
         DistillSettings(observe_plant="true")
+    with pytest.raises(InvalidInputError, match=r"^observe_plant: a torque student cannot observe"):
+        DistillSettings(action_mode="torque", observe_plant="estimate")
 
 
 @pytest.mark.slow

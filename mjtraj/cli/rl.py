@@ -134,6 +134,9 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--hidden", type=counts, default=[256, 256, 256],
                    help="hidden layer widths, comma-separated (default 256,256,256)")
     p.add_argument("--preview", type=int, default=10, help="future reference samples observed (default 10)")
+    p.add_argument("--action-mode", dest="action_mode", choices=("residual", "torque"), default="residual",
+                   help="residual: the student adds to --controller's command; torque: it commands the whole "
+                   "corrective torque (default residual)")
     p.add_argument("--observe-task", dest="observe_task", action="store_true",
                    help="also observe the move and the time to the motion's end (UR5Track-v2's observation)")
     p.add_argument("--observe-plant", dest="observe_plant", choices=("none", "estimate"), default="none",
@@ -343,7 +346,8 @@ def run_distill(args: argparse.Namespace) -> int:
                                    residual_scale=args.residual_scale, families=tuple(args.families),
                                    num_envs=args.num_envs, rounds=args.rounds, steps=args.steps, epochs=args.epochs,
                                    hidden=tuple(args.hidden), preview=args.preview,
-                                   observe_task=args.observe_task, observe_plant=args.observe_plant,
+                                   action_mode=args.action_mode, observe_task=args.observe_task,
+                                   observe_plant=args.observe_plant,
                                    history=args.history, balance=args.balance, seed=args.seed, threads=args.threads)
         report = distill(settings, args.out, progress=not args.no_progress, command=command_line(args))
     print(f"wrote {report.policy} ({int(report.rounds[-1]['samples'])} labelled states); score it: mjtraj rl eval "

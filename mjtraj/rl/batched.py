@@ -266,7 +266,7 @@ def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
     return agent
 
 
-INIT_SHARED = ("controller", "residual_scale", "hidden", "preview", "observe_control", "observe_task",
+INIT_SHARED = ("controller", "action_mode", "residual_scale", "hidden", "preview", "observe_control", "observe_task",
                "observe_plant", "history")
 """The settings a policy that starts a run (`BatchedSettings.init`) must share with it: what it observes, how its
 action acts, its network."""

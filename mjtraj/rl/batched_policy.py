@@ -33,6 +33,9 @@ class BatchedSettings:
     initial_std: float = 0.1
     residual_scale: float = 6.0
     controller: str = "adaptive_computed_torque"
+    action_mode: str = "residual"
+    """residual: the action adds `residual_scale` N m per unit to the law's command; torque: it replaces the
+    command, the saturation per unit (the law then only labels and scores: `reward_baseline`)."""
     families: tuple[str, ...] = ("nominal", "aggressive", "mismatch")
     hidden: tuple[int, ...] = (64, 64)
     seed: int = 0
@@ -87,6 +90,7 @@ class BatchedSettings:
             raise InvalidInputError(f"hidden: expected layer widths >= 1, got {self.hidden!r}")
         check_seed("seed", self.seed)
         choice("observe_plant", self.observe_plant, ("none", "estimate"))
+        choice("action_mode", self.action_mode, ("residual", "torque"))
         from mjtraj.core import controller_names
 
         choice("controller", self.controller, controller_names())
@@ -103,7 +107,7 @@ class BatchedSettings:
 
     def env_kwargs(self, family: str) -> dict[str, Any]:
         """The UR5Track arguments of the sub-envs of `family`."""
-        return {"action_mode": "residual", "residual_scale": self.residual_scale, "controller": self.controller,
+        return {"action_mode": self.action_mode, "residual_scale": self.residual_scale, "controller": self.controller,
                 "task": "random", "family": family, "reward_baseline": "controller", **self.observation(),
                 **({"settle": self.settle, "observe_measured": True} if self.settle else {})}
 
@@ -142,7 +146,7 @@ def batched_policy_class() -> type:
                 self.register_buffer(name, torch.zeros(inputs))
             self.register_buffer("epsilon", torch.zeros(()))
             self.register_buffer("clip", torch.zeros(()))
-            self.env = {"planner": "cubic", "controller": settings.controller, "action_mode": "residual",
+            self.env = {"planner": "cubic", "controller": settings.controller, "action_mode": settings.action_mode,
                         "residual_scale": settings.residual_scale, **settings.observation()}
 
         def forward(self, obs: Any) -> Any:
@@ -203,5 +207,7 @@ def label(record: dict[str, Any]) -> str:
     from mjtraj.rl import law_label
 
     s = record["settings"]
+    if s.get("action_mode", "residual") == "torque":
+        return f"cubic+torque batched PPO ({'+'.join(s['families'])}, std {s['initial_std']:g})"
     return (f"cubic+{law_label(s['controller'])}+residual batched PPO ({s['residual_scale']:g} N m, "
             f"{'+'.join(s['families'])}, std {s['initial_std']:g})")

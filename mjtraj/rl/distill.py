@@ -51,6 +51,10 @@ class DistillSettings:
     """The law the student's residual acts on."""
     residual_scale: float = 60.0
     """N m per unit of action: 60, the saturation, lets the student command anything the teacher does."""
+    action_mode: str = "residual"
+    """residual: the student adds to `controller`'s command; torque: it commands the whole corrective torque, the
+    saturation per unit (its label the teacher's saturated command over the saturation; `controller` then only runs
+    beside it, and a student cannot observe its estimate: `observe_plant` must be none)."""
     families: tuple[str, ...] = ("nominal", "aggressive", "mismatch")
     num_envs: int = 24
     rounds: int = 4
@@ -98,6 +102,10 @@ class DistillSettings:
             raise InvalidInputError(f"settle: expected a window >= 0 s, got {self.settle!r}")
         choice("task", self.task, ("random", "paper"))
         choice("balance", self.balance, ("none", "family"))
+        choice("action_mode", self.action_mode, ("residual", "torque"))
+        if self.action_mode == "torque" and self.observe_plant != "none":
+            raise InvalidInputError(f"observe_plant: a torque student cannot observe the adaptive law's estimate (the "
+                                    f"law does not run under its torque), expected none, got {self.observe_plant!r}")
         self.policy_settings()  # the mixture's checks (families, sub-envs, widths, seed): the batched runs'
 
     def split(self) -> list[int]:
@@ -107,7 +115,7 @@ class DistillSettings:
     def env_kwargs(self, family: str) -> dict[str, Any]:
         """The UR5Track arguments of the sub-envs of `family`: the student's action on the law, the teacher beside
         it, the measured state observed (as protocol v2 gives it)."""
-        return {"action_mode": "residual", "residual_scale": self.residual_scale, "controller": self.controller,
+        return {"action_mode": self.action_mode, "residual_scale": self.residual_scale, "controller": self.controller,
                 "task": self.task, **({"family": family} if self.task == "random" else {}),
                 **self.policy_settings().observation(), "settle": self.settle,
                 "observe_measured": True, "teacher": self.teacher}
@@ -116,7 +124,7 @@ class DistillSettings:
         """The deployable policy's settings in the batched runs' format (what `load_batched` rebuilds)."""
         return BatchedSettings(num_envs=self.num_envs, residual_scale=self.residual_scale, controller=self.controller,
                                families=self.families, hidden=self.hidden, seed=self.seed, threads=self.threads,
-                               preview=self.preview, observe_task=self.observe_task,
+                               action_mode=self.action_mode, preview=self.preview, observe_task=self.observe_task,
                                observe_plant=self.observe_plant, history=self.history)
 
     def families_of_envs(self) -> NDArray[np.intp]:
@@ -134,10 +142,13 @@ class DistillReport:
 
 
 def labels(env: Any, teacher: str, controller: str, scale: float) -> NDArray[np.float64]:
-    """The student's labels at the vector env's current states, (B, n) in [-1, 1]: the residual that makes the loop
-    apply the teacher's command, (tau_teacher - tau_law) / scale, clipped."""
+    """The student's labels at the vector env's current states, (B, n) in [-1, 1]: the action that makes the loop
+    apply the teacher's command; in residual mode (tau_teacher - tau_law) / scale, in torque mode tau_teacher over
+    the saturation; clipped."""
     loop = env.loop
     wanted = loop.teach(teacher).dtau
+    if env.settings.action_mode == "torque":
+        return np.clip(wanted / env.settings.action_scale, -1.0, 1.0)  # type: ignore[no-any-return]
     own = loop.teach(controller)
     return np.clip((wanted - (own.tau_ff + own.tau_fb)) / scale, -1.0, 1.0)  # type: ignore[no-any-return]
 

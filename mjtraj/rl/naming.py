@@ -12,5 +12,8 @@ def distilled_label(record: dict[str, Any]) -> str:
     from mjtraj.rl import law_label
 
     s, d = record["settings"], record["distill"]
+    if s.get("action_mode", "residual") == "torque":
+        return (f"cubic+torque distilled from {d['teacher']} ({'+'.join(s['families'])}, preview {d['preview']}, "
+                f"{d['rounds']} rounds)")
     return (f"cubic+{law_label(s['controller'])}+residual distilled from {d['teacher']} ({s['residual_scale']:g} "
             f"N m, {'+'.join(s['families'])}, preview {d['preview']}, {d['rounds']} rounds)")
