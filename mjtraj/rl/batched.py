@@ -176,7 +176,7 @@ def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any]
     """Per family: (family, its env settings, references, weights, plants or None, settle windows or None),
     `validation` tasks drawn by the env's own rules from the validation stream [seed, 17, k x validation + i] (k the
     family's position); with a settle window each reference ends with it, as the env's episodes do."""
-    from mjtraj.core.settle import Settle, held
+    from mjtraj.core import Settle, held
     from mjtraj.envs import resolve
 
     out = []

@@ -12,8 +12,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.core import ClosedLoop, Reference
-from mjtraj.core.settle import Settle
+from mjtraj.core import ClosedLoop, Reference, Settle
 from mjtraj.envs import Observer, TrackSettings, scale_action
 from mjtraj.rl.adapters import ScoredPolicy
 from mjtraj.study import Job, Outcome, Perturbation, execute, no_perturbation, perturbed_plant
