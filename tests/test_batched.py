@@ -208,6 +208,22 @@ def test_a_search_writes_its_trials_and_best_continues_its_study_and_trains_with
     assert all(settings[name] == best[name] for name in best if name not in ("value", "trial"))
 
 
+def _interrupt_at(call, monkeypatch):
+    """Make the batched runs' `interact` raise KeyboardInterrupt at its `call`-th call; returns the real one."""
+    from mjtraj.rl import batched
+
+    real, calls = batched.interact, []
+
+    def crash(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == call:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(batched, "interact", crash)
+    return real
+
+
 @pytest.mark.slow
 def test_an_interrupted_run_resumed_ends_as_the_uninterrupted_one_bit_for_bit(tmp_path, capsys, monkeypatch):
     """Oracle: the same run uninterrupted. Interrupted after its second validation point (of three), `rl train
@@ -218,15 +234,7 @@ def test_an_interrupted_run_resumed_ends_as_the_uninterrupted_one_bit_for_bit(tm
     settings = {**TINY, "steps": 144, "evaluations": 3}
     batched.train_batched(BatchedSettings(**settings), tmp_path / "whole", progress=False)
     assert not (tmp_path / "whole" / batched.RESUME_FILE).exists()
-    real, calls = batched.interact, []
-
-    def crash(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == 18:  # past the second validation point (after period 16)
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(batched, "interact", crash)
+    real = _interrupt_at(18, monkeypatch)  # past the second validation point (after period 16)
     with pytest.raises(KeyboardInterrupt):
         batched.train_batched(BatchedSettings(**settings), tmp_path / "cut", progress=False, command="tiny")
     assert (tmp_path / "cut" / batched.RESUME_FILE).is_file() and not (tmp_path / "cut" / "run.json").exists()
@@ -321,3 +329,31 @@ def test_protocol_v2s_validation_ratio_is_paired_with_the_law_alone():
     assert _paired_ratio(rows(1.0, None, 5.0), rows(2.0, None, None)) == 0.5
     assert _paired_ratio(rows(1.0, None), rows(2.0, 3.0)) == float("inf")
     assert _paired_ratio(rows(None), rows(None)) == 1.0
+
+
+@pytest.mark.slow
+def test_a_run_started_from_a_policy_resumes_only_with_that_policy_file(tmp_path, monkeypatch):
+    """An `init` run interrupted after a validation point records its init file's sha256; resumed with another file
+    in its place it is refused by name (its scaler's clip and epsilon come from the file), with the same one it
+    completes (on protocol v2's episodes, the window taken from the distilled policy by the command line)."""
+    import shutil
+
+    from mjtraj.exceptions import InvalidInputError
+    from mjtraj.rl import batched
+
+    path = _distilled(tmp_path)
+    kept = tmp_path / "kept.pt"
+    shutil.copy(path, kept)
+    argv = ["rl", "train", "--algo", "ppo", "--batched", "--init", str(kept), "--steps", "96", "--num-envs", "4",
+            "--families", "nominal,mismatch", "--evaluations", "2", "--validation", "2", "--hyperparameter",
+            "rollouts=8", "--seed", "3", "--out", str(tmp_path / "run"), "--no-progress"]
+    real = _interrupt_at(20, monkeypatch)  # past the first validation point (after period 16)
+    assert main(argv) == 130  # the command line's answer to an interrupt
+    monkeypatch.setattr(batched, "interact", real)
+    saved = torch.load(tmp_path / "run" / batched.RESUME_FILE, weights_only=False)["progress"]["record"]
+    assert saved["settings"]["settle"] == 0.5 and saved["init_sha256"] == batched.file_sha256(kept)
+    shutil.copy(_distilled(tmp_path / "other"), kept)  # another policy of the same settings in its place
+    with pytest.raises(InvalidInputError, match=r"^init: .*kept.pt is not the policy file the run started from"):
+        batched.resume_batched(tmp_path / "run", progress=False)
+    shutil.copy(path, kept)
+    assert batched.resume_batched(tmp_path / "run", progress=False).score == "J_settle"

@@ -78,6 +78,18 @@ def test_balanced_weights_make_each_family_count_at_its_own_scale():
     assert np.all(distill_module.sample_weights(y, SMALL) == 1.0)
 
 
+def test_the_families_of_the_sub_envs_are_the_ones_the_weights_assume():
+    """`families_of_envs` (what `sample_weights` groups by) is the family of each sub-env in the order the
+    distillation collects them (`_Families`), also where a previewing teacher splits the aggressive family into
+    sub-envs of their own."""
+    for teacher, families in (("computed_torque", ("nominal", "mismatch")),
+                              ("mpc", ("nominal", "aggressive", "mismatch"))):
+        settings = DistillSettings(teacher=teacher, families=families, num_envs=5, hidden=(8,), preview=2)
+        collected = distill_module._Families(settings).mixed.envs
+        order = [env.settings.family for env in collected for _ in range(env.num_envs)]
+        assert order == [families[g] for g in settings.families_of_envs()]
+
+
 def test_a_student_declares_what_it_observes_and_the_env_gives_it():
     """A student that observes the task and the adaptive law's estimate: its deployable module declares both (what
     `rl eval` builds its env from), and that env's observation is the size the student was trained on."""
@@ -103,7 +115,7 @@ def test_settings_are_refused_by_name():
         DistillSettings(balance="equal")
     with pytest.raises(InvalidInputError, match=r"^observe_plant: "):
         DistillSettings(observe_plant="true")
-    with pytest.raises(InvalidInputError, match=r"^observe_plant: a torque student cannot observe"):
+    with pytest.raises(InvalidInputError, match=r"^observe_plant: a torque policy cannot observe"):
         DistillSettings(action_mode="torque", observe_plant="estimate")
 
 

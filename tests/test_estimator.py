@@ -153,7 +153,9 @@ def test_the_filter_assumes_the_declared_sensor_times_its_margin_at_least_its_le
             np.testing.assert_array_equal(z[b], zb[0])
             np.testing.assert_array_equal(P[b], Pb[0])
     assert not np.array_equal(P[0], P[1])
-    with pytest.raises(Exception, match="sensor_margin"):
+    from mjtraj.exceptions import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="^sensor_margin: "):
         KalmanSettings(sensor_margin=0.0)
 
 
@@ -205,3 +207,23 @@ def test_a_declared_sensor_that_is_not_a_standard_deviation_per_simulation_is_re
         with pytest.raises(InvalidInputError, match="^sensor: " + re.escape(message) + "$"):
             loop.start(references, sensor=bad)
     loop.start(references, sensor=[0.0, 1e-3])  # one each is accepted
+
+
+def test_a_law_whose_track_does_not_take_sensors_is_not_given_them():
+    """A plug-in law written before sensors were declared (its `track` without `sensors`) still runs on noisy
+    episodes: the loop passes it the settle window alone; a `track` that takes `sensors`, or any keyword, gets them."""
+    from mjtraj.core.closed_loop import _accepted
+
+    def before(rows, q_ref, qd_ref, tau_ff, *, windows=None):
+        return None
+
+    def after(rows, q_ref, qd_ref, tau_ff, *, windows=None, sensors=None):
+        return None
+
+    def anything(rows, q_ref, qd_ref, tau_ff, **given):
+        return None
+
+    extra = {"windows": np.ones(2), "sensors": np.ones(2)}
+    assert set(_accepted(before, extra)) == {"windows"}
+    assert set(_accepted(after, extra)) == set(_accepted(anything, extra)) == {"windows", "sensors"}
+    assert _accepted(before, {"windows": extra["windows"]}) == {"windows": extra["windows"]}

@@ -68,9 +68,9 @@ def add(sub: Any, laws: str) -> None:
                    "0.1)")
     p.add_argument("--preview", type=int, help="with --batched: future reference samples the policy observes "
                    "(default 0)")
-    p.add_argument("--settle", type=float, default=0.0,
-                   help="with --batched: the episodes' settle window, s, in training and validation (default 0: "
-                   "protocol v1's episodes; 0.5: protocol v2's, scored by J_settle)")
+    p.add_argument("--settle", type=float,
+                   help="with --batched: the episodes' settle window, s, in training and validation (default --init's, "
+                   "else 0: protocol v1's episodes; 0.5: protocol v2's, scored by J_settle)")
     p.add_argument("--init", type=Path, help="with --batched: start the policy from this policy file (a distillation's "
                    "or a batched run's policy.pt or best.pt), taking its network, action and observation settings")
     p.add_argument("--patience", type=int, default=0,
@@ -276,24 +276,16 @@ def run_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _init_settings(path: Path) -> dict[str, Any]:
-    """The settings a run started from the policy file `path` takes from it unless given (`INIT_SHARED`)."""
-    from mjtraj.rl.batched import INIT_SHARED
-    from mjtraj.rl.batched_policy import load_batched
-
-    record = load_batched(path).record["settings"]
-    return {k: tuple(record[k]) if isinstance(record[k], list) else record[k] for k in INIT_SHARED if k in record}
-
-
 def _run_batched(args: argparse.Namespace) -> int:
     """`mjtraj rl train --algo ppo --batched`."""
     from mjtraj.exceptions import InvalidInputError
-    from mjtraj.rl.batched import BatchedSettings, resume_batched, train_batched
+    from mjtraj.rl.batched import BatchedSettings, init_defaults, resume_batched, train_batched
 
     if args.resume is not None:
         report = resume_batched(args.resume, progress=not args.no_progress)
         print(f"resumed {args.resume} and trained to {report.timesteps} steps; best validation point: the worst "
-              f"family's mean J_exec {report.best_point.get('worst_ratio', float('nan')):.4f} of the law alone's")
+              f"family's mean {report.score} {report.best_point.get('worst_ratio', float('nan')):.4f} of the law "
+              f"alone's")
         print(f"wrote {report.policy}, {report.best} (best on validation), {report.curve} and "
               f"{report.out / 'run.json'}")
         return 0
@@ -315,20 +307,19 @@ def _run_batched(args: argparse.Namespace) -> int:
     given = {"steps": args.steps, "num_envs": args.num_envs, "controller": args.controller}
     flags = {"residual_scale": args.residual_scale, "initial_std": args.initial_std, "preview": args.preview,
              "observe_control": args.observe_control or None, "history": args.history or None,
-             "observe_plant": None if args.observe_plant == "none" else args.observe_plant}
-    started = _init_settings(args.init) if args.init else {}
+             "observe_plant": None if args.observe_plant == "none" else args.observe_plant,
+             "action_mode": None if args.action_mode == "residual" else args.action_mode, "settle": args.settle}
+    started = init_defaults(args.init) if args.init else {}
     settings = BatchedSettings(**{**started, **{k: v for k, v in given.items() if v is not None}, **tuned,
                                   **{k: v for k, v in flags.items() if v is not None},
                                   "families": tuple(args.families), "seed": args.seed, "threads": args.threads,
                                   "evaluations": args.evaluations, "validation": args.validation,
-                                  "patience": args.patience, "settle": args.settle,
-                                  "init": str(args.init) if args.init else ""})
+                                  "patience": args.patience, "init": str(args.init) if args.init else ""})
     report = train_batched(settings, args.out, progress=not args.no_progress, command=command_line(args))
     point = report.best_point
     print(f"trained {report.timesteps} steps in {report.wall:.0f} s ({report.timesteps / report.wall:.0f} steps/s); "
-          f"best validation point at {point.get('timesteps', 0):.0f} steps: the worst family's mean "
-          f"{'J_settle' if settings.settle else 'J_exec'} {point.get('worst_ratio', float('nan')):.4f} of the law "
-          f"alone's")
+          f"best validation point at {point.get('timesteps', 0):.0f} steps: the worst family's mean {report.score} "
+          f"{point.get('worst_ratio', float('nan')):.4f} of the law alone's")
     if report.stopped:
         print(f"stopped at {report.timesteps} steps: {report.stopped}")
     print(f"wrote {report.policy}, {report.best} (best on validation), {report.curve} and {report.out / 'run.json'}")

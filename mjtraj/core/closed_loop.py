@@ -637,7 +637,7 @@ class ClosedLoop:
         for law in (self._law, *self._teachers.values()):
             track = getattr(law, "track", None)
             if track is not None:
-                track(rows, q_ref, qd_ref, ff, **extra)
+                track(rows, q_ref, qd_ref, ff, **_accepted(track, extra))
 
     @staticmethod
     def _declared(sensor: npt.ArrayLike, count: int) -> NDArray[np.float64]:
@@ -728,6 +728,19 @@ class ClosedLoop:
         for _ in range(self.steps):
             self.step()
         return self.rollout()
+
+
+def _accepted(track: Any, extra: dict[str, NDArray[Any]]) -> dict[str, NDArray[Any]]:
+    """`extra` without `sensors` for a `track` that does not take it (a plug-in law written before sensors were
+    declared ignores them); `windows` always (a law that previews the reference must plan through the window)."""
+    import inspect
+
+    if "sensors" not in extra:
+        return extra
+    parameters = inspect.signature(track).parameters
+    if "sensors" in parameters or any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters.values()):
+        return extra
+    return {k: v for k, v in extra.items() if k != "sensors"}
 
 
 def _stateful(law: Controller) -> bool:

@@ -207,6 +207,23 @@ def _paired_ratio(mine: Sequence[Any], alone: Sequence[Any]) -> float:
     return float(sum(c for c, _ in both) / sum(c for _, c in both)) if both else 1.0
 
 
+def _validated(policy: Any, validation: list[Any], alone: dict[str, list[Any]], settings: BatchedSettings
+               ) -> dict[str, float]:
+    """The learning curve's validation columns of `policy` on the `validation` sets (`validation_sets`), beside the
+    law alone's outcomes there: `<family>_cost`, `<family>_ratio` (J_exec over the law's mean, or with a settle
+    window `_paired_ratio`) and `worst_ratio`."""
+    from mjtraj.rl.episodes import run_episodes
+
+    row: dict[str, float] = {}
+    for family, s, refs, w, p, settle in validation:
+        outcomes = run_episodes(policy, s, refs, w, p, settle)
+        cost = _mean_cost(outcomes)
+        ratio = _paired_ratio(outcomes, alone[family]) if settings.settle else cost / _mean_cost(alone[family])
+        row[f"{family}_cost"], row[f"{family}_ratio"] = cost, ratio
+    row["worst_ratio"] = max(row[f"{family}_ratio"] for family in settings.families)
+    return row
+
+
 def _mean_cost(outcomes: Sequence[Any]) -> float:
     """Mean cost (J_exec, or J_settle with a settle window), +inf if any episode failed (the protocol's rule)."""
     if any(o.status != "ok" for o in outcomes):
@@ -229,6 +246,8 @@ class BatchedReport:
     """Why training stopped before its steps ('' where it ran them all)."""
     episodes: int = 0
     """Training episodes the sub-envs finished."""
+    score: str = "J_exec"
+    """What validation scored: J_exec, or J_settle with a settle window."""
 
 
 def interact(agent: Any, env: MixedFamilies, obs: NDArray[np.float64], t: int, total: int) -> NDArray[np.float64]:
@@ -272,6 +291,28 @@ INIT_SHARED = ("controller", "action_mode", "residual_scale", "hidden", "preview
 action acts, its network."""
 
 
+def policy_settings(record: dict[str, Any]) -> BatchedSettings:
+    """The BatchedSettings a policy file's `record` holds (JSON's lists back to tuples)."""
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in record["settings"].items()}
+    return BatchedSettings(**fields)
+
+
+def init_defaults(path: str | Path) -> dict[str, Any]:
+    """What a run started from the policy file `path` takes from it unless given: its INIT_SHARED settings and its
+    settle window."""
+    from mjtraj.rl.batched_policy import load_batched
+
+    theirs = dataclasses.asdict(policy_settings(load_batched(path).record))
+    return {k: theirs[k] for k in (*INIT_SHARED, "settle")}
+
+
+def file_sha256(path: str | Path) -> str:
+    """The sha256 of a file's bytes (a run records its init policy's, and a resumed run checks it)."""
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def start_from(agent: Any, settings: BatchedSettings) -> None:
     """Start the agent's policy from the policy file `settings.init`: its mean network, and the observation
     standardiser at its mean and standard deviation (counted as the states they came from, its clip and epsilon),
@@ -285,10 +326,8 @@ def start_from(agent: Any, settings: BatchedSettings) -> None:
     from mjtraj.rl.batched_policy import load_batched
 
     module = load_batched(settings.init)
-    fields = {k: tuple(v) if isinstance(v, list) else v for k, v in module.record["settings"].items()}
-    theirs, mine = dataclasses.asdict(BatchedSettings(**fields)), dataclasses.asdict(settings)
-    differ = [f"{k} {theirs[k]!r} (this run: {mine[k]!r})" for k in INIT_SHARED
-              if json.dumps(theirs[k]) != json.dumps(mine[k])]
+    theirs, mine = dataclasses.asdict(policy_settings(module.record)), dataclasses.asdict(settings)
+    differ = [f"{k} {theirs[k]!r} (this run: {mine[k]!r})" for k in INIT_SHARED if theirs[k] != mine[k]]
     if differ:
         raise InvalidInputError(f"init: {settings.init} was trained with other settings: {'; '.join(differ)}")
     policy, scaler = agent.models["policy"], agent._observation_preprocessor
@@ -395,7 +434,11 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
                               "gym_seeds": training_entropies(settings.seed, settings.num_envs)},
                     "validation": {"stream": VALIDATION_STREAM,
                                    "count": settings.validation * len(settings.families)}},
-        "law_alone_validation_cost": alone}
+        "law_alone_validation_cost": alone,
+        "law_alone_validation_failures": {family: sum(o.status != "ok" for o in outcomes)
+                                          for family, outcomes in alone_outcomes.items()}}
+    if settings.init:
+        record["init_sha256"] = file_sha256(settings.init)
     families = list(settings.families)
     columns = [*CURVE_COLUMNS, *(f"{f}_{what}" for f in families for what in ("ratio", "cost")), "worst_ratio"]
     curve_path = out / "learning_curve.csv"
@@ -407,6 +450,9 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
     first, before, wall_steps, since_best, episodes = 0, 0.0, 0, 0, 0
     if resume:
         env, obs, saved = load_resume_point(out / RESUME_FILE, agent)
+        if settings.init and saved["record"].get("init_sha256") != record["init_sha256"]:
+            raise InvalidInputError(f"init: {settings.init} is not the policy file the run started from (its sha256 "
+                                    f"changed); resume it with that file in place")
         first, before, wall_steps = saved["t"], saved["wall_s"], saved["wall_steps"]
         rows, best, since_best, episodes = saved["rows"], saved["best"], saved["since_best"], saved["episodes"]
         record["resumed"] = [*saved["record"].get("resumed", []), {"timesteps": first * settings.num_envs}]
@@ -433,15 +479,7 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
                                    "train_advantage_mean": advantage}
             episodes += len(env.finished)
             env.finished.clear()
-            ratios = []
-            for family, s, refs, w, p, settle in validation:
-                outcomes = run_episodes(scored, s, refs, w, p, settle)
-                cost = _mean_cost(outcomes)
-                ratio = (_paired_ratio(outcomes, alone_outcomes[family]) if settings.settle
-                         else cost / alone[family])
-                row[f"{family}_cost"], row[f"{family}_ratio"] = cost, ratio
-                ratios.append(ratio)
-            row["worst_ratio"] = max(ratios)
+            row.update(_validated(scored, validation, alone_outcomes, settings))
             rows.append(row)
             _write_curve(curve_path, columns, rows)
             since_best += 1
@@ -474,7 +512,8 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
     if not (out / "best.pt").is_file():  # no validation point finished: the last policy stands
         save_policy(final, out / "best.pt", record)
     (out / RESUME_FILE).unlink(missing_ok=True)
-    return BatchedReport(out, out / "policy.pt", out / "best.pt", curve_path, done, wall, best, stopped, episodes)
+    return BatchedReport(out, out / "policy.pt", out / "best.pt", curve_path, done, wall, best, stopped, episodes,
+                         "J_settle" if settings.settle else "J_exec")
 
 
 def _write_curve(path: Path, columns: Sequence[str], rows: Sequence[dict[str, Any]]) -> None:

@@ -91,6 +91,9 @@ class BatchedSettings:
         check_seed("seed", self.seed)
         choice("observe_plant", self.observe_plant, ("none", "estimate"))
         choice("action_mode", self.action_mode, ("residual", "torque"))
+        if self.action_mode == "torque" and self.observe_plant != "none":
+            raise InvalidInputError(f"observe_plant: a torque policy cannot observe the adaptive law's estimate (the "
+                                    f"law does not run under its torque), expected none, got {self.observe_plant!r}")
         from mjtraj.core import controller_names
 
         choice("controller", self.controller, controller_names())

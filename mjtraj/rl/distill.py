@@ -103,9 +103,6 @@ class DistillSettings:
         choice("task", self.task, ("random", "paper"))
         choice("balance", self.balance, ("none", "family"))
         choice("action_mode", self.action_mode, ("residual", "torque"))
-        if self.action_mode == "torque" and self.observe_plant != "none":
-            raise InvalidInputError(f"observe_plant: a torque student cannot observe the adaptive law's estimate (the "
-                                    f"law does not run under its torque), expected none, got {self.observe_plant!r}")
         self.policy_settings()  # the mixture's checks (families, sub-envs, widths, seed): the batched runs'
 
     def split(self) -> list[int]:
@@ -124,7 +121,8 @@ class DistillSettings:
         """The deployable policy's settings in the batched runs' format (what `load_batched` rebuilds)."""
         return BatchedSettings(num_envs=self.num_envs, residual_scale=self.residual_scale, controller=self.controller,
                                families=self.families, hidden=self.hidden, seed=self.seed, threads=self.threads,
-                               action_mode=self.action_mode, preview=self.preview, observe_task=self.observe_task,
+                               action_mode=self.action_mode, settle=self.settle, preview=self.preview,
+                               observe_task=self.observe_task,
                                observe_plant=self.observe_plant, history=self.history)
 
     def families_of_envs(self) -> NDArray[np.intp]:
@@ -302,7 +300,7 @@ def sample_weights(y: NDArray[np.float64], settings: DistillSettings) -> NDArray
         return np.ones(len(y))
     groups = np.tile(settings.families_of_envs(), len(y) // settings.num_envs)
     scale = np.array([np.mean(y[groups == g] ** 2) for g in range(len(settings.families))])
-    weights = 1.0 / np.maximum(scale, 1e-12)[groups]
+    weights = 1.0 / np.maximum(scale, 1e-6 * scale.max(initial=1e-12))[groups]  # a family of zero labels: not 1e12
     return weights / weights.mean()  # type: ignore[no-any-return]
 
 
