@@ -36,8 +36,14 @@ def test_acting_on_the_labels_makes_the_loop_apply_the_teachers_command(mode):
 
 
 @pytest.mark.slow
-def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, monkeypatch):
-    whole = distill(SMALL, tmp_path / "whole", progress=False)
+@pytest.mark.parametrize("recipe", [{}, {"mixing": 0.5, "decay": True, "rounds": 3}], ids=["plain", "mixed"])
+def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, monkeypatch, recipe):
+    """Interrupted in its second round's training and resumed: the same policy and losses, bit for bit (with DAgger's
+    mixing, whose draws come from the saved generator, and the annealed learning rate too)."""
+    import dataclasses
+
+    settings = dataclasses.replace(SMALL, **recipe)
+    whole = distill(settings, tmp_path / "whole", progress=False)
     train = distill_module._train
     calls = {"n": 0}
 
@@ -49,7 +55,7 @@ def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, m
 
     monkeypatch.setattr(distill_module, "_train", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        distill(SMALL, tmp_path / "cut", progress=False)
+        distill(settings, tmp_path / "cut", progress=False)
     monkeypatch.setattr(distill_module, "_train", train)
     resumed = resume_distill(tmp_path / "cut", progress=False)
     a = torch.load(whole.policy, weights_only=True)["state"]
@@ -57,7 +63,7 @@ def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, m
     assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
     assert [r["loss"] for r in whole.rounds] == [r["loss"] for r in resumed.rounds]
     with pytest.raises(InvalidInputError, match=r"holds a run already"):
-        distill(SMALL, tmp_path / "whole", progress=False)
+        distill(settings, tmp_path / "whole", progress=False)
 
 
 def test_balanced_weights_make_each_family_count_at_its_own_scale():
@@ -113,6 +119,8 @@ def test_settings_are_refused_by_name():
         DistillSettings(num_envs=2)
     with pytest.raises(InvalidInputError, match=r"^balance: "):
         DistillSettings(balance="equal")
+    with pytest.raises(InvalidInputError, match=r"^mixing: expected a probability in \[0, 1\), got 1.0$"):
+        DistillSettings(mixing=1.0)
     with pytest.raises(InvalidInputError, match=r"^observe_plant: "):
         DistillSettings(observe_plant="true")
     with pytest.raises(InvalidInputError, match=r"^observe_plant: a torque policy cannot observe"):
@@ -147,3 +155,29 @@ def test_a_student_distilled_from_mpc_on_one_move_closes_most_of_the_gap_to_it(t
 
     (pid, _), (mpc, _), (mine, settled) = score("pid", False), score("mpc", False), score("pid", True)
     assert settled and (pid - mine) / (pid - mpc) >= 0.7, (pid, mpc, mine)
+
+
+def test_the_annealed_learning_rate_is_a_cosine_over_each_rounds_epochs():
+    """`decay`: the epochs of a round train at learning_rate (1e-3 + (1 - 1e-3) (1 + cos(pi e / E)) / 2), e = 0..E-1
+    (the oracle: the formula, read off the optimiser at each epoch); without it at learning_rate throughout."""
+    import dataclasses
+
+    from mjtraj.rl.batched_policy import batched_policy_class
+
+    for decay in (True, False):
+        settings = dataclasses.replace(SMALL, epochs=4, batch=8, decay=decay)
+        module = batched_policy_class()(5, 3, settings.policy_settings())
+        optimiser = torch.optim.Adam(module.net.parameters(), lr=settings.learning_rate)
+        seen = []
+        real_step = optimiser.step
+
+        def step(*args, _real=real_step, _seen=seen, _opt=optimiser, **kwargs):
+            _seen.append(_opt.param_groups[0]["lr"])
+            return _real(*args, **kwargs)
+
+        optimiser.step = step  # type: ignore[method-assign]
+        rng = np.random.default_rng(0)
+        distill_module._train(module, optimiser, rng.normal(size=(8, 5)), rng.normal(size=(8, 3)) * 0.1, settings, rng)
+        wanted = [settings.learning_rate * ((1e-3 + (1 - 1e-3) * 0.5 * (1 + np.cos(np.pi * e / 4))) if decay else 1.0)
+                  for e in range(4)]
+        assert seen == pytest.approx(wanted, rel=1e-12)

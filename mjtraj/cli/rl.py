@@ -142,6 +142,10 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--observe-plant", dest="observe_plant", choices=("none", "estimate"), default="none",
                    help="estimate: also observe the adaptive law's estimate of the plant (default none)")
     p.add_argument("--history", type=int, default=0, help="previous observations also observed (default 0)")
+    p.add_argument("--mixing", type=float, default=0.0,
+                   help="DAgger's beta: in round r the teacher acts with probability MIXING^r (default 0: the student)")
+    p.add_argument("--decay", action="store_true",
+                   help="anneal the learning rate by a cosine over each round's epochs (default constant)")
     p.add_argument("--balance", choices=("none", "family"), default="none",
                    help="family: each family's squared errors divided by its mean squared label (default none)")
     p.add_argument("--seed", type=int, default=0, help="the training streams' seed (default 0)")
@@ -339,7 +343,8 @@ def run_distill(args: argparse.Namespace) -> int:
                                    hidden=tuple(args.hidden), preview=args.preview,
                                    action_mode=args.action_mode, observe_task=args.observe_task,
                                    observe_plant=args.observe_plant,
-                                   history=args.history, balance=args.balance, seed=args.seed, threads=args.threads)
+                                   history=args.history, mixing=args.mixing, decay=args.decay,
+                                   balance=args.balance, seed=args.seed, threads=args.threads)
         report = distill(settings, args.out, progress=not args.no_progress, command=command_line(args))
     print(f"wrote {report.policy} ({int(report.rounds[-1]['samples'])} labelled states); score it: mjtraj rl eval "
           f"--policy {report.policy}")

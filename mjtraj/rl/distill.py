@@ -75,6 +75,12 @@ class DistillSettings:
     disturbance: payload, damping, friction)."""
     history: int = 0
     """Previous observations the student also observes."""
+    mixing: float = 0.0
+    """DAgger's beta (Ross et al. 2011): in round r >= 1 each sub-env's step applies the teacher's label with
+    probability mixing^r (drawn from the run's generator), else the student's action; 0: the student alone."""
+    decay: bool = False
+    """Anneal the learning rate by a cosine to a thousandth of `learning_rate` over each round's epochs (restarting
+    each round); False: constant."""
     balance: str = "none"
     """How the loss weighs the families: none (every labelled state alike: the largest labels, an aggressive motion's,
     dominate), or family (each state's squared error divided by its family's mean squared label in the data, so that
@@ -96,6 +102,8 @@ class DistillSettings:
             positive_int(name, getattr(self, name))
         for name in ("residual_scale", "learning_rate"):
             positive(name, getattr(self, name))
+        if not (isinstance(self.mixing, (int, float)) and 0.0 <= self.mixing < 1.0):
+            raise InvalidInputError(f"mixing: expected a probability in [0, 1), got {self.mixing!r}")
         if not isinstance(self.preview, int) or self.preview < 0:
             raise InvalidInputError(f"preview: expected an integer >= 0, got {self.preview!r}")
         if not (np.isfinite(self.settle) and self.settle >= 0):
@@ -247,6 +255,8 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
             else:
                 with torch.no_grad():
                     action = module(torch.as_tensor(obs, dtype=torch.float32)).numpy().astype(np.float64)
+                if settings.mixing:
+                    action = np.where(rng.random(len(action))[:, None] < settings.mixing**r, label, action)
             obs = env.step(action)
         data_x.append(np.concatenate(xs))
         data_y.append(np.concatenate(ys))
@@ -277,7 +287,13 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
     weights = torch.as_tensor(sample_weights(y, settings), dtype=torch.float32)[:, None]
     normal = torch.clamp((inputs - module.mean) / (module.std + module.epsilon), -module.clip, module.clip)
     loss_sum = 0.0
-    for _ in range(settings.epochs):
+    for group in optimiser.param_groups:
+        group["lr"] = settings.learning_rate
+    for epoch in range(settings.epochs):
+        if settings.decay:  # cosine from learning_rate to a thousandth of it over the round's epochs
+            for group in optimiser.param_groups:
+                group["lr"] = settings.learning_rate * (1e-3 + (1 - 1e-3) * 0.5 * (1 + np.cos(np.pi * epoch
+                                                                                             / settings.epochs)))
         order = torch.as_tensor(rng.permutation(len(x)))
         loss_sum, batches = 0.0, 0
         for k in range(0, len(x), settings.batch):
