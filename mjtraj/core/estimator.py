@@ -113,7 +113,7 @@ class DisturbanceKalman:
         declared sensors (rows,), rad; None: exact measurements), `initial_torque`^2 on d, (`initial_parameter`
         theta_max)^2 on theta."""
         s = self.settings
-        V = np.broadcast_to(self.measurement, (rows, 2 * self.n)) if declared is None else self.variances(declared)
+        V = self.variances(np.zeros(rows) if declared is None else declared)
         rest = np.concatenate([np.full(self.n, s.initial_torque**2), (s.initial_parameter * self.bounds) ** 2])
         diagonal = np.concatenate([V, np.broadcast_to(rest, (rows, rest.size))], axis=1)
         out = np.zeros((rows, self.size, self.size))
@@ -128,8 +128,7 @@ class DisturbanceKalman:
         before, the measurement (B, 2n), the sensors the loop declares (B,), rad (None: exact measurements); returns
         x (B, 2n), [d; theta] (theta within its bounds) and P."""
         m = 2 * self.n
-        V = (np.broadcast_to(self.measurement, predicted.shape) if declared is None
-             else self.variances(declared))  # (B, 2n)
+        V = self.variances(np.zeros(len(predicted)) if declared is None else declared)  # (B, 2n)
         S = covariance[:, :m, :m] + V[:, :, None] * np.eye(m)  # (B, 2n, 2n)
         K = np.linalg.solve(S, covariance[:, :m, :]).transpose(0, 2, 1)  # P H^T S^-1, (B, size, 2n): S, P symmetric
         z = np.concatenate([predicted, disturbance], axis=1) + np.einsum("bij,bj->bi", K, measured - predicted)

@@ -400,8 +400,10 @@ def resume_batched(out: str | Path, *, progress: bool = True) -> BatchedReport:
                                 "every validation point, removed when the run completes); start it again in a new "
                                 "folder")
     record = torch.load(path, weights_only=False)["progress"]["record"]
-    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in record["settings"].items()}
-    settings = BatchedSettings(**fields)
+    settings = policy_settings(record)
+    if settings.init and record.get("init_sha256") != file_sha256(settings.init):
+        raise InvalidInputError(f"init: {settings.init} is not the policy file the run started from (its sha256 "
+                                f"changed); resume it with that file in place")
     return train_batched(settings, out, progress=progress, command=record["command"], resume=True)
 
 
@@ -450,9 +452,6 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
     first, before, wall_steps, since_best, episodes = 0, 0.0, 0, 0, 0
     if resume:
         env, obs, saved = load_resume_point(out / RESUME_FILE, agent)
-        if settings.init and saved["record"].get("init_sha256") != record["init_sha256"]:
-            raise InvalidInputError(f"init: {settings.init} is not the policy file the run started from (its sha256 "
-                                    f"changed); resume it with that file in place")
         first, before, wall_steps = saved["t"], saved["wall_s"], saved["wall_steps"]
         rows, best, since_best, episodes = saved["rows"], saved["best"], saved["since_best"], saved["episodes"]
         record["resumed"] = [*saved["record"].get("resumed", []), {"timesteps": first * settings.num_envs}]

@@ -104,14 +104,10 @@ class DistillSettings:
             positive(name, getattr(self, name))
         if not (isinstance(self.mixing, (int, float)) and 0.0 <= self.mixing < 1.0):
             raise InvalidInputError(f"mixing: expected a probability in [0, 1), got {self.mixing!r}")
-        if not isinstance(self.preview, int) or self.preview < 0:
-            raise InvalidInputError(f"preview: expected an integer >= 0, got {self.preview!r}")
-        if not (np.isfinite(self.settle) and self.settle >= 0):
-            raise InvalidInputError(f"settle: expected a window >= 0 s, got {self.settle!r}")
         choice("task", self.task, ("random", "paper"))
         choice("balance", self.balance, ("none", "family"))
         choice("action_mode", self.action_mode, ("residual", "torque"))
-        self.policy_settings()  # the mixture's checks (families, sub-envs, widths, seed): the batched runs'
+        self.policy_settings()  # the batched runs' checks: families, sub-envs, widths, seed, preview, settle, ...
 
     def split(self) -> list[int]:
         """Sub-envs per family, as even as possible (the batched runs' split)."""
@@ -287,13 +283,11 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
     weights = torch.as_tensor(sample_weights(y, settings), dtype=torch.float32)[:, None]
     normal = torch.clamp((inputs - module.mean) / (module.std + module.epsilon), -module.clip, module.clip)
     loss_sum = 0.0
-    for group in optimiser.param_groups:
-        group["lr"] = settings.learning_rate
     for epoch in range(settings.epochs):
-        if settings.decay:  # cosine from learning_rate to a thousandth of it over the round's epochs
-            for group in optimiser.param_groups:
-                group["lr"] = settings.learning_rate * (1e-3 + (1 - 1e-3) * 0.5 * (1 + np.cos(np.pi * epoch
-                                                                                             / settings.epochs)))
+        # with decay, a cosine from learning_rate to a thousandth of it over the round's epochs
+        share = 1e-3 + (1 - 1e-3) * 0.5 * (1 + np.cos(np.pi * epoch / settings.epochs)) if settings.decay else 1.0
+        for group in optimiser.param_groups:
+            group["lr"] = settings.learning_rate * share
         order = torch.as_tensor(rng.permutation(len(x)))
         loss_sum, batches = 0.0, 0
         for k in range(0, len(x), settings.batch):
