@@ -49,17 +49,19 @@ STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "r
 """Keys of every step's info (arrays of shape (B, n), or (B,) for the reward terms)."""
 
 
-def observe(loop: ClosedLoop, preview: int, control: bool = False, measured: bool = False) -> NDArray[np.float64]:
+def observe(loop: ClosedLoop, preview: int, control: bool = False, measured: bool = False,
+            relative: bool = False) -> NDArray[np.float64]:
     """Observations of every simulation of a started loop, shape (B, 6n + 1 + 2n preview [+ 2n]): q, qd, q_ref,
-    qd_ref, e, ed, the phase k/N, then q_ref and qd_ref of the next `preview` periods (held at N), then with
-    `control` the PID integral (rad s) and the next period's feedforward torque (N m). With `measured`, q and qd
-    (and so e, ed) are what the control law measures (`ClosedLoop.measured`: with measurement noise, the noisy
-    ones), else the true state."""
+    qd_ref, e, ed, the phase k/N, then q_ref and qd_ref of the next `preview` periods (held at N; with `relative`,
+    minus the observed q and qd), then with `control` the PID integral (rad s) and the next period's feedforward
+    torque (N m). With `measured`, q and qd (and so e, ed) are what the control law measures
+    (`ClosedLoop.measured`: with measurement noise, the noisy ones), else the true state."""
     q, qd = loop.measured() if measured else (loop.positions, loop.velocities)
     q_ref, qd_ref = loop.reference()
     parts = [q, qd, q_ref, qd_ref, q_ref - q, qd_ref - qd, (loop.periods / loop.ends)[:, None]]
     for offset in range(1, preview + 1):
-        parts += loop.reference(offset)
+        ahead_q, ahead_qd = loop.reference(offset)
+        parts += [ahead_q - q, ahead_qd - qd] if relative else [ahead_q, ahead_qd]
     if control:
         parts += loop.controller_state()
     return np.concatenate(parts, axis=1)
@@ -105,7 +107,7 @@ class Observer:
         """The observations of simulations `rows` (all if None) now, shape (len(rows), obs_size); advances their
         history by one observation."""
         s = self.settings
-        base = observe(loop, s.preview, s.observe_control, s.observe_measured)
+        base = observe(loop, s.preview, s.observe_control, s.observe_measured, s.preview_frame == "relative")
         if s.observe_plant == "estimate":
             state = loop.law_state()
             assert state is not None and self._bounds is not None

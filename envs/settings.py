@@ -47,6 +47,7 @@ from mjtraj.media import RENDER_QUALITIES, check_render_options
 
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
+PREVIEW_FRAMES = ("absolute", "relative")
 ENV_FAMILIES = ("none", *FAMILIES)
 """The env's `family` values: none (tasks by `task`), or a sweep family whose rules draw each episode."""
 RENDER_MODES = ("rgb_array", "depth_array", "human")
@@ -82,6 +83,9 @@ class EnvOptions:
     duration: float = option(2.0, "T, s (a whole number of dt)", positive=True)
     dt: float = option(0.02, "control period, s", positive=True)
     preview: int = option(0, "future reference samples in the observation", minimum=0)
+    preview_frame: str = option("absolute", "absolute (the preview's samples q_ref and qd_ref themselves) or relative "
+                                "(each minus the observed q and qd: the error the arm would have if it stayed, the "
+                                "same information in the frame a feedback law reads it in)", choices=PREVIEW_FRAMES)
     observe_control: bool = option(False, "append the PID integral and the next feedforward torque to the "
                                    "observation (both enter dtau and the reward)")
     observe_plant: str = option("none", "none; true = append the plant's payload, damping and friction over their "
@@ -184,6 +188,8 @@ class TrackSettings:
     dt: float
     loop: LoopConfig
     preview: int
+    preview_frame: str
+    """'absolute' or 'relative' (the preview's samples minus the observed q and qd)."""
     observe_control: bool
     """The observation ends with the PID integral and the next feedforward torque."""
     observe_plant: str
@@ -358,6 +364,7 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          residual_scale=float(own.residual_scale), task_mode=own.task, fixed_task=fixed,
                          max_displacement=own.max_displacement,
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,
+                         preview_frame=own.preview_frame,
                          observe_control=own.observe_control, observe_plant=own.observe_plant,
                          history=own.history, teacher=own.teacher, observe_task=own.observe_task,
                          observe_measured=own.observe_measured, settle=own.settle,

@@ -46,8 +46,9 @@ def observation_space(settings: TrackSettings) -> spaces.Box:
     # velocities have no a-priori bound (half the largest float, so that the velocity errors' 2 v stays finite)
     v = np.full(settings.n, VELOCITY_BOUND if settings.model_path is None else np.finfo(np.float64).max / 2)
     zero, one = np.zeros(1), np.ones(1)
-    low = [q_low, -v, q_low, -v, -e_max, -2 * v, zero] + [q_low, -v] * settings.preview
-    high = [q_high, v, q_high, v, e_max, 2 * v, one] + [q_high, v] * settings.preview
+    ahead = ([q_low, -v], [q_high, v]) if settings.preview_frame == "absolute" else ([-e_max, -2 * v], [e_max, 2 * v])
+    low = [q_low, -v, q_low, -v, -e_max, -2 * v, zero] + ahead[0] * settings.preview
+    high = [q_high, v, q_high, v, e_max, 2 * v, one] + ahead[1] * settings.preview
     if settings.observe_control:  # no a-priori bound: the largest finite float (Gymnasium warns on inf)
         unbounded = np.full(2 * settings.n, np.finfo(np.float64).max)
         low, high = [*low, -unbounded], [*high, unbounded]
@@ -117,6 +118,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
 
     (m = 19 + 6 preview; max float = the largest finite float64: these two have no a-priori bound. p = m (+ 6 with
     observe_control); t = p (+ 7 with observe_plant); N the motion's periods (without the settle window). With
+    preview_frame='relative' each preview sample is given minus the observed q and qd (bounds as e and ed). With
     observe_measured, q, qd, e and ed are what the control law measures, noisy under measurement_noise (else the
     true state, which a policy then sees and the law does not); theta_max: `mjtraj.core.adaptive.BOUND_RULE`; 'true'
     gives the episode's plant (privileged), 'estimate' the adaptive law's online estimate. observe_control's integral
@@ -224,6 +226,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | reward_baseline  | "none"     | none, or controller: reward = advantage over the law alone (pid: old name) |
     | floor            | False      | at the episode's end also its clairvoyant floor in info["metrics"] (below) |
     | preview          | 0          | future reference samples in the observation                             |
+    | preview_frame    | "absolute" | absolute, or relative: each preview sample minus the observed q and qd   |
     | observe_control  | False      | append the PID integral and the next feedforward torque (6 values)      |
     | observe_plant    | "none"     | none, true (the plant's parameters: privileged) or estimate (adaptive law's) |
     | observe_task     | False      | append the move (rad) and the time to the motion's end (s)              |

@@ -171,6 +171,23 @@ def test_observation_layout():
     np.testing.assert_array_equal(obs[25:31], np.concatenate([ref.q[3], ref.qd[3]]))
     assert obs.shape == env.observation_space.shape == (31,)
 
+def test_a_relative_preview_is_the_reference_ahead_minus_the_observed_state():
+    """preview_frame='relative' gives each preview sample minus the observed (here measured, noisy) q and qd and
+    changes nothing else; the observations stay inside the space."""
+    kwargs = {"preview": 2, "task": "random", "measurement_noise": 0.01, "observe_measured": True, "settle": 0.5}
+    absolute, relative = UR5TrackEnv(**kwargs), UR5TrackEnv(**kwargs, preview_frame="relative")
+    obs_a, _ = absolute.reset(seed=3)
+    obs_r, _ = relative.reset(seed=3)
+    for _ in range(110):  # through the motion's end into the settle window (the preview held at the goal)
+        action = absolute.action_space.sample()
+        obs_a, *_ = absolute.step(action)
+        obs_r, *_ = relative.step(action)
+        state = np.concatenate([obs_a[:3], obs_a[3:6]])
+        np.testing.assert_array_equal(obs_r[:19], obs_a[:19])
+        np.testing.assert_array_equal(obs_r[19:25], obs_a[19:25] - state)
+        np.testing.assert_array_equal(obs_r[25:31], obs_a[25:31] - state)
+        assert relative.observation_space.contains(obs_r)
+    assert not np.array_equal(obs_a[:3], absolute.reference.q[-1])  # the noise is in what both observe
 
 
 def test_seeded_resets_are_identical():
@@ -330,6 +347,7 @@ def test_docstring_arguments_table_matches_the_code():
                "plant_randomization": s.plant_randomization, "measurement_noise": s.measurement_noise,
                "reward_baseline": s.reward_baseline, "floor": s.floor,
                "max_displacement": s.max_displacement, "duration": s.duration, "dt": s.dt, "preview": s.preview,
+               "preview_frame": s.preview_frame,
                "width": s.width, "height": s.height, "camera": s.camera, "render_quality": s.render_quality,
                "render_mode": s.render_mode,
                **{name: getattr(s.loop, name) for name in option_names(LoopConfig, scenario_only=False)}}
@@ -428,7 +446,8 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
     ({"speed": 2}, r"^speed: unknown argument; valid: planner, q0, qg, Q_exec, R_exec, render_mode, xml_file, "
                    r"torque_limit, "
                    r"action_mode, "
-                   r"residual_scale, task, family, max_displacement, duration, dt, preview, observe_control, "
+                   r"residual_scale, task, family, max_displacement, duration, dt, preview, preview_frame, "
+                   r"observe_control, "
                    r"observe_plant, observe_task, observe_measured, settle, history, teacher, plant_randomization, "
                    r"measurement_noise, reward_baseline, floor, width, "
                    r"height, "

@@ -82,6 +82,26 @@ def test_a_teacher_shadows_every_period_whether_or_not_it_is_asked(teacher, scen
     assert differs
 
 
+@pytest.mark.parametrize("teacher", ["mpc", pytest.param("adaptive_mpc", marks=pytest.mark.slow)])
+def test_a_predictive_teacher_counts_the_command_the_loop_applied(teacher, scenario, model):
+    """PID drives, with noise and a settle window (protocol v2's filter). The teacher answers, every period, what
+    its law commands in its own loop when that loop applies the same torques (the oracle: the law running the loop,
+    with the residual that makes it apply PID's command): its filter counts the applied command, not its own, so it
+    does not take their difference for a disturbance."""
+    refs = _references(scenario, model, "nominal", [3, 4], window=5)
+    noise = np.random.default_rng(1).standard_normal((refs[0].steps, 2, 2 * model.nv)) * 1e-3
+    shadow = ClosedLoop(model, scenario.loop, nsim=2, teachers=(teacher,))
+    own = ClosedLoop(model, dataclasses.replace(scenario.loop, controller=teacher), nsim=2, teachers=(teacher,))
+    for loop in (shadow, own):
+        loop.start(refs, noise=noise)
+    for _ in range(refs[0].steps):
+        answer, commanded = shadow.teach(teacher), own.teach(teacher)
+        np.testing.assert_allclose(answer.dtau, commanded.dtau, rtol=1e-9, atol=1e-9)
+        applied = shadow.step().control.dtau
+        own.step(residual=applied - commanded.dtau)
+    np.testing.assert_allclose(own.rollout().q, shadow.rollout().q, rtol=0, atol=1e-12)  # the same motion
+
+
 def test_teachers_are_named_control_laws(scenario, model):
     with pytest.raises(InvalidInputError, match=r"^teachers: expected control laws among .*, got 'teacher'$"):
         ClosedLoop(model, scenario.loop, teachers=("teacher",))

@@ -68,6 +68,9 @@ def add(sub: Any, laws: str) -> None:
                    "0.1)")
     p.add_argument("--preview", type=int, help="with --batched: future reference samples the policy observes "
                    "(default 0)")
+    p.add_argument("--preview-frame", dest="preview_frame", choices=("absolute", "relative"),
+                   help="with --batched: relative: each preview sample minus the observed q and qd (default --init's, "
+                   "else absolute)")
     p.add_argument("--settle", type=float,
                    help="with --batched: the episodes' settle window, s, in training and validation (default --init's, "
                    "else 0: protocol v1's episodes; 0.5: protocol v2's, scored by J_settle)")
@@ -134,11 +137,17 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--hidden", type=counts, default=[256, 256, 256],
                    help="hidden layer widths, comma-separated (default 256,256,256)")
     p.add_argument("--preview", type=int, default=10, help="future reference samples observed (default 10)")
+    p.add_argument("--preview-frame", dest="preview_frame", choices=("absolute", "relative"),
+                   default="absolute",
+                   help="relative: each preview sample minus the observed q and qd (default absolute)")
     p.add_argument("--action-mode", dest="action_mode", choices=("residual", "torque"), default="residual",
                    help="residual: the student adds to --controller's command; torque: it commands the whole "
                    "corrective torque (default residual)")
     p.add_argument("--observe-task", dest="observe_task", action="store_true",
                    help="also observe the move and the time to the motion's end (UR5Track-v2's observation)")
+    p.add_argument("--observe-control", dest="observe_control", action="store_true",
+                   help="also observe the PID integral of e and the next feedforward torque (the integral runs "
+                   "under --controller pid)")
     p.add_argument("--observe-plant", dest="observe_plant", choices=("none", "estimate"), default="none",
                    help="estimate: also observe the adaptive law's estimate of the plant (default none)")
     p.add_argument("--history", type=int, default=0, help="previous observations also observed (default 0)")
@@ -312,7 +321,8 @@ def _run_batched(args: argparse.Namespace) -> int:
     flags = {"residual_scale": args.residual_scale, "initial_std": args.initial_std, "preview": args.preview,
              "observe_control": args.observe_control or None, "history": args.history or None,
              "observe_plant": None if args.observe_plant == "none" else args.observe_plant,
-             "action_mode": None if args.action_mode == "residual" else args.action_mode, "settle": args.settle}
+             "action_mode": None if args.action_mode == "residual" else args.action_mode, "settle": args.settle,
+             "preview_frame": args.preview_frame}
     started = init_defaults(args.init) if args.init else {}
     settings = BatchedSettings(**{**started, **{k: v for k, v in given.items() if v is not None}, **tuned,
                                   **{k: v for k, v in flags.items() if v is not None},
@@ -341,7 +351,8 @@ def run_distill(args: argparse.Namespace) -> int:
                                    residual_scale=args.residual_scale, families=tuple(args.families),
                                    num_envs=args.num_envs, rounds=args.rounds, steps=args.steps, epochs=args.epochs,
                                    hidden=tuple(args.hidden), preview=args.preview,
-                                   action_mode=args.action_mode, observe_task=args.observe_task,
+                                   preview_frame=args.preview_frame, action_mode=args.action_mode,
+                                   observe_task=args.observe_task, observe_control=args.observe_control,
                                    observe_plant=args.observe_plant,
                                    history=args.history, mixing=args.mixing, decay=args.decay,
                                    balance=args.balance, seed=args.seed, threads=args.threads)

@@ -177,8 +177,11 @@ class ClosedLoop:
 
     `teachers` names other control laws that shadow the loop's own (for imitation: `teach` gives what one of them
     would command now, at what the loop's law measures). Each runs as the loop's law would, on the same references
-    and measurements, with its own integral and state, advanced every period by its own command, whatever the loop
-    applies: where the loop's law is the teacher's, its answers are the loop's commands, bit for bit.
+    and measurements, with its own integral and state, advanced every period as its own loop would advance them
+    had it commanded what the loop applied: a predictive law's prediction counts the loop's command (its
+    `applied_state`; else its filter would take the difference for a disturbance and its answers would drift from
+    what it commands in its own loop), the other laws' states do not depend on the command. Where the loop's law is
+    the teacher's, its answers are the loop's commands, bit for bit.
     """
 
     def __init__(self, model: mujoco.MjModel, config: LoopConfig, *, nsim: int = 1,
@@ -501,7 +504,7 @@ class ClosedLoop:
             s.integral = out.integral
             s.law_state = out.state
             if s.teachers:
-                self._advance_teachers(None)
+                self._advance_teachers(None, out.dtau)
             if s.held is not None:
                 out = out._replace(dtau=self._delayed(out.dtau, slice(None)))
             plant.step(out.dtau)
@@ -532,7 +535,7 @@ class ClosedLoop:
                             None if s.qdd_ref is None else s.qdd_ref[ks, s.rows], residual, override, s.law_state)
         dtau = np.where(active[:, None], out.dtau, 0.0)
         if s.teachers:
-            self._advance_teachers(active)
+            self._advance_teachers(active, out.dtau)
         if s.held is not None:
             dtau = np.where(active[:, None], self._delayed(dtau, active), 0.0)
         s.integral = np.where(active[:, None], out.integral, s.integral)
@@ -608,12 +611,17 @@ class ClosedLoop:
         taught.answered = (ks, out)
         return out
 
-    def _advance_teachers(self, active: NDArray[np.bool_] | None) -> None:
-        """Every teacher's integral and state after this period (its own command's; `active` (B,): the simulations
-        that ran it, None: all)."""
+    def _advance_teachers(self, active: NDArray[np.bool_] | None, applied: NDArray[np.float64]) -> None:
+        """Every teacher's integral and state after this period (`active` (B,): the simulations that ran it, None:
+        all): its own, but for a law whose state depends on the command the plant received (`applied_state`: the
+        predictive laws' prediction), which counts the loop's command `applied` (B, n), N m, as its own loop counts
+        a residual."""
         s = self._running()
         for name, taught in s.teachers.items():
             out = self.teach(name)
+            heard = getattr(self._teachers[name], "applied_state", None)
+            if heard is not None and out.state is not None:
+                out = out._replace(state=heard(out.state, out.dtau, applied))
             if active is None:
                 taught.integral, taught.law_state = out.integral, out.state
             else:

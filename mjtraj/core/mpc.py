@@ -223,6 +223,8 @@ class ModelPredictive:
     """Whether protocol v2's filter also estimates the adaptive law's parameters (a payload at the flange, viscous
     damping and dry friction per joint, `mjtraj.core.adaptive`) beside the torque disturbance."""
     _plan: dict[str, NDArray[np.float64]] = field(default_factory=dict, repr=False)
+    _response: tuple[NDArray[np.intp], NDArray[np.float64]] | None = field(default=None, repr=False)
+    """The last period's protocol-v2 simulations and their input matrices B (R, 2n, n): `applied_state`."""
 
     def __post_init__(self) -> None:
         self.n = self.model.nv
@@ -479,6 +481,7 @@ class ModelPredictive:
         """One period for the batch: the command (B, n), N m; the counter advances in `ControlOutput.state`."""
         assert state is not None and q is not None and qd is not None
         if override is not None:
+            self._response = None
             return overridden(override, limit, integral)._replace(state=self._skipped(state))
         estimate = self._estimate(state, np.concatenate([q, qd], axis=1))
         return self._output(self._solve_all(estimate, None), estimate, tau_ff, limit, integral, residual)
@@ -506,6 +509,20 @@ class ModelPredictive:
                                           declared)
             out.state[rows], out.torque[rows], out.covariance[rows] = x, z, P
             out.disturbance[rows] = 0.0
+        return out
+
+    def applied_state(self, state: NDArray[np.float64], commanded: NDArray[np.float64],
+                      applied: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The state (B, state_size) after the period this law last answered, had the plant received `applied`
+        (B, n), N m, instead of its command `commanded` (B, n): a teacher shadowing a loop that applied another
+        command (`ClosedLoop.teach`). In protocol v2's episodes the prediction moves by B (applied - commanded), as
+        the law's own loop counts a residual or the saturation, so that its filter does not take the other
+        command for a disturbance; protocol v1's episodes keep their state (their prediction counts neither)."""
+        if self._response is None:
+            return state
+        rows, B = self._response
+        out = state.copy()
+        out[rows, 1:1 + 2 * self.n] += np.einsum("bij,bj->bi", B, applied[rows] - commanded[rows])
         return out
 
     def _skipped(self, state: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -547,9 +564,11 @@ class ModelPredictive:
         dtau = np.minimum(np.maximum(command, -limit), limit)
         covariance = estimate.covariance
         rows = np.flatnonzero(estimate.filtered)
+        self._response = None
         if rows.size:
             A = np.stack([solved[b].A for b in rows])
             B = np.stack([solved[b].B for b in rows])
+            self._response = (rows, B)
             predicted[rows] += np.einsum("bij,bj->bi", B, dtau[rows] - planned[rows])
             Y = (np.stack([cast(NDArray[np.float64], solved[b].regressor) for b in rows])
                  if self.estimates_parameters else None)
@@ -607,6 +626,7 @@ class AdaptiveModelPredictive(ModelPredictive):
         own = super().state_size
         theta = state[:, own:]
         if override is not None:
+            self._response = None
             return overridden(override, limit, integral)._replace(state=self._skipped(state))
         estimate = self._estimate(state[:, :own], np.concatenate([q, qd], axis=1))
         # protocol v2's episodes: the parameters are the filter's (estimates_parameters); the adaptive law's rule

@@ -41,6 +41,7 @@ from mjtraj.rl import ALGORITHM_NAMES
 
 BENCHMARK_ENV: dict[str, Any] = {"planner": "cubic", "controller": "pid", "action_mode": "residual",
                                  "residual_scale": RESIDUAL_SCALE, "observe_control": False, "preview": 0,
+                                 "preview_frame": "absolute",
                                  "observe_plant": "none", "history": 0, "observe_task": False,
                                  "observe_measured": False}
 """The env settings of a policy that declares none: UR5Track-v1's (UR5Track-v2's observation adds observe_task and

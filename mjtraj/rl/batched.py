@@ -40,7 +40,14 @@ from numpy.typing import NDArray
 
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import write_text_atomic
-from mjtraj.rl.batched_policy import BATCHED_RUN, BatchedSettings, batched_policy_class, mlp, save_policy
+from mjtraj.rl.batched_policy import (
+    BATCHED_RUN,
+    BatchedSettings,
+    batched_policy_class,
+    mlp,
+    policy_settings,
+    save_policy,
+)
 from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, training_entropies
 
 CURVE_COLUMNS = ("timesteps", "wall_s", "steps_per_s", "train_episodes", "train_advantage_mean")
@@ -285,16 +292,10 @@ def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
     return agent
 
 
-INIT_SHARED = ("controller", "action_mode", "residual_scale", "hidden", "preview", "observe_control", "observe_task",
-               "observe_plant", "history")
+INIT_SHARED = ("controller", "action_mode", "residual_scale", "hidden", "preview", "preview_frame", "observe_control",
+               "observe_task", "observe_plant", "history")
 """The settings a policy that starts a run (`BatchedSettings.init`) must share with it: what it observes, how its
 action acts, its network."""
-
-
-def policy_settings(record: dict[str, Any]) -> BatchedSettings:
-    """The BatchedSettings a policy file's `record` holds (JSON's lists back to tuples)."""
-    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in record["settings"].items()}
-    return BatchedSettings(**fields)
 
 
 def init_defaults(path: str | Path) -> dict[str, Any]:

@@ -44,6 +44,8 @@ class BatchedSettings:
     validation: int = 32
     preview: int = 0
     """Future reference samples the policy observes (the env's `preview`)."""
+    preview_frame: str = "absolute"
+    """absolute, or relative: the preview's samples minus the observed q and qd (the env's `preview_frame`)."""
     observe_control: bool = False
     """The policy also observes the law's integral state and the next feedforward torque (the env's option)."""
     patience: int = 0
@@ -90,6 +92,7 @@ class BatchedSettings:
             raise InvalidInputError(f"hidden: expected layer widths >= 1, got {self.hidden!r}")
         check_seed("seed", self.seed)
         choice("observe_plant", self.observe_plant, ("none", "estimate"))
+        choice("preview_frame", self.preview_frame, ("absolute", "relative"))
         choice("action_mode", self.action_mode, ("residual", "torque"))
         if self.action_mode == "torque" and self.observe_plant != "none":
             raise InvalidInputError(f"observe_plant: a torque policy cannot observe the adaptive law's estimate (the "
@@ -116,8 +119,8 @@ class BatchedSettings:
 
     def observation(self) -> dict[str, Any]:
         """The env options that shape what the policy observes (a deployed policy declares them: `env`)."""
-        extra = {name: getattr(self, name) for name, default in (("observe_task", False), ("observe_plant", "none"),
-                                                                 ("history", 0)) if getattr(self, name) != default}
+        optional = (("observe_task", False), ("observe_plant", "none"), ("history", 0), ("preview_frame", "absolute"))
+        extra = {name: getattr(self, name) for name, default in optional if getattr(self, name) != default}
         return {"preview": self.preview, "observe_control": self.observe_control, **extra}
 
 
@@ -176,6 +179,12 @@ def save_policy(module: Any, path: Path, record: dict[str, Any]) -> None:
         Path(tmp).write_bytes(buffer.getvalue())
 
 
+def policy_settings(record: dict[str, Any]) -> BatchedSettings:
+    """The BatchedSettings a policy file's `record` holds (JSON's lists back to tuples)."""
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in record["settings"].items()}
+    return BatchedSettings(**fields)
+
+
 def load_batched(path: str | Path) -> Any:
     """A BatchedPolicy saved by a batched run (policy.pt or best.pt), with its run's record as `record`.
 
@@ -194,8 +203,7 @@ def load_batched(path: str | Path) -> Any:
     if not isinstance(saved, dict) or saved.get("format") != POLICY_FORMAT:
         raise InvalidInputError(f"policy: {file} is not a policy saved by mjtraj rl train --batched")
     record = saved["record"]
-    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in record["settings"].items()}
-    settings = BatchedSettings(**fields)
+    settings = policy_settings(record)
     state = saved["state"]
     module = batched_policy_class()(state["mean"].numel(), state[[k for k in state if k.endswith("bias")][-1]].numel(),
                                     settings)

@@ -68,8 +68,13 @@ class DistillSettings:
     hidden: tuple[int, ...] = (256, 256, 256)
     preview: int = 10
     """Future reference samples the student observes (the env's `preview`)."""
+    preview_frame: str = "absolute"
+    """absolute, or relative: the preview's samples minus the observed q and qd (the env's `preview_frame`)."""
     observe_task: bool = False
     """The student also observes the move and the time to the motion's end (UR5Track-v2's observation)."""
+    observe_control: bool = False
+    """The student also observes the loop's PID integral of e and the next feedforward torque (the env's option; the
+    integral runs under `controller` pid, in torque mode too: a memory of a persistent error)."""
     observe_plant: str = "none"
     """none, or estimate: the student also observes the adaptive law's estimate of the plant (a memory of the
     disturbance: payload, damping, friction)."""
@@ -126,7 +131,8 @@ class DistillSettings:
         return BatchedSettings(num_envs=self.num_envs, residual_scale=self.residual_scale, controller=self.controller,
                                families=self.families, hidden=self.hidden, seed=self.seed, threads=self.threads,
                                action_mode=self.action_mode, settle=self.settle, preview=self.preview,
-                               observe_task=self.observe_task,
+                               preview_frame=self.preview_frame,
+                               observe_task=self.observe_task, observe_control=self.observe_control,
                                observe_plant=self.observe_plant, history=self.history)
 
     def families_of_envs(self) -> NDArray[np.intp]:
