@@ -98,7 +98,7 @@ def test_a_predictive_teacher_counts_the_command_the_loop_applied(teacher, scena
         answer, commanded = shadow.teach(teacher), own.teach(teacher)
         np.testing.assert_allclose(answer.dtau, commanded.dtau, rtol=1e-9, atol=1e-9)
         applied = shadow.step().control.dtau
-        own.step(residual=applied - commanded.dtau)
+        own.step(residual=applied - (commanded.tau_ff + commanded.tau_fb))  # its command, before the saturation
     np.testing.assert_allclose(own.rollout().q, shadow.rollout().q, rtol=0, atol=1e-12)  # the same motion
 
 

@@ -179,8 +179,8 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--policy-env", dest="policy_env", action="append", default=[], metavar="KEY=VALUE",
                    help="an env setting for policies without an mjtraj record (callables, torch modules, plain SB3 "
                    "zips) that do not declare it (planner, controller, action_mode, residual_scale, observe_control, "
-                   "preview, observe_plant, history, observe_task, observe_measured; default UR5Track-v1's); "
-                   "repeatable")
+                   "preview, preview_frame, observe_plant, history, observe_task, observe_measured; default "
+                   "UR5Track-v1's); repeatable")
     p.add_argument("--protocol", choices=tuple(PROTOCOLS), default=PROTOCOL,
                    help=f"the benchmark protocol (default {PROTOCOL}: each episode goes on for a settle window after "
                    "its motion, scored over it by J_settle and held to the at-rest rule, against cubic+adaptive CT; "

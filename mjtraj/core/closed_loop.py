@@ -178,10 +178,11 @@ class ClosedLoop:
     `teachers` names other control laws that shadow the loop's own (for imitation: `teach` gives what one of them
     would command now, at what the loop's law measures). Each runs as the loop's law would, on the same references
     and measurements, with its own integral and state, advanced every period as its own loop would advance them
-    had it commanded what the loop applied: a predictive law's prediction counts the loop's command (its
+    had it commanded what the loop applied: a predictive law's protocol-v2 prediction counts the loop's command (its
     `applied_state`; else its filter would take the difference for a disturbance and its answers would drift from
-    what it commands in its own loop), the other laws' states do not depend on the command. Where the loop's law is
-    the teacher's, its answers are the loop's commands, bit for bit.
+    what it commands in its own loop). The other states follow the teacher's own command where they depend on it at
+    all, through its saturation: PID's integral under anti_windup='clamp', `adaptive_mpc`'s adaptation in protocol
+    v1's episodes. Where the loop's law is the teacher's, its answers are the loop's commands, bit for bit.
     """
 
     def __init__(self, model: mujoco.MjModel, config: LoopConfig, *, nsim: int = 1,
@@ -613,9 +614,8 @@ class ClosedLoop:
 
     def _advance_teachers(self, active: NDArray[np.bool_] | None, applied: NDArray[np.float64]) -> None:
         """Every teacher's integral and state after this period (`active` (B,): the simulations that ran it, None:
-        all): its own, but for a law whose state depends on the command the plant received (`applied_state`: the
-        predictive laws' prediction), which counts the loop's command `applied` (B, n), N m, as its own loop counts
-        a residual."""
+        all): its own, but for a law with `applied_state` (the predictive laws' prediction), which counts the loop's
+        command `applied` (B, n), N m, before any actuation delay, as the law's own loop counts a residual."""
         s = self._running()
         for name, taught in s.teachers.items():
             out = self.teach(name)

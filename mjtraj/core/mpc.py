@@ -513,16 +513,18 @@ class ModelPredictive:
 
     def applied_state(self, state: NDArray[np.float64], commanded: NDArray[np.float64],
                       applied: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The state (B, state_size) after the period this law last answered, had the plant received `applied`
-        (B, n), N m, instead of its command `commanded` (B, n): a teacher shadowing a loop that applied another
+        """The state (B, state_size) after the period this law last answered, had it commanded `applied` (B, n),
+        N m, instead of its command `commanded` (B, n): a teacher shadowing a loop that applied another
         command (`ClosedLoop.teach`). In protocol v2's episodes the prediction moves by B (applied - commanded), as
         the law's own loop counts a residual or the saturation, so that its filter does not take the other
         command for a disturbance; protocol v1's episodes keep their state (their prediction counts neither)."""
         if self._response is None:
             return state
         rows, B = self._response
+        other = applied[rows] - commanded[rows]
+        moved = np.flatnonzero(np.any(other != 0, axis=1))  # elsewhere exact, even where B is not finite
         out = state.copy()
-        out[rows, 1:1 + 2 * self.n] += np.einsum("bij,bj->bi", B, applied[rows] - commanded[rows])
+        out[rows[moved], 1:1 + 2 * self.n] += np.einsum("bij,bj->bi", B[moved], other[moved])
         return out
 
     def _skipped(self, state: NDArray[np.float64]) -> NDArray[np.float64]:
