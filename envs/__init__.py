@@ -59,6 +59,7 @@ _EXPORTS = {
     "observe": "mjtraj.envs.core",
     "Observer": "mjtraj.envs.core",
     "OBSERVE_PLANT": "mjtraj.envs.settings",
+    "PREVIEW_FRAMES": "mjtraj.envs.settings",
     "scale_action": "mjtraj.envs.core",
     "STEP_INFO": "mjtraj.envs.core",
     "ACTION_MODES": "mjtraj.envs.settings",
@@ -78,6 +79,7 @@ if TYPE_CHECKING:
     from mjtraj.envs.settings import (
         ACTION_MODES,
         PLANT_RANDOMIZATIONS,
+        PREVIEW_FRAMES,
         RESIDUAL_SCALE,
         REWARD_BASELINES,
         TASKS,
@@ -92,7 +94,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ACTION_MODES", "BENCHMARK_DEFAULTS", "BENCHMARK_ID", "BENCHMARK_V2_DEFAULTS", "BENCHMARK_V2_ID",
     "BENCHMARK_VARIANTS", "ENV_ID", "EnvOptions",
-    "PLANT_RANDOMIZATIONS", "RESIDUAL_SCALE", "REWARD_BASELINES", "STEP_INFO",
+    "PLANT_RANDOMIZATIONS", "PREVIEW_FRAMES", "RESIDUAL_SCALE", "REWARD_BASELINES", "STEP_INFO",
     "TASKS", "TrackCore", "TrackSettings", "UR5TrackEnv", "UR5TrackVectorEnv", "action_space", "argument_defaults",
     "observation_space", "observe", "Observer", "OBSERVE_PLANT", "register_envs", "resolve", "scale_action",
 ]

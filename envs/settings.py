@@ -48,6 +48,7 @@ from mjtraj.media import RENDER_QUALITIES, check_render_options
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
 PREVIEW_FRAMES = ("absolute", "relative")
+"""The env's `preview_frame` values: the preview's samples themselves, or minus the observed state."""
 ENV_FAMILIES = ("none", *FAMILIES)
 """The env's `family` values: none (tasks by `task`), or a sweep family whose rules draw each episode."""
 RENDER_MODES = ("rgb_array", "depth_array", "human")

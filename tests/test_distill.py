@@ -129,6 +129,8 @@ def test_settings_are_refused_by_name():
         DistillSettings(observe_plant="true")
     with pytest.raises(InvalidInputError, match=r"^observe_plant: a torque policy cannot observe"):
         DistillSettings(action_mode="torque", observe_plant="estimate")
+    with pytest.raises(InvalidInputError, match=r"^preview_frame: unknown value 'ahead'; valid: absolute, relative$"):
+        DistillSettings(preview_frame="ahead")
 
 
 @pytest.mark.slow

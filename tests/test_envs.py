@@ -456,6 +456,7 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                    r"feedforward, ff_accel, gravity_comp, anti_windup, adaptation_rate, substeps, divergence_bound, "
                    r"delay$"),
     ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
+    ({"preview_frame": "ahead"}, r"^preview_frame: unknown value 'ahead'; valid: absolute, relative$"),
     ({"observe_plant": "estimate"}, r"^observe_plant: 'estimate' observes the adaptive law's estimate; expected "
                                     r"controller='adaptive_computed_torque', got 'pid'$"),
     ({"observe_plant": "all"}, r"^observe_plant: unknown value 'all'; valid: none, true, estimate$"),

@@ -92,14 +92,15 @@ class BatchedSettings:
             raise InvalidInputError(f"hidden: expected layer widths >= 1, got {self.hidden!r}")
         check_seed("seed", self.seed)
         choice("observe_plant", self.observe_plant, ("none", "estimate"))
-        choice("preview_frame", self.preview_frame, ("absolute", "relative"))
         choice("action_mode", self.action_mode, ("residual", "torque"))
         if self.action_mode == "torque" and self.observe_plant != "none":
             raise InvalidInputError(f"observe_plant: a torque policy cannot observe the adaptive law's estimate (the "
                                     f"law does not run under its torque), expected none, got {self.observe_plant!r}")
         from mjtraj.core import controller_names
+        from mjtraj.envs import PREVIEW_FRAMES
 
         choice("controller", self.controller, controller_names())
+        choice("preview_frame", self.preview_frame, PREVIEW_FRAMES)
 
     @property
     def iterations(self) -> int:
