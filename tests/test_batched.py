@@ -315,20 +315,27 @@ def test_with_a_settle_window_validation_scores_the_window_and_the_rest_rule():
     assert all(o.metrics["end_speed"] < 0.05 for o in outcomes)
 
 
-def test_protocol_v2s_validation_ratio_is_paired_with_the_law_alone():
-    """`_paired_ratio` by hand: a failure where the law came to rest is +inf; episodes the law failed do not count;
-    else the ratio of the sums of J_settle over the episodes both came to rest on."""
-    from mjtraj.rl.batched import _paired_ratio
+def test_protocol_v2s_validation_is_paired_with_the_law_alone():
+    """`_paired` by hand: a failure where the law came to rest is a missed episode; episodes the law failed do not
+    count; the ratio is that of the sums of J_settle over the episodes both came to rest on. Points rank by missed
+    episodes first, then the worst ratio; a search sees +inf for a point that missed any."""
+    from mjtraj.rl.batched import _paired, selection_key, selection_value
     from mjtraj.study import Outcome
 
     def rows(*cells):
         return [Outcome("ok", metrics={"cost": c}) if c is not None else Outcome("not_settled", "moving")
                 for c in cells]
 
-    assert _paired_ratio(rows(1.0, 2.0, None), rows(2.0, 2.0, None)) == 3.0 / 4.0
-    assert _paired_ratio(rows(1.0, None, 5.0), rows(2.0, None, None)) == 0.5
-    assert _paired_ratio(rows(1.0, None), rows(2.0, 3.0)) == float("inf")
-    assert _paired_ratio(rows(None), rows(None)) == 1.0
+    assert _paired(rows(1.0, 2.0, None), rows(2.0, 2.0, None)) == (0, 3.0 / 4.0)
+    assert _paired(rows(1.0, None, 5.0), rows(2.0, None, None)) == (0, 0.5)
+    assert _paired(rows(1.0, None, None), rows(2.0, 3.0, 4.0)) == (2, 0.5)
+    assert _paired(rows(None), rows(None)) == (0, 1.0)
+    assert _paired(rows(None), rows(1.0)) == (1, 1.0)
+    one_missed, none_missed = {"worst_ratio": 0.5, "missed": 1}, {"worst_ratio": 2.0, "missed": 0}
+    assert sorted([one_missed, none_missed], key=selection_key) == [none_missed, one_missed]
+    assert selection_key({"worst_ratio": 0.7, "missed": 0}) < selection_key(none_missed)
+    assert selection_key({"worst_ratio": 0.9}) == (0.0, 0.9)  # protocol v1: no missed column
+    assert selection_value(one_missed) == float("inf") and selection_value(none_missed) == 2.0
 
 
 @pytest.mark.slow
@@ -356,4 +363,7 @@ def test_a_run_started_from_a_policy_resumes_only_with_that_policy_file(tmp_path
     with pytest.raises(InvalidInputError, match=r"^init: .*kept.pt is not the policy file the run started from"):
         batched.resume_batched(tmp_path / "run", progress=False)
     shutil.copy(path, kept)
-    assert batched.resume_batched(tmp_path / "run", progress=False).score == "J_settle"
+    report = batched.resume_batched(tmp_path / "run", progress=False)
+    assert report.score == "J_settle" and "missed" in report.best_point
+    header = (tmp_path / "run" / "learning_curve.csv").read_text().splitlines()[0].split(",")
+    assert header[-5:] == ["mismatch_ratio", "mismatch_cost", "mismatch_missed", "worst_ratio", "missed"]

@@ -289,6 +289,14 @@ def run_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _missed(point: dict[str, float]) -> str:
+    """What a protocol-v2 validation point says besides its ratio: the episodes missed where the law came to rest
+    (the ratio is over the episodes both came to rest on); '' for a v1 point."""
+    if "missed" not in point:
+        return ""
+    return f" on the episodes both came to rest on, {point['missed']:.0f} missed where the law came to rest"
+
+
 def _run_batched(args: argparse.Namespace) -> int:
     """`mjtraj rl train --algo ppo --batched`."""
     from mjtraj.exceptions import InvalidInputError
@@ -298,7 +306,7 @@ def _run_batched(args: argparse.Namespace) -> int:
         report = resume_batched(args.resume, progress=not args.no_progress)
         print(f"resumed {args.resume} and trained to {report.timesteps} steps; best validation point: the worst "
               f"family's mean {report.score} {report.best_point.get('worst_ratio', float('nan')):.4f} of the law "
-              f"alone's")
+              f"alone's{_missed(report.best_point)}")
         print(f"wrote {report.policy}, {report.best} (best on validation), {report.curve} and "
               f"{report.out / 'run.json'}")
         return 0
@@ -333,7 +341,7 @@ def _run_batched(args: argparse.Namespace) -> int:
     point = report.best_point
     print(f"trained {report.timesteps} steps in {report.wall:.0f} s ({report.timesteps / report.wall:.0f} steps/s); "
           f"best validation point at {point.get('timesteps', 0):.0f} steps: the worst family's mean {report.score} "
-          f"{point.get('worst_ratio', float('nan')):.4f} of the law alone's")
+          f"{point.get('worst_ratio', float('nan')):.4f} of the law alone's{_missed(point)}")
     if report.stopped:
         print(f"stopped at {report.timesteps} steps: {report.stopped}")
     print(f"wrote {report.policy}, {report.best} (best on validation), {report.curve} and {report.out / 'run.json'}")

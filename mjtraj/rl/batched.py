@@ -15,7 +15,9 @@ The recipe (every setting in BatchedSettings, recorded in run.json):
   best point by the worst family's ratio is kept as best.pt;
 - with a settle window (`settle`, 0.5 s: protocol v2's episodes) training and validation episodes go on after the
   motion with the goal held, the policy observes the measured state, and validation scores J_settle paired with
-  the law alone (`_paired_ratio`: +inf where the policy fails an episode the law came to rest on);
+  the law alone (`_paired`: `<family>_missed` counts the episodes the policy failed where the law came to rest,
+  `<family>_ratio` is J_settle over the episodes both came to rest on); best.pt is then the point with the fewest
+  missed episodes, the worst family's ratio breaking ties (`selection_key`);
 - `init` starts the policy from a distilled (mjtraj.rl.distill) or earlier batched policy (`start_from`): PPO then
   fine-tunes it, and the untrained policy is that policy, not the law alone.
 
@@ -52,7 +54,8 @@ from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, training_entropie
 
 CURVE_COLUMNS = ("timesteps", "wall_s", "steps_per_s", "train_episodes", "train_advantage_mean")
 """The learning curve's columns, then per family `<family>_ratio` (validation mean J_exec over the law alone's) and
-`<family>_cost` (the policy's mean J_exec), then `worst_ratio`."""
+`<family>_cost` (the policy's mean J_exec), then `worst_ratio`; with a settle window (protocol v2) each family's
+`<family>_missed` follows its cost and the row ends with their sum, `missed` (`_validated`)."""
 
 
 VARIABLE_LENGTH = ("aggressive",)
@@ -202,32 +205,50 @@ def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any]
     return out
 
 
-def _paired_ratio(mine: Sequence[Any], alone: Sequence[Any]) -> float:
-    """Protocol v2's validation ratio of a policy's outcomes to the law alone's on the same episodes: +inf if the
-    policy failed an episode the law came to rest on, else its mean J_settle over the episodes both came to rest on
-    over the law's there (1 where there are none); episodes the law failed do not count against the policy."""
+def _paired(mine: Sequence[Any], alone: Sequence[Any]) -> tuple[int, float]:
+    """Protocol v2's validation of a policy's outcomes beside the law alone's on the same episodes: (missed, ratio).
+    `missed` counts the episodes the policy failed where the law came to rest; `ratio` is the policy's mean J_settle
+    over the episodes both came to rest on over the law's there (1 where there are none). Episodes the law failed do
+    not count against the policy."""
     ok = [a.status == "ok" for a in alone]
-    if any(o.status != "ok" and fine for o, fine in zip(mine, ok, strict=True)):
-        return float("inf")
+    missed = sum(o.status != "ok" and fine for o, fine in zip(mine, ok, strict=True))
     both = [(o.metrics["cost"], a.metrics["cost"]) for o, a in zip(mine, alone, strict=True) if o.status == "ok"
             and a.status == "ok"]
-    return float(sum(c for c, _ in both) / sum(c for _, c in both)) if both else 1.0
+    return int(missed), float(sum(c for c, _ in both) / sum(c for _, c in both)) if both else 1.0
+
+
+def selection_key(point: dict[str, Any]) -> tuple[float, float]:
+    """How validation points are ranked (the smaller the better): the missed episodes (protocol v2's points; 0 for
+    v1's, which have none), then the worst family's ratio."""
+    return float(point.get("missed", 0)), float(point["worst_ratio"])
+
+
+def selection_value(point: dict[str, Any]) -> float:
+    """A validation point as one number, for a search to minimise: the worst family's ratio, +inf if the policy
+    missed an episode the law came to rest on."""
+    missed, worst = selection_key(point)
+    return worst if missed == 0 else float("inf")
 
 
 def _validated(policy: Any, validation: list[Any], alone: dict[str, list[Any]], settings: BatchedSettings
                ) -> dict[str, float]:
     """The learning curve's validation columns of `policy` on the `validation` sets (`validation_sets`), beside the
-    law alone's outcomes there: `<family>_cost`, `<family>_ratio` (J_exec over the law's mean, or with a settle
-    window `_paired_ratio`) and `worst_ratio`."""
+    law alone's outcomes there: `<family>_cost` and `<family>_ratio` (J_exec over the law's mean), then
+    `worst_ratio`; with a settle window the ratio is `_paired`'s, each family's `<family>_missed` follows its cost
+    and their sum `missed` closes the row."""
     from mjtraj.rl.episodes import run_episodes
 
     row: dict[str, float] = {}
     for family, s, refs, w, p, settle in validation:
         outcomes = run_episodes(policy, s, refs, w, p, settle)
-        cost = _mean_cost(outcomes)
-        ratio = _paired_ratio(outcomes, alone[family]) if settings.settle else cost / _mean_cost(alone[family])
-        row[f"{family}_cost"], row[f"{family}_ratio"] = cost, ratio
+        row[f"{family}_cost"] = _mean_cost(outcomes)
+        if settings.settle:
+            row[f"{family}_missed"], row[f"{family}_ratio"] = _paired(outcomes, alone[family])
+        else:
+            row[f"{family}_ratio"] = row[f"{family}_cost"] / _mean_cost(alone[family])
     row["worst_ratio"] = max(row[f"{family}_ratio"] for family in settings.families)
+    if settings.settle:
+        row["missed"] = sum(row[f"{family}_missed"] for family in settings.families)
     return row
 
 
@@ -412,11 +433,11 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
                   command: str = "", on_validation: Callable[[int, float], bool] | None = None,
                   resume: bool = False) -> BatchedReport:
     """Train by the recipe of the module docstring into `out`: run.json, learning_curve.csv and .png, policy.pt (the
-    last policy), best.pt (the best validation point by its worst family) and skrl/ (the agent, for inspection);
+    last policy), best.pt (the best validation point by `selection_key`) and skrl/ (the agent, for inspection);
     RESUME_FILE while it runs (`resume=True` goes on from it: `resume_batched`).
 
     Training stops early once `settings.patience` validation points in a row have not improved the best point, or
-    when `on_validation(timesteps, worst_ratio)`, called at every validation point, returns True (a search's
+    when `on_validation(timesteps, selection_value(point))`, called at every validation point, returns True (a search's
     pruner); run.json records where and why ("stopped")."""
     from mjtraj.rl.adapters import from_object
     from mjtraj.rl.episodes import run_episodes
@@ -443,13 +464,15 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
     if settings.init:
         record["init_sha256"] = file_sha256(settings.init)
     families = list(settings.families)
-    columns = [*CURVE_COLUMNS, *(f"{f}_{what}" for f in families for what in ("ratio", "cost")), "worst_ratio"]
+    measured = ("ratio", "cost", "missed") if settings.settle else ("ratio", "cost")
+    columns = [*CURVE_COLUMNS, *(f"{f}_{what}" for f in families for what in measured), "worst_ratio",
+               *(("missed",) if settings.settle else ())]
     curve_path = out / "learning_curve.csv"
     rows: list[dict[str, Any]] = []
     total = settings.iterations * settings.rollouts
     points = sorted({round(k * settings.iterations / settings.evaluations) * settings.rollouts
                      for k in range(1, settings.evaluations + 1)})
-    best: dict[str, float] = {"worst_ratio": float("inf")}
+    best: dict[str, float] = {"worst_ratio": float("inf"), **({"missed": float("inf")} if settings.settle else {})}
     first, before, wall_steps, since_best, episodes = 0, 0.0, 0, 0, 0
     if resume:
         env, obs, saved = load_resume_point(out / RESUME_FILE, agent)
@@ -483,13 +506,14 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
             rows.append(row)
             _write_curve(curve_path, columns, rows)
             since_best += 1
-            if row["worst_ratio"] < best["worst_ratio"]:
+            if selection_key(row) < selection_key(best):
                 best, since_best = {k: float(v) for k, v in row.items()}, 0
                 save_policy(module, out / "best.pt", {**record, "timesteps": row["timesteps"], "point": best})
-            bar.set_postfix_str(f"worst family {row['worst_ratio']:.4f} of the law")
+            bar.set_postfix_str(f"worst family {row['worst_ratio']:.4f} of the law"
+                                + (f", {row['missed']:.0f} missed" if settings.settle else ""))
             if settings.patience and since_best >= settings.patience:
-                stopped = f"patience: {since_best} validation points without a better worst family"
-            elif on_validation is not None and on_validation(row["timesteps"], row["worst_ratio"]):
+                stopped = f"patience: {since_best} validation points without a better one"
+            elif on_validation is not None and on_validation(row["timesteps"], selection_value(row)):
                 stopped = "pruned by the search"
             if stopped:
                 break

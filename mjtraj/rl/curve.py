@@ -95,8 +95,10 @@ def plot_batched_curve(csv_path: Path, out: Path, *, title: str, formats: Sequen
         top.plot(t, [numeric(r[f"{family}_ratio"]) for r in rows], "o-", ms=3, label=family)
     worst = np.array([numeric(r["worst_ratio"]) for r in rows])
     top.plot(t, worst, "k--", lw=1, label="worst family (picks best.pt)")
-    best = int(np.argmin(worst))
-    top.plot(t[best], worst[best], "k*", ms=12, label=f"best.pt, at {t[best]:,.0f} steps")
+    missed = np.array([numeric(r.get("missed", 0)) for r in rows])  # protocol v2: fewest missed first
+    best = int(np.lexsort((worst, missed))[0])
+    top.plot(t[best], worst[best], "k*", ms=12, label=f"best.pt, at {t[best]:,.0f} steps"
+             + (f" ({missed[best]:.0f} missed)" if "missed" in rows[0] else ""))
     top.axhline(1.0, color="0.5", lw=0.8)
     top.set_ylabel("validation J_exec / the law alone's")
     top.ticklabel_format(axis="y", useOffset=False)  # ratios near 1 read as themselves, not as "+1" and 1e-4 steps

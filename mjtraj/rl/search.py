@@ -82,7 +82,7 @@ def search(base: BatchedSettings, out: str | Path, *, trials: int, progress: boo
     positive_int("trials", trials)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    from mjtraj.rl.batched import train_batched
+    from mjtraj.rl.batched import selection_value, train_batched
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(study_name=STUDY, storage=f"sqlite:///{out / 'study.db'}", load_if_exists=True,
@@ -107,7 +107,7 @@ def search(base: BatchedSettings, out: str | Path, *, trials: int, progress: boo
         trial.set_user_attr("validation_points", step[0])
         if found.stopped == "pruned by the search":
             raise optuna.TrialPruned()
-        return float(found.best_point.get("worst_ratio", float("inf")))
+        return selection_value(found.best_point) if "worst_ratio" in found.best_point else float("inf")
 
     def finished(study: Any, trial: Any) -> None:
         if on_trial is not None:
