@@ -510,11 +510,8 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
                 best, since_best = {k: float(v) for k, v in row.items()}, 0
                 save_policy(module, out / "best.pt", {**record, "timesteps": row["timesteps"], "point": best})
             bar.set_postfix_str(f"worst family {row['worst_ratio']:.4f} of the law"
-                                + (f", {row['missed']:.0f} missed" if settings.settle else ""))
-            if settings.patience and since_best >= settings.patience:
-                stopped = f"patience: {since_best} validation points without a better one"
-            elif on_validation is not None and on_validation(row["timesteps"], selection_value(row)):
-                stopped = "pruned by the search"
+                                + (f", {row['missed']:.0f} missed" if "missed" in row else ""))
+            stopped = _stop_reason(row, since_best, settings.patience, on_validation)
             if stopped:
                 break
             save_resume_point(out / RESUME_FILE, agent, env, obs,
@@ -538,6 +535,17 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
     (out / RESUME_FILE).unlink(missing_ok=True)
     return BatchedReport(out, out / "policy.pt", out / "best.pt", curve_path, done, wall, best, stopped, episodes,
                          "J_settle" if settings.settle else "J_exec")
+
+
+def _stop_reason(row: dict[str, Any], since_best: int, patience: int,
+                 on_validation: Callable[[int, float], bool] | None) -> str:
+    """Why training stops at the validation point `row` ('' to go on): `patience` points in a row without a better
+    one, or the search's pruner (`on_validation`) says so."""
+    if patience and since_best >= patience:
+        return f"patience: {since_best} validation points without a better worst family"
+    if on_validation is not None and on_validation(row["timesteps"], selection_value(row)):
+        return "pruned by the search"
+    return ""
 
 
 def _write_curve(path: Path, columns: Sequence[str], rows: Sequence[dict[str, Any]]) -> None:
