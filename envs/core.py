@@ -353,6 +353,12 @@ class TrackCore:
             out.update(self._settle_metrics(ids, rollout, periods >= ends))
         return out
 
+    def holding(self) -> NDArray[np.bool_]:
+        """(num,): True where a simulation's motion has ended and it holds its goal (the settle window; False
+        everywhere without one)."""
+        motion = np.array([int(r.info.get("motion_steps", r.steps)) if r is not None else 0 for r in self.references])
+        return (self.loop.periods >= motion) & (self.settings.settle_steps > 0)  # type: ignore[no-any-return]
+
     def _settle(self, row: int) -> Settle:
         """Simulation `row`'s settle window (its task's goal and move, its reference's motion)."""
         task, reference = self.tasks[row], self.references[row]

@@ -83,6 +83,12 @@ class UR5TrackVectorEnv(VectorEnv):
         """The ClosedLoop this env runs (read its public queries; do not step it)."""
         return self._core.loop
 
+    @property
+    def holding(self) -> NDArray[np.bool_]:
+        """(num_envs,): True where a sub-env's motion has ended and it holds the goal (protocol v2's settle window;
+        False everywhere without one)."""
+        return self._core.holding()
+
     def reset(self, *, seed: int | list[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float64], dict[str, Any]]:
         if isinstance(seed, (list, tuple)):

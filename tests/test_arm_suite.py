@@ -1,11 +1,11 @@
 """Every arm of the suite (tests/arm_suite.py) through every command: compare (with figures on the first arm of each
-number of actuators, whose layout they follow), render, sweep (nominal and mismatch, one worker), frontier, tune and
-ArmTrack-v0 (make, reset, step, render, pickle, check_env). Oracles: no NaN where a row is ok, its peak corrective
-torque within the saturation and its terminal error within the goal rule (0.2 of the move); every planner of every
-nominal compare reaches its goal under the default gains; on the nominal plant the cubic reaches the goal of every
-nominal task, within 2 % of its move (RMS error within 5 %) on arms without dry friction; the files that must be
-refused are refused in one line matching what is unsupported. `python -m pytest tests/test_arm_suite.py -m slow -s`
-prints the table of arms x commands."""
+number of joints, whose layout they follow), render, sweep (nominal and mismatch; on one worker but for the arms of
+several files), frontier, tune and ArmTrack-v0 (make, reset, step, render, pickle, check_env). Oracles: no NaN where
+a row is ok, its peak corrective torque within the saturation and its terminal error within the goal rule (0.2 of the
+move); every planner of every nominal compare reaches its goal under the default gains; on the nominal plant the
+cubic reaches the goal of every nominal task, within 2 % of its move (RMS error within 5 %) on arms without dry
+friction; the files that must be refused are refused in one line matching what is unsupported. `python -m pytest
+tests/test_arm_suite.py -m slow -s` prints the table of arms x commands."""
 
 from __future__ import annotations
 
@@ -15,12 +15,12 @@ import warnings
 
 import gymnasium as gym
 import mjtraj.envs  # noqa: F401
-import mujoco
 import numpy as np
 import pytest
 from arm_suite import write_suite
 
 from mjtraj.cli import main
+from mjtraj.core.arm import prepare_arm
 from mjtraj.study.store import read_rows
 
 COMMANDS = ("compare", "render", "sweep", "frontier", "tune", "env")
@@ -71,8 +71,8 @@ def test_every_arm_through_every_command(suite, tmp_path, capsys):
             assert code == 2 and err.count("\n") == 1 and re.search(refusal, err), (name, err)
             row.update({c: "refused" for c in COMMANDS})
             continue
-        joints = mujoco.MjModel.from_xml_path(str(path)).nu
-        drawn = joints not in figured  # the figures on the first arm of each number of actuators (their layout)
+        joints = prepare_arm(path).nu  # one motor per planned joint
+        drawn = joints not in figured  # the figures on the first arm of each number of joints (their layout)
         figured.add(joints)
         code, text, err = run(["compare", "--model", str(path), "--out", str(out),
                                *(() if drawn else ("--no-figures",))], capsys)
@@ -86,9 +86,9 @@ def test_every_arm_through_every_command(suite, tmp_path, capsys):
         assert code == 0 and list((out / "videos").glob("*.gif")), (name, err)
         row["render"] = "ok"
         store = out / "sweep.csv"
+        pool = () if name in ("include", "meshes", "urdf") else ("--workers", "1")  # files the workers resolve
         code, _, err = run(["sweep", "--model", str(path), "--family", "nominal,mismatch", "--scenarios", "6",
-                            "--planners", "cubic,optimal", "--workers", "1", "--out", str(store),
-                            "--no-progress"], capsys)
+                            "--planners", "cubic,optimal", *pool, "--out", str(store), "--no-progress"], capsys)
         assert code == 0, (name, err)
         rows = read_rows(store)
         limit = max(float(v) for v in re.findall(r"\|dtau\| <= \[?([0-9., ]+)", text)[0].split(",") if v.strip())

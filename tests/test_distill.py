@@ -36,10 +36,12 @@ def test_acting_on_the_labels_makes_the_loop_apply_the_teachers_command(mode):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("recipe", [{}, {"mixing": 0.5, "decay": True, "rounds": 3}], ids=["plain", "mixed"])
+@pytest.mark.parametrize("recipe", [{}, {"mixing": 0.5, "decay": True, "rounds": 3, "balance": "family-hold",
+                                        "families": ("aggressive", "nominal"), "steps": 80}], ids=["plain", "mixed"])
 def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, monkeypatch, recipe):
     """Interrupted in its second round's training and resumed: the same policy and losses, bit for bit (with DAgger's
-    mixing, whose draws come from the saved generator, and the annealed learning rate too)."""
+    mixing, whose draws come from the saved generator, the annealed learning rate and the weights by family and
+    phase, whose phases are saved with the data, too)."""
     import dataclasses
 
     settings = dataclasses.replace(SMALL, **recipe)
@@ -57,6 +59,12 @@ def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, m
     with pytest.raises(KeyboardInterrupt):
         distill(settings, tmp_path / "cut", progress=False)
     monkeypatch.setattr(distill_module, "_train", train)
+    saved = torch.load(tmp_path / "cut" / "resume.pt", weights_only=False)
+    if settings.balance == "family-hold":  # the aggressive motions reached their windows: both phases weighed
+        assert set(np.concatenate(saved["hold"]).tolist()) == {False, True}
+    else:  # a resume point from before the phases were kept resumes too
+        del saved["hold"]
+        torch.save(saved, tmp_path / "cut" / "resume.pt")
     resumed = resume_distill(tmp_path / "cut", progress=False)
     a = torch.load(whole.policy, weights_only=True)["state"]
     b = torch.load(resumed.policy, weights_only=True)["state"]
@@ -82,6 +90,54 @@ def test_balanced_weights_make_each_family_count_at_its_own_scale():
     assert w[family == 0][0] / w[family == 1][0] == pytest.approx(np.mean(y[family == 1] ** 2)
                                                                   / np.mean(y[family == 0] ** 2), rel=1e-12)
     assert np.all(distill_module.sample_weights(y, SMALL) == 1.0)
+
+
+def test_weights_by_family_and_phase_make_each_group_count_at_its_own_scale():
+    """balance "family-hold": the motion's and the settle window's states of each family are weighed apart, each
+    group's weighted mean squared label the same, the weights averaging 1 (the oracle: the definition by hand); a
+    group with no states takes no part; without the phases it is refused by name."""
+    settings = DistillSettings(teacher="computed_torque", controller="pid", families=("nominal", "aggressive"),
+                               num_envs=4, balance="family-hold")
+    rng = np.random.default_rng(3)
+    family = np.tile(np.array([0, 0, 1, 1]), 6)
+    holding = np.repeat(np.arange(6) >= 3, 4)  # the last three steps of the rounds' sub-envs hold
+    holding[family == 0] = False  # the nominal sub-envs never reach their window: an empty group amid the others
+    size = np.where(family == 1, np.where(holding, 1e-2, 0.1), 1.0)
+    y = rng.normal(size=(24, 3)) * size[:, None]
+    w = distill_module.sample_weights(y, settings, holding)
+    groups = [(family == f) & (holding == h) for f, h in ((0, False), (1, False), (1, True))]
+    weighted = [np.mean(w[g, None] * y[g] ** 2) for g in groups]
+    assert weighted == pytest.approx([weighted[0]] * 3, rel=1e-12) and w.mean() == pytest.approx(1.0, rel=1e-12)
+    for g in groups:
+        assert np.ptp(w[g]) == 0.0
+    with pytest.raises(InvalidInputError, match=r"^holding: family-hold needs each labelled state's phase, expected "
+                                                r"24, got None$"):
+        distill_module.sample_weights(y, settings)
+
+
+def test_holding_marks_the_settle_window():
+    """The vector env's `holding`, read before each step as the distillation reads it: each episode steps exactly
+    the window's periods (0.5 s: 25) while holding, its last ones, and no other; False everywhere without a
+    window."""
+    from mjtraj.envs import UR5TrackVectorEnv
+
+    env = UR5TrackVectorEnv(2, task="random", family="aggressive", settle=0.5)
+    env.reset(seed=[5, 6])
+    phases: list[list[bool]] = [[], []]
+    ended = np.zeros(2, dtype=bool)
+    while not ended.all():
+        holding = env.holding.copy()
+        _, _, terminated, truncated, _ = env.step(np.zeros((2, 3)))
+        for i in np.flatnonzero(~ended):
+            phases[i].append(bool(holding[i]))
+        ended |= terminated | truncated
+    for phase in phases:
+        assert len(phase) > 25 and phase[-25:] == [True] * 25 and not any(phase[:-25])
+    plain = UR5TrackVectorEnv(2, task="random", family="aggressive")
+    plain.reset(seed=[5, 6])
+    for _ in range(120):
+        assert not plain.holding.any()
+        plain.step(np.zeros((2, 3)))
 
 
 def test_the_families_of_the_sub_envs_are_the_ones_the_weights_assume():
@@ -183,7 +239,8 @@ def test_the_annealed_learning_rate_is_a_cosine_over_each_rounds_epochs():
 
         optimiser.step = step  # type: ignore[method-assign]
         rng = np.random.default_rng(0)
-        distill_module._train(module, optimiser, rng.normal(size=(8, 5)), rng.normal(size=(8, 3)) * 0.1, settings, rng)
+        distill_module._train(module, optimiser, rng.normal(size=(8, 5)), rng.normal(size=(8, 3)) * 0.1, np.ones(8),
+                              settings, rng)
         wanted = [settings.learning_rate * ((1e-3 + (1 - 1e-3) * 0.5 * (1 + np.cos(np.pi * e / 4))) if decay else 1.0)
                   for e in range(4)]
         assert seen == pytest.approx(wanted, rel=1e-12)

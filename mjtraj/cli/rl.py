@@ -155,8 +155,9 @@ def add(sub: Any, laws: str) -> None:
                    help="DAgger's beta: in round r the teacher acts with probability MIXING^r (default 0: the student)")
     p.add_argument("--decay", action="store_true",
                    help="anneal the learning rate by a cosine over each round's epochs (default constant)")
-    p.add_argument("--balance", choices=("none", "family"), default="none",
-                   help="family: each family's squared errors divided by its mean squared label (default none)")
+    p.add_argument("--balance", choices=("none", "family", "family-hold"), default="none",
+                   help="family: each family's squared errors divided by its mean squared label; family-hold: by that "
+                        "of its family and phase (the motion, the settle window) (default none)")
     p.add_argument("--seed", type=int, default=0, help="the training streams' seed (default 0)")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1)")
     p.add_argument("--out", type=Path, default=Path("runs/distill"), help="output folder (default runs/distill)")

@@ -54,8 +54,9 @@ from mjtraj.rl.streams import TRAIN_STREAM, VALIDATION_STREAM, training_entropie
 
 CURVE_COLUMNS = ("timesteps", "wall_s", "steps_per_s", "train_episodes", "train_advantage_mean")
 """The learning curve's columns, then per family `<family>_ratio` (validation mean J_exec over the law alone's) and
-`<family>_cost` (the policy's mean J_exec), then `worst_ratio`; with a settle window (protocol v2) each family's
-`<family>_missed` follows its cost and the row ends with their sum, `missed` (`_validated`)."""
+`<family>_cost` (the policy's mean J_exec, +inf if it failed any episode), then `worst_ratio`; with a settle window
+(protocol v2) both score J_settle, the ratio over the episodes both came to rest on, each family's `<family>_missed`
+follows its cost and the row ends with their sum, `missed` (`_validated`)."""
 
 
 VARIABLE_LENGTH = ("aggressive",)
@@ -214,7 +215,7 @@ def _paired(mine: Sequence[Any], alone: Sequence[Any]) -> tuple[int, float]:
     missed = sum(o.status != "ok" and fine for o, fine in zip(mine, ok, strict=True))
     both = [(o.metrics["cost"], a.metrics["cost"]) for o, a in zip(mine, alone, strict=True) if o.status == "ok"
             and a.status == "ok"]
-    return int(missed), float(sum(c for c, _ in both) / sum(c for _, c in both)) if both else 1.0
+    return int(missed), (float(sum(c for c, _ in both) / sum(c for _, c in both)) if both else 1.0)
 
 
 def selection_key(point: dict[str, Any]) -> tuple[float, float]:
@@ -478,6 +479,8 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
         env, obs, saved = load_resume_point(out / RESUME_FILE, agent)
         first, before, wall_steps = saved["t"], saved["wall_s"], saved["wall_steps"]
         rows, best, since_best, episodes = saved["rows"], saved["best"], saved["since_best"], saved["episodes"]
+        if settings.settle:  # a v2 resume point from before missed episodes were counted: its ratio said them
+            best.setdefault("missed", 0.0 if np.isfinite(best["worst_ratio"]) else float("inf"))
         record["resumed"] = [*saved["record"].get("resumed", []), {"timesteps": first * settings.num_envs}]
     else:
         obs = env.reset()

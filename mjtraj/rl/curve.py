@@ -80,8 +80,9 @@ def plot_curve(csv_path: Path, out: Path, *, title: str, formats: Sequence[str] 
 
 def plot_batched_curve(csv_path: Path, out: Path, *, title: str, formats: Sequence[str] = ("png",)) -> Path:
     """learning_curve.png of a batched run (`mjtraj.rl.batched`): each family's validation mean J_exec over the law
-    alone's on the same tasks (1: the law; below: better) and the worst family's, which picks best.pt, against env
-    steps; below, the training advantage over the law. Written in each of `formats`; returns the first path."""
+    alone's on the same tasks (1: the law; below: better; protocol v2: J_settle over the episodes both came to rest
+    on) and the worst family's, which picks best.pt (v2: after the fewest missed episodes), against env steps; below,
+    the training advantage over the law. Written in each of `formats`; returns the first path."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -94,13 +95,15 @@ def plot_batched_curve(csv_path: Path, out: Path, *, title: str, formats: Sequen
     for family in families:
         top.plot(t, [numeric(r[f"{family}_ratio"]) for r in rows], "o-", ms=3, label=family)
     worst = np.array([numeric(r["worst_ratio"]) for r in rows])
-    top.plot(t, worst, "k--", lw=1, label="worst family (picks best.pt)")
-    missed = np.array([numeric(r.get("missed", 0)) for r in rows])  # protocol v2: fewest missed first
-    best = int(np.lexsort((worst, missed))[0])
+    v2 = "missed" in rows[0]  # protocol v2: the fewest missed episodes first, then the worst family
+    top.plot(t, worst, "k--", lw=1, label="worst family" + (" (after missed episodes, picks best.pt)" if v2 else
+                                                           " (picks best.pt)"))
+    missed = np.array([numeric(r["missed"]) for r in rows]) if v2 else np.zeros(len(rows))
+    best = int(np.lexsort((worst, missed))[0]) if v2 else int(np.argmin(worst))
     top.plot(t[best], worst[best], "k*", ms=12, label=f"best.pt, at {t[best]:,.0f} steps"
-             + (f" ({missed[best]:.0f} missed)" if "missed" in rows[0] else ""))
+             + (f" ({missed[best]:.0f} missed)" if v2 else ""))
     top.axhline(1.0, color="0.5", lw=0.8)
-    top.set_ylabel("validation J_exec / the law alone's")
+    top.set_ylabel(f"validation {'J_settle' if v2 else 'J_exec'} / the law alone's")
     top.ticklabel_format(axis="y", useOffset=False)  # ratios near 1 read as themselves, not as "+1" and 1e-4 steps
     top.legend(fontsize=8)
     top.set_title(textwrap.fill(title, 85), fontsize=9)

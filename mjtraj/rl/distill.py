@@ -88,8 +88,9 @@ class DistillSettings:
     each round); False: constant."""
     balance: str = "none"
     """How the loss weighs the families: none (every labelled state alike: the largest labels, an aggressive motion's,
-    dominate), or family (each state's squared error divided by its family's mean squared label in the data, so that
-    each family's corrections count at their own scale)."""
+    dominate), family (each state's squared error divided by its family's mean squared label in the data, so that
+    each family's corrections count at their own scale), or family-hold (the same per family and phase: the states
+    of the motion and those of the settle window, where the labels that bring the arm to rest are small, apart)."""
     settle: float = 0.5
     """The episodes' settle window, s (protocol v2's)."""
     task: str = "random"
@@ -110,7 +111,10 @@ class DistillSettings:
         if not (isinstance(self.mixing, (int, float)) and 0.0 <= self.mixing < 1.0):
             raise InvalidInputError(f"mixing: expected a probability in [0, 1), got {self.mixing!r}")
         choice("task", self.task, ("random", "paper"))
-        choice("balance", self.balance, ("none", "family"))
+        choice("balance", self.balance, BALANCES)
+        if self.balance == "family-hold" and not self.settle > 0:
+            raise InvalidInputError(f"balance: family-hold weighs the settle window apart and needs one (settle > 0), "
+                                    f"got settle={self.settle!r}")
         choice("action_mode", self.action_mode, ("residual", "torque"))
         self.policy_settings()  # the batched runs' checks: families, sub-envs, widths, seed, preview, settle, ...
 
@@ -147,6 +151,10 @@ class DistillReport:
     out: Path
     policy: Path
     rounds: list[dict[str, float]]
+
+
+BALANCES = ("none", "family", "family-hold")
+"""How the distillation loss weighs its labelled states (`DistillSettings.balance`)."""
 
 
 def labels(env: Any, teacher: str, controller: str, scale: float) -> NDArray[np.float64]:
@@ -190,6 +198,10 @@ class _Families:
         s = self.settings
         return np.concatenate([labels(env, s.teacher, s.controller, s.residual_scale) for env in self.mixed.envs])
 
+    def holding(self) -> NDArray[np.bool_]:
+        """(num_envs,): the sub-envs in their settle window now."""
+        return np.concatenate([env.holding for env in self.mixed.envs])
+
     def step(self, actions: NDArray[np.float64]) -> NDArray[np.float64]:
         return self.mixed.step(actions)[0]
 
@@ -223,6 +235,7 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
     rng = np.random.default_rng([settings.seed, TRAIN_STREAM, 99])
     data_x: list[NDArray[np.float64]] = []
     data_y: list[NDArray[np.float64]] = []
+    data_hold: list[NDArray[np.bool_]] = []
     history: list[dict[str, float]] = []
     first = 0
     record: dict[str, Any] = {"format": BATCHED_RUN, "distill_format": DISTILL_RUN,
@@ -242,16 +255,19 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
         torch.set_rng_state(state["torch_rng"])
         rng.bit_generator.state = state["rng"]
         data_x, data_y, history, first = state["x"], state["y"], state["history"], state["round"]
+        # a resume point from before the phases were kept: its balance (none or family) does not read them
+        data_hold = state.get("hold", [np.zeros(len(y), dtype=bool) for y in data_y])
         record["resumed"] = [*state["record"].get("resumed", []), {"round": first}]
     clock = time.perf_counter()
     for r in range(first, settings.rounds):
         start = time.perf_counter()
         obs = env.reset(r)
-        xs, ys = [], []
+        xs, ys, holds = [], [], []
         for _ in range(settings.steps):
             label = env.labels()
             xs.append(obs.copy())
             ys.append(label)
+            holds.append(env.holding())
             if r == 0:
                 action = label
             else:
@@ -262,31 +278,33 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
             obs = env.step(action)
         data_x.append(np.concatenate(xs))
         data_y.append(np.concatenate(ys))
+        data_hold.append(np.concatenate(holds))
         collected = time.perf_counter() - start
-        loss = _train(module, optimiser, np.concatenate(data_x), np.concatenate(data_y), settings, rng)
+        weights = sample_weights(np.concatenate(data_y), settings, np.concatenate(data_hold))
+        loss = _train(module, optimiser, np.concatenate(data_x), np.concatenate(data_y), weights, settings, rng)
         history.append({"round": r, "samples": float(sum(len(x) for x in data_x)), "collect_s": collected,
                         "train_s": time.perf_counter() - start - collected, "loss": loss})
         if progress:
             print(f"round {r}: {int(history[-1]['samples'])} labelled states, loss {loss:.3g}, "
                   f"{collected:.0f} s collecting, {history[-1]['train_s']:.0f} s training", flush=True)
-        _save_resume(saved, module, optimiser, rng, data_x, data_y, history, r + 1, record)
+        _save_resume(saved, module, optimiser, rng, (data_x, data_y, data_hold), history, r + 1, record)
     record.update(rounds=history, wall_s=time.perf_counter() - clock, timesteps=int(history[-1]["samples"]))
     save_policy(module, out / "policy.pt", record)
     write_text_atomic(out / "run.json", json.dumps(record, indent=1, default=float) + "\n")
     return DistillReport(out, out / "policy.pt", history)
 
 
-def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.float64], settings: DistillSettings,
-           rng: np.random.Generator) -> float:
-    """`settings.epochs` passes of mean-squared error over (x, y) in shuffled minibatches (each state weighted by
-    `sample_weights`), the standardisation refitted to all of x first; the last epoch's mean loss."""
+def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.float64], w: NDArray[np.float64],
+           settings: DistillSettings, rng: np.random.Generator) -> float:
+    """`settings.epochs` passes of mean-squared error over (x, y) in shuffled minibatches, each state weighted by w
+    (`sample_weights`), the standardisation refitted to all of x first; the last epoch's mean loss."""
     import torch
 
     module.mean.copy_(torch.as_tensor(x.mean(axis=0), dtype=torch.float32))
     module.std.copy_(torch.as_tensor(x.std(axis=0), dtype=torch.float32))
     inputs = torch.as_tensor(x, dtype=torch.float32)
     targets = torch.as_tensor(y, dtype=torch.float32)
-    weights = torch.as_tensor(sample_weights(y, settings), dtype=torch.float32)[:, None]
+    weights = torch.as_tensor(w, dtype=torch.float32)[:, None]
     normal = torch.clamp((inputs - module.mean) / (module.std + module.epsilon), -module.clip, module.clip)
     loss_sum = 0.0
     for epoch in range(settings.epochs):
@@ -307,28 +325,37 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
     return loss_sum
 
 
-def sample_weights(y: NDArray[np.float64], settings: DistillSettings) -> NDArray[np.float64]:
+def sample_weights(y: NDArray[np.float64], settings: DistillSettings, holding: NDArray[np.bool_] | None = None
+                   ) -> NDArray[np.float64]:
     """(M,): each labelled state's weight in the loss, for labels y (M, n) gathered round by round, step-major (a
-    round's states are steps x num_envs, sub-env i's family `families_of_envs()[i]`): 1 without balance; with
-    balance "family", 1 / its family's mean squared label (mean over the family's states and joints), scaled so that
-    the weights average 1."""
+    round's states are steps x num_envs, sub-env i's family `families_of_envs()[i]`), `holding` (M,) True for the
+    states of a settle window (needed by "family-hold"): 1 without balance; with balance "family", 1 / its family's
+    mean squared label (mean over the group's states and joints), with "family-hold" 1 / that of its family and
+    phase (motion or settle window); scaled so that the weights average 1. A group without states has no weight."""
     if settings.balance == "none":
         return np.ones(len(y))
     groups = np.tile(settings.families_of_envs(), len(y) // settings.num_envs)
-    scale = np.array([np.mean(y[groups == g] ** 2) for g in range(len(settings.families))])
-    weights = 1.0 / np.maximum(scale, 1e-6 * scale.max(initial=1e-12))[groups]  # a family of zero labels: not 1e12
+    if settings.balance == "family-hold":
+        if holding is None or len(holding) != len(y):
+            raise InvalidInputError(f"holding: family-hold needs each labelled state's phase, expected {len(y)}, got "
+                                    f"{None if holding is None else len(holding)}")
+        groups = 2 * groups + holding.astype(int)
+    scale = np.array([np.mean(y[groups == g] ** 2) if np.any(groups == g) else 0.0 for g in range(groups.max() + 1)])
+    weights = 1.0 / np.maximum(scale, 1e-6 * scale.max(initial=1e-12))[groups]  # a group of zero labels: not 1e12
     return weights / weights.mean()  # type: ignore[no-any-return]
 
 
-def _save_resume(path: Path, module: Any, optimiser: Any, rng: np.random.Generator, data_x: list[Any],
-                 data_y: list[Any], history: list[dict[str, float]], rounds: int, record: dict[str, Any]) -> None:
-    """Everything a resumed distillation needs (the data, the network, the optimiser, the generators), atomically."""
+def _save_resume(path: Path, module: Any, optimiser: Any, rng: np.random.Generator,
+                 data: tuple[list[Any], list[Any], list[Any]], history: list[dict[str, float]], rounds: int,
+                 record: dict[str, Any]) -> None:
+    """Everything a resumed distillation needs (the data: states, labels and phases; the network, the optimiser, the
+    generators), atomically."""
     import torch
 
     buffer = io.BytesIO()
     torch.save({"module": module.state_dict(), "optimiser": optimiser.state_dict(), "torch_rng": torch.get_rng_state(),
-                "rng": rng.bit_generator.state, "x": data_x, "y": data_y, "history": history, "round": rounds,
-                "record": record}, buffer)
+                "rng": rng.bit_generator.state, "x": data[0], "y": data[1], "hold": data[2], "history": history,
+                "round": rounds, "record": record}, buffer)
     with atomic_path(path) as tmp:
         Path(tmp).write_bytes(buffer.getvalue())
 

@@ -2,7 +2,8 @@
 SB3's, on the training and validation streams only (never an evaluation scenario).
 
 Each trial trains the recipe with sampled settings for `steps` env steps and scores it by the best validation point's
-worst family (its mean J_exec over the law alone's on the validation tasks, the rule that chooses `best.pt`). TPE
+worst family (its mean J_exec over the law alone's on the validation tasks, the rule that chooses `best.pt`; with a
+settle window, +inf for a point that missed an episode the law came to rest on: `batched.selection_value`). TPE
 samples the settings (seeded); the median pruner stops a trial whose validation point is worse than the median of
 earlier trials' at the same point. The study lives in an SQLite file, so an interrupted search continues where it
 stopped. The budget is stated in episodes, as the classical side's tuning is (`SearchReport.episodes`).
@@ -94,8 +95,8 @@ def search(base: BatchedSettings, out: str | Path, *, trials: int, progress: boo
         settings = dataclasses.replace(base, **sampled(trial))
         step = [0]
 
-        def report(timesteps: int, worst: float) -> bool:
-            trial.report(worst, step[0])
+        def report(timesteps: int, value: float) -> bool:
+            trial.report(value, step[0])
             step[0] += 1
             return bool(trial.should_prune())
 
@@ -107,7 +108,7 @@ def search(base: BatchedSettings, out: str | Path, *, trials: int, progress: boo
         trial.set_user_attr("validation_points", step[0])
         if found.stopped == "pruned by the search":
             raise optuna.TrialPruned()
-        return selection_value(found.best_point) if "worst_ratio" in found.best_point else float("inf")
+        return selection_value(found.best_point)
 
     def finished(study: Any, trial: Any) -> None:
         if on_trial is not None:
