@@ -19,8 +19,8 @@ from mjtraj.rl.train import TrainSettings, resume_training, train
 
 ARGS = ["rl", "train", "--algo", "sac", "--action-mode", "residual", "--observe-control", "--task", "random",
         "--validation", "4", "--threads", "1", "--no-progress", "--plant-randomization", "mismatch", "--controller",
-        "adaptive_computed_torque", "--observe-plant", "estimate", "--steps", "2400", "--checkpoints", "4",
-        "--evaluations", "6", "--seed", "3"]
+        "adaptive_computed_torque", "--observe-plant", "estimate", "--steps", "1200", "--checkpoints", "4",
+        "--evaluations", "3", "--seed", "3"]
 
 
 def _policy_bits(run) -> bytes:
@@ -45,8 +45,8 @@ def test_a_killed_run_resumes_to_the_uninterrupted_runs_policy(tmp_path):
     assert record["status"] == "running"  # a killed process records nothing more
     assert main(["rl", "train", "--resume", str(killed), "--no-progress"]) == 0
     record = json.loads((killed / "run.json").read_text())
-    assert record["status"] == "complete" and record["timesteps"] == 2400
-    assert [r["timesteps"] for r in record["resumed"]] and 0 < record["resumed"][0]["timesteps"] < 2400
+    assert record["status"] == "complete" and record["timesteps"] == 1200
+    assert [r["timesteps"] for r in record["resumed"]] and 0 < record["resumed"][0]["timesteps"] < 1200
     assert not (killed / "resume").exists()
     assert _policy_bits(killed) == _policy_bits(whole)
     assert (killed / "learning_curve.csv").read_text().count("\n") == (whole / "learning_curve.csv").read_text(
