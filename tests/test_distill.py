@@ -179,6 +179,9 @@ def test_settings_are_refused_by_name():
         DistillSettings(num_envs=2)
     with pytest.raises(InvalidInputError, match=r"^balance: "):
         DistillSettings(balance="equal")
+    with pytest.raises(InvalidInputError, match=r"^balance: family-hold weighs the settle window apart and needs one "
+                                                r"\(settle > 0\), got settle=0\.0$"):
+        DistillSettings(balance="family-hold", settle=0.0)
     with pytest.raises(InvalidInputError, match=r"^mixing: expected a probability in \[0, 1\), got 1.0$"):
         DistillSettings(mixing=1.0)
     with pytest.raises(InvalidInputError, match=r"^observe_plant: "):

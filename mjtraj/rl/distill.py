@@ -280,8 +280,9 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
         data_y.append(np.concatenate(ys))
         data_hold.append(np.concatenate(holds))
         collected = time.perf_counter() - start
-        weights = sample_weights(np.concatenate(data_y), settings, np.concatenate(data_hold))
-        loss = _train(module, optimiser, np.concatenate(data_x), np.concatenate(data_y), weights, settings, rng)
+        y = np.concatenate(data_y)
+        weights = sample_weights(y, settings, np.concatenate(data_hold))
+        loss = _train(module, optimiser, np.concatenate(data_x), y, weights, settings, rng)
         history.append({"round": r, "samples": float(sum(len(x) for x in data_x)), "collect_s": collected,
                         "train_s": time.perf_counter() - start - collected, "loss": loss})
         if progress:
