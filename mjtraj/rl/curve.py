@@ -108,7 +108,7 @@ def plot_batched_curve(csv_path: Path, out: Path, *, title: str, formats: Sequen
     top.legend(fontsize=8)
     top.set_title(textwrap.fill(title, 85), fontsize=9)
     bottom.plot(t, [numeric(r["train_advantage_mean"]) for r in rows], "o-", ms=3, color="C1",
-                label="training episodes: mean advantage over the law (J_law - J_exec)")
+                label=f"training episodes: mean advantage over the law (J_law - {'J_settle' if v2 else 'J_exec'})")
     bottom.axhline(0.0, color="0.5", lw=0.8)
     bottom.set_ylabel("advantage")
     bottom.set_xlabel("environment steps")
