@@ -205,7 +205,49 @@ def test_a_search_writes_its_trials_and_best_continues_its_study_and_trains_with
                  "--no-progress"]) == 0
     settings = json.loads((run / "run.json").read_text())["settings"]
     best = again["best"]
-    assert all(settings[name] == best[name] for name in best if name not in ("value", "trial"))
+    assert best["learner"] == "ppo" and best["policy"] == str(out / f"trial_{best['trial']}" / "best.pt")
+    assert all(settings[name] == best[name] for name in best if name not in ("value", "trial", "learner", "policy"))
+
+
+@pytest.mark.slow
+def test_a_search_over_learners_distils_and_fine_tunes_within_its_budget(tmp_path, capsys):
+    """--learners distill,both: each trial trains the learner it drew (a distillation's rounds filling the budget, or
+    half of it then PPO started from its best round), records it, and its value is its best validation point's (the
+    oracle: the trial's own learning curves, read back); best.json names the best trial's policy, which
+    --hyperparameters refuses as not PPO's."""
+    import csv
+
+    import pandas as pd
+
+    from mjtraj.rl.batched import selection_value
+
+    out = tmp_path / "search"
+    assert main(["rl", "search", "--learners", "distill,both", "--steps", "1600", "--num-envs", "4", "--validation",
+                 "2", "--evaluations", "2", "--settle", "0.5", "--families", "nominal,mismatch", "--trials", "3",
+                 "--out", str(out), "--no-progress"]) == 0
+    trials = pd.read_csv(out / "trials.csv")
+    assert set(trials["user_attrs_learner"]) == {"distill", "both"}
+    for _, trial in trials.iterrows():
+        folder = out / f"trial_{trial['number']}"
+        stages = [folder] if trial["user_attrs_learner"] == "distill" else [folder / "distill", folder / "ppo"]
+        points = [{k: float(v) for k, v in row.items()} for stage in stages
+                  for row in csv.DictReader((stage / "learning_curve.csv").open())]
+        assert trial["value"] == min(selection_value(p) for p in points)
+        assert not (stages[0] / "resume.pt").exists()  # a distillation's data, removed once the trial is done
+        assert trial["user_attrs_timesteps"] <= 1600 + 4 * 32  # PPO's rollouts round its half up
+        if trial["user_attrs_learner"] == "distill":  # 1600 steps: two rounds of 200 steps on 4 sub-envs
+            assert len(points) == 2 and trial["user_attrs_timesteps"] == 1600
+        else:
+            assert json.loads((folder / "ppo" / "run.json").read_text())["settings"]["init"] == str(
+                folder / "distill" / "best.pt")
+        if trial["params_distill_action_mode"] == "torque":
+            assert pd.isna(trial["params_distill_residual_scale"])
+    best = json.loads((out / "best.json").read_text())["best"]
+    assert best["policy"].endswith("best.pt") and (tmp_path / best["policy"]).is_file()
+    capsys.readouterr()
+    assert main(["rl", "train", "--algo", "ppo", "--batched", "--hyperparameters", str(out / "best.json"), "--out",
+                 str(tmp_path / "run"), "--no-progress"]) == 2
+    assert "is not PPO's but" in capsys.readouterr().err
 
 
 def _interrupt_at(call, monkeypatch):
@@ -367,3 +409,15 @@ def test_a_run_started_from_a_policy_resumes_only_with_that_policy_file(tmp_path
     assert report.score == "J_settle" and "missed" in report.best_point
     header = (tmp_path / "run" / "learning_curve.csv").read_text().splitlines()[0].split(",")
     assert header[-5:] == ["mismatch_ratio", "mismatch_cost", "mismatch_missed", "worst_ratio", "missed"]
+
+
+def test_ppo_refuses_a_cubic_output_by_name_and_writes_nothing(tmp_path):
+    """PPO's Gaussian explores around the network's output itself: a cubic output (a distillation's) is refused
+    before the run's folder is made."""
+    from mjtraj.exceptions import InvalidInputError
+    from mjtraj.rl import batched
+
+    with pytest.raises(InvalidInputError, match=r"^output: PPO explores around the network's output itself, expected "
+                                                r"linear, got 'cubic' \(a cubic output is a distillation's\)$"):
+        batched.train_batched(BatchedSettings(**{**TINY, "output": "cubic"}), tmp_path / "run", progress=False)
+    assert not (tmp_path / "run").exists()

@@ -28,6 +28,7 @@ def floats(text: str) -> list[float]:
 
 
 def counts(text: str) -> list[int]:
+    """Whole numbers >= 1, comma-separated."""
     try:
         values = [int(x) for x in text.split(",")]
     except ValueError as e:
@@ -35,6 +36,11 @@ def counts(text: str) -> list[int]:
     if not values or min(values) < 1:
         raise argparse.ArgumentTypeError(f"expected whole numbers >= 1, got {text!r}")
     return values
+
+
+def widths(text: str) -> list[int]:
+    """A network's hidden layer widths: whole numbers >= 1, comma-separated, or none (no hidden layer)."""
+    return [] if text.strip().lower() == "none" else counts(text)
 
 
 def names(text: str) -> list[str]:

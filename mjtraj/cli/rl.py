@@ -12,11 +12,11 @@ from mjtraj.cli.common import (
     Parser,
     Progress,
     command_line,
-    counts,
     figure_format_option,
     names,
     no_progress_option,
     overrides,
+    widths,
 )
 from mjtraj.rl.protocol import PROTOCOL, PROTOCOL_V2, PROTOCOLS
 
@@ -103,8 +103,15 @@ def add(sub: Any, laws: str) -> None:
                    help="also log to TensorBoard event files in DIR (SB3's logger; needs the tensorboard package)")
     no_progress_option(p)
     p.set_defaults(handler=run_train)
-    p = rl_sub.add_parser("search", help="Optuna's search over the batched PPO recipe's settings on the training "
-                          "and validation streams: study.db (resumable), trial_K/, trials.csv, best.json")
+    p = rl_sub.add_parser("search", help="Optuna's search over the batched PPO recipe's settings, and over imitation "
+                          "and imitation then PPO (--learners), on the training and validation streams: study.db "
+                          "(resumable), trial_K/, trials.csv, best.json")
+    p.add_argument("--learners", type=names, default=["ppo"],
+                   help="what a trial may train, comma-separated: ppo, distill (imitation of mpc), both (imitation "
+                   "on half the budget, then PPO from it); several: sampled too (default ppo)")
+    p.add_argument("--settle", type=float, default=0.0,
+                   help="the episodes' settle window, s, in training and validation (0.5: protocol v2's; default 0, "
+                   "v1's)")
     p.add_argument("--trials", type=int, default=12, help="trials to run now (default 12; more continue the study)")
     p.add_argument("--steps", type=int, default=1_000_000, help="env steps per trial (default 1,000,000)")
     p.add_argument("--num-envs", dest="num_envs", type=int, help="sub-envs per trial (default 512)")
@@ -120,8 +127,9 @@ def add(sub: Any, laws: str) -> None:
     no_progress_option(p)
     p.set_defaults(handler=run_search)
     p = rl_sub.add_parser("distill", help="imitate a control law: behaviour cloning, then DAgger, of a residual "
-                          "policy on the native vector env's training streams (mjtraj.rl.distill); policy.pt (rl eval "
-                          "--policy RUN/policy.pt scores it), run.json, resume.pt")
+                          "policy on the native vector env's training streams (mjtraj.rl.distill); policy.pt (the last "
+                          "round's), best.pt (the best validated round's: rl eval --policy RUN/best.pt scores it), "
+                          "learning_curve.csv, run.json, resume.pt")
     p.add_argument("--teacher", default="mpc", help="the control law imitated (default mpc)")
     p.add_argument("--controller", default="adaptive_computed_torque",
                    help="the law the residual acts on (default adaptive_computed_torque)")
@@ -134,8 +142,8 @@ def add(sub: Any, laws: str) -> None:
                    "(default 4)")
     p.add_argument("--steps", type=int, default=150, help="steps of every sub-env per round (default 150)")
     p.add_argument("--epochs", type=int, default=30, help="passes over the data after each round (default 30)")
-    p.add_argument("--hidden", type=counts, default=[256, 256, 256],
-                   help="hidden layer widths, comma-separated (default 256,256,256)")
+    p.add_argument("--hidden", type=widths, default=[256, 256, 256],
+                   help="hidden layer widths, comma-separated, or none: a linear student (default 256,256,256)")
     p.add_argument("--preview", type=int, default=10, help="future reference samples observed (default 10)")
     p.add_argument("--preview-frame", dest="preview_frame", choices=("absolute", "relative"),
                    default="absolute",
@@ -151,6 +159,9 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--observe-plant", dest="observe_plant", choices=("none", "estimate"), default="none",
                    help="estimate: also observe the adaptive law's estimate of the plant (default none)")
     p.add_argument("--history", type=int, default=0, help="previous observations also observed (default 0)")
+    p.add_argument("--output", choices=("linear", "cubic"), default="linear",
+                   help="cubic: the action is the cube of the network's output, which learns the labels' cube roots "
+                   "(finer near 0) (default linear)")
     p.add_argument("--mixing", type=float, default=0.0,
                    help="DAgger's beta: in round r the teacher acts with probability MIXING^r (default 0: the student)")
     p.add_argument("--decay", action="store_true",
@@ -158,6 +169,9 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--balance", choices=("none", "family", "family-hold"), default="none",
                    help="family: each family's squared errors divided by its mean squared label; family-hold: by that "
                         "of its family and phase (the motion, the settle window) (default none)")
+    p.add_argument("--validation", type=int, default=24,
+                   help="validation tasks per family scored after every round, paired with the law alone; best.pt "
+                   "is the best round (default 24; 0: none, best.pt is the last round)")
     p.add_argument("--seed", type=int, default=0, help="the training streams' seed (default 0)")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1)")
     p.add_argument("--out", type=Path, default=Path("runs/distill"), help="output folder (default runs/distill)")
@@ -363,11 +377,13 @@ def run_distill(args: argparse.Namespace) -> int:
                                    preview_frame=args.preview_frame, action_mode=args.action_mode,
                                    observe_task=args.observe_task, observe_control=args.observe_control,
                                    observe_plant=args.observe_plant,
-                                   history=args.history, mixing=args.mixing, decay=args.decay,
-                                   balance=args.balance, seed=args.seed, threads=args.threads)
+                                   history=args.history, output=args.output, mixing=args.mixing,
+                                   decay=args.decay,
+                                   balance=args.balance, validation=args.validation, seed=args.seed,
+                                   threads=args.threads)
         report = distill(settings, args.out, progress=not args.no_progress, command=command_line(args))
-    print(f"wrote {report.policy} ({int(report.rounds[-1]['samples'])} labelled states); score it: mjtraj rl eval "
-          f"--policy {report.policy}")
+    print(f"wrote {report.policy} (the last round's, {int(report.rounds[-1]['samples'])} labelled states) and "
+          f"{report.best} (the best validated round's); score one: mjtraj rl eval --policy {report.best}")
     return 0
 
 
@@ -379,7 +395,7 @@ def run_search(args: argparse.Namespace) -> int:
     base = BatchedSettings(**{k: v for k, v in {"steps": args.steps, "num_envs": args.num_envs,
                                                 "controller": args.controller}.items() if v is not None},
                            families=tuple(args.families), seed=args.seed, threads=args.threads,
-                           evaluations=args.evaluations, validation=args.validation)
+                           evaluations=args.evaluations, validation=args.validation, settle=args.settle)
 
     def line(trial: dict[str, object]) -> None:
         value = trial["value"]
@@ -387,11 +403,16 @@ def run_search(args: argparse.Namespace) -> int:
         print(f"trial {trial['number']:>3} {trial['state']:<8} worst family {shown} of the law alone, "
               f"{trial['timesteps']} steps: {json.dumps(trial['settings'])}", flush=True)
 
-    report = search(base, args.out, trials=args.trials, progress=not args.no_progress, on_trial=line)
-    print(f"{report.trials} trials in the study ({report.episodes} training and {report.validation_episodes} "
+    report = search(base, args.out, trials=args.trials, progress=not args.no_progress, on_trial=line,
+                    learners=tuple(args.learners))
+    print(f"{report.trials} trials in the study ({report.episodes} PPO training and {report.validation_episodes} "
           f"validation episodes in all); best: {json.dumps(report.best)}")
-    print(f"wrote {report.out / 'trials.csv'} and {report.out / 'best.json'}; train with it: mjtraj rl train --algo "
-          f"ppo --batched --hyperparameters {report.out / 'best.json'}")
+    if report.best.get("learner", "ppo") == "ppo":
+        print(f"wrote {report.out / 'trials.csv'} and {report.out / 'best.json'}; train with it: mjtraj rl train "
+              f"--algo ppo --batched --hyperparameters {report.out / 'best.json'}")
+    else:
+        print(f"wrote {report.out / 'trials.csv'} and {report.out / 'best.json'}; score the best trial's policy: "
+              f"mjtraj rl eval --policy {report.best['policy']}")
     return 0
 
 

@@ -231,6 +231,36 @@ def selection_value(point: dict[str, Any]) -> float:
     return worst if missed == 0 else float("inf")
 
 
+class Validation:
+    """A run's validation: its sets (`validation_sets`) and the law alone's outcomes there, run once; `row` scores a
+    policy on them as the learning curve records it."""
+
+    def __init__(self, settings: BatchedSettings) -> None:
+        from mjtraj.rl.episodes import run_episodes
+
+        self.settings = settings
+        self.sets = validation_sets(settings)
+        self.alone = {family: run_episodes(None, s, refs, w, p, settle)
+                      for family, s, refs, w, p, settle in self.sets}
+
+    def law_alone(self) -> dict[str, Any]:
+        """The run record's account of the law alone on the validation sets: its mean cost and failures per family."""
+        return {"law_alone_validation_cost": {f: _mean_cost(o) for f, o in self.alone.items()},
+                "law_alone_validation_failures": {f: sum(x.status != "ok" for x in o) for f, o in self.alone.items()}}
+
+    def columns(self) -> list[str]:
+        """The validation columns of a learning curve, in `row`'s order."""
+        measured = ("ratio", "cost", "missed") if self.settings.settle else ("ratio", "cost")
+        return [*(f"{f}_{what}" for f in self.settings.families for what in measured), "worst_ratio",
+                *(("missed",) if self.settings.settle else ())]
+
+    def row(self, module: Any) -> dict[str, float]:
+        """The validation columns of the deployable policy `module` (`_validated`)."""
+        from mjtraj.rl.adapters import from_object
+
+        return _validated(from_object(module, label="batched"), self.sets, self.alone, self.settings)
+
+
 def _validated(policy: Any, validation: list[Any], alone: dict[str, list[Any]], settings: BatchedSettings
                ) -> dict[str, float]:
     """The learning curve's validation columns of `policy` on the `validation` sets (`validation_sets`), beside the
@@ -315,7 +345,7 @@ def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
 
 
 INIT_SHARED = ("controller", "action_mode", "residual_scale", "hidden", "preview", "preview_frame", "observe_control",
-               "observe_task", "observe_plant", "history")
+               "observe_task", "observe_plant", "history", "output")
 """The settings a policy that starts a run (`BatchedSettings.init`) must share with it: what it observes, how its
 action acts, its network."""
 
@@ -439,19 +469,21 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
 
     Training stops early once `settings.patience` validation points in a row have not improved the best point, or
     when `on_validation(timesteps, selection_value(point))`, called at every validation point, returns True (a search's
-    pruner); run.json records where and why ("stopped")."""
-    from mjtraj.rl.adapters import from_object
-    from mjtraj.rl.episodes import run_episodes
+    pruner); run.json records where and why ("stopped").
+
+    Raises:
+      InvalidInputError: a cubic `output` (PPO's actions are Gaussian around the network's output itself).
+    """
     from mjtraj.rl.extra import rl_versions
 
+    if settings.output != "linear":
+        raise InvalidInputError(f"output: PPO explores around the network's output itself, expected linear, got "
+                                f"{settings.output!r} (a cubic output is a distillation's)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     env = MixedFamilies(settings)
     agent = new_agent(settings, env, out)
-    validation = validation_sets(settings)
-    alone_outcomes = {family: run_episodes(None, s, refs, w, p, settle)
-                      for family, s, refs, w, p, settle in validation}
-    alone = {family: _mean_cost(outcomes) for family, outcomes in alone_outcomes.items()}
+    validation = Validation(settings)
     record: dict[str, Any] = {
         "format": BATCHED_RUN, "settings": dataclasses.asdict(settings), "command": command,
         "library": "skrl PPO", "versions": {**rl_versions(), "skrl": _skrl_version()},
@@ -459,15 +491,10 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
                               "gym_seeds": training_entropies(settings.seed, settings.num_envs)},
                     "validation": {"stream": VALIDATION_STREAM,
                                    "count": settings.validation * len(settings.families)}},
-        "law_alone_validation_cost": alone,
-        "law_alone_validation_failures": {family: sum(o.status != "ok" for o in outcomes)
-                                          for family, outcomes in alone_outcomes.items()}}
+        **validation.law_alone()}
     if settings.init:
         record["init_sha256"] = file_sha256(settings.init)
-    families = list(settings.families)
-    measured = ("ratio", "cost", "missed") if settings.settle else ("ratio", "cost")
-    columns = [*CURVE_COLUMNS, *(f"{f}_{what}" for f in families for what in measured), "worst_ratio",
-               *(("missed",) if settings.settle else ())]
+    columns = [*CURVE_COLUMNS, *validation.columns()]
     curve_path = out / "learning_curve.csv"
     rows: list[dict[str, Any]] = []
     total = settings.iterations * settings.rollouts
@@ -498,14 +525,13 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
             elapsed = before + time.perf_counter() - start
             module = export_policy(agent, settings)
             module.eval()
-            scored = from_object(module, label="batched")
             advantage = float(np.mean(env.finished)) if env.finished else float("nan")
             row: dict[str, Any] = {"timesteps": (t + 1) * settings.num_envs, "wall_s": elapsed,
                                    "steps_per_s": wall_steps / elapsed, "train_episodes": len(env.finished),
                                    "train_advantage_mean": advantage}
             episodes += len(env.finished)
             env.finished.clear()
-            row.update(_validated(scored, validation, alone_outcomes, settings))
+            row.update(validation.row(module))
             rows.append(row)
             _write_curve(curve_path, columns, rows)
             since_best += 1

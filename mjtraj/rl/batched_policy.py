@@ -17,6 +17,9 @@ from mjtraj.study import FAMILIES
 BATCHED_RUN = "mjtraj-batched-run/1"
 """The format of a batched run's record (run.json, and inside policy.pt and best.pt)."""
 
+OUTPUTS = ("linear", "cubic")
+"""How a policy's network output becomes its action (`BatchedSettings.output`)."""
+
 
 @dataclass(frozen=True)
 class BatchedSettings:
@@ -57,6 +60,9 @@ class BatchedSettings:
     memory of the disturbance)."""
     history: int = 0
     """Previous observations the policy also observes (the env's option)."""
+    output: str = "linear"
+    """How the network's output, clipped to [-1, 1], becomes the action: linear (as it is) or cubic (its cube: the
+    same range, finer near 0, where a command of 1 % of the authority is the output 0.22; distillation only)."""
     settle: float = 0.0
     """The episodes' settle window, s, in training and validation (0: protocol v1's episodes scored by J_exec; 0.5:
     protocol v2's, scored by J_settle, held to the at-rest rule, the measured state observed)."""
@@ -88,11 +94,13 @@ class BatchedSettings:
         if self.num_envs < len(self.families):
             raise InvalidInputError(f"num_envs: expected at least one sub-env per family ({len(self.families)}), got "
                                     f"{self.num_envs}")
-        if not self.hidden or any(int(h) < 1 for h in self.hidden):
-            raise InvalidInputError(f"hidden: expected layer widths >= 1, got {self.hidden!r}")
+        if any(int(h) < 1 for h in self.hidden):
+            raise InvalidInputError(f"hidden: expected layer widths >= 1 (none: a linear network), got "
+                                    f"{self.hidden!r}")
         check_seed("seed", self.seed)
         choice("observe_plant", self.observe_plant, ("none", "estimate"))
         choice("action_mode", self.action_mode, ("residual", "torque"))
+        choice("output", self.output, OUTPUTS)
         if self.action_mode == "torque" and self.observe_plant != "none":
             raise InvalidInputError(f"observe_plant: a torque policy cannot observe the adaptive law's estimate (the "
                                     f"law does not run under its torque), expected none, got {self.observe_plant!r}")
@@ -126,7 +134,8 @@ class BatchedSettings:
 
 
 def mlp(inputs: int, outputs: int, hidden: tuple[int, ...]) -> Any:
-    """The networks of a batched run: tanh layers of `hidden` widths, then a linear layer to `outputs`."""
+    """The networks of a batched run: tanh layers of `hidden` widths, then a linear layer to `outputs` (no `hidden`:
+    that layer alone, a linear function of the standardised observation)."""
     import torch
 
     layers: list[Any] = []
@@ -140,7 +149,7 @@ def mlp(inputs: int, outputs: int, hidden: tuple[int, ...]) -> Any:
 @functools.cache
 def batched_policy_class() -> type:
     """The deployable policy's class: standardise the observation as training did, the mean network, clip to
-    [-1, 1] (made on first use: PyTorch is imported only here)."""
+    [-1, 1], cube if its `output` is cubic (made on first use: PyTorch is imported only here)."""
     import torch
 
     class BatchedPolicy(torch.nn.Module):
@@ -153,13 +162,15 @@ def batched_policy_class() -> type:
                 self.register_buffer(name, torch.zeros(inputs))
             self.register_buffer("epsilon", torch.zeros(()))
             self.register_buffer("clip", torch.zeros(()))
+            self.cubic = settings.output == "cubic"
             self.env = {"planner": "cubic", "controller": settings.controller, "action_mode": settings.action_mode,
                         "residual_scale": settings.residual_scale, **settings.observation()}
 
         def forward(self, obs: Any) -> Any:
             mean, std, epsilon, clip = self.mean, self.std, self.epsilon, self.clip
             x = torch.clamp((obs - mean) / (std + epsilon), -clip, clip)  # type: ignore[operator,arg-type]
-            return torch.clamp(self.net(x), -1.0, 1.0)
+            action = torch.clamp(self.net(x), -1.0, 1.0)
+            return action**3 if self.cubic else action
 
     return BatchedPolicy
 

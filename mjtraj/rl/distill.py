@@ -23,6 +23,7 @@ import dataclasses
 import io
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
@@ -80,6 +81,10 @@ class DistillSettings:
     disturbance: payload, damping, friction)."""
     history: int = 0
     """Previous observations the student also observes."""
+    output: str = "linear"
+    """How the network's output becomes the action: linear, or cubic (its cube; the network then learns the labels'
+    cube roots, so that a nominal motion's corrections of a few hundredths of the authority are fitted as finely,
+    relative to their size, as an aggressive motion's tens of N m)."""
     mixing: float = 0.0
     """DAgger's beta (Ross et al. 2011): in round r >= 1 each sub-env's step applies the teacher's label with
     probability mixing^r (drawn from the run's generator), else the student's action; 0: the student alone."""
@@ -93,6 +98,9 @@ class DistillSettings:
     of the motion and those of the settle window, where the labels that bring the arm to rest are small, apart)."""
     settle: float = 0.5
     """The episodes' settle window, s (protocol v2's)."""
+    validation: int = 24
+    """Validation tasks per family scored after every round (the batched runs' validation: the validation stream,
+    paired with the law alone; best.pt is the best round by `selection_key`); 0: none, best.pt is the last round."""
     task: str = "random"
     """The envs' task: random (the families' draws) or paper (the paper's move every episode: a check that the
     student reproduces its teacher where it was trained)."""
@@ -106,6 +114,8 @@ class DistillSettings:
         choice("controller", self.controller, controller_names())
         for name in ("num_envs", "rounds", "steps", "epochs", "batch", "threads"):
             positive_int(name, getattr(self, name))
+        if not isinstance(self.validation, int) or self.validation < 0:
+            raise InvalidInputError(f"validation: expected a number of tasks >= 0, got {self.validation!r}")
         for name in ("residual_scale", "learning_rate"):
             positive(name, getattr(self, name))
         if not (isinstance(self.mixing, (int, float)) and 0.0 <= self.mixing < 1.0):
@@ -137,7 +147,8 @@ class DistillSettings:
                                action_mode=self.action_mode, settle=self.settle, preview=self.preview,
                                preview_frame=self.preview_frame,
                                observe_task=self.observe_task, observe_control=self.observe_control,
-                               observe_plant=self.observe_plant, history=self.history)
+                               observe_plant=self.observe_plant, history=self.history, output=self.output,
+                               validation=max(self.validation, 1))
 
     def families_of_envs(self) -> NDArray[np.intp]:
         """(num_envs,): the position in `families` of each sub-env's family."""
@@ -146,11 +157,17 @@ class DistillSettings:
 
 @dataclass(frozen=True)
 class DistillReport:
-    """Where a distillation wrote its policy and record, and how its rounds went."""
+    """Where a distillation wrote its policies and record, and how its rounds went."""
 
     out: Path
     policy: Path
-    rounds: list[dict[str, float]]
+    rounds: list[dict[str, Any]]
+    best: Path
+    """best.pt: the best validated round's policy (the last round's without validation)."""
+    best_point: dict[str, float]
+    """The best round's row ({} without validation)."""
+    stopped: str = ""
+    """Why it stopped before its last round ('' if it did not)."""
 
 
 BALANCES = ("none", "family", "family-hold")
@@ -207,14 +224,18 @@ class _Families:
 
 
 def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True, command: str = "",
-            resume: bool = False) -> DistillReport:
+            resume: bool = False, on_validation: Callable[[int, float], bool] | None = None) -> DistillReport:
     """Distil `settings.teacher` into a residual policy on `settings.controller` (the module docstring), writing
-    policy.pt, run.json and resume.pt to `out`.
+    policy.pt (the last round's), best.pt (the best validated round's), learning_curve.csv, run.json and resume.pt
+    to `out`. `on_validation(samples, selection_value(row))`, called after each validated round, stops the
+    distillation when it returns True (a search's pruner; run.json's "stopped" says so).
 
     Raises:
       InvalidInputError: `out` holds another run (without `resume`), or nothing to resume.
     """
     import torch
+
+    from mjtraj.rl.batched import Validation, selection_key
 
     out = Path(out)
     saved = out / "resume.pt"
@@ -233,72 +254,157 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
     module.epsilon.fill_(1e-8)
     optimiser = torch.optim.Adam(module.net.parameters(), lr=settings.learning_rate)
     rng = np.random.default_rng([settings.seed, TRAIN_STREAM, 99])
-    data_x: list[NDArray[np.float64]] = []
-    data_y: list[NDArray[np.float64]] = []
-    data_hold: list[NDArray[np.bool_]] = []
-    history: list[dict[str, float]] = []
-    first = 0
-    record: dict[str, Any] = {"format": BATCHED_RUN, "distill_format": DISTILL_RUN,
-                              "settings": dataclasses.asdict(policy_settings), "distill": dataclasses.asdict(settings),
-                              "command": command, "library": "torch (behaviour cloning, DAgger)",
-                              "versions": rl_versions(),
-                              "streams": {"train": {"stream": TRAIN_STREAM, "gym_seeds": [
-                                  stream_seed(settings.seed, TRAIN_STREAM, i)
-                                  for i in range(settings.rounds * settings.num_envs)]},
-                                  "validation": {"stream": VALIDATION_STREAM, "count": 0}}}
+    validation = Validation(policy_settings) if settings.validation else None
+    record = _record(settings, command, validation)
+    run = _Progress()
     if resume:
-        state = torch.load(saved, map_location="cpu", weights_only=False)
-        if json.dumps(state["record"]["distill"]) != json.dumps(record["distill"]):
-            raise InvalidInputError(f"out: {out} holds a distillation with other settings; give another folder")
-        module.load_state_dict(state["module"])
-        optimiser.load_state_dict(state["optimiser"])
-        torch.set_rng_state(state["torch_rng"])
-        rng.bit_generator.state = state["rng"]
-        data_x, data_y, history, first = state["x"], state["y"], state["history"], state["round"]
-        # a resume point from before the phases were kept: its balance (none or family) does not read them
-        data_hold = state.get("hold", [np.zeros(len(y), dtype=bool) for y in data_y])
-        record["resumed"] = [*state["record"].get("resumed", []), {"round": first}]
+        run = _resumed(saved, settings, module, optimiser, rng, record)
     clock = time.perf_counter()
-    for r in range(first, settings.rounds):
+    stopped = ""
+    for r in range(run.round, settings.rounds):
         start = time.perf_counter()
-        obs = env.reset(r)
-        xs, ys, holds = [], [], []
-        for _ in range(settings.steps):
-            label = env.labels()
-            xs.append(obs.copy())
-            ys.append(label)
-            holds.append(env.holding())
-            if r == 0:
-                action = label
-            else:
-                with torch.no_grad():
-                    action = module(torch.as_tensor(obs, dtype=torch.float32)).numpy().astype(np.float64)
-                if settings.mixing:
-                    action = np.where(rng.random(len(action))[:, None] < settings.mixing**r, label, action)
-            obs = env.step(action)
-        data_x.append(np.concatenate(xs))
-        data_y.append(np.concatenate(ys))
-        data_hold.append(np.concatenate(holds))
+        x, y, hold = _collect(env, module, settings, rng, r)
+        run.x.append(x)
+        run.y.append(y)
+        run.hold.append(hold)
         collected = time.perf_counter() - start
-        y = np.concatenate(data_y)
-        weights = sample_weights(y, settings, np.concatenate(data_hold))
-        loss = _train(module, optimiser, np.concatenate(data_x), y, weights, settings, rng)
-        history.append({"round": r, "samples": float(sum(len(x) for x in data_x)), "collect_s": collected,
-                        "train_s": time.perf_counter() - start - collected, "loss": loss})
+        fitted = targets(np.concatenate(run.y), settings.output)
+        weights = sample_weights(fitted, settings, np.concatenate(run.hold))
+        loss = _train(module, optimiser, np.concatenate(run.x), fitted, weights, settings, rng)
+        row: dict[str, Any] = {"round": r, "samples": sum(len(x) for x in run.x), "collect_s": collected,
+                               "train_s": time.perf_counter() - start - collected, "loss": loss}
+        if validation is not None:
+            row.update(validation.row(module))
+            if selection_key(row) < selection_key(run.best):
+                run.best = {k: float(v) for k, v in row.items()}
+                save_policy(module, out / "best.pt", {**record, "timesteps": row["samples"], "point": run.best})
+        run.history.append(row)
+        run.round = r + 1
+        _write_curve(out / "learning_curve.csv", run.history)
         if progress:
-            print(f"round {r}: {int(history[-1]['samples'])} labelled states, loss {loss:.3g}, "
-                  f"{collected:.0f} s collecting, {history[-1]['train_s']:.0f} s training", flush=True)
-        _save_resume(saved, module, optimiser, rng, (data_x, data_y, data_hold), history, r + 1, record)
-    record.update(rounds=history, wall_s=time.perf_counter() - clock, timesteps=int(history[-1]["samples"]))
+            print(f"round {r}: {row['samples']} labelled states, loss {loss:.3g}, {collected:.0f} s collecting, "
+                  f"{row['train_s']:.0f} s training" + _validated_text(row), flush=True)
+        _save_resume(saved, module, optimiser, rng, run, record)
+        if validation is not None and on_validation is not None:
+            from mjtraj.rl.batched import selection_value
+
+            if on_validation(row["samples"], selection_value(row)):
+                stopped = "pruned by the search"
+                break
+    best = run.best if validation is not None else {}
+    record.update(rounds=run.history, wall_s=time.perf_counter() - clock, timesteps=int(run.history[-1]["samples"]),
+                  best=best, stopped=stopped)
     save_policy(module, out / "policy.pt", record)
+    if validation is None:
+        save_policy(module, out / "best.pt", record)
     write_text_atomic(out / "run.json", json.dumps(record, indent=1, default=float) + "\n")
-    return DistillReport(out, out / "policy.pt", history)
+    return DistillReport(out, out / "policy.pt", run.history, out / "best.pt", best, stopped)
+
+
+@dataclass
+class _Progress:
+    """A distillation's state between rounds: the data (states, labels, phases per round), the rows, the best row
+    and the next round."""
+
+    x: list[NDArray[np.float64]] = dataclasses.field(default_factory=list)
+    y: list[NDArray[np.float64]] = dataclasses.field(default_factory=list)
+    hold: list[NDArray[np.bool_]] = dataclasses.field(default_factory=list)
+    history: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    best: dict[str, float] = dataclasses.field(default_factory=lambda: {"worst_ratio": float("inf"),
+                                                                        "missed": float("inf")})
+    round: int = 0
+
+
+def _record(settings: DistillSettings, command: str, validation: Any) -> dict[str, Any]:
+    """The run record's settings part (run.json, and inside policy.pt and best.pt)."""
+    policy_settings = settings.policy_settings()
+    return {"format": BATCHED_RUN, "distill_format": DISTILL_RUN,
+            "settings": dataclasses.asdict(policy_settings), "distill": dataclasses.asdict(settings),
+            "command": command, "library": "torch (behaviour cloning, DAgger)", "versions": rl_versions(),
+            "streams": {"train": {"stream": TRAIN_STREAM, "gym_seeds": [
+                stream_seed(settings.seed, TRAIN_STREAM, i) for i in range(settings.rounds * settings.num_envs)]},
+                "validation": {"stream": VALIDATION_STREAM,
+                               "count": settings.validation * len(settings.families)}},
+            **(validation.law_alone() if validation is not None else {})}
+
+
+def _collect(env: _Families, module: Any, settings: DistillSettings, rng: np.random.Generator, r: int
+             ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Round `r`'s states, labels and phases (steps x num_envs rows): the teacher acts in round 0, the student (or,
+    with mixing, the teacher with probability mixing^r) after."""
+    import torch
+
+    obs = env.reset(r)
+    xs, ys, holds = [], [], []
+    for _ in range(settings.steps):
+        label = env.labels()
+        xs.append(obs.copy())
+        ys.append(label)
+        holds.append(env.holding())
+        if r == 0:
+            action = label
+        else:
+            with torch.no_grad():
+                action = module(torch.as_tensor(obs, dtype=torch.float32)).numpy().astype(np.float64)
+            if settings.mixing:
+                action = np.where(rng.random(len(action))[:, None] < settings.mixing**r, label, action)
+        obs = env.step(action)
+    return np.concatenate(xs), np.concatenate(ys), np.concatenate(holds)
+
+
+def _resumed(saved: Path, settings: DistillSettings, module: Any, optimiser: Any, rng: np.random.Generator,
+             record: dict[str, Any]) -> _Progress:
+    """Load resume.pt into the module, the optimiser and the generators; the distillation's progress.
+
+    Raises:
+      InvalidInputError: it holds a distillation with other settings.
+    """
+    import torch
+
+    state = torch.load(saved, map_location="cpu", weights_only=False)
+    theirs: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in state["record"]["distill"].items()}
+    if dataclasses.replace(settings, **theirs) != settings:  # settings added since it was saved keep their defaults
+        raise InvalidInputError(f"out: {saved.parent} holds a distillation with other settings; give another folder")
+    module.load_state_dict(state["module"])
+    optimiser.load_state_dict(state["optimiser"])
+    torch.set_rng_state(state["torch_rng"])
+    rng.bit_generator.state = state["rng"]
+    run = _Progress(state["x"], state["y"], [], state["history"], round=state["round"])
+    # a resume point from before the phases were kept: its balance (none or family) does not read them
+    run.hold = state.get("hold", [np.zeros(len(y), dtype=bool) for y in run.y])
+    run.best = state.get("best", run.best)
+    record["resumed"] = [*state["record"].get("resumed", []), {"round": run.round}]
+    return run
+
+
+def _validated_text(row: dict[str, Any]) -> str:
+    """A round's validation for its progress line ('' without one)."""
+    if "worst_ratio" not in row:
+        return ""
+    return f"; validation: worst family {row['worst_ratio']:.4f} of the law alone's, {row['missed']:.0f} missed"
+
+
+def _write_curve(path: Path, rows: list[dict[str, Any]]) -> None:
+    """learning_curve.csv: one row per round (round, samples, collect_s, train_s, loss, then the validation's)."""
+    import csv
+
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in r.items()} for r in rows)
+    write_text_atomic(path, buffer.getvalue())
+
+
+def targets(y: NDArray[np.float64], output: str) -> NDArray[np.float64]:
+    """What the network learns for actions y (M, n) in [-1, 1]: y itself (linear output) or its cube root (cubic)."""
+    return np.cbrt(y) if output == "cubic" else y
 
 
 def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.float64], w: NDArray[np.float64],
            settings: DistillSettings, rng: np.random.Generator) -> float:
-    """`settings.epochs` passes of mean-squared error over (x, y) in shuffled minibatches, each state weighted by w
-    (`sample_weights`), the standardisation refitted to all of x first; the last epoch's mean loss."""
+    """`settings.epochs` passes of mean-squared error of the network's output over (x, y) in shuffled minibatches,
+    each state weighted by w (`sample_weights`), the standardisation refitted to all of x first; the last epoch's mean
+    loss."""
     import torch
 
     module.mean.copy_(torch.as_tensor(x.mean(axis=0), dtype=torch.float32))
@@ -346,17 +452,16 @@ def sample_weights(y: NDArray[np.float64], settings: DistillSettings, holding: N
     return weights / weights.mean()  # type: ignore[no-any-return]
 
 
-def _save_resume(path: Path, module: Any, optimiser: Any, rng: np.random.Generator,
-                 data: tuple[list[Any], list[Any], list[Any]], history: list[dict[str, float]], rounds: int,
+def _save_resume(path: Path, module: Any, optimiser: Any, rng: np.random.Generator, run: _Progress,
                  record: dict[str, Any]) -> None:
-    """Everything a resumed distillation needs (the data: states, labels and phases; the network, the optimiser, the
-    generators), atomically."""
+    """Everything a resumed distillation needs (the data: states, labels and phases; the rows and the best; the
+    network, the optimiser, the generators), atomically."""
     import torch
 
     buffer = io.BytesIO()
     torch.save({"module": module.state_dict(), "optimiser": optimiser.state_dict(), "torch_rng": torch.get_rng_state(),
-                "rng": rng.bit_generator.state, "x": data[0], "y": data[1], "hold": data[2], "history": history,
-                "round": rounds, "record": record}, buffer)
+                "rng": rng.bit_generator.state, "x": run.x, "y": run.y, "hold": run.hold, "history": run.history,
+                "best": run.best, "round": run.round, "record": record}, buffer)
     with atomic_path(path) as tmp:
         Path(tmp).write_bytes(buffer.getvalue())
 
