@@ -360,7 +360,8 @@ def test_with_a_settle_window_validation_scores_the_window_and_the_rest_rule():
 def test_protocol_v2s_validation_is_paired_with_the_law_alone():
     """`_paired` by hand: a failure where the law came to rest is a missed episode; episodes the law failed do not
     count; the ratio is that of the sums of J_settle over the episodes both came to rest on. Points rank by missed
-    episodes first, then the worst ratio; a search sees +inf for a point that missed any."""
+    episodes first, then the worst ratio; a search's one number ranks them alike (each missed episode outweighs any
+    ratio)."""
     from mjtraj.rl.batched import _paired, selection_key, selection_value
     from mjtraj.study import Outcome
 
@@ -377,7 +378,10 @@ def test_protocol_v2s_validation_is_paired_with_the_law_alone():
     assert sorted([one_missed, none_missed], key=selection_key) == [none_missed, one_missed]
     assert selection_key({"worst_ratio": 0.7, "missed": 0}) < selection_key(none_missed)
     assert selection_key({"worst_ratio": 0.9}) == (0.0, 0.9)  # protocol v1: no missed column
-    assert selection_value(one_missed) == float("inf") and selection_value(none_missed) == 2.0
+    assert selection_value(one_missed) == 0.5 + 1e6 and selection_value(none_missed) == 2.0
+    points = [one_missed, none_missed, {"worst_ratio": 40.0, "missed": 0}, {"worst_ratio": 0.1, "missed": 3},
+              {"worst_ratio": 0.3, "missed": 1}]
+    assert sorted(points, key=selection_value) == sorted(points, key=selection_key)
 
 
 @pytest.mark.slow

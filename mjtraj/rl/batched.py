@@ -224,11 +224,16 @@ def selection_key(point: dict[str, Any]) -> tuple[float, float]:
     return float(point.get("missed", 0)), float(point["worst_ratio"])
 
 
+MISSED_WEIGHT = 1e6
+"""What one missed episode adds to a validation point's `selection_value`: more than any ratio, so that the value
+ranks points as `selection_key` does."""
+
+
 def selection_value(point: dict[str, Any]) -> float:
-    """A validation point as one number, for a search to minimise: the worst family's ratio, +inf if the policy
-    missed an episode the law came to rest on."""
+    """A validation point as one number, for a search to minimise, in `selection_key`'s order: the worst family's
+    ratio, plus MISSED_WEIGHT for each episode the policy missed where the law came to rest."""
     missed, worst = selection_key(point)
-    return worst if missed == 0 else float("inf")
+    return worst + MISSED_WEIGHT * missed
 
 
 class Validation:

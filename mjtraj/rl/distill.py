@@ -12,9 +12,11 @@ Ross et al. 2011). Sub-envs are split over `families`; round r's sub-env i start
 [seed, 16, r B + i] (`mjtraj.rl.streams`, B sub-envs) and continues it across its episodes, never an evaluation
 scenario. The network is the batched runs' (tanh layers,
 the observation standardised by the data's mean and std, the output clipped to [-1, 1]), saved in their format
-(`mjtraj.rl.batched_policy`): `mjtraj rl eval --policy RUN/policy.pt` scores it. After every round the data set,
-the network, the optimiser and the generators are saved (resume.pt), and `resume` continues bit for bit (every
-round starts its sub-envs afresh from their streams, so no simulation state needs saving).
+(`mjtraj.rl.batched_policy`): `mjtraj rl eval --policy RUN/best.pt` scores it. After every round the student is
+validated as a batched run is (`mjtraj.rl.batched.Validation`: the validation stream, paired with the law alone;
+learning_curve.csv), best.pt is the best round so far and policy.pt the last; the data set, the rows, the network,
+the optimiser and the generators are saved (resume.pt), and `resume` continues bit for bit (every round starts its
+sub-envs afresh from their streams, so no simulation state needs saving).
 """
 
 from __future__ import annotations

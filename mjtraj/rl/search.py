@@ -4,7 +4,8 @@ SB3's, and over imitation (mjtraj.rl.distill) and imitation then PPO, on the tra
 
 Each trial trains one learner with sampled settings for `steps` env steps and scores it by the best validation
 point's worst family (its mean J_exec over the law alone's on the validation tasks, the rule that chooses `best.pt`;
-with a settle window, +inf for a point that missed an episode the law came to rest on: `batched.selection_value`).
+with a settle window, plus a million for each episode it missed where the law came to rest: `batched.selection_value`,
+which ranks points as the rule that picks best.pt does).
 The learners (`LEARNERS`): ppo, the batched PPO residual (SPACE); distill, behaviour cloning and DAgger of `mpc`
 (DISTILL_SPACE), its rounds of `DISTILL_STEPS` steps on every sub-env filling the budget, validated after each; both,
 a distillation on half the budget, then PPO started from its best round (`BatchedSettings.init`; FINE_TUNE_SPACE) on
