@@ -35,6 +35,32 @@ def test_the_untrained_policy_is_the_law_alone(tmp_path):
         assert mine == alone
 
 
+def test_validation_draws_each_familys_episodes_by_its_rules():
+    """The validation sets hold each family's episodes as the sweeps' rules draw them from the validation stream (the
+    oracle: `draw_family` on the same generators): aggressive motions last 0.5 to 1 s, mismatch ones run on drawn
+    plants, and with a settle window each reference is the planned motion then the window. (The aggressive family's
+    validation once drew 2-second motions: the env's random-task rule, not the family's.)"""
+    from mjtraj.domain.families import AGGRESSIVE_DURATION, draw_family
+    from mjtraj.rl.streams import VALIDATION_STREAM
+
+    settings = BatchedSettings(**{**TINY, "validation": 4}, settle=0.5)
+    for k, (family, s, refs, _, plants, settles) in enumerate(validation_sets(settings)):
+        drawn = [draw_family(np.random.default_rng([3, VALIDATION_STREAM, k * 4 + i]), family, s.model, s.dt)
+                 for i in range(4)]
+        window = round(0.5 / s.dt)
+        for (task, _), ref, settle in zip(drawn, refs, settles, strict=True):
+            assert settle.motion_steps == round(task.duration / s.dt) and settle.window_steps == window
+            assert ref.steps == settle.motion_steps + window
+            np.testing.assert_allclose(ref.q[0], task.q0, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(ref.q[-1], task.qg, rtol=0, atol=1e-12)
+            if family == "aggressive":
+                assert AGGRESSIVE_DURATION[0] <= task.duration <= AGGRESSIVE_DURATION[1]
+        if family == "mismatch":
+            assert [p.payload for p in plants] == [p.payload for _, p in drawn]
+        else:
+            assert plants is None and all(p is None for _, p in drawn)
+
+
 @pytest.mark.slow
 def test_a_tiny_run_writes_its_files_and_its_policy_acts_as_skrls_mean(tmp_path, capsys):
     out = tmp_path / "run"

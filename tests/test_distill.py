@@ -288,6 +288,38 @@ def test_each_round_is_validated_and_best_pt_is_the_best_round(tmp_path):
     assert seen == [(report.rounds[0]["samples"], selection_value(report.rounds[0]))]
 
 
+def test_validation_versus_the_teacher_pairs_the_student_with_the_teacher_alone(tmp_path):
+    """validate_versus teacher: the reference outcomes are the teacher's alone on the same tasks (the oracle: the env
+    built for the teacher's law from its arguments, run on the validation sets), each round's row pairs the student
+    with them (an independent `Validation` versus the teacher scores best.pt to its row), and the record names it."""
+    import dataclasses
+    import json
+
+    from mjtraj.envs import resolve
+
+    from mjtraj.rl.batched import Validation
+    from mjtraj.rl.batched_policy import load_batched
+    from mjtraj.rl.episodes import run_episodes
+
+    settings = dataclasses.replace(SMALL, validate_versus="teacher")
+    policy_settings = settings.policy_settings()
+    versus = Validation(policy_settings, SMALL.teacher)
+    for family, _, refs, w, p, settle in versus.sets:
+        env = resolve(**{**policy_settings.env_kwargs(family), "controller": SMALL.teacher})
+        assert [o.metrics["cost"] for o in versus.alone[family]] == \
+            [o.metrics["cost"] for o in run_episodes(None, env, refs, w, p, settle)]
+    law = Validation(policy_settings)
+    assert any(versus.alone[f][0].metrics["cost"] != law.alone[f][0].metrics["cost"] for f in SMALL.families)
+    report = distill(settings, tmp_path / "run", progress=False)
+    again = versus.row(load_batched(report.best))
+    assert again == {k: v for k, v in report.best_point.items() if k in again}
+    record = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert record["versus"] == SMALL.teacher and record["distill"]["validate_versus"] == "teacher"
+    assert record["versus_validation_cost"] == {f: v for f, v in versus.law_alone()["versus_validation_cost"].items()}
+    with pytest.raises(InvalidInputError, match="validate_versus"):
+        dataclasses.replace(SMALL, validate_versus="mpc")
+
+
 def test_a_cubic_student_acts_with_the_cube_of_its_clipped_output():
     """output cubic: the policy's action is the cube of its network's output clipped to [-1, 1] (the oracle: the
     same network's output, computed apart), and the network learns the labels' cube roots, so that acting on its

@@ -172,6 +172,9 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--validation", type=int, default=24,
                    help="validation tasks per family scored after every round, paired with the law alone; best.pt "
                    "is the best round (default 24; 0: none, best.pt is the last round)")
+    p.add_argument("--validate-versus", dest="validate_versus", choices=("law", "teacher"), default="law",
+                   help="teacher: validation pairs the student with the teacher alone (ratios and missed episodes "
+                   "over the ruler it imitates) instead of the law alone (default law)")
     p.add_argument("--seed", type=int, default=0, help="the training streams' seed (default 0)")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1)")
     p.add_argument("--out", type=Path, default=Path("runs/distill"), help="output folder (default runs/distill)")
@@ -379,8 +382,8 @@ def run_distill(args: argparse.Namespace) -> int:
                                    observe_plant=args.observe_plant,
                                    history=args.history, output=args.output, mixing=args.mixing,
                                    decay=args.decay,
-                                   balance=args.balance, validation=args.validation, seed=args.seed,
-                                   threads=args.threads)
+                                   balance=args.balance, validation=args.validation,
+                                   validate_versus=args.validate_versus, seed=args.seed, threads=args.threads)
         report = distill(settings, args.out, progress=not args.no_progress, command=command_line(args))
     print(f"wrote {report.policy} (the last round's, {int(report.rounds[-1]['samples'])} labelled states) and "
           f"{report.best} (the best validated round's); score one: mjtraj rl eval --policy {report.best}")

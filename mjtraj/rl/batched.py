@@ -185,8 +185,9 @@ def export_policy(agent: Any, settings: BatchedSettings) -> Any:
 def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any], list[Any], list[Any] | None,
                                                              list[Any] | None]]:
     """Per family: (family, its env settings, references, weights, plants or None, settle windows or None),
-    `validation` tasks drawn by the env's own rules from the validation stream [seed, 17, k x validation + i] (k the
-    family's position); with a settle window each reference ends with it, as the env's episodes do."""
+    `validation` episodes drawn by the family's rules (the env's `sample_episode`, as its own episodes are) from the
+    validation stream [seed, 17, k x validation + i] (k the family's position); with a settle window each reference
+    ends with it, as the env's episodes do."""
     from mjtraj.core import Settle, held
     from mjtraj.envs import resolve
 
@@ -195,8 +196,9 @@ def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any]
         env = resolve(**settings.env_kwargs(family))
         rngs = [np.random.default_rng([settings.seed, VALIDATION_STREAM, k * settings.validation + i])
                 for i in range(settings.validation)]
-        tasks = [env.sample_task(rng) for rng in rngs]
-        plants = [env.sample_plant(rng) for rng in rngs]
+        episodes = [env.sample_episode(rng) for rng in rngs]
+        tasks = [task for task, _ in episodes]
+        plants = [plant for _, plant in episodes]
         references = [env.planner.plan(task, env.model) for task in tasks]
         window = env.settle_steps
         settles = [Settle.of(task, ref.steps, window) for task, ref in zip(tasks, references, strict=True)]
@@ -237,21 +239,35 @@ def selection_value(point: dict[str, Any]) -> float:
 
 
 class Validation:
-    """A run's validation: its sets (`validation_sets`) and the law alone's outcomes there, run once; `row` scores a
-    policy on them as the learning curve records it."""
+    """A run's validation: its sets (`validation_sets`) and the outcomes of the law alone there (or of the law
+    `versus`, e.g. a distillation's teacher), run once; `row` scores a policy on them as the learning curve records
+    it, its ratios and missed episodes then over `versus`'s."""
 
-    def __init__(self, settings: BatchedSettings) -> None:
+    def __init__(self, settings: BatchedSettings, versus: str = "") -> None:
         from mjtraj.rl.episodes import run_episodes
 
         self.settings = settings
+        self.versus = versus
         self.sets = validation_sets(settings)
-        self.alone = {family: run_episodes(None, s, refs, w, p, settle)
+        self.alone = {family: run_episodes(None, self._reference(s), refs, w, p, settle)
                       for family, s, refs, w, p, settle in self.sets}
 
+    def _reference(self, env: Any) -> Any:
+        """The env settings the reference law runs in: `env`'s, its controller `versus` if one is given."""
+        return dataclasses.replace(env, loop=dataclasses.replace(env.loop, controller=self.versus)) if self.versus \
+            else env
+
+    def reference(self) -> str:
+        """What the ratios are over, for a progress line: "the law alone's" or "mpc's"."""
+        return f"{self.versus}'s" if self.versus else "the law alone's"
+
     def law_alone(self) -> dict[str, Any]:
-        """The run record's account of the law alone on the validation sets: its mean cost and failures per family."""
-        return {"law_alone_validation_cost": {f: _mean_cost(o) for f, o in self.alone.items()},
-                "law_alone_validation_failures": {f: sum(x.status != "ok" for x in o) for f, o in self.alone.items()}}
+        """The run record's account of the reference on the validation sets: its mean cost and failures per family
+        (`law_alone_...`, or `versus_...` beside `versus`, the law's name)."""
+        prefix = "versus" if self.versus else "law_alone"
+        return {**({"versus": self.versus} if self.versus else {}),
+                f"{prefix}_validation_cost": {f: _mean_cost(o) for f, o in self.alone.items()},
+                f"{prefix}_validation_failures": {f: sum(x.status != "ok" for x in o) for f, o in self.alone.items()}}
 
     def columns(self) -> list[str]:
         """The validation columns of a learning curve, in `row`'s order."""

@@ -10,13 +10,13 @@ Round 0 runs the teacher's labels as the actions (behaviour cloning on the teach
 runs the student, labels the states it visits, adds them to the data set and trains again on all of it (DAgger,
 Ross et al. 2011). Sub-envs are split over `families`; round r's sub-env i starts from the training stream
 [seed, 16, r B + i] (`mjtraj.rl.streams`, B sub-envs) and continues it across its episodes, never an evaluation
-scenario. The network is the batched runs' (tanh layers,
-the observation standardised by the data's mean and std, the output clipped to [-1, 1]), saved in their format
-(`mjtraj.rl.batched_policy`): `mjtraj rl eval --policy RUN/best.pt` scores it. After every round the student is
-validated as a batched run is (`mjtraj.rl.batched.Validation`: the validation stream, paired with the law alone;
-learning_curve.csv), best.pt is the best round so far and policy.pt the last; the data set, the rows, the network,
-the optimiser and the generators are saved (resume.pt), and `resume` continues bit for bit (every round starts its
-sub-envs afresh from their streams, so no simulation state needs saving).
+scenario. The network is the batched runs' (tanh layers, the observation standardised by the data's mean and std,
+the output clipped to [-1, 1]), saved in their format (`mjtraj.rl.batched_policy`): `mjtraj rl eval --policy
+RUN/best.pt` scores it. After every round the student is validated as a batched run is
+(`mjtraj.rl.batched.Validation`: the validation stream, paired with the law alone, or with the teacher alone:
+`validate_versus`; learning_curve.csv), best.pt is the best round so far and policy.pt the last; the data set, the
+rows, the network, the optimiser and the generators are saved (resume.pt), and `resume` continues bit for bit (every
+round starts its sub-envs afresh from their streams, so no simulation state needs saving).
 """
 
 from __future__ import annotations
@@ -103,6 +103,10 @@ class DistillSettings:
     validation: int = 24
     """Validation tasks per family scored after every round (the batched runs' validation: the validation stream,
     paired with the law alone; best.pt is the best round by `selection_key`); 0: none, best.pt is the last round."""
+    validate_versus: str = "law"
+    """What validation pairs the student with: law (the law alone, `controller`, as a batched run does) or teacher
+    (the teacher alone: the ratios and missed episodes are then over the ruler the student imitates, and best.pt is
+    the round closest to it)."""
     task: str = "random"
     """The envs' task: random (the families' draws) or paper (the paper's move every episode: a check that the
     student reproduces its teacher where it was trained)."""
@@ -128,6 +132,7 @@ class DistillSettings:
             raise InvalidInputError(f"balance: family-hold weighs the settle window apart and needs one (settle > 0), "
                                     f"got settle={self.settle!r}")
         choice("action_mode", self.action_mode, ("residual", "torque"))
+        choice("validate_versus", self.validate_versus, ("law", "teacher"))
         self.policy_settings()  # the batched runs' checks: families, sub-envs, widths, seed, preview, settle, ...
 
     def split(self) -> list[int]:
@@ -256,7 +261,8 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
     module.epsilon.fill_(1e-8)
     optimiser = torch.optim.Adam(module.net.parameters(), lr=settings.learning_rate)
     rng = np.random.default_rng([settings.seed, TRAIN_STREAM, 99])
-    validation = Validation(policy_settings) if settings.validation else None
+    versus = settings.teacher if settings.validate_versus == "teacher" else ""
+    validation = Validation(policy_settings, versus) if settings.validation else None
     record = _record(settings, command, validation)
     run = _Progress()
     if resume:
@@ -285,7 +291,7 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
         _write_curve(out / "learning_curve.csv", run.history)
         if progress:
             print(f"round {r}: {row['samples']} labelled states, loss {loss:.3g}, {collected:.0f} s collecting, "
-                  f"{row['train_s']:.0f} s training" + _validated_text(row), flush=True)
+                  f"{row['train_s']:.0f} s training" + _validated_text(row, validation), flush=True)
         _save_resume(saved, module, optimiser, rng, run, record)
         if validation is not None and on_validation is not None:
             from mjtraj.rl.batched import selection_value
@@ -379,11 +385,12 @@ def _resumed(saved: Path, settings: DistillSettings, module: Any, optimiser: Any
     return run
 
 
-def _validated_text(row: dict[str, Any]) -> str:
+def _validated_text(row: dict[str, Any], validation: Any) -> str:
     """A round's validation for its progress line ('' without one)."""
-    if "worst_ratio" not in row:
+    if validation is None:
         return ""
-    return f"; validation: worst family {row['worst_ratio']:.4f} of the law alone's, {row['missed']:.0f} missed"
+    return (f"; validation: worst family {row['worst_ratio']:.4f} of {validation.reference()}, "
+            f"{row['missed']:.0f} missed")
 
 
 def _write_curve(path: Path, rows: list[dict[str, Any]]) -> None:
