@@ -17,6 +17,7 @@ from mjtraj.envs.settings import TrackSettings
 from numpy.typing import NDArray
 
 from mjtraj.core import (
+    FILTER,
     METRIC_NAMES,
     RECORDED,
     SETTLE_METRICS,
@@ -25,6 +26,7 @@ from mjtraj.core import (
     Rollout,
     Settle,
     Task,
+    disturbance_of,
     held,
     metrics_arrays,
     missed_goal,
@@ -47,6 +49,14 @@ from mjtraj.exceptions import InvalidInputError
 
 STEP_INFO = ("tau_ff", "tau_fb", "dtau", "saturated", "e", "reward_tracking", "reward_effort", "reward_baseline")
 """Keys of every step's info (arrays of shape (B, n), or (B,) for the reward terms)."""
+
+
+def disturbance_estimate(loop: ClosedLoop) -> NDArray[np.float64]:
+    """(B, n) N m: the torque disturbance `mpc`'s filter estimates now, after this period's measurement (the
+    `mpc_filter` shadowing `loop`; 0 in an episode without a settle window, where the filter does not run)."""
+    out = loop.teach(FILTER)
+    assert out.state is not None
+    return disturbance_of(out.state, loop.model.nv)
 
 
 def observe(loop: ClosedLoop, preview: int, control: bool = False, measured: bool = False,
@@ -114,6 +124,8 @@ class Observer:
             base = np.concatenate([base, state / self._bounds], axis=1)
         elif s.observe_plant == "true":
             base = np.concatenate([base, self._plants], axis=1)
+        if s.observe_disturbance:
+            base = np.concatenate([base, disturbance_estimate(loop) / s.torque_limit], axis=1)
         if s.observe_task:
             left = (self._motion - loop.periods) * s.dt
             base = np.concatenate([base, self._move[:, None], left[:, None]], axis=1)
@@ -183,13 +195,15 @@ class TrackCore:
         self.num = num
         self.model = settings.model
         n = settings.n
+        if settings.observe_disturbance and not settings.settle > 0:
+            raise InvalidInputError(f"observe_disturbance: mpc's filter runs in protocol v2's episodes, which end with "
+                                    f"a settle window; expected settle > 0, got settle={settings.settle!r}")
         self.plant = (perturbed_plant(self.model, settings.model_path, settings.model_torque_limit)
                       if settings.perturbs else None)
         """The simulated model whose fields each episode's perturbation sets; None: the nominal model."""
         fields = plant_fields(self.plant, [no_perturbation(n)] * num) if self.plant is not None else None
         self.loop = ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields,
-                               teachers=() if settings.teacher == "none" else
-                               tuple(dict.fromkeys((settings.teacher, settings.loop.controller))))
+                               teachers=settings.shadows())
         self.shadow = (ClosedLoop(self.model, settings.loop, nsim=num, plant=self.plant, plant_fields=fields)
                        if settings.reward_baseline != "none" else None)
         """With reward_baseline 'controller' (or 'pid', its earlier name): the same episodes under the control law

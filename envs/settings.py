@@ -15,6 +15,7 @@ import numpy.typing as npt
 from numpy.typing import NDArray
 
 from mjtraj.core import (
+    FILTER,
     JointInfo,
     LoopConfig,
     Planner,
@@ -93,6 +94,9 @@ class EnvOptions:
                                 "bounds (privileged: a teacher); estimate = append the adaptive law's online "
                                 "estimate of them (deployable; controller='adaptive_computed_torque')",
                                 choices=OBSERVE_PLANT)
+    observe_disturbance: bool = option(False, "append the torque disturbance mpc's Kalman filter estimates (N m over "
+                                       "the saturation, one per joint: mpc_filter shadowing the loop, the estimate "
+                                       "mpc plans from; needs a settle window, where the filter runs)")
     observe_task: bool = option(False, "append the task's move (its largest joint displacement, rad: the score's "
                                 "position scale) and the time to the motion's end (s, negative in the settle window)")
     observe_measured: bool = option(False, "q, qd, e and ed in the observation are what the control law measures "
@@ -195,6 +199,8 @@ class TrackSettings:
     """The observation ends with the PID integral and the next feedforward torque."""
     observe_plant: str
     """'none', 'true' (the plant's parameters, privileged) or 'estimate' (the adaptive law's estimate of them)."""
+    observe_disturbance: bool
+    """The observation also holds `mpc`'s filtered torque disturbance over the saturation (`mpc_filter`)."""
     history: int
     """Previous observations appended to each one."""
     teacher: str
@@ -234,11 +240,18 @@ class TrackSettings:
 
     @property
     def obs_size(self) -> int:
-        """(6n + 1 + 2n preview (+ 2n with observe_control) (+ 1 + 2n with observe_plant) (+ 2 with observe_task))
-        (1 + history)."""
+        """(6n + 1 + 2n preview (+ 2n with observe_control) (+ 1 + 2n with observe_plant) (+ n with
+        observe_disturbance) (+ 2 with observe_task)) (1 + history)."""
         one = (6 * self.n + 1 + 2 * self.n * self.preview + 2 * self.n * self.observe_control
-               + (1 + 2 * self.n) * (self.observe_plant != "none") + 2 * self.observe_task)
+               + (1 + 2 * self.n) * (self.observe_plant != "none") + self.n * self.observe_disturbance
+               + 2 * self.observe_task)
         return one * (1 + self.history)
+
+    def shadows(self) -> tuple[str, ...]:
+        """The laws and estimators that shadow the env's loop (`ClosedLoop(teachers=...)`): the teacher and the env's
+        own law (to label against it), and with observe_disturbance `mpc_filter`."""
+        out = () if self.teacher == "none" else (self.teacher, self.loop.controller)
+        return tuple(dict.fromkeys((*out, *((FILTER,) if self.observe_disturbance else ()))))
 
     @property
     def settle_steps(self) -> int:
@@ -367,7 +380,8 @@ def resolve(*, planner: str | Planner = "cubic", q0: npt.ArrayLike | None = None
                          duration=own.duration, dt=own.dt, loop=loop, preview=own.preview,
                          preview_frame=own.preview_frame,
                          observe_control=own.observe_control, observe_plant=own.observe_plant,
-                         history=own.history, teacher=own.teacher, observe_task=own.observe_task,
+                         observe_disturbance=own.observe_disturbance, history=own.history, teacher=own.teacher,
+                         observe_task=own.observe_task,
                          observe_measured=own.observe_measured, settle=own.settle,
                          plant_randomization=own.plant_randomization,
                          family=own.family,

@@ -54,6 +54,9 @@ def observation_space(settings: TrackSettings) -> spaces.Box:
         low, high = [*low, -unbounded], [*high, unbounded]
     if settings.observe_plant != "none":  # theta / theta_max: >= 0; a user's plant may exceed its bound
         low, high = [*low, np.zeros(1 + 2 * settings.n)], [*high, np.full(1 + 2 * settings.n, np.finfo(np.float64).max)]
+    if settings.observe_disturbance:  # the filter's torque over the saturation: no a-priori bound
+        unbounded = np.full(settings.n, np.finfo(np.float64).max)
+        low, high = [*low, -unbounded], [*high, unbounded]
     if settings.observe_task:  # the move (rad, within the range widths) and the time to the motion's end (s; a
         # reset may ask for any duration)
         low = [*low, np.array([0.0, -settings.settle_steps * settings.dt])]  # as the observation computes it
@@ -94,7 +97,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | torque      | 60 a N m is the whole corrective torque (gravity compensation stays)    |
 
     ## Observation Space
-    `Box(float64)` of size 19 + 6 preview (+ 6 with observe_control, + 7 with observe_plant, + 2 with observe_task).
+    `Box(float64)` of size 19 + 6 preview (+ 6 with observe_control, + 7 with observe_plant, + 3 with
+    observe_disturbance, + 2 with observe_task).
     After step k the loop is at period k+1 and the reference sample is that period's. Bounds: `range` is a joint's
     position range (pan and lift +-2 pi, elbow +-pi), `width` its length; velocities are bounded by 200 rad/s, which
     60 N m cannot reach before |e| > pi ends the episode.
@@ -113,11 +117,17 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | m .. m+2       | observe_control: the PID integral of e             | -max float    | max float    | rad s |
     | m+3 .. m+5     | observe_control: tau_ff of period k+1 (then N)     | -max float    | max float    | N m   |
     | p .. p+6      | observe_plant: payload, damping_j, friction_j over their bounds theta_max | 0 | max float | - |
+    | u .. u+2       | observe_disturbance: mpc's filtered torque d over the saturation | -max float | max float | - |
     | t              | observe_task: the move, max_i abs(qg_i - q0_i)     | 0             | largest range width | rad |
     | t+1            | observe_task: time to the motion's end (N - k) dt  | -settle       | max float    | s     |
 
-    (m = 19 + 6 preview; max float = the largest finite float64: these two have no a-priori bound. p = m (+ 6 with
-    observe_control); t = p (+ 7 with observe_plant); N the motion's periods (without the settle window). With
+    (m = 19 + 6 preview; max float = the largest finite float64: these have no a-priori bound. p = m (+ 6 with
+    observe_control); u = p (+ 7 with observe_plant); t = u (+ 3 with observe_disturbance); N the motion's periods
+    (without the settle window). observe_disturbance runs `mpc`'s Kalman filter without its plan beside the loop
+    (`mpc_filter`, counting the torque the loop applied): d is the estimate `mpc` would plan from at these states,
+    corrected by this period's measurement; it needs a settle window (the filter runs in protocol v2's episodes) and,
+    as a predictive teacher does, episodes of one length per vector env (the aggressive family's vary: one sub-env per
+    vector env, as `mjtraj.rl.batched.MixedFamilies` runs them). With
     preview_frame='relative' each preview sample is given minus the observed q and qd (bounds as e and ed). With
     observe_measured, q, qd, e and ed are what the control law measures, noisy under measurement_noise (else the
     true state, which a policy then sees and the law does not); theta_max: `mjtraj.core.adaptive.BOUND_RULE`; 'true'
@@ -229,6 +239,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | preview_frame    | "absolute" | absolute, or relative: each preview sample minus the observed q and qd   |
     | observe_control  | False      | append the PID integral and the next feedforward torque (6 values)      |
     | observe_plant    | "none"     | none, true (the plant's parameters: privileged) or estimate (adaptive law's) |
+    | observe_disturbance | False   | append mpc's filtered torque disturbance over the saturation (3 values) |
     | observe_task     | False      | append the move (rad) and the time to the motion's end (s)              |
     | observe_measured | False      | observe the measured (noisy) state the law gets, not the true one       |
     | settle           | 0.0        | settle window after the motion, s (protocol v2; info["settled"] at the end) |

@@ -218,3 +218,15 @@ def test_bare_rl_and_bench_say_what_they_hold(capsys):
     with pytest.raises(SystemExit):
         main(["bench", "--help"])
     assert f"default all: {', '.join(BENCH_ALL)}" in " ".join(capsys.readouterr().out.split())
+
+
+def test_observing_mpcs_filter_needs_batched_training_with_a_settle_window(tmp_path, capsys):
+    """SB3's training runs no filter beside the loop; batched training runs it in protocol v2's episodes alone."""
+    assert main(["rl", "train", "--algo", "ppo", "--observe-disturbance", "--out", str(tmp_path / "a")]) == 2
+    assert capsys.readouterr().err == ("mjtraj: error: observe_disturbance: only batched training (--batched --settle "
+                                       "S) runs mpc's filter beside the loop; add --batched\n")
+    assert main(["rl", "train", "--algo", "ppo", "--batched", "--observe-disturbance", "--out",
+                 str(tmp_path / "b")]) == 2
+    assert capsys.readouterr().err == ("mjtraj: error: observe_disturbance: mpc's filter runs in protocol v2's "
+                                       "episodes; expected settle > 0, got 0.0\n")
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()

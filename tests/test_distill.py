@@ -4,6 +4,8 @@ distillation interrupted and resumed is the uninterrupted one, bit for bit."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -373,3 +375,74 @@ def test_the_annealed_learning_rate_is_a_cosine_over_each_rounds_epochs():
         wanted = [settings.learning_rate * ((1e-3 + (1 - 1e-3) * 0.5 * (1 + np.cos(np.pi * e / 4))) if decay else 1.0)
                   for e in range(4)]
         assert seen == pytest.approx(wanted, rel=1e-12)
+
+
+def test_a_student_reads_its_position_error_over_the_move_where_asked(tmp_path):
+    """features error_over_move: the network reads the observation, then e over the task's move, both taken from
+    the observation the env gives (the oracle: the env's own e and move entries, divided apart); a saved student
+    loads with the same inputs; and the feature is refused without the move observed and by PPO."""
+    import gymnasium as gym
+
+    from mjtraj.rl.batched import train_batched
+    from mjtraj.rl.batched_policy import BatchedSettings, batched_policy_class, load_batched, save_policy
+
+    settings = DistillSettings(families=("nominal",), num_envs=2, hidden=(8,), preview=2, observe_task=True,
+                               observe_control=True, history=1, features="error_over_move")
+    env = gym.make_vec("UR5Track-v2", num_envs=2, vectorization_mode="vector_entry_point",
+                       **{k: v for k, v in settings.env_kwargs("nominal").items() if k != "teacher"})
+    obs, _ = env.reset(seed=2)
+    obs, *_ = env.step(np.full((2, 3), 0.3))
+    env.close()
+    module = batched_policy_class()(obs.shape[1], 3, settings.policy_settings())
+    one = obs.shape[1] // 2
+    x = module.inputs(torch.as_tensor(obs))
+    assert x.shape == (2, obs.shape[1] + 3) and module.mean.shape == (obs.shape[1] + 3,)
+    np.testing.assert_array_equal(x[:, :obs.shape[1]].numpy(), obs)
+    np.testing.assert_allclose(x[:, obs.shape[1]:].numpy(), obs[:, 12:15] / obs[:, one - 2:one - 1], rtol=1e-15)
+    assert np.abs(obs[:, 12:15]).max() > 0
+    save_policy(module, tmp_path / "p.pt", {"settings": dataclasses.asdict(settings.policy_settings())})
+    loaded = load_batched(tmp_path / "p.pt")
+    assert loaded.scaled == module.scaled
+    with pytest.raises(InvalidInputError, match=r"^features: error_over_move reads the task's move, which the policy "
+                                                r"observes with observe_task; expected observe_task true, got false$"):
+        DistillSettings(features="error_over_move")
+    with pytest.raises(InvalidInputError, match=r"^features: batched PPO's networks act on the observation alone"):
+        train_batched(BatchedSettings(observe_task=True, features="error_over_move"), tmp_path / "ppo")
+
+
+def test_an_anchored_student_adds_the_torque_that_cancels_the_observed_disturbance():
+    """anchor disturbance: the action is the network's (cubed) plus -d over the saturation, d the filter's estimate
+    the env observes (the oracle: the env's loop's `mpc_filter`, read apart); the network learns the labels less
+    that anchor, so that acting on its targets gives back the labels (within [-1, 1])."""
+    import gymnasium as gym
+
+    from mjtraj.core.mpc import disturbance_of
+    from mjtraj.rl.batched_policy import batched_policy_class
+
+    settings = DistillSettings(families=("mismatch",), num_envs=2, hidden=(8,), preview=2, observe_task=True,
+                               observe_control=True, observe_disturbance=True, history=1, action_mode="torque",
+                               controller="pid", output="cubic", anchor="disturbance")
+    env = gym.make_vec("UR5Track-v2", num_envs=2, vectorization_mode="vector_entry_point",
+                       **{k: v for k, v in settings.env_kwargs("mismatch").items() if k != "teacher"})
+    obs, _ = env.reset(seed=7)
+    for _ in range(30):
+        obs, *_ = env.step(np.full((2, 3), 0.02))
+    d = disturbance_of(env.unwrapped.loop.teach("mpc_filter").state, 3) / 60.0
+    env.close()
+    assert np.abs(d).max() > 0.01
+    module = batched_policy_class()(obs.shape[1], 3, settings.policy_settings())
+    module.std.fill_(1.0)
+    module.clip.fill_(10.0)
+    x = torch.as_tensor(obs, dtype=torch.float32)
+    np.testing.assert_allclose(module.anchor(x).numpy(), -d, rtol=1e-6)
+    with torch.no_grad():
+        net = torch.clamp(module.net(module.inputs(x) - module.mean), -1, 1) ** 3
+        np.testing.assert_allclose(module(x).numpy(), torch.clamp(net - x[:, module.anchored[0]:module.anchored[1]],
+                                                                  -1, 1).numpy(), rtol=1e-6)
+    y = np.random.default_rng(1).uniform(-0.5, 0.5, size=(2, 3))
+    fitted = distill_module._less_anchor(module, obs, y)
+    np.testing.assert_allclose(np.clip(fitted - obs[:, module.anchored[0]:module.anchored[1]], -1, 1), y, atol=1e-15)
+    with pytest.raises(InvalidInputError, match=r"^anchor: disturbance cancels the observed disturbance with the "
+                                                r"whole torque; expected observe_disturbance true and action_mode "
+                                                r"torque, got False and 'torque'$"):
+        DistillSettings(action_mode="torque", anchor="disturbance")

@@ -341,7 +341,8 @@ def test_docstring_arguments_table_matches_the_code():
     s = env.settings
     applied = {"planner": s.planner_name, "action_mode": s.action_mode, "residual_scale": s.residual_scale,
                "task": s.task_mode, "family": s.family, "observe_control": s.observe_control,
-               "observe_plant": s.observe_plant, "history": s.history, "teacher": s.teacher,
+               "observe_plant": s.observe_plant, "observe_disturbance": s.observe_disturbance, "history": s.history,
+               "teacher": s.teacher,
                "observe_task": s.observe_task,
                "observe_measured": s.observe_measured, "settle": s.settle,
                "plant_randomization": s.plant_randomization, "measurement_noise": s.measurement_noise,
@@ -448,7 +449,8 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                    r"action_mode, "
                    r"residual_scale, task, family, max_displacement, duration, dt, preview, preview_frame, "
                    r"observe_control, "
-                   r"observe_plant, observe_task, observe_measured, settle, history, teacher, plant_randomization, "
+                   r"observe_plant, observe_disturbance, observe_task, observe_measured, settle, history, teacher, "
+                   r"plant_randomization, "
                    r"measurement_noise, reward_baseline, floor, width, "
                    r"height, "
                    r"camera, render_quality, "

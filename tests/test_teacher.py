@@ -103,7 +103,8 @@ def test_a_predictive_teacher_counts_the_command_the_loop_applied(teacher, scena
 
 
 def test_teachers_are_named_control_laws(scenario, model):
-    with pytest.raises(InvalidInputError, match=r"^teachers: expected control laws among .*, got 'teacher'$"):
+    with pytest.raises(InvalidInputError, match=r"^teachers: expected control laws or estimators among .*mpc_filter, "
+                                                r"got 'teacher'$"):
         ClosedLoop(model, scenario.loop, teachers=("teacher",))
     loop = ClosedLoop(model, scenario.loop, teachers=("mpc",))
     loop.start(_references(scenario, model, "nominal", [0]))
@@ -127,4 +128,89 @@ def test_the_vector_envs_teacher_answers_its_law_when_the_env_runs_that_law():
         answer = loop.teach("mpc").dtau.copy()
         env.step(np.zeros((2, 3)))
         np.testing.assert_array_equal(answer, loop.rollout().dtau[:, k])
+    env.close()
+
+
+def test_mpcs_filter_alone_estimates_what_mpc_plans_from(scenario, model):
+    """`mpc_filter` (mpc's Kalman filter without its QP) and `mpc` shadow one loop on mismatched plants with noise and
+    a settle window, driven by commands neither gives (PID's plus a random torque); the oracle is `mpc` itself: every
+    period the filter's estimate (the period counter, the torque disturbance and its covariance, corrected by the
+    period's measurement) is mpc's, to rounding; their predictions differ by their own commands until the loop
+    counts the one it applied. The disturbance is far from 0 (the plants' payloads), so the check has something to
+    hold."""
+    from mjtraj.core.mpc import disturbance_of
+    from mjtraj.domain.families import perturbed_plant, plant_fields
+
+    drawn = [draw_scenario("mismatch", 0, i, model, scenario.task.dt) for i in (0, 1)]
+    refs = [held(scenario.planner("cubic").plan(d.task, model), 10, d.task.qg) for d in drawn]
+    refs = [refs[0], refs[0]] if refs[0].steps != refs[1].steps else refs
+    plant = perturbed_plant(model)
+    loop = ClosedLoop(model, scenario.loop, nsim=2, plant=plant,
+                      plant_fields=plant_fields(plant, [d.perturbation for d in drawn]),
+                      teachers=("mpc", "mpc_filter"))
+    noise = np.random.default_rng(2).standard_normal((refs[0].steps, 2, 2 * model.nv)) * 1e-3
+    loop.start(refs, noise=noise, sensor=1e-3)
+    rng = np.random.default_rng(3)
+    largest = 0.0
+    for _ in range(loop.steps):
+        theirs, mine = loop.teach("mpc").state, loop.teach("mpc_filter").state
+        corrected = np.r_[0, 1 + 2 * model.nv:theirs.shape[1]]  # the prediction is each one's own command's
+        np.testing.assert_allclose(mine[:, corrected], theirs[:, corrected], rtol=1e-9, atol=1e-9)
+        largest = max(largest, float(np.abs(disturbance_of(mine, model.nv)).max()))
+        loop.step(residual=rng.normal(0.0, 2.0, (2, model.nv)))
+    assert largest > 1.0  # N m
+
+
+def test_the_env_observes_mpcs_filter_as_the_loop_runs_it():
+    """observe_disturbance appends the filter's torque disturbance over the saturation, after observe_plant's place
+    and before observe_task's (the oracle: the loop's own `mpc_filter` shadow, read beside the env); it needs a
+    settle window."""
+    import gymnasium as gym
+    import mjtraj.envs  # noqa: F401
+
+    from mjtraj.core.mpc import disturbance_of
+
+    env = gym.make_vec("UR5Track-v2", num_envs=2, vectorization_mode="vector_entry_point", family="mismatch",
+                       controller="pid", action_mode="torque", observe_disturbance=True)
+    plain = gym.make_vec("UR5Track-v2", num_envs=2, vectorization_mode="vector_entry_point", family="mismatch",
+                         controller="pid", action_mode="torque")
+    obs, _ = env.reset(seed=4)
+    other, _ = plain.reset(seed=4)
+    assert obs.shape[1] == other.shape[1] + 3
+    loop = env.unwrapped.loop
+    for _ in range(20):
+        d = disturbance_of(loop.teach("mpc_filter").state, 3) / 60.0
+        np.testing.assert_array_equal(obs[:, -5:-2], d)
+        np.testing.assert_array_equal(np.delete(obs, [-5, -4, -3], axis=1), other)
+        action = np.full((2, 3), 0.05)
+        obs, *_ = env.step(action)
+        other, *_ = plain.step(action)
+    assert np.abs(obs[:, -5:-2]).max() > 0
+    env.close()
+    plain.close()
+    with pytest.raises(InvalidInputError, match=r"^observe_disturbance: .* expected settle > 0, got settle=0.0$"):
+        gym.make("UR5Track-v1", observe_disturbance=True)
+
+
+def test_a_predictive_teacher_answers_between_an_episodes_end_and_the_vector_envs_restart():
+    """The vector env restarts an ended episode at the next step: asked in between (its answer unused), `mpc` reads
+    its plan's last period instead of past its end, and the next episode's answers are its law's again."""
+    import gymnasium as gym
+    import mjtraj.envs  # noqa: F401
+
+    env = gym.make_vec("UR5Track-v2", num_envs=1, vectorization_mode="vector_entry_point", controller="mpc",
+                       teacher="mpc")
+    env.reset(seed=6)
+    loop = env.unwrapped.loop
+    ended = False
+    while not ended:
+        _, _, terminated, truncated, _ = env.step(np.zeros((1, 3)))
+        ended = bool(terminated[0] or truncated[0])
+    assert loop.done.all()
+    assert np.all(np.isfinite(loop.teach("mpc").dtau))
+    env.step(np.zeros((1, 3)))  # the restart
+    k = int(loop.periods[0])
+    answer = loop.teach("mpc").dtau.copy()
+    env.step(np.zeros((1, 3)))
+    np.testing.assert_array_equal(answer, loop.rollout().dtau[:, k])
     env.close()

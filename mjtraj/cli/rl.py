@@ -43,6 +43,9 @@ def add(sub: Any, laws: str) -> None:
                    help="none | true: the policy also observes the plant's payload, damping and friction (a "
                    "privileged teacher, labelled so in rl eval) | estimate: the adaptive law's online estimate of "
                    "them (deployable; --controller adaptive_computed_torque) (default none)")
+    p.add_argument("--observe-disturbance", dest="observe_disturbance", action="store_true",
+                   help="the policy also observes the torque disturbance mpc's Kalman filter estimates (mpc_filter "
+                   "shadowing the loop; --batched with --settle)")
     p.add_argument("--history", type=int, default=0, help="previous observations the policy also sees, latest "
                    "first (default 0)")
     p.add_argument("--observation-scaling", dest="observation_scaling", default="running",
@@ -158,10 +161,19 @@ def add(sub: Any, laws: str) -> None:
                    "under --controller pid)")
     p.add_argument("--observe-plant", dest="observe_plant", choices=("none", "estimate"), default="none",
                    help="estimate: also observe the adaptive law's estimate of the plant (default none)")
+    p.add_argument("--observe-disturbance", dest="observe_disturbance", action="store_true",
+                   help="also observe the torque disturbance mpc's Kalman filter estimates (mpc_filter shadowing the "
+                   "loop: the estimate mpc plans from, at the cost of a filter step)")
     p.add_argument("--history", type=int, default=0, help="previous observations also observed (default 0)")
     p.add_argument("--output", choices=("linear", "cubic"), default="linear",
                    help="cubic: the action is the cube of the network's output, which learns the labels' cube roots "
                    "(finer near 0) (default linear)")
+    p.add_argument("--anchor", choices=("none", "disturbance"), default="none",
+                   help="disturbance: the action adds the torque that cancels mpc's filtered disturbance (needs "
+                   "--observe-disturbance and --action-mode torque); the network learns the rest (default none)")
+    p.add_argument("--features", choices=("none", "error_over_move"), default="none",
+                   help="error_over_move: the network also reads the position error over the task's move (the "
+                   "score's and the settling band's unit; needs --observe-task) (default none)")
     p.add_argument("--mixing", type=float, default=0.0,
                    help="DAgger's beta: in round r the teacher acts with probability MIXING^r (default 0: the student)")
     p.add_argument("--decay", action="store_true",
@@ -273,6 +285,11 @@ def run_train(args: argparse.Namespace) -> int:
 
     if args.batched or (args.resume is not None and (args.resume / "resume.pt").is_file()):
         return _run_batched(args)
+    if args.observe_disturbance:
+        from mjtraj.exceptions import InvalidInputError
+
+        raise InvalidInputError("observe_disturbance: only batched training (--batched --settle S) runs mpc's filter "
+                                "beside the loop; add --batched")
     require_sb3()
     from mjtraj.rl.train import TrainSettings, resume_training, train
 
@@ -346,6 +363,7 @@ def _run_batched(args: argparse.Namespace) -> int:
     given = {"steps": args.steps, "num_envs": args.num_envs, "controller": args.controller}
     flags = {"residual_scale": args.residual_scale, "initial_std": args.initial_std, "preview": args.preview,
              "observe_control": args.observe_control or None, "history": args.history or None,
+             "observe_disturbance": args.observe_disturbance or None,
              "observe_plant": None if args.observe_plant == "none" else args.observe_plant,
              "action_mode": None if args.action_mode == "residual" else args.action_mode, "settle": args.settle,
              "preview_frame": args.preview_frame}
@@ -380,7 +398,10 @@ def run_distill(args: argparse.Namespace) -> int:
                                    preview_frame=args.preview_frame, action_mode=args.action_mode,
                                    observe_task=args.observe_task, observe_control=args.observe_control,
                                    observe_plant=args.observe_plant,
-                                   history=args.history, output=args.output, mixing=args.mixing,
+                                   observe_disturbance=args.observe_disturbance,
+                                   history=args.history, output=args.output, features=args.features,
+                                   anchor=args.anchor,
+                                   mixing=args.mixing,
                                    decay=args.decay,
                                    balance=args.balance, validation=args.validation,
                                    validate_versus=args.validate_versus, seed=args.seed, threads=args.threads)

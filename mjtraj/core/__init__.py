@@ -33,6 +33,8 @@ _EXPORTS = {
     "ControlOutput": "mjtraj.core.controller",
     "control_law": "mjtraj.core.controller",
     "controller_names": "mjtraj.core.laws",
+    "FILTER": "mjtraj.core.mpc",
+    "disturbance_of": "mjtraj.core.mpc",
     "AdaptiveComputedTorque": "mjtraj.core.adaptive",
     "parameter_bounds": "mjtraj.core.adaptive",
     "flange": "mjtraj.core.payload",
@@ -116,6 +118,7 @@ if TYPE_CHECKING:
         reduction,
     )
     from mjtraj.core.model import JointInfo, default_model_path, load_model
+    from mjtraj.core.mpc import FILTER, disturbance_of
     from mjtraj.core.options import check_options, declared_options, from_mapping, option, option_names
     from mjtraj.core.payload import flange
     from mjtraj.core.planners import Planner, available, check_name, default_names, make, plan_all, register
@@ -140,7 +143,7 @@ if TYPE_CHECKING:
     from mjtraj.core.task import Task, random_task
 
 __all__ = [
-    "AdaptiveComputedTorque", "parameter_bounds", "RECORDED", "flange",
+    "AdaptiveComputedTorque", "parameter_bounds", "RECORDED", "flange", "FILTER", "disturbance_of",
     "ANTI_WINDUP", "BatchPlant", "BoxLQRSolution", "CONTROLLERS", "ClosedLoop", "ComputedTorque", "CondensedQP",
     "ControlOutput", "Controller", "DynamicsProbe", "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE",
     "GOAL_TOLERANCE", "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS",

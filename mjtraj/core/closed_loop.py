@@ -17,7 +17,7 @@ from mjtraj.core.adaptive import ADAPTATION_RATE
 from mjtraj.core.controller import ANTI_WINDUP, Controller, ControlOutput, PIDGains
 from mjtraj.core.dynamics import DynamicsProbe
 from mjtraj.core.feedforward import FEEDFORWARD_ACCEL, FEEDFORWARD_MODES, feedforward_many, reference_accelerations
-from mjtraj.core.laws import controller_names, make_controller
+from mjtraj.core.laws import ESTIMATORS, controller_names, make_controller
 from mjtraj.core.model import JointInfo
 from mjtraj.core.options import check_options, option
 from mjtraj.core.plant import GRAVITY_COMP, BatchPlant
@@ -205,11 +205,14 @@ class ClosedLoop:
         self._none_diverged.setflags(write=False)
         self._probe: DynamicsProbe | None = None
         self._teachers: dict[str, Controller] = {}
+        known = (*controller_names(), *ESTIMATORS)
         for name in teachers:
-            if not isinstance(name, str) or name not in controller_names():
-                raise InvalidInputError(f"teachers: expected control laws among {', '.join(controller_names())}, got "
-                                        f"{name!r}")
-            self._teachers[name] = make_controller(replace(config, controller=name), self.dt, model.nv, nsim, model)
+            if not isinstance(name, str) or name not in known:
+                raise InvalidInputError(f"teachers: expected control laws or estimators among {', '.join(known)}, "
+                                        f"got {name!r}")
+            self._teachers[name] = (ESTIMATORS[name](config, self.dt, model.nv, nsim, model) if name in ESTIMATORS
+                                    else make_controller(replace(config, controller=name), self.dt, model.nv, nsim,
+                                                         model))
         self._teacher_dynamics = (DynamicsProbe(model, size=nsim)
                                   if any(law.needs_dynamics for law in self._teachers.values()) else None)
 
@@ -230,6 +233,14 @@ class ClosedLoop:
         """N, the control periods of the running references (of the longest, where a restart gave some simulations
         references of another length: `ends` gives each its own)."""
         return self._running().steps
+
+    @property
+    def _previewer(self) -> str:
+        """The first of the loop's law and its teachers that previews the reference ('' if none): what an error
+        names."""
+        laws = [(f"the control law {self.config.controller!r}", self._law),
+                *((f"the teacher {name!r}", law) for name, law in self._teachers.items())]
+        return next((what for what, law in laws if getattr(law, "track", None) is not None), "")
 
     @property
     def previews(self) -> bool:
@@ -343,7 +354,7 @@ class ClosedLoop:
         longest, n = int(lengths.max()), self.model.nv
         mixed = bool(np.any(lengths != lengths[0]))
         if mixed and self.previews:
-            raise InvalidInputError(f"references: the control law {self.config.controller!r} previews the "
+            raise InvalidInputError(f"references: {self._previewer} previews the "
                                     "reference; give it references of one length per batch, got N from "
                                     f"{lengths.min()} to {lengths.max()}")
         checked = None
@@ -443,7 +454,7 @@ class ClosedLoop:
             return
         q_ref, qd_ref, ff, checked, qdd, lengths = self._prepare(references, rows.size, noise)
         if q_ref.shape[0] != s.q_ref.shape[0] and self.previews:
-            raise InvalidInputError(f"references: the control law {self.config.controller!r} previews the reference; "
+            raise InvalidInputError(f"references: {self._previewer} previews the reference; "
                                     f"a restart needs references of the running N={s.steps}, got "
                                     f"N={q_ref.shape[0] - 1}; start all simulations instead")
         if q_ref.shape[0] > s.q_ref.shape[0]:

@@ -13,7 +13,6 @@ CONTROLLERS = ("pid", "computed_torque", "adaptive_computed_torque", "mpc", "ada
 """The built-in control laws (`LoopConfig.controller`); plug-ins add others (`controller_names`)."""
 
 
-
 def _pid(config: Any, dt: float, n: int, nsim: int, model: Any) -> Controller:
     return PID(config.gains.tiled(nsim), config.anti_windup)
 
@@ -38,9 +37,20 @@ def _adaptive_mpc(config: Any, dt: float, n: int, nsim: int, model: Any) -> Cont
     return AdaptiveModelPredictive(model, dt, nsim, rate=config.adaptation_rate)
 
 
+def _mpc_filter(config: Any, dt: float, n: int, nsim: int, model: Any) -> Controller:
+    from mjtraj.core.mpc import PredictiveFilter
+
+    return PredictiveFilter(model, dt, nsim)
+
+
 _BUILT_IN: dict[str, Callable[..., Controller]] = {"pid": _pid, "computed_torque": _computed_torque,
                                                    "adaptive_computed_torque": _adaptive, "mpc": _mpc,
                                                    "adaptive_mpc": _adaptive_mpc}
+
+ESTIMATORS: dict[str, Callable[..., Controller]] = {"mpc_filter": _mpc_filter}
+"""Laws that only estimate (`mjtraj.core.mpc.PredictiveFilter`: `mpc`'s filter without its plan): a loop runs them
+in its shadow (`ClosedLoop(teachers=...)`) for a policy to observe; they are not control laws of the study
+(`controller_names` leaves them out)."""
 
 
 def _factories() -> dict[str, Callable[..., Controller]]:

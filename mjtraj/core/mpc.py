@@ -538,10 +538,16 @@ class ModelPredictive:
         """Every simulation's solve from its estimate."""
         payloads = self._counted_payloads(estimate)
         with one_blas_thread():
-            return [self.solve(b, int(estimate.counter[b, 0]), estimate.state[b],
+            return [self.solve(b, self._period(b, estimate), estimate.state[b],
                                None if shift is None else shift[b], estimate.disturbance[b],
                                estimate.torque[b] if estimate.filtered[b] else None, payloads[b])
                     for b in range(estimate.state.shape[0])]
+
+    def _period(self, b: int, estimate: Estimate) -> int:
+        """Simulation b's period k, at most its reference's last (a loop's teacher is asked again after its
+        simulation ended, before the vector env restarts it: its answer is unused, but must not read past the
+        plan)."""
+        return min(int(estimate.counter[b, 0]), int(self._plan["steps"][b]) - 1)
 
     def _counted_payloads(self, estimate: Estimate) -> NDArray[np.float64]:
         """(B,) kg: the payload whose inertia each simulation's plan counts (`PredictiveSettings.payload_inertia`):
@@ -647,3 +653,94 @@ class AdaptiveModelPredictive(ModelPredictive):
         frozen = out.saturated.any(axis=1) | ~v1
         out.state[frozen, own:] = theta[frozen]  # type: ignore[index]
         return out
+
+
+FILTER = "mpc_filter"
+"""The name of `PredictiveFilter` among a loop's shadows (`mjtraj.core.laws.ESTIMATORS`)."""
+
+
+def disturbance_of(state: NDArray[np.float64], n: int) -> NDArray[np.float64]:
+    """(B, n) N m: protocol v2's filtered torque disturbance d in the states (B, state_size) of `mpc` or
+    `mpc_filter` (`ModelPredictive.state_size`'s layout) of n joints."""
+    return state[:, 1 + 4 * n:1 + 5 * n]
+
+
+@dataclass
+class PredictiveFilter(ModelPredictive):
+    """`mpc`'s state estimate without its plan: in protocol v2's episodes the Kalman filter `mpc` plans from
+    (`mjtraj.core.estimator`: the state and a torque disturbance d, N m), run on the same linearisation along the
+    reference, at the cost of one filter step a period instead of a QP. It commands the linearisation's torque (the
+    feedforward within the saturation) and is meant to shadow a loop (`ClosedLoop(teachers=("mpc_filter",))`), where
+    its prediction counts the command the loop applied (`applied_state`) as `mpc`'s does: its estimate is then the
+    one `mpc` would plan from at the same states (tested against `mpc` shadowing the same loop). A policy observes it
+    (the env's `observe_disturbance`); protocol v1's episodes keep mpc's state-disturbance integrator."""
+
+    name: ClassVar[str] = FILTER
+
+    def __call__(self, e: NDArray[np.float64], ed: NDArray[np.float64], integral: NDArray[np.float64],
+                 tau_ff: NDArray[np.float64], qdd_ref: NDArray[np.float64] | None,
+                 dynamics: tuple[NDArray[np.float64], NDArray[np.float64]] | None, limit: NDArray[np.float64],
+                 dt: float, *, residual: NDArray[np.float64] | None = None,
+                 override: NDArray[np.float64] | None = None, state: NDArray[np.float64] | None = None,
+                 q: NDArray[np.float64] | None = None, qd: NDArray[np.float64] | None = None) -> ControlOutput:
+        """One period for the batch: the filter's correction and its one-step prediction under the linearisation's
+        torque (B, n), N m (the command; `override` replaces it, and the prediction counts what was applied)."""
+        assert state is not None and q is not None and qd is not None
+        if np.all(self._plan["window"] > 0):  # protocol v2's episodes alone: the compiled filter
+            out = self._compiled(state, np.concatenate([q, qd], axis=1), tau_ff, limit, integral, residual)
+        else:
+            out = self._numpy(state, np.concatenate([q, qd], axis=1), tau_ff, limit, integral, residual)
+        if override is None:
+            return out
+        applied = overridden(override, limit, integral)
+        assert out.state is not None
+        return applied._replace(state=self.applied_state(out.state, out.dtau, applied.dtau))
+
+    def _numpy(self, state: NDArray[np.float64], measured: NDArray[np.float64], tau_ff: NDArray[np.float64],
+               limit: NDArray[np.float64], integral: NDArray[np.float64], residual: NDArray[np.float64] | None
+               ) -> ControlOutput:
+        """The period through `mpc`'s own code (its estimate, the prediction without a plan, its output)."""
+        estimate = self._estimate(state, measured)
+        predicted = [self._predicted(b, self._period(b, estimate), estimate.state[b], estimate.disturbance[b],
+                                     estimate.torque[b] if estimate.filtered[b] else None)
+                     for b in range(estimate.state.shape[0])]
+        return self._output(predicted, estimate, tau_ff, limit, integral, residual)
+
+    def _compiled(self, state: NDArray[np.float64], measured: NDArray[np.float64], tau_ff: NDArray[np.float64],
+                  limit: NDArray[np.float64], integral: NDArray[np.float64], residual: NDArray[np.float64] | None
+                  ) -> ControlOutput:
+        """The period through the compiled filter (`mjtraj.core.filter_kernel`), every simulation in a settle-window
+        episode: the same estimate as `_numpy`'s to rounding (tested against `mpc`)."""
+        from mjtraj.core.filter_kernel import filter_periods
+
+        p = self._plan
+        rows = np.arange(state.shape[0])
+        ks = np.minimum(state[:, 0].astype(np.intp), p["steps"].astype(np.intp) - 1)
+        declared = p["sensor"]
+        fresh = np.isnan(state[:, 1])
+        initial = (self.filter.initial(rows.size, declared) if fresh.any()
+                   else np.empty((rows.size, self.filter.size, self.filter.size)))
+        B = p["B"][rows, ks]
+        out = filter_periods(state, measured, p["x"][rows, ks], p["x"][rows, ks + 1], p["A"][rows, ks], B,
+                             p["c"][rows, ks], self.filter.variances(declared), initial, self.filter.process)
+        planned = p["u"][rows, ks]
+        command = planned if residual is None else planned + residual
+        dtau = np.minimum(np.maximum(command, -limit), limit)
+        beyond = dtau - planned  # what the plant receives beyond the linearisation's torque: 0 unless a residual
+        if np.any(beyond != 0):
+            out[:, 1:1 + 2 * self.n] += np.einsum("bij,bj->bi", B, beyond)
+        self._response = (rows, B)
+        return ControlOutput(tau_ff, command - tau_ff, dtau, dtau != command, integral, out)
+
+    def _predicted(self, b: int, k: int, x: NDArray[np.float64], disturbance: NDArray[np.float64],
+                   torque: NDArray[np.float64] | None) -> Solved:
+        """Simulation b's period k without a plan: the linearisation's torque W_k and the state the model predicts
+        after it from the estimate x (2n,), `solve`'s prediction with no change v: X_{k+1} + A_k (x - X_k) + c_k
+        (+ the disturbance: protocol v1's d, or B_k times protocol v2's filtered torque)."""
+        p = self._plan
+        n = self.n
+        A, B = p["A"][b, k], p["B"][b, k]
+        predicted = p["x"][b, k + 1] + A @ (x - p["x"][b, k]) + p["c"][b, k] + disturbance
+        if torque is not None:
+            predicted = predicted + B @ torque[:n]
+        return Solved(p["u"][b, k].copy(), predicted, A, B)

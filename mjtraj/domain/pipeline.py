@@ -42,7 +42,8 @@ def goal_checked(result: Outcome, displacement: float) -> Outcome:
 
 class Actor(Protocol):
     """Adds torque inside the closed loop (an RL policy): `begin` once the loop has started on `references`, then
-    `act` before every control period."""
+    `act` before every control period. An actor may also name `shadows`, a tuple of laws or estimators the loop is
+    to run in its shadow for it to read (`ClosedLoop(teachers=...)`; none if it names none)."""
 
     action_mode: str
     """'residual' (added to feedforward + PID before the saturation) or 'torque' (the whole corrective torque)."""
@@ -123,7 +124,7 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
     """
     clock = time.perf_counter()
     references = [job.reference for job in jobs]
-    loop = _loop(model, config, jobs, plant, nthread)
+    loop = _loop(model, config, jobs, plant, nthread, tuple(getattr(actor, "shadows", ())))
     noise = _noise(jobs, references, model.nv)
     rollout = _run(loop, jobs, references, noise, actor)
     unstable = loop.unstable()
@@ -136,15 +137,16 @@ def execute_batch(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job]
 
 
 def _loop(model: mujoco.MjModel, config: LoopConfig, jobs: Sequence[Job], plant: mujoco.MjModel | None,
-          nthread: int) -> ClosedLoop:
+          nthread: int, shadows: tuple[str, ...] = ()) -> ClosedLoop:
     """The ClosedLoop of `jobs`: on the nominal `model`, or on `plant` with each job's perturbation (all perturbed
-    or none)."""
+    or none); `shadows` run beside its law (an actor's estimators, `ClosedLoop(teachers=...)`)."""
     perturbed = [job.perturbation for job in jobs if job.perturbation is not None]
     if perturbed and (plant is None or len(perturbed) != len(jobs)):
         raise InvalidInputError("jobs: perturbed jobs need the perturbed plant model, and a batch is either all "
                                 "perturbed or all nominal")
     fields = plant_fields(plant, perturbed) if plant is not None and perturbed else None
-    return ClosedLoop(model, config, nsim=len(jobs), plant=plant, plant_fields=fields, nthread=nthread)
+    return ClosedLoop(model, config, nsim=len(jobs), plant=plant, plant_fields=fields, nthread=nthread,
+                      teachers=shadows)
 
 
 def _noise(jobs: Sequence[Job], references: list[Reference], n: int) -> NDArray[np.float64] | None:

@@ -43,11 +43,14 @@ BENCHMARK_ENV: dict[str, Any] = {"planner": "cubic", "controller": "pid", "actio
                                  "residual_scale": RESIDUAL_SCALE, "observe_control": False, "preview": 0,
                                  "preview_frame": "absolute",
                                  "observe_plant": "none", "history": 0, "observe_task": False,
-                                 "observe_measured": False}
+                                 "observe_measured": False, "observe_disturbance": False}
 """The env settings of a policy that declares none: UR5Track-v1's (UR5Track-v2's observation adds observe_task and
 observe_measured)."""
 ENV_KEYS = tuple(BENCHMARK_ENV)
 """The env settings a policy acts in (a zip's come from its training record)."""
+RECORDED_WHERE_SET = ("observe_disturbance",)
+"""Settings added after evaluations were published: a row's `policy_env` names them only where they differ from
+BENCHMARK_ENV, so that earlier rows read as they did."""
 KINDS = ("sb3-zip", "callable", "torch")
 
 
@@ -154,7 +157,9 @@ class ScoredPolicy:
         return {"method": self.label, "policy": self.source, "policy_kind": self.kind,
                 "policy_sha256": self.sha256[:16], "policy_timesteps": self.timesteps,
                 "policy_privileged": int(self.sees_plant),
-                "policy_env": json.dumps({k: self.env.get(k) for k in ENV_KEYS}, sort_keys=True)}
+                "policy_env": json.dumps({k: self.env.get(k) for k in ENV_KEYS
+                                          if k not in RECORDED_WHERE_SET or self.env.get(k) != BENCHMARK_ENV[k]},
+                                         sort_keys=True)}
 
 
 def _env_of(declared: Any, settings: Mapping[str, Any] | None) -> dict[str, Any]:

@@ -19,6 +19,10 @@ BATCHED_RUN = "mjtraj-batched-run/1"
 
 OUTPUTS = ("linear", "cubic")
 """How a policy's network output becomes its action (`BatchedSettings.output`)."""
+FEATURES = ("none", "error_over_move")
+"""What a policy's network reads besides the observation (`BatchedSettings.features`)."""
+ANCHORS = ("none", "disturbance")
+"""What a policy's action adds to its network's (`BatchedSettings.anchor`)."""
 
 
 @dataclass(frozen=True)
@@ -58,11 +62,23 @@ class BatchedSettings:
     observe_plant: str = "none"
     """none, or estimate: the policy also observes the adaptive law's estimate of the plant (the env's option; a
     memory of the disturbance)."""
+    observe_disturbance: bool = False
+    """The policy also observes the torque disturbance `mpc`'s filter estimates (the env's option: `mpc_filter`
+    shadows the loop; needs a settle window)."""
     history: int = 0
     """Previous observations the policy also observes (the env's option)."""
     output: str = "linear"
     """How the network's output, clipped to [-1, 1], becomes the action: linear (as it is) or cubic (its cube: the
     same range, finer near 0, where a command of 1 % of the authority is the output 0.22; distillation only)."""
+    features: str = "none"
+    """What the network also reads, computed from the observation: none, or error_over_move (the position error e
+    over the task's move, the unit of the score's weights and of the settling band, 2 % of it: a ratio a tanh network
+    would otherwise have to form itself; needs observe_task; distillation only)."""
+    anchor: str = "none"
+    """What the action adds to the network's: none, or disturbance (the torque that cancels the disturbance `mpc`'s
+    filter estimates, -d over the saturation, observed with observe_disturbance; torque mode): the network then
+    learns the rest of the command, which at rest is a correction of a few N m where the command itself holds a
+    payload of tens (an offset-free anchor, as `mpc`'s own prediction is; distillation only)."""
     settle: float = 0.0
     """The episodes' settle window, s, in training and validation (0: protocol v1's episodes scored by J_exec; 0.5:
     protocol v2's, scored by J_settle, held to the at-rest rule, the measured state observed)."""
@@ -98,17 +114,37 @@ class BatchedSettings:
             raise InvalidInputError(f"hidden: expected layer widths >= 1 (none: a linear network), got "
                                     f"{self.hidden!r}")
         check_seed("seed", self.seed)
-        choice("observe_plant", self.observe_plant, ("none", "estimate"))
-        choice("action_mode", self.action_mode, ("residual", "torque"))
-        choice("output", self.output, OUTPUTS)
-        if self.action_mode == "torque" and self.observe_plant != "none":
-            raise InvalidInputError(f"observe_plant: a torque policy cannot observe the adaptive law's estimate (the "
-                                    f"law does not run under its torque), expected none, got {self.observe_plant!r}")
+        self._check_policy()
         from mjtraj.core import controller_names
         from mjtraj.envs import PREVIEW_FRAMES
 
         choice("controller", self.controller, controller_names())
         choice("preview_frame", self.preview_frame, PREVIEW_FRAMES)
+
+    def _check_policy(self) -> None:
+        """The action's and the observation's settings, and what each needs of the others."""
+        if self.observe_disturbance and not self.settle > 0:
+            raise InvalidInputError(f"observe_disturbance: mpc's filter runs in protocol v2's episodes; expected "
+                                    f"settle > 0, got {self.settle!r}")
+        choice("observe_plant", self.observe_plant, ("none", "estimate"))
+        choice("action_mode", self.action_mode, ("residual", "torque"))
+        choice("output", self.output, OUTPUTS)
+        choice("features", self.features, FEATURES)
+        choice("anchor", self.anchor, ANCHORS)
+        if self.anchor != "none" and not (self.observe_disturbance and self.action_mode == "torque"):
+            raise InvalidInputError(f"anchor: {self.anchor} cancels the observed disturbance with the whole torque; "
+                                    f"expected observe_disturbance true and action_mode torque, got "
+                                    f"{self.observe_disturbance} and {self.action_mode!r}")
+        if self.features != "none" and not self.observe_task:
+            raise InvalidInputError(f"features: {self.features} reads the task's move, which the policy observes with "
+                                    f"observe_task; expected observe_task true, got false")
+        if self.action_mode == "torque" and self.observe_plant != "none":
+            raise InvalidInputError(f"observe_plant: a torque policy cannot observe the adaptive law's estimate (the "
+                                    f"law does not run under its torque), expected none, got {self.observe_plant!r}")
+
+    def extra_inputs(self, n: int) -> int:
+        """How many values `features` adds to the network's input for n joints."""
+        return n if self.features == "error_over_move" else 0
 
     @property
     def iterations(self) -> int:
@@ -128,7 +164,8 @@ class BatchedSettings:
 
     def observation(self) -> dict[str, Any]:
         """The env options that shape what the policy observes (a deployed policy declares them: `env`)."""
-        optional = (("observe_task", False), ("observe_plant", "none"), ("history", 0), ("preview_frame", "absolute"))
+        optional = (("observe_task", False), ("observe_plant", "none"), ("observe_disturbance", False), ("history", 0),
+                    ("preview_frame", "absolute"))
         extra = {name: getattr(self, name) for name, default in optional if getattr(self, name) != default}
         return {"preview": self.preview, "observe_control": self.observe_control, **extra}
 
@@ -157,20 +194,41 @@ def batched_policy_class() -> type:
 
         def __init__(self, inputs: int, outputs: int, settings: BatchedSettings) -> None:
             super().__init__()
-            self.net = mlp(inputs, outputs, settings.hidden)
+            extra = settings.extra_inputs(outputs)
+            self.net = mlp(inputs + extra, outputs, settings.hidden)
             for name in ("mean", "std"):
-                self.register_buffer(name, torch.zeros(inputs))
+                self.register_buffer(name, torch.zeros(inputs + extra))
+            # error_over_move: e (the observation's entries 4n..5n) over the move (observe_task's next to last entry
+            # of the current observation, before any history)
+            one = inputs // (1 + settings.history)
+            self.scaled = (4 * outputs, 5 * outputs, one - 2) if extra else None
+            # anchor: the observed disturbance's entries (before observe_task's two, of the current observation)
+            end = one - 2 * settings.observe_task
+            self.anchored = (end - outputs, end) if settings.anchor != "none" else None
             self.register_buffer("epsilon", torch.zeros(()))
             self.register_buffer("clip", torch.zeros(()))
             self.cubic = settings.output == "cubic"
             self.env = {"planner": "cubic", "controller": settings.controller, "action_mode": settings.action_mode,
                         "residual_scale": settings.residual_scale, **settings.observation()}
 
+        def inputs(self, obs: Any) -> Any:
+            """The network's input before standardisation: the observation (B, d), then the `features`."""
+            if self.scaled is None:
+                return obs
+            start, stop, move = self.scaled
+            return torch.cat([obs, obs[:, start:stop] / torch.clamp(obs[:, move:move + 1], min=1e-6)], dim=1)
+
         def forward(self, obs: Any) -> Any:
             mean, std, epsilon, clip = self.mean, self.std, self.epsilon, self.clip
-            x = torch.clamp((obs - mean) / (std + epsilon), -clip, clip)  # type: ignore[operator,arg-type]
+            x = torch.clamp((self.inputs(obs) - mean) / (std + epsilon), -clip, clip)  # type: ignore[operator,arg-type]
             action = torch.clamp(self.net(x), -1.0, 1.0)
-            return action**3 if self.cubic else action
+            action = action**3 if self.cubic else action
+            return action if self.anchored is None else torch.clamp(action + self.anchor(obs), -1.0, 1.0)
+
+        def anchor(self, obs: Any) -> Any:
+            """(B, n): what the action adds to the network's for observations (B, d): -d over the saturation."""
+            assert self.anchored is not None
+            return -obs[:, self.anchored[0]:self.anchored[1]]
 
     return BatchedPolicy
 
@@ -217,8 +275,8 @@ def load_batched(path: str | Path) -> Any:
     record = saved["record"]
     settings = policy_settings(record)
     state = saved["state"]
-    module = batched_policy_class()(state["mean"].numel(), state[[k for k in state if k.endswith("bias")][-1]].numel(),
-                                    settings)
+    outputs = state[[k for k in state if k.endswith("bias")][-1]].numel()
+    module = batched_policy_class()(state["mean"].numel() - settings.extra_inputs(outputs), outputs, settings)
     module.load_state_dict(state)
     module.record = record
     return module

@@ -58,17 +58,35 @@ def law_compute(config: Any, family_tasks: Sequence[Any], model: Any, planner: A
     return _summary(f"{law}'s command", times)
 
 
-def policy_compute(act: Any, size: int) -> StepCompute:
-    """A policy's inference `act` timed on one observation of `size` values at a time (batch 1)."""
+def policy_compute(act: Any, size: int, *, shadows: Sequence[str] = (), config: Any = None, model: Any = None,
+                   references: Sequence[Any] = ()) -> StepCompute:
+    """A policy's inference `act` timed on one observation of `size` values at a time (batch 1). A policy whose
+    observation needs estimators beside the loop (`shadows`, e.g. `mpc_filter`) is timed per period along the law's
+    execution of each of `references` (loop `config` on `model`, one simulation): the estimators' update and the
+    inference together, as a deployed policy spends them."""
     obs = np.zeros((1, size))
     times: list[float] = []
     with one_blas_thread():
-        for k in range(10 + POLICY_CALLS):
+        for k in range(10 + POLICY_CALLS * (not shadows)):
             clock = time.perf_counter()
             act(obs)
             if k >= 10:
                 times.append(time.perf_counter() - clock)
-    return _summary("inference, batch 1", times)
+        if not shadows:
+            return _summary("inference, batch 1", times)
+        from mjtraj.core import ClosedLoop
+
+        for ref in references:
+            loop = ClosedLoop(model, config, nsim=1, teachers=tuple(shadows))
+            loop.start([ref])
+            while not loop.done.all():
+                clock = time.perf_counter()
+                for name in shadows:
+                    loop.teach(name)
+                act(obs)
+                times.append(time.perf_counter() - clock)
+                loop.step()
+    return _summary(f"inference and {', '.join(shadows)}, batch 1", times)
 
 
 def _summary(what: str, seconds: Sequence[float]) -> StepCompute:

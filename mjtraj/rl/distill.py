@@ -81,8 +81,15 @@ class DistillSettings:
     observe_plant: str = "none"
     """none, or estimate: the student also observes the adaptive law's estimate of the plant (a memory of the
     disturbance: payload, damping, friction)."""
+    observe_disturbance: bool = False
+    """The student also observes the torque disturbance `mpc`'s filter estimates (`mpc_filter` shadowing the loop:
+    the estimate `mpc` plans from, at the cost of a filter step), a memory of the disturbance for a torque student."""
     history: int = 0
     """Previous observations the student also observes."""
+    features: str = "none"
+    """What the student's network also reads (`BatchedSettings.features`): none, or error_over_move."""
+    anchor: str = "none"
+    """What the student's action adds to its network's (`BatchedSettings.anchor`): none, or disturbance."""
     output: str = "linear"
     """How the network's output becomes the action: linear, or cubic (its cube; the network then learns the labels'
     cube roots, so that a nominal motion's corrections of a few hundredths of the authority are fitted as finely,
@@ -154,7 +161,9 @@ class DistillSettings:
                                action_mode=self.action_mode, settle=self.settle, preview=self.preview,
                                preview_frame=self.preview_frame,
                                observe_task=self.observe_task, observe_control=self.observe_control,
-                               observe_plant=self.observe_plant, history=self.history, output=self.output,
+                               observe_plant=self.observe_plant, observe_disturbance=self.observe_disturbance,
+                               history=self.history, output=self.output, features=self.features,
+                               anchor=self.anchor,
                                validation=max(self.validation, 1))
 
     def families_of_envs(self) -> NDArray[np.intp]:
@@ -276,9 +285,9 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
         run.y.append(y)
         run.hold.append(hold)
         collected = time.perf_counter() - start
-        fitted = targets(np.concatenate(run.y), settings.output)
+        fitted = targets(_less_anchor(module, np.concatenate(run.x), np.concatenate(run.y)), settings.output)
         weights = sample_weights(fitted, settings, np.concatenate(run.hold))
-        loss = _train(module, optimiser, np.concatenate(run.x), fitted, weights, settings, rng)
+        loss = _train(module, optimiser, _inputs(module, np.concatenate(run.x)), fitted, weights, settings, rng)
         row: dict[str, Any] = {"round": r, "samples": sum(len(x) for x in run.x), "collect_s": collected,
                                "train_s": time.perf_counter() - start - collected, "loss": loss}
         if validation is not None:
@@ -402,6 +411,25 @@ def _write_curve(path: Path, rows: list[dict[str, Any]]) -> None:
     writer.writeheader()
     writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in r.items()} for r in rows)
     write_text_atomic(path, buffer.getvalue())
+
+
+def _inputs(module: Any, x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The network's inputs (M, d + features) for observations x (M, d), as the module computes them."""
+    import torch
+
+    if module.scaled is None:
+        return x
+    return module.inputs(torch.as_tensor(x, dtype=torch.float64)).numpy()  # type: ignore[no-any-return]
+
+
+def _less_anchor(module: Any, x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
+    """What the network's action is to be for labels y (M, n) at observations x (M, d): the labels less the
+    module's anchor (`BatchedSettings.anchor`), within [-1, 1]."""
+    import torch
+
+    if module.anchored is None:
+        return y
+    return np.clip(y - module.anchor(torch.as_tensor(x)).numpy(), -1.0, 1.0)  # type: ignore[no-any-return]
 
 
 def targets(y: NDArray[np.float64], output: str) -> NDArray[np.float64]:

@@ -426,25 +426,37 @@ def _executions(request: _Request, plans: list[_Plan], *, progress: bool, keep_g
 def _computes(request: _Request, plans: list[_Plan]) -> dict[str, StepCompute]:
     """Each method's per-period compute (`mjtraj.rl.compute`): every law of the evaluation timed along its own
     execution of the first scenario of each family (cubic, the protocol's window), and every policy's inference
-    (not a recurrent or privileged one, which a call outside its episodes would disturb or could not feed, nor one
+    (with the estimators it observes, e.g. `mpc_filter`, timed with it along those executions; not a recurrent or
+    privileged one, which a call outside its episodes would disturb or could not feed, nor one
     that raises)."""
     from mjtraj.core import held, window_steps
     from mjtraj.study import draw_scenario
 
     out: dict[str, StepCompute] = {}
-    for law in request.laws:
-        mine = [(family, sweep) for family, name, sweep, _ in plans if name == law]
+
+    def references(mine: list[tuple[str, Any]]) -> list[Any]:
+        """The cubic plan of each family's first scenario, ending with the protocol's window."""
         base = mine[0][1].base
         window = window_steps(request.window, base.task.dt)
         refs = []
         for family, _ in mine:
             task = draw_scenario(sweep_family(family), request.seed, 0, base.model, base.task.dt).task
             refs.append(held(base.planner("cubic").plan(task, base.model), window, task.qg))
-        out[f"cubic+{law_label(law)}"] = law_compute(base.loop, [], base.model, None, references=refs)
+        return refs
+
+    for law in request.laws:
+        mine = [(family, sweep) for family, name, sweep, _ in plans if name == law]
+        out[f"cubic+{law_label(law)}"] = law_compute(mine[0][1].base.loop, [], mine[0][1].base.model, None,
+                                                     references=references(mine))
     for policy, label in zip(request.loaded, request.labels, strict=True):
         if policy.reset_hook is None and not policy.privileged:  # no episode state, no plants: callable alone
+            settings = acting_settings(policy, request.protocol)
+            shadows = PolicyActor(policy, settings).shadows
+            mine = list({family: (family, sweep) for family, _, sweep, _ in plans}.values()) if shadows else []
             try:
-                out[label] = policy_compute(policy.act_batch, policy.settings().obs_size)
+                out[label] = policy_compute(policy.act_batch, settings.obs_size, shadows=shadows,
+                                            config=settings.loop, model=settings.model,
+                                            references=references(mine) if mine else ())
             except Exception:  # noqa: BLE001 - a broken policy (kept going) is not timed; its rows say why
                 continue
     return out
@@ -519,6 +531,9 @@ def acting_settings(policy: ScoredPolicy, protocol: str) -> Any:
     as the control laws do (the noisy family's noise reaches policies and laws alike; without noise the measured state
     is the true one)."""
     settings = policy.settings()
+    if settings.observe_disturbance and not SETTLE[protocol]:
+        raise InvalidInputError(f"policy: {policy.label} observes mpc's filter, which runs in protocol v2's episodes "
+                                f"alone; expected --protocol v2, got {protocol}")
     return dataclasses.replace(settings, observe_measured=True) if SETTLE[protocol] else settings
 
 

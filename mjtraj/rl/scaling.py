@@ -61,6 +61,8 @@ def fixed_scales(settings: TrackSettings) -> NDArray[np.float64]:
         parts += [s / gains["ki"], settings.torque_limit]
     if settings.observe_plant != "none":  # already over their bounds
         parts += [np.ones(1 + 2 * n)]
+    if settings.observe_disturbance:  # already over the saturation
+        parts += [np.ones(n)]
     scales = np.tile(np.concatenate(parts).astype(np.float64), 1 + settings.history)
     assert scales.size == settings.obs_size
     return scales

@@ -1,6 +1,7 @@
 """numba for the nonlinear planners' compiled kernels, with its on-disk cache in a folder that can be written.
 
-The kernels (`tree_dynamics`, `shooting._propagate`, `tracking._riccati`) are compiled with numba's cache: the first
+The kernels (`tree_dynamics`, `shooting._propagate`, `tracking._riccati`, and `mjtraj.core.filter_kernel`'s, the
+`mpc_filter` estimator's) are compiled with numba's cache: the first
 process compiles them (about 9 s here, 25 s on a slower machine), later processes load them. numba writes its cache
 beside the source (`__pycache__`) or, where that folder is read-only, in its own folder in the user's cache; where
 neither can be written (a read-only installation run by an account without a writable home) numba refuses to cache,

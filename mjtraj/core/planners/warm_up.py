@@ -1,4 +1,5 @@
-"""Compile the nonlinear planners' numba kernels ahead of the first plan (`mjtraj doctor --warm-up`)."""
+"""Compile the numba kernels (the nonlinear planners', and `mpc_filter`'s) ahead of their first use (`mjtraj doctor
+--warm-up`)."""
 
 from __future__ import annotations
 
@@ -38,8 +39,10 @@ def kernels() -> dict[str, Any]:
     """Every numba dispatcher of the kernel modules, by module.function."""
     from numba.core.dispatcher import Dispatcher
 
+    from mjtraj.core import filter_kernel
+
     return {f"{module.__name__.rsplit('.', 1)[-1]}.{name}": value
-            for module in (tree_dynamics, shooting, tracking) for name, value in vars(module).items()
+            for module in (tree_dynamics, shooting, tracking, filter_kernel) for name, value in vars(module).items()
             if isinstance(value, Dispatcher)}
 
 
@@ -56,9 +59,22 @@ def warm_up() -> WarmUp:
     make("nonlinear_optimal").plan(task, model)
     n = task.n
     tracking.tracking_gains(np.tile(np.eye(2 * n), (2, 1, 1)), np.zeros((2, 2 * n, n)), np.eye(2 * n), np.eye(n))
+    _filter_period(n)
     seconds = time.perf_counter() - start
     compiled, loaded = (a - b for a, b in zip(_counts(), before, strict=True))
     return WarmUp(seconds, compiled, loaded, CHOICE)
+
+
+def _filter_period(n: int) -> None:
+    """One period of `mpc_filter`'s compiled filter (`mjtraj.core.filter_kernel`) from a fresh state, at rest."""
+    from mjtraj.core.filter_kernel import filter_periods
+
+    m = 3 * n
+    state = np.zeros((1, 1 + 5 * n + m * m))
+    state[:, 1:1 + 2 * n] = np.nan
+    x = np.zeros((1, 2 * n))
+    filter_periods(state, x, x, x, np.eye(2 * n)[None], np.zeros((1, 2 * n, n)), x, np.ones((1, 2 * n)),
+                   np.eye(m)[None], np.ones(m))
 
 
 def _counts() -> tuple[int, int]:
