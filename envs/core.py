@@ -80,7 +80,8 @@ def observe(loop: ClosedLoop, preview: int, control: bool = False, measured: boo
 class Observer:
     """Observations of `num` simulations as the env gives them: `observe`'s entries, then with observe_plant the
     plant parameters theta / theta_max (1 + 2n: payload, damping, friction; see mjtraj.core.adaptive), then with
-    observe_task the move (rad) and the time to the motion's end (s, negative in a settle window), then with
+    observe_disturbance `mpc`'s filtered torque disturbance over the saturation (n), then with observe_task the move
+    (rad) and the time to the motion's end (s, negative in a settle window), then with
     history the `history` previous such observations, the latest first (an episode's first observation fills them).
 
     The env (after reset and every step) and the policy actor of rl eval and validation (before every period) call

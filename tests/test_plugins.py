@@ -91,7 +91,12 @@ def test_broken_or_clashing_plugins_are_one_line_errors(installed):
     with pytest.raises(PluginError, match=r"^plug-in planner 'cubic': the name of a built-in planner$"):
         planners.make("cubic")
     installed({"mjtraj.controllers": [EntryPoint("pid", "toy_plugin:pid_again", "mjtraj.controllers")]})
-    with pytest.raises(PluginError, match=r"^plug-in controller 'pid': the name of a built-in control law$"):
+    with pytest.raises(PluginError, match=r"^plug-in controller 'pid': the name of a built-in control law or "
+                                          r"estimator$"):
+        LoopConfig(_gains(), controller="pid")
+    installed({"mjtraj.controllers": [EntryPoint("mpc_filter", "toy_plugin:pid_again", "mjtraj.controllers")]})
+    with pytest.raises(PluginError, match=r"^plug-in controller 'mpc_filter': the name of a built-in control law or "
+                                          r"estimator$"):
         LoopConfig(_gains(), controller="pid")
     installed({"mjtraj.planners": [EntryPoint("twice", "toy_plugin:Ramp", "mjtraj.planners"),
                                    EntryPoint("twice", "toy_plugin:pid_again", "mjtraj.planners")]})

@@ -214,3 +214,30 @@ def test_a_predictive_teacher_answers_between_an_episodes_end_and_the_vector_env
     env.step(np.zeros((1, 3)))
     np.testing.assert_array_equal(answer, loop.rollout().dtau[:, k])
     env.close()
+
+
+def test_mpc_filters_compiled_period_is_its_numpy_one(scenario, model):
+    """The compiled filter (`mjtraj.core.filter_kernel`) against the NumPy path of the same law (`mpc`'s own code),
+    from the same state every period of a loop on mismatched plants with noise, fresh periods included: the same
+    estimate, prediction and covariance to rounding, the same command."""
+    from mjtraj.domain.families import perturbed_plant, plant_fields
+
+    drawn = [draw_scenario("mismatch", 0, i, model, scenario.task.dt) for i in (2, 2)]
+    refs = [held(scenario.planner("cubic").plan(d.task, model), 10, d.task.qg) for d in drawn]
+    plant = perturbed_plant(model)
+    loop = ClosedLoop(model, scenario.loop, nsim=2, plant=plant,
+                      plant_fields=plant_fields(plant, [d.perturbation for d in drawn]), teachers=("mpc_filter",))
+    noise = np.random.default_rng(4).standard_normal((refs[0].steps, 2, 2 * model.nv)) * 1e-3
+    loop.start(refs, noise=noise, sensor=1e-3)
+    law = loop._teachers["mpc_filter"]  # noqa: SLF001 - the law itself, to call both paths
+    rng = np.random.default_rng(5)
+    zero, limit = np.zeros((2, model.nv)), np.tile(loop.limit, (2, 1))
+    for _ in range(loop.steps):
+        state = loop._state.teachers["mpc_filter"].law_state.copy()  # noqa: SLF001
+        measured = np.concatenate(loop.measured(), axis=1)
+        residual = rng.normal(0.0, 1.0, (2, model.nv))
+        mine = law._compiled(state, measured, zero, limit, zero, residual)  # noqa: SLF001
+        theirs = law._numpy(state, measured, zero, limit, zero, residual)  # noqa: SLF001
+        np.testing.assert_allclose(mine.state, theirs.state, rtol=1e-12, atol=1e-12)
+        np.testing.assert_array_equal(mine.dtau, theirs.dtau)
+        loop.step(residual=rng.normal(0.0, 2.0, (2, model.nv)))

@@ -176,7 +176,8 @@ class ClosedLoop:
     sees the noisy ones. With an actuation delay, `dtau` records the torque the plant received.
 
     `teachers` names other control laws that shadow the loop's own (for imitation: `teach` gives what one of them
-    would command now, at what the loop's law measures). Each runs as the loop's law would, on the same references
+    would command now, at what the loop's law measures), or estimators (`mjtraj.core.laws.ESTIMATORS`: `mpc_filter`,
+    whose state a policy observes). Each runs as the loop's law would, on the same references
     and measurements, with its own integral and state, advanced every period as its own loop would advance them
     had it commanded what the loop applied: a predictive law's protocol-v2 prediction counts the loop's command (its
     `applied_state`; else its filter would take the difference for a disturbance and its answers would drift from

@@ -65,8 +65,8 @@ def _factories() -> dict[str, Callable[..., Controller]]:
 
     out = dict(_BUILT_IN)
     for name, factory in plugins(GROUP).items():
-        if name in out:
-            raise PluginError(f"plug-in controller {name!r}: the name of a built-in control law")
+        if name in out or name in ESTIMATORS:
+            raise PluginError(f"plug-in controller {name!r}: the name of a built-in control law or estimator")
         if not callable(factory):
             raise PluginError(f"plug-in controller {name!r}: expected a factory(config, dt, n, nsim), got "
                               f"{factory!r}")

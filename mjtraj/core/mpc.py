@@ -717,7 +717,7 @@ class PredictiveFilter(ModelPredictive):
         rows = np.arange(state.shape[0])
         ks = np.minimum(state[:, 0].astype(np.intp), p["steps"].astype(np.intp) - 1)
         declared = p["sensor"]
-        fresh = np.isnan(state[:, 1])
+        fresh = np.isnan(state[:, 1:1 + 2 * self.n]).any(axis=1)
         initial = (self.filter.initial(rows.size, declared) if fresh.any()
                    else np.empty((rows.size, self.filter.size, self.filter.size)))
         B = p["B"][rows, ks]

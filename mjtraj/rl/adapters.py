@@ -158,7 +158,8 @@ class ScoredPolicy:
                 "policy_sha256": self.sha256[:16], "policy_timesteps": self.timesteps,
                 "policy_privileged": int(self.sees_plant),
                 "policy_env": json.dumps({k: self.env.get(k) for k in ENV_KEYS
-                                          if k not in RECORDED_WHERE_SET or self.env.get(k) != BENCHMARK_ENV[k]},
+                                          if k not in RECORDED_WHERE_SET
+                                          or self.env.get(k, BENCHMARK_ENV[k]) != BENCHMARK_ENV[k]},
                                          sort_keys=True)}
 
 

@@ -366,7 +366,7 @@ def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
 
 
 INIT_SHARED = ("controller", "action_mode", "residual_scale", "hidden", "preview", "preview_frame", "observe_control",
-               "observe_task", "observe_plant", "observe_disturbance", "history", "output")
+               "observe_task", "observe_plant", "observe_disturbance", "history", "output", "features", "anchor")
 """The settings a policy that starts a run (`BatchedSettings.init`) must share with it: what it observes, how its
 action acts, its network."""
 

@@ -78,7 +78,9 @@ class BatchedSettings:
     """What the action adds to the network's: none, or disturbance (the torque that cancels the disturbance `mpc`'s
     filter estimates, -d over the saturation, observed with observe_disturbance; torque mode): the network then
     learns the rest of the command, which at rest is a correction of a few N m where the command itself holds a
-    payload of tens (an offset-free anchor, as `mpc`'s own prediction is; distillation only)."""
+    payload of tens (an offset-free anchor, as `mpc`'s own prediction is; distillation only). The network's output
+    stays within [-1, 1] of the anchor, the sum within the saturation: a command farther from the anchor than the
+    saturation is out of reach (its label is clipped so)."""
     settle: float = 0.0
     """The episodes' settle window, s, in training and validation (0: protocol v1's episodes scored by J_exec; 0.5:
     protocol v2's, scored by J_settle, held to the at-rest rule, the measured state observed)."""

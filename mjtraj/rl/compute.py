@@ -3,7 +3,9 @@ solve, for the predictive laws) and a policy's inference, each for one simulatio
 
 A law is timed as a teacher of itself (`ClosedLoop.teach`) along its own execution of the first scenario of each
 family (cubic reference): the call computes exactly the command the loop applies there. A policy is timed on one
-observation at a time (batch 1), its inference alone: the law it acts on is timed as that law. Times are wall-clock
+observation at a time (batch 1), its inference alone (with the estimators it observes, e.g. `mpc_filter`, timed
+together along the law's execution: what a deployed policy spends per period): the law it acts on is timed as that
+law. Times are wall-clock
 on a machine that may be busy; they are a record of this run, not a benchmark (`mjtraj bench` measures speed as
 ratios within one run).
 """
