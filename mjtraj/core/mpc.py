@@ -538,16 +538,25 @@ class ModelPredictive:
         """Every simulation's solve from its estimate."""
         payloads = self._counted_payloads(estimate)
         with one_blas_thread():
-            return [self.solve(b, self._period(b, estimate), estimate.state[b],
+            ks = self._periods(estimate.counter)
+            return [self.solve(b, int(ks[b]), estimate.state[b],
                                None if shift is None else shift[b], estimate.disturbance[b],
                                estimate.torque[b] if estimate.filtered[b] else None, payloads[b])
                     for b in range(estimate.state.shape[0])]
 
-    def _period(self, b: int, estimate: Estimate) -> int:
-        """Simulation b's period k, at most its reference's last (a loop's teacher is asked again after its
-        simulation ended, before the vector env restarts it: its answer is unused, but must not read past the
-        plan)."""
-        return min(int(estimate.counter[b, 0]), int(self._plan["steps"][b]) - 1)
+    def _periods(self, counter: NDArray[np.float64]) -> NDArray[np.intp]:
+        """(B,): each simulation's period k from the counters (B, 1), at most its reference's last (a loop's teacher
+        is asked again after its simulation ended, before the vector env restarts it: its answer is unused, but must
+        not read past the plan)."""
+        return np.minimum(counter[:, 0].astype(np.intp), self._plan["steps"].astype(np.intp) - 1)
+
+    @staticmethod
+    def _saturated(planned: NDArray[np.float64], residual: NDArray[np.float64] | None, limit: NDArray[np.float64]
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The command (B, n), N m (the plan's torque, a residual added), and what the plant receives: it within
+        the saturation `limit`."""
+        command = planned if residual is None else planned + residual
+        return command, np.minimum(np.maximum(command, -limit), limit)
 
     def _counted_payloads(self, estimate: Estimate) -> NDArray[np.float64]:
         """(B,) kg: the payload whose inertia each simulation's plan counts (`PredictiveSettings.payload_inertia`):
@@ -568,8 +577,7 @@ class ModelPredictive:
         that the filter does not take it for a disturbance, and the filter's covariance moves on."""
         planned = np.stack([s.torque for s in solved])
         predicted = np.stack([s.predicted for s in solved])
-        command = planned if residual is None else planned + residual
-        dtau = np.minimum(np.maximum(command, -limit), limit)
+        command, dtau = self._saturated(planned, residual, limit)
         covariance = estimate.covariance
         rows = np.flatnonzero(estimate.filtered)
         self._response = None
@@ -701,7 +709,8 @@ class PredictiveFilter(ModelPredictive):
                ) -> ControlOutput:
         """The period through `mpc`'s own code (its estimate, the prediction without a plan, its output)."""
         estimate = self._estimate(state, measured)
-        predicted = [self._predicted(b, self._period(b, estimate), estimate.state[b], estimate.disturbance[b],
+        ks = self._periods(estimate.counter)
+        predicted = [self._predicted(b, int(ks[b]), estimate.state[b], estimate.disturbance[b],
                                      estimate.torque[b] if estimate.filtered[b] else None)
                      for b in range(estimate.state.shape[0])]
         return self._output(predicted, estimate, tau_ff, limit, integral, residual)
@@ -715,7 +724,7 @@ class PredictiveFilter(ModelPredictive):
 
         p = self._plan
         rows = np.arange(state.shape[0])
-        ks = np.minimum(state[:, 0].astype(np.intp), p["steps"].astype(np.intp) - 1)
+        ks = self._periods(state[:, :1])
         declared = p["sensor"]
         fresh = np.isnan(state[:, 1:1 + 2 * self.n]).any(axis=1)
         initial = (self.filter.initial(rows.size, declared) if fresh.any()
@@ -724,8 +733,7 @@ class PredictiveFilter(ModelPredictive):
         out = filter_periods(state, measured, p["x"][rows, ks], p["x"][rows, ks + 1], p["A"][rows, ks], B,
                              p["c"][rows, ks], self.filter.variances(declared), initial, self.filter.process)
         planned = p["u"][rows, ks]
-        command = planned if residual is None else planned + residual
-        dtau = np.minimum(np.maximum(command, -limit), limit)
+        command, dtau = self._saturated(planned, residual, limit)
         beyond = dtau - planned  # what the plant receives beyond the linearisation's torque: 0 unless a residual
         if np.any(beyond != 0):
             out[:, 1:1 + 2 * self.n] += np.einsum("bij,bj->bi", B, beyond)

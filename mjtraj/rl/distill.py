@@ -285,9 +285,10 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
         run.y.append(y)
         run.hold.append(hold)
         collected = time.perf_counter() - start
-        fitted = targets(_less_anchor(module, np.concatenate(run.x), np.concatenate(run.y)), settings.output)
+        states = np.concatenate(run.x)  # every round's: the largest array a distillation holds, made once a round
+        fitted = targets(_less_anchor(module, states, np.concatenate(run.y)), settings.output)
         weights = sample_weights(fitted, settings, np.concatenate(run.hold))
-        loss = _train(module, optimiser, _inputs(module, np.concatenate(run.x)), fitted, weights, settings, rng)
+        loss = _train(module, optimiser, _inputs(module, states), fitted, weights, settings, rng)
         row: dict[str, Any] = {"round": r, "samples": sum(len(x) for x in run.x), "collect_s": collected,
                                "train_s": time.perf_counter() - start - collected, "loss": loss}
         if validation is not None:

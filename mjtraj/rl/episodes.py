@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.core import FILTER, ClosedLoop, Reference, Settle
+from mjtraj.core import ClosedLoop, Reference, Settle
 from mjtraj.envs import Observer, TrackSettings, scale_action
 from mjtraj.rl.adapters import ScoredPolicy
 from mjtraj.study import Job, Outcome, Perturbation, execute, no_perturbation, perturbed_plant
@@ -30,8 +30,9 @@ class PolicyActor:
         self.policy = policy
         self.settings = settings
         self.action_mode = settings.action_mode
-        self.shadows = (FILTER,) if settings.observe_disturbance else ()
-        """What the loop runs in its shadow for the observation (`Actor.shadows`)."""
+        self.shadows = settings.shadows()
+        """What the loop runs in its shadow for the observation (`Actor.shadows`; `mpc_filter` where the policy
+        observes the disturbance)."""
         self._limit = np.zeros((0, settings.n))
         self._plants: list[dict[str, float]] | None = None
         self._observer = Observer(settings, 0)

@@ -451,7 +451,7 @@ def _computes(request: _Request, plans: list[_Plan]) -> dict[str, StepCompute]:
     for policy, label in zip(request.loaded, request.labels, strict=True):
         if policy.reset_hook is None and not policy.privileged:  # no episode state, no plants: callable alone
             settings = acting_settings(policy, request.protocol)
-            shadows = PolicyActor(policy, settings).shadows
+            shadows = settings.shadows()
             mine = list({family: (family, sweep) for family, _, sweep, _ in plans}.values()) if shadows else []
             try:
                 out[label] = policy_compute(policy.act_batch, settings.obs_size, shadows=shadows,
