@@ -230,3 +230,25 @@ def test_observing_mpcs_filter_needs_batched_training_with_a_settle_window(tmp_p
     assert capsys.readouterr().err == ("mjtraj: error: observe_disturbance: mpc's filter runs in protocol v2's "
                                        "episodes; expected settle > 0, got 0.0\n")
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_a_policy_that_observes_mpcs_filter_is_refused_under_protocol_v1(tmp_path, capsys):
+    """The filter runs in protocol v2's episodes alone: `rl eval --protocol v1` of such a policy is refused by name,
+    before anything is written."""
+    import dataclasses
+
+    from mjtraj.envs import resolve
+
+    from mjtraj.rl.batched_policy import BatchedSettings, batched_policy_class, save_policy
+
+    settings = BatchedSettings(num_envs=3, action_mode="torque", observe_disturbance=True, settle=0.5)
+    size = resolve(**settings.env_kwargs("nominal")).obs_size
+    save_policy(batched_policy_class()(size, 3, settings), tmp_path / "p.pt",
+                {"settings": dataclasses.asdict(settings),
+                 "streams": {"train": {"gym_seeds": []}, "validation": {"count": 0}}})
+    out = tmp_path / "eval"
+    assert main(["rl", "eval", "--policy", str(tmp_path / "p.pt"), "--protocol", "v1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("mjtraj: error: policy: ") and err.endswith(
+        " observes mpc's filter, which runs in protocol v2's episodes alone; expected --protocol v2, got v1\n")
+    assert not out.exists()

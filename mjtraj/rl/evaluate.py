@@ -322,8 +322,8 @@ def _request(policies: Sequence[Any], *, families: Sequence[str] | None, scenari
              planners: Sequence[str], controllers: Sequence[str], settings: Mapping[str, Any] | None,
              out: str | Path, reps: int | None, threads: int | None, figure_formats: Sequence[str],
              protocol: str) -> _Request:
-    """The arguments checked (InvalidInputError), the policies loaded and checked to be held out from what they
-    trained on, PyTorch's threads set."""
+    """The arguments checked (InvalidInputError), the policies loaded and checked to act under the protocol and to
+    be held out from what they trained on, PyTorch's threads set."""
     if threads is not None:
         positive_int("threads", threads)
         if importlib.util.find_spec("torch") is not None:  # without it no policy can run PyTorch
@@ -352,6 +352,7 @@ def _request(policies: Sequence[Any], *, families: Sequence[str] | None, scenari
         choice("controllers", law, controller_names())
     loaded = [load_any(p, settings=settings) for p in policies]
     for policy in loaded:
+        acting_settings(policy, protocol)  # a policy that cannot act under the protocol, refused before any run
         for family in families:
             check_held_out(policy, family, seed, scenarios)
     laws = list(dict.fromkeys([*laws, *(p.controller for p in loaded)]))
