@@ -264,6 +264,12 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--student", action="store_true", help="ship a privileged teacher (--observe-plant true on the "
                    "adaptive law) as its deployable student: the same weights observing the adaptive law's estimate")
     p.set_defaults(handler=run_ship)
+    p = rl_sub.add_parser("ensemble", help="combine policies of rl distill or rl train --batched that act in one env "
+                          "into one deployable policy: the mean of their actions, inferred in NumPy (score it with rl "
+                          "eval --policy OUT)")
+    p.add_argument("members", nargs="+", type=Path, help="the members' policy files (RUN/best.pt or RUN/policy.pt)")
+    p.add_argument("--out", type=Path, required=True, help="the ensemble's file to write (FILE.pt)")
+    p.set_defaults(handler=run_ensemble)
 
 
 def _list(parser: argparse.ArgumentParser) -> int:
@@ -477,6 +483,14 @@ def run_ship(args: argparse.Namespace) -> int:
 
     choice("which", args.which, ("best", "policy"))
     print(f"wrote {ship(args.run, args.name, which=args.which, into=args.into, student=args.student)}")
+    return 0
+
+
+def run_ensemble(args: argparse.Namespace) -> int:
+    """`mjtraj rl ensemble`."""
+    from mjtraj.rl.ensemble import write_ensemble
+
+    print(f"wrote {write_ensemble(args.members, args.out)} (the mean of {len(args.members)} policies)")
     return 0
 
 

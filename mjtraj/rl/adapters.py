@@ -417,10 +417,13 @@ def import_attribute(spec: str) -> Any:
 def _batched(path: Path, *, source: str) -> ScoredPolicy:
     """A batched run's policy file (mjtraj.rl.batched) as the benchmark scores it, named `source`."""
     from mjtraj.rl.batched_policy import label, load_batched
+    from mjtraj.rl.ensemble import is_ensemble, load_ensemble
     from mjtraj.rl.naming import distilled_label
 
-    module = load_batched(path)
+    module = load_ensemble(path) if is_ensemble(path) else load_batched(path)
     named = distilled_label(module.record) if "distill" in module.record else label(module.record)
+    if "members" in module.record:
+        named += f", ensemble of {len(module.record['members'])}"
     policy = from_object(module, label=named, source=source)
     policy.record, policy.path = module.record, path
     policy.timesteps = int(module.record.get("timesteps", 0))

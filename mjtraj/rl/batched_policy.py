@@ -237,16 +237,24 @@ def batched_policy_class() -> type:
 
 POLICY_FORMAT = "mjtraj-batched-policy/1"
 """What policy.pt and best.pt hold: the BatchedPolicy's state and the run's record."""
+ENSEMBLE_FORMAT = "mjtraj-ensemble-policy/1"
+"""What an ensemble's file holds (`mjtraj.rl.ensemble`): each member's module state and run record, and the
+ensemble's record."""
 
 
 def save_policy(module: Any, path: Path, record: dict[str, Any]) -> None:
     """Write a BatchedPolicy and its run's `record` (plain JSON-like values) to `path`, atomically."""
+    save_payload({"format": POLICY_FORMAT, "state": module.state_dict(), "record": record}, path)
+
+
+def save_payload(payload: dict[str, Any], path: Path) -> None:
+    """torch.save `payload` (tensors and plain JSON-like values) to `path`, atomically."""
     import torch
 
     from mjtraj.files import atomic_path
 
     buffer = io.BytesIO()
-    torch.save({"format": POLICY_FORMAT, "state": module.state_dict(), "record": record}, buffer)
+    torch.save(payload, buffer)
     with atomic_path(path) as tmp:
         Path(tmp).write_bytes(buffer.getvalue())
 
@@ -261,22 +269,38 @@ def load_batched(path: str | Path) -> Any:
     """A BatchedPolicy saved by a batched run (policy.pt or best.pt), with its run's record as `record`.
 
     Raises:
-      InvalidInputError: not such a file.
+      InvalidInputError: not such a file (an ensemble's file is named so).
+    """
+    file = Path(path)
+    saved = read_saved(file)
+    if saved.get("format") == ENSEMBLE_FORMAT:
+        raise InvalidInputError(f"policy: {file} is an ensemble (mjtraj rl ensemble); expected one policy saved by "
+                                f"mjtraj rl train --batched or mjtraj rl distill")
+    if saved.get("format") != POLICY_FORMAT:
+        raise InvalidInputError(f"policy: {file} is not a policy saved by mjtraj rl train --batched")
+    return module_from_state(saved["state"], saved["record"])
+
+
+def read_saved(file: Path) -> dict[str, Any]:
+    """What torch saved in a policy `file` ({} when it is not a dict).
+
+    Raises:
+      InvalidInputError: no such file, or not one torch can read with weights only.
     """
     import torch
 
-    file = Path(path)
     if not file.is_file():
         raise InvalidInputError(f"policy: file not found: {file}")
     try:
         saved = torch.load(file, map_location="cpu", weights_only=True)
     except Exception as e:  # noqa: BLE001 - torch raises many kinds for a file that is not its own
         raise InvalidInputError(f"policy: {file} is not a policy saved by mjtraj rl train --batched ({e})") from e
-    if not isinstance(saved, dict) or saved.get("format") != POLICY_FORMAT:
-        raise InvalidInputError(f"policy: {file} is not a policy saved by mjtraj rl train --batched")
-    record = saved["record"]
+    return saved if isinstance(saved, dict) else {}
+
+
+def module_from_state(state: dict[str, Any], record: dict[str, Any]) -> Any:
+    """The BatchedPolicy of a saved module `state` and its run's `record` (as `record`)."""
     settings = policy_settings(record)
-    state = saved["state"]
     outputs = state[[k for k in state if k.endswith("bias")][-1]].numel()
     module = batched_policy_class()(state["mean"].numel() - settings.extra_inputs(outputs), outputs, settings)
     module.load_state_dict(state)

@@ -30,8 +30,9 @@ from mjtraj.exceptions import InvalidInputError, PolicyError
 from mjtraj.files import write_text_atomic
 from mjtraj.rl import law_label
 from mjtraj.rl.adapters import ScoredPolicy, check_settings, load_any
-from mjtraj.rl.batched_policy import BATCHED_RUN
+from mjtraj.rl.batched_policy import BATCHED_RUN, ENSEMBLE_FORMAT
 from mjtraj.rl.compute import StepCompute, compute_table, law_compute, policy_compute
+from mjtraj.rl.ensemble import member_records
 from mjtraj.rl.episodes import PolicyActor
 from mjtraj.rl.extra import rl_versions
 from mjtraj.rl.practice import execution_table, weighting_agreement
@@ -104,10 +105,12 @@ def check_held_out(policy: Any, family: str, seed: int, scenarios: int) -> None:
                                         f"seed stream with the streams {policy.label} declares it trained on; choose "
                                         f"another seed")
         return
-    streams = policy.record["streams"]
-    train_seed = int(policy.record["settings"]["seed"])
-    used = list(streams["train"]["gym_seeds"]) + [[train_seed, VALIDATION_STREAM, i]
-                                                   for i in range(int(streams["validation"]["count"]))]
+    used: list[Any] = []
+    for record in member_records(policy.record):  # an ensemble's members each trained on their own streams
+        streams = record["streams"]
+        train_seed = int(record["settings"]["seed"])
+        used += list(streams["train"]["gym_seeds"]) + [[train_seed, VALIDATION_STREAM, i]
+                                                       for i in range(int(streams["validation"]["count"]))]
     shared = shared_streams(used, family_entropies(sweep_family(family), seed, range(scenarios)))
     if shared:
         raise InvalidInputError(f"seed: {len(shared)} of the {family} scenarios under seed {seed} share a seed stream "
@@ -164,6 +167,8 @@ def _training_settings(record: dict[str, Any]) -> dict[str, Any]:
 
     if record.get("format") == BATCHED_RUN:  # a batched run records every setting it has
         return dict(record["settings"])
+    if record.get("format") == ENSEMBLE_FORMAT:  # its members' settings, and how many they are
+        return {**record["settings"], "members": len(record["members"])}
     known = {f.name: f.default for f in dataclasses.fields(TrainSettings)
              if f.default is not dataclasses.MISSING}
     return {**known, **record["settings"]}
@@ -906,11 +911,16 @@ def _policy_lines(labels: Sequence[str], policies: Sequence[ScoredPolicy]) -> li
     """One line per policy: its source, how it was trained, the env it acts in."""
     lines = []
     for label, p in zip(labels, policies, strict=True):
+        batched = p.record is not None and p.record.get("format") in (BATCHED_RUN, ENSEMBLE_FORMAT)
         algo = ("imitation (behaviour cloning, DAgger)" if p.record is not None and "distill" in p.record else
-                "batched PPO (skrl)" if p.record is not None and p.record.get("format") == BATCHED_RUN else
+                "batched PPO (skrl)" if batched else
                 p.record["settings"]["algo"].upper() if p.record is not None else "")
-        what = (f"{algo}, {p.timesteps} steps, seed {p.record['settings']['seed']}" if p.record is not None
-                else p.kind)
+        if p.record is not None and p.record.get("format") == ENSEMBLE_FORMAT:
+            seeds = ", ".join(str(r["settings"]["seed"]) for r in member_records(p.record))
+            what = f"the mean of {len(p.record['members'])} policies: {algo}, seeds {seeds}"
+        else:
+            what = (f"{algo}, {p.timesteps} steps, seed {p.record['settings']['seed']}" if p.record is not None
+                    else p.kind)
         lines.append(f"- {label}: `{p.source}` ({what}; acts in {json.loads(p.columns()['policy_env'])}"
                      f"{', privileged: sees the plant' if p.sees_plant else ''})")
     return lines
