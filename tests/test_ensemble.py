@@ -86,12 +86,29 @@ def test_members_that_act_apart_the_same_file_twice_and_an_ensemble_as_one_polic
         write_ensemble([a, a], tmp_path / "e.pt")
     with pytest.raises(InvalidInputError, match=r"^members: expected at least one policy file, got none$"):
         write_ensemble([], tmp_path / "e.pt")
+    with pytest.raises(InvalidInputError, match=r"^members: expected policy files, got .*nowhere\.pt, which is not a "
+                                                r"file$"):
+        write_ensemble([a, tmp_path / "nowhere.pt"], tmp_path / "e.pt")
+    cubic = _member(tmp_path, dataclasses.replace(PLAIN, action_mode="torque", output="cubic"), 3)
+    linear = _member(tmp_path, dataclasses.replace(PLAIN, action_mode="torque"), 4)
+    with pytest.raises(InvalidInputError, match=r"^members: .*member_4\.pt has output='linear' where .*member_3\.pt "
+                                                r"has output='cubic'; expected members of one architecture$"):
+        write_ensemble([cubic, linear], tmp_path / "e.pt")
+    before = a.read_bytes()
+    with pytest.raises(InvalidInputError, match=r"^out: expected a file other than the members', got .*member_0\.pt, "
+                                                r"which is one of them$"):
+        write_ensemble([a, cubic], a)
+    assert a.read_bytes() == before
+    with pytest.raises(InvalidInputError, match=r"^out: expected a file name ending in \.pt .*, got .*e\.zip$"):
+        write_ensemble([a], tmp_path / "e.zip")
     assert not (tmp_path / "e.pt").exists()
     one = write_ensemble([a], tmp_path / "one.pt")
     with pytest.raises(InvalidInputError, match=r"^policy: .*one\.pt is an ensemble \(mjtraj rl ensemble\); "
                                                 r"expected one policy saved by"):
         load_batched(one)
-    with pytest.raises(InvalidInputError, match=r"^policy: .*member_0\.pt is not an ensemble"):
+    with pytest.raises(InvalidInputError, match=r"^policy: expected an ensemble written by mjtraj rl ensemble \(format "
+                                                r"mjtraj-ensemble-policy/1\), got .*member_0\.pt of format "
+                                                r"'mjtraj-batched-policy/1'$"):
         load_ensemble(a)
 
 
@@ -132,3 +149,21 @@ def test_the_command_line_writes_an_ensemble_that_rl_eval_scores_and_times(tmp_p
     assert "the mean of 2 policies: batched PPO (skrl), seeds 0, 1" in summary
     assert any(line.startswith("| cubic+") and "ensemble of 2 | inference, batch 1 |" in line
                for line in summary.splitlines())
+
+
+def test_ensembles_of_one_recipe_pool_as_seeds_and_other_recipes_do_not(tmp_path):
+    """Two ensembles of the same recipe's members under other seeds (whatever their file names and member order) are
+    one configuration of two seeds; an ensemble that mixes in a member of another recipe (more sub-envs) is another."""
+    from mjtraj.rl.adapters import load_any
+    from mjtraj.rl.evaluate import _labels, configurations
+
+    same = [_member(tmp_path, PLAIN, seed) for seed in (0, 1, 2, 3)]
+    other = _member(tmp_path, dataclasses.replace(PLAIN, num_envs=3), 4)
+    files = [write_ensemble([same[0], same[1]], tmp_path / "first.pt"),
+             write_ensemble([same[3], same[2]], tmp_path / "second.pt"),
+             write_ensemble([same[0], other], tmp_path / "mixed.pt")]
+    policies = [load_any(str(f)) for f in files]
+    labels = _labels(policies)
+    groups = sorted(configurations(policies, labels).values(), key=len)
+    assert [len(g) for g in groups] == [1, 2]
+    assert groups[0] == [labels[2]] and sorted(groups[1]) == sorted(labels[:2])

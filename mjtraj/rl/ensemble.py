@@ -114,11 +114,21 @@ def write_ensemble(paths: Sequence[str | Path], out: str | Path) -> Path:
     from mjtraj.rl.batched_policy import load_batched, policy_settings
 
     files = [Path(p) for p in paths]
+    target = Path(out)
     if not files:
         raise InvalidInputError("members: expected at least one policy file, got none")
-    hashes = [hashlib.sha256(f.read_bytes()).hexdigest() if f.is_file() else "" for f in files]
+    for f in files:
+        if not f.is_file():
+            raise InvalidInputError(f"members: expected policy files, got {f}, which is not a file")
+        if f.resolve() == target.resolve():
+            raise InvalidInputError(f"out: expected a file other than the members', got {target}, which is one of "
+                                    f"them")
+    if target.suffix != ".pt":
+        raise InvalidInputError(f"out: expected a file name ending in .pt (how rl eval --policy knows a policy "
+                                f"file), got {target}")
+    hashes = [hashlib.sha256(f.read_bytes()).hexdigest() for f in files]
     for k, h in enumerate(hashes):
-        if h and hashes.index(h) != k:
+        if hashes.index(h) != k:
             raise InvalidInputError(f"members: {files[k]} is {files[hashes.index(h)]} again; expected distinct "
                                     f"policies")
     modules = [load_batched(f) for f in files]
@@ -127,8 +137,8 @@ def write_ensemble(paths: Sequence[str | Path], out: str | Path) -> Path:
         differ = sorted(k for k in set(first.env) | set(module.env) if first.env.get(k) != module.env.get(k))
         if differ:
             key = differ[0]
-            raise InvalidInputError(f"members: {f} acts with {key}={module.env.get(key)!r} where {files[0]} acts "
-                                    f"with {key}={first.env.get(key)!r}; expected members that act in one env")
+            raise InvalidInputError(f"members: {f} acts with {key}={_shown(module.env, key)} where {files[0]} "
+                                    f"acts with {key}={_shown(first.env, key)}; expected members that act in one env")
         mine, theirs = (dataclasses.asdict(policy_settings(m.record)) for m in (first, module))
         for key in SHAPING:
             if mine.get(key) != theirs.get(key):
@@ -138,7 +148,6 @@ def write_ensemble(paths: Sequence[str | Path], out: str | Path) -> Path:
                                                                                     strict=True)]
     record = {"format": ENSEMBLE_FORMAT, "settings": first.record["settings"], "members": members,
               **({"distill": first.record["distill"]} if "distill" in first.record else {})}
-    target = Path(out)
     save_payload({"format": ENSEMBLE_FORMAT, "states": [m.state_dict() for m in modules], "record": record}, target)
     return target
 
@@ -159,7 +168,8 @@ def load_ensemble(path: str | Path) -> EnsemblePolicy:
     file = Path(path)
     saved = read_saved(file)
     if saved.get("format") != ENSEMBLE_FORMAT:
-        raise InvalidInputError(f"policy: {file} is not an ensemble written by mjtraj rl ensemble")
+        raise InvalidInputError(f"policy: expected an ensemble written by mjtraj rl ensemble (format "
+                                f"{ENSEMBLE_FORMAT}), got {file} of format {saved.get('format')!r}")
     record = saved["record"]
     modules = [module_from_state(state, member["record"])
                for state, member in zip(saved["states"], record["members"], strict=True)]
@@ -169,3 +179,8 @@ def load_ensemble(path: str | Path) -> EnsemblePolicy:
 def member_records(record: dict[str, Any]) -> list[dict[str, Any]]:
     """The run records behind a policy's `record`: an ensemble's members', else the record itself."""
     return [m["record"] for m in record["members"]] if record.get("format") == ENSEMBLE_FORMAT else [record]
+
+
+def _shown(env: dict[str, Any], key: str) -> str:
+    """An env setting as a refusal names it: its value, or the default where the policy leaves it unset."""
+    return repr(env[key]) if key in env else "its default"

@@ -13,6 +13,7 @@ the columns POLICY_COLUMNS; `eval.csv` holds them all, `summary.json` and `SUMMA
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import importlib.util
 import json
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -174,9 +175,15 @@ def _training_settings(record: dict[str, Any]) -> dict[str, Any]:
     return {**known, **record["settings"]}
 
 
+def _recipe(record: dict[str, Any]) -> dict[str, Any]:
+    """A run record's training settings but its seed and threads: what its seeds share."""
+    return {k: v for k, v in _training_settings(record).items() if k not in ("seed", "threads")}
+
+
 def configurations(policies: Sequence[Any], labels: Sequence[str]) -> dict[str, list[str]]:
     """The policies' table labels grouped by configuration: for a zip everything of the training run but its seed
-    and threads, and which of its saved policies it is (policy, best or a step checkpoint, by file name); a user's
+    and threads, and which of its saved policies it is (policy, best or a step checkpoint, by file name); for an
+    ensemble the same of each member, as a multiset (ensembles of other member seeds pool as seeds); a user's
     policy is a configuration of its own. The key is the configuration's label (with the file's stem unless it is
     the final policy), followed, where configurations share a label, by the settings in which they differ (such
     as [steps=200000])."""
@@ -188,15 +195,20 @@ def configurations(policies: Sequence[Any], labels: Sequence[str]) -> dict[str, 
             facts[key] = label, {}
             groups.setdefault(key, []).append(label)
             continue
-        settings = {k: v for k, v in _training_settings(policy.record).items() if k not in ("seed", "threads")}
+        settings = _recipe(policy.record)
         env = dict(getattr(policy, "env_kwargs", None) or policy.env)
         kind = policy.path.stem if policy.path is not None else "policy"
         kind = "step" if kind.startswith("step_") else kind
-        key = json.dumps([settings, env, kind], sort_keys=True, default=str)
+        recipes: list[str] = []
+        if policy.record.get("format") == ENSEMBLE_FORMAT:  # the multiset of its members' recipes, whatever its name
+            kind = "policy"
+            recipes = sorted(json.dumps(_recipe(r), sort_keys=True, default=str) for r in member_records(policy.record))
+        key = json.dumps([settings, env, kind, recipes], sort_keys=True, default=str)
         if key not in facts:
             base = policy.label.split(" [")[0]
             name = base if kind == "policy" else f"{base} {kind}"
-            facts[key] = name, {**env, **settings}
+            told = {"member recipes": hashlib.sha256(json.dumps(recipes).encode()).hexdigest()[:8]} if recipes else {}
+            facts[key] = name, {**env, **settings, **told}
         groups.setdefault(key, []).append(label)
     names: dict[str, str] = {}
     for key, (name, mine) in facts.items():
