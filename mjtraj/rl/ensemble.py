@@ -108,8 +108,9 @@ def write_ensemble(paths: Sequence[str | Path], out: str | Path) -> Path:
     """Combine the policies at `paths` (batched runs' policy.pt or best.pt) into one ensemble at `out`.
 
     Raises:
-      InvalidInputError: no member, a file that is not such a policy, one file twice, or members that act in
-        different envs (naming the setting).
+      InvalidInputError: no member, a file that is not such a policy, one file twice, members that act in
+        different envs or have different architectures (naming the setting), or an `out` that is a member's file or
+        does not end in .pt.
     """
     from mjtraj.rl.batched_policy import load_batched, policy_settings
 
