@@ -5,6 +5,7 @@ distillation interrupted and resumed is the uninterrupted one, bit for bit."""
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -39,12 +40,13 @@ def test_acting_on_the_labels_makes_the_loop_apply_the_teachers_command(mode):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("recipe", [{}, {"mixing": 0.5, "decay": True, "rounds": 3, "balance": "family-hold",
-                                        "families": ("aggressive", "nominal"), "steps": 80, "output": "cubic"}],
+                                        "families": ("aggressive", "nominal"), "steps": 80, "output": "cubic",
+                                        "action_noise": 0.5}],
                          ids=["plain", "mixed"])
 def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, monkeypatch, recipe):
     """Interrupted in its second round's training and resumed: the same policy and losses, bit for bit (with DAgger's
-    mixing, whose draws come from the saved generator, the annealed learning rate and the weights by family and
-    phase, whose phases are saved with the data, too)."""
+    mixing and the action noise, whose draws come from the saved generator, the annealed learning rate and the
+    weights by family and phase, whose phases are saved with the data, too)."""
     import dataclasses
 
     settings = dataclasses.replace(SMALL, **recipe)
@@ -79,6 +81,73 @@ def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, m
     assert whole.best_point["round"] == resumed.best_point["round"]
     with pytest.raises(InvalidInputError, match=r"holds a run already"):
         distill(settings, tmp_path / "whole", progress=False)
+
+
+@pytest.mark.parametrize(("round_", "noise_on", "sigma"), [(0, "all", 2.0), (1, "all", 2.0), (1, "teacher", 2.0),
+                                                            (0, "all", 150.0)])
+def test_the_action_noise_is_a_gaussian_torque_over_the_action_scale(round_, noise_on, sigma):
+    """Collected with action_noise: every applied action is the one collected without it (the label in round 0; after,
+    the label where mixing lets the teacher act, else the student's) plus a draw of the run's generator, N m over the
+    envs' scale (only on the teacher's actions with noise_on teacher), clipped, drawn in the order the oracle redraws
+    them (150 N m: some actions clipped); the labels are the teacher's at the states the noisy actions lead to. The
+    residual's scale is not the saturation, so a noise over the wrong scale shows."""
+    import torch
+
+    from mjtraj.rl.batched_policy import batched_policy_class
+
+    settings = dataclasses.replace(SMALL, action_mode="torque", action_noise=sigma, steps=12, mixing=0.5,
+                                   noise_on=noise_on, residual_scale=6.0)
+    env = distill_module._Families(settings)
+    module = batched_policy_class()(env.reset(0).shape[1], env.actions, settings.policy_settings())
+    module.clip.fill_(10.0)
+    module.std.fill_(1.0)
+    applied, seen = [], []
+    step = env.step
+
+    def spy(action):
+        applied.append(action.copy())
+        with torch.no_grad():
+            seen.append((env.labels(), module(torch.as_tensor(obs_now[0], dtype=torch.float32)).numpy()))
+        obs_now[0] = step(action)
+        return obs_now[0]
+
+    obs_now = [env.reset(round_)]
+    env.reset = lambda r: obs_now[0]  # type: ignore[method-assign]
+    env.step = spy  # type: ignore[method-assign]
+    x, y, _ = distill_module._collect(env, module, settings, np.random.default_rng(5), round_)
+    oracle = np.random.default_rng(5)
+    scale = np.full(3, 60.0)  # the UR5's saturation: torque mode's N m per unit
+    np.testing.assert_array_equal(env.action_scale, scale)
+    noisy = []
+    for k, (action, (label, student)) in enumerate(zip(applied, seen, strict=True)):
+        teacher = np.full(len(label), True) if round_ == 0 else oracle.random(len(label)) < 0.5
+        clean = np.where(teacher[:, None], label, student.astype(np.float64))
+        noise = oracle.normal(0.0, sigma, clean.shape) / scale
+        wanted = np.clip(clean + (noise * teacher[:, None] if noise_on == "teacher" else noise), -1.0, 1.0)
+        np.testing.assert_array_equal(action, wanted)
+        np.testing.assert_array_equal(y[k * settings.num_envs:(k + 1) * settings.num_envs], label)
+        noisy.append(np.any(action != clean, axis=1))
+        if noise_on == "teacher":
+            np.testing.assert_array_equal(action[~teacher], clean[~teacher])
+    assert np.concatenate(noisy).any()
+    assert (np.abs(np.concatenate(applied)) == 1.0).any() == (sigma > 60)
+
+
+def test_a_resume_point_from_before_the_noise_settings_resumes_with_their_defaults_alone(tmp_path):
+    """A resume point whose record predates action_noise and noise_on meant no noise: resuming it without noise is
+    accepted, with noise refused (the settings it lacks are their defaults, not the resuming command's)."""
+    settings = dataclasses.replace(SMALL, rounds=1, validation=0)
+    distill(settings, tmp_path, progress=False)
+    saved = torch.load(tmp_path / "resume.pt", weights_only=False)
+    for name in ("action_noise", "noise_on"):
+        del saved["record"]["distill"][name]
+    torch.save(saved, tmp_path / "resume.pt")
+    for noisy in (dataclasses.replace(settings, action_noise=1.0),
+                  dataclasses.replace(settings, action_noise=1.0, noise_on="teacher")):
+        with pytest.raises(InvalidInputError, match=r"^out: .* holds a distillation with other settings; give another "
+                                                    r"folder$"):
+            distill(noisy, tmp_path, progress=False, resume=True)
+    assert distill(settings, tmp_path, progress=False, resume=True).rounds[0]["round"] == 0
 
 
 def test_balanced_weights_make_each_family_count_at_its_own_scale():
@@ -191,6 +260,15 @@ def test_settings_are_refused_by_name():
         DistillSettings(balance="family-hold", settle=0.0)
     with pytest.raises(InvalidInputError, match=r"^mixing: expected a probability in \[0, 1\), got 1.0$"):
         DistillSettings(mixing=1.0)
+    for bad in (-0.5, float("nan"), float("inf"), "1", True):
+        with pytest.raises(InvalidInputError, match=r"^action_noise: expected a finite standard deviation >= 0, N m, "
+                                                    rf"got {re.escape(repr(bad))}$"):
+            DistillSettings(action_noise=bad)  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match=r"^noise_on: unknown value 'student'; valid: all, teacher$"):
+        DistillSettings(noise_on="student", action_noise=1.0)
+    with pytest.raises(InvalidInputError, match=r"^noise_on: teacher chooses where action_noise goes and needs some; "
+                                                r"expected action_noise > 0, got 0.0$"):
+        DistillSettings(noise_on="teacher")
     with pytest.raises(InvalidInputError, match=r"^observe_plant: "):
         DistillSettings(observe_plant="true")
     with pytest.raises(InvalidInputError, match=r"^observe_plant: a torque policy cannot observe"):

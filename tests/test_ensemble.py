@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.rl.batched_policy import batched_policy_class, load_batched, save_policy
+from mjtraj.rl.batched_policy import BATCHED_RUN, batched_policy_class, load_batched, save_policy
 from mjtraj.rl.distill import DistillSettings
 from mjtraj.rl.ensemble import is_ensemble, load_ensemble, write_ensemble
 from mjtraj.rl.streams import family_entropies, training_entropies
@@ -22,8 +22,10 @@ ANCHORED = DistillSettings(families=("mismatch",), num_envs=2, hidden=(8, 8), pr
 PLAIN = DistillSettings(families=("nominal",), num_envs=2, hidden=(8,), preview=2, controller="pid")
 
 
-def _member(tmp_path, settings, seed, *, gym_seeds=()):
-    """A member saved as rl distill saves one: random weights and standardisation, a record with its streams."""
+def _member(tmp_path, settings, seed, *, gym_seeds=(), distilled=False, unknown=(), name=""):
+    """A member saved as rl distill saves one: random weights and standardisation, a record with its streams (with
+    `distilled`, also the distillation's format and settings, but those named in `unknown`, as a record written
+    before they existed), saved as tmp_path / `name` (default member_SEED.pt)."""
     from mjtraj.envs import resolve
 
     torch.manual_seed(seed)
@@ -40,7 +42,11 @@ def _member(tmp_path, settings, seed, *, gym_seeds=()):
     record = {"settings": {**dataclasses.asdict(settings.policy_settings()), "seed": seed},
               "streams": {"train": {"gym_seeds": list(gym_seeds) or training_entropies(seed, 2)},
                           "validation": {"count": 2}}}
-    path = tmp_path / f"member_{seed}.pt"
+    if distilled:
+        record.update(format=BATCHED_RUN, distill={k: v for k, v in dataclasses.asdict(settings).items()
+                                                   if k not in unknown})
+    path = tmp_path / (name or f"member_{seed}.pt")
+    path.parent.mkdir(parents=True, exist_ok=True)
     save_policy(module, path, record)
     return path
 
@@ -149,6 +155,25 @@ def test_the_command_line_writes_an_ensemble_that_rl_eval_scores_and_times(tmp_p
     assert "the mean of 2 policies: batched PPO (skrl), seeds 0, 1" in summary
     assert any(line.startswith("| cubic+") and "ensemble of 2 | inference, batch 1 |" in line
                for line in summary.splitlines())
+
+
+def test_distilled_students_pool_as_seeds_only_where_their_distillations_differ_in_the_seed_alone(tmp_path):
+    """Students whose distillations differ in a setting the policy's own settings do not hold (DAgger's mixing) are
+    two configurations; a record written before the collection's noise settings existed pools with one that writes
+    their defaults."""
+    from mjtraj.rl.adapters import load_any
+    from mjtraj.rl.evaluate import _labels, configurations
+
+    recipe = dataclasses.replace(PLAIN, mixing=0.5)
+    files = [_member(tmp_path, dataclasses.replace(recipe, seed=0), 0, distilled=True, name="a/best.pt"),
+             _member(tmp_path, dataclasses.replace(recipe, seed=1), 1, distilled=True, name="b/best.pt",
+                     unknown=("action_noise", "noise_on")),
+             _member(tmp_path, dataclasses.replace(recipe, seed=2, mixing=0.8), 2, distilled=True, name="c/best.pt")]
+    policies = [load_any(str(f)) for f in files]
+    labels = _labels(policies)
+    groups = configurations(policies, labels)
+    assert sorted(map(sorted, groups.values()), key=len) == [[labels[2]], sorted(labels[:2])]
+    assert any(name.endswith("[mixing=0.8]") for name in groups)
 
 
 def test_ensembles_of_one_recipe_pool_as_seeds_and_other_recipes_do_not(tmp_path):

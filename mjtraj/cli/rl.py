@@ -176,6 +176,13 @@ def add(sub: Any, laws: str) -> None:
                    "score's and the settling band's unit; needs --observe-task) (default none)")
     p.add_argument("--mixing", type=float, default=0.0,
                    help="DAgger's beta: in round r the teacher acts with probability MIXING^r (default 0: the student)")
+    p.add_argument("--action-noise", dest="action_noise", type=float, default=0.0,
+                   help="N m: a Gaussian torque of this standard deviation added to every action the collection "
+                   "applies (where --noise-on says), in every round, labelled by the teacher where it leads (DART) "
+                   "(default 0: none)")
+    p.add_argument("--noise-on", dest="noise_on", choices=("all", "teacher"), default="all",
+                   help="teacher: add --action-noise to the teacher's actions alone (round 0's, and those --mixing "
+                   "lets it apply) (default all)")
     p.add_argument("--decay", action="store_true",
                    help="anneal the learning rate by a cosine over each round's epochs (default constant)")
     p.add_argument("--balance", choices=("none", "family", "family-hold"), default="none",
@@ -407,7 +414,7 @@ def run_distill(args: argparse.Namespace) -> int:
                                    observe_disturbance=args.observe_disturbance,
                                    history=args.history, output=args.output, features=args.features,
                                    anchor=args.anchor,
-                                   mixing=args.mixing,
+                                   mixing=args.mixing, action_noise=args.action_noise, noise_on=args.noise_on,
                                    decay=args.decay,
                                    balance=args.balance, validation=args.validation,
                                    validate_versus=args.validate_versus, seed=args.seed, threads=args.threads)

@@ -97,6 +97,16 @@ class DistillSettings:
     mixing: float = 0.0
     """DAgger's beta (Ross et al. 2011): in round r >= 1 each sub-env's step applies the teacher's label with
     probability mixing^r (drawn from the run's generator), else the student's action; 0: the student alone."""
+    action_noise: float = 0.0
+    """N m: the standard deviation of a Gaussian torque added to every action the collection applies (where
+    `noise_on` says), per joint and period (drawn from the run's generator; the action then clipped to [-1, 1]), in
+    every round; the labels stay the teacher's at the states visited. DART (Laskey et al. 2017): the data then holds
+    the teacher's answers to the deviations a student's errors cause, not only to the states its own motion visits.
+    0: none."""
+    noise_on: str = "all"
+    """Which applied actions get `action_noise`: all, or teacher (only the teacher's: all of round 0, and in later
+    rounds the steps where mixing lets the teacher act; DART's noise on the supervisor, the student's own errors
+    perturbing the rest)."""
     decay: bool = False
     """Anneal the learning rate by a cosine to a thousandth of `learning_rate` over each round's epochs (restarting
     each round); False: constant."""
@@ -133,6 +143,14 @@ class DistillSettings:
             positive(name, getattr(self, name))
         if not (isinstance(self.mixing, (int, float)) and 0.0 <= self.mixing < 1.0):
             raise InvalidInputError(f"mixing: expected a probability in [0, 1), got {self.mixing!r}")
+        if not (isinstance(self.action_noise, (int, float)) and not isinstance(self.action_noise, bool)
+                and 0.0 <= self.action_noise < float("inf")):
+            raise InvalidInputError(f"action_noise: expected a finite standard deviation >= 0, N m, got "
+                                    f"{self.action_noise!r}")
+        choice("noise_on", self.noise_on, NOISE_ON)
+        if self.noise_on != "all" and not self.action_noise:
+            raise InvalidInputError(f"noise_on: {self.noise_on} chooses where action_noise goes and needs some; "
+                                    f"expected action_noise > 0, got {self.action_noise!r}")
         choice("task", self.task, ("random", "paper"))
         choice("balance", self.balance, BALANCES)
         if self.balance == "family-hold" and not self.settle > 0:
@@ -186,6 +204,14 @@ class DistillReport:
     """Why it stopped before its last round ('' if it did not)."""
 
 
+def distill_defaults() -> dict[str, Any]:
+    """Every DistillSettings field's default (what a record written before a field existed meant)."""
+    return {f.name: f.default for f in dataclasses.fields(DistillSettings) if f.default is not dataclasses.MISSING}
+
+
+NOISE_ON = ("all", "teacher")
+"""Which applied actions get the collection's noise (`DistillSettings.noise_on`)."""
+
 BALANCES = ("none", "family", "family-hold")
 """How the distillation loss weighs its labelled states (`DistillSettings.balance`)."""
 
@@ -217,6 +243,11 @@ class _Families:
         """n, the action's size."""
         shape = cast(tuple[int, ...], self.mixed.single_action_space.shape)  # a Box's, never None
         return int(shape[0])
+
+    @property
+    def action_scale(self) -> NDArray[np.float64]:
+        """(n,) N m per unit of action (the envs' `action_scale`: the residual's authority, or the saturation)."""
+        return self.mixed.envs[0].settings.action_scale  # type: ignore[no-any-return]
 
     def reset(self, round_: int) -> NDArray[np.float64]:
         """Every sub-env from its stream of round `round_`: [seed, TRAIN_STREAM, round_ B + i]."""
@@ -349,7 +380,8 @@ def _record(settings: DistillSettings, command: str, validation: Any) -> dict[st
 def _collect(env: _Families, module: Any, settings: DistillSettings, rng: np.random.Generator, r: int
              ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """Round `r`'s states, labels and phases (steps x num_envs rows): the teacher acts in round 0, the student (or,
-    with mixing, the teacher with probability mixing^r) after."""
+    with mixing, the teacher with probability mixing^r) after; with action_noise, plus its Gaussian torque (where
+    `noise_on` says)."""
     import torch
 
     obs = env.reset(r)
@@ -359,13 +391,20 @@ def _collect(env: _Families, module: Any, settings: DistillSettings, rng: np.ran
         xs.append(obs.copy())
         ys.append(label)
         holds.append(env.holding())
+        teaching = np.full(len(label), r == 0)
         if r == 0:
             action = label
         else:
             with torch.no_grad():
                 action = module(torch.as_tensor(obs, dtype=torch.float32)).numpy().astype(np.float64)
             if settings.mixing:
-                action = np.where(rng.random(len(action))[:, None] < settings.mixing**r, label, action)
+                teaching = rng.random(len(action)) < settings.mixing**r
+                action = np.where(teaching[:, None], label, action)
+        if settings.action_noise:
+            noise = rng.normal(0.0, settings.action_noise, action.shape) / env.action_scale
+            if settings.noise_on == "teacher":
+                noise *= teaching[:, None]
+            action = np.clip(action + noise, -1.0, 1.0)
         obs = env.step(action)
     return np.concatenate(xs), np.concatenate(ys), np.concatenate(holds)
 
@@ -380,8 +419,10 @@ def _resumed(saved: Path, settings: DistillSettings, module: Any, optimiser: Any
     import torch
 
     state = torch.load(saved, map_location="cpu", weights_only=False)
-    theirs: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in state["record"]["distill"].items()}
-    if dataclasses.replace(settings, **theirs) != settings:  # settings added since it was saved keep their defaults
+    saved_settings = state["record"]["distill"]
+    theirs: dict[str, Any] = {**distill_defaults(), **{k: tuple(v) if isinstance(v, list) else v
+                                                for k, v in saved_settings.items()}}
+    if dataclasses.replace(settings, **theirs) != settings:  # settings added since it was saved: their defaults
         raise InvalidInputError(f"out: {saved.parent} holds a distillation with other settings; give another folder")
     module.load_state_dict(state["module"])
     optimiser.load_state_dict(state["optimiser"])

@@ -163,11 +163,17 @@ def _labels(policies: Sequence[ScoredPolicy]) -> list[str]:
 
 def _training_settings(record: dict[str, Any]) -> dict[str, Any]:
     """A record's training settings with every default of the current TrainSettings filled in (records written
-    before a setting existed group with those that write its default)."""
+    before a setting existed group with those that write its default); a distilled policy's are its policy's settings
+    and its distillation's (DistillSettings, its defaults filled in alike), so that students of distillations that
+    differ in more than their seeds do not pool as seeds."""
     from mjtraj.rl.train import TrainSettings
 
-    if record.get("format") == BATCHED_RUN:  # a batched run records every setting it has
-        return dict(record["settings"])
+    if record.get("format") == BATCHED_RUN:  # a batched run records every setting it has; a distillation its own too
+        if "distill" not in record:
+            return dict(record["settings"])
+        from mjtraj.rl.distill import distill_defaults
+
+        return {**distill_defaults(), **record["settings"], **record["distill"]}
     if record.get("format") == ENSEMBLE_FORMAT:  # its members' settings, and how many they are
         return {**record["settings"], "members": len(record["members"])}
     known = {f.name: f.default for f in dataclasses.fields(TrainSettings)
