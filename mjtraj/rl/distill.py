@@ -422,7 +422,7 @@ def _resumed(saved: Path, settings: DistillSettings, module: Any, optimiser: Any
     saved_settings = state["record"]["distill"]
     theirs: dict[str, Any] = {**distill_defaults(), **{k: tuple(v) if isinstance(v, list) else v
                                                 for k, v in saved_settings.items()}}
-    if dataclasses.replace(settings, **theirs) != settings:  # settings added since it was saved: their defaults
+    if DistillSettings(**theirs) != settings:  # settings added since it was saved: their defaults
         raise InvalidInputError(f"out: {saved.parent} holds a distillation with other settings; give another folder")
     module.load_state_dict(state["module"])
     optimiser.load_state_dict(state["optimiser"])
