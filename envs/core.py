@@ -60,18 +60,21 @@ def disturbance_estimate(loop: ClosedLoop) -> NDArray[np.float64]:
 
 
 def observe(loop: ClosedLoop, preview: int, control: bool = False, measured: bool = False,
-            relative: bool = False) -> NDArray[np.float64]:
+            frame: str = "absolute") -> NDArray[np.float64]:
     """Observations of every simulation of a started loop, shape (B, 6n + 1 + 2n preview [+ 2n]): q, qd, q_ref,
-    qd_ref, e, ed, the phase k/N, then q_ref and qd_ref of the next `preview` periods (held at N; with `relative`,
-    minus the observed q and qd), then with `control` the PID integral (rad s) and the next period's feedforward
+    qd_ref, e, ed, the phase k/N, then q_ref and qd_ref of the next `preview` periods (held at N; in the `frame`
+    relative, minus the observed q and qd; reference, minus q_ref and qd_ref now, so that the measurement enters
+    through q, qd, e and ed alone), then with `control` the PID integral (rad s) and the next period's feedforward
     torque (N m). With `measured`, q and qd (and so e, ed) are what the control law measures
     (`ClosedLoop.measured`: with measurement noise, the noisy ones), else the true state."""
     q, qd = loop.measured() if measured else (loop.positions, loop.velocities)
     q_ref, qd_ref = loop.reference()
     parts = [q, qd, q_ref, qd_ref, q_ref - q, qd_ref - qd, (loop.periods / loop.ends)[:, None]]
+    origins = {"relative": (q, qd), "reference": (q_ref, qd_ref)}
+    origin = origins.get(frame, (np.zeros_like(q), np.zeros_like(qd)))  # absolute: minus +0.0, the samples bit for bit
     for offset in range(1, preview + 1):
         ahead_q, ahead_qd = loop.reference(offset)
-        parts += [ahead_q - q, ahead_qd - qd] if relative else [ahead_q, ahead_qd]
+        parts += [ahead_q - origin[0], ahead_qd - origin[1]]
     if control:
         parts += loop.controller_state()
     return np.concatenate(parts, axis=1)
@@ -118,7 +121,7 @@ class Observer:
         """The observations of simulations `rows` (all if None) now, shape (len(rows), obs_size); advances their
         history by one observation."""
         s = self.settings
-        base = observe(loop, s.preview, s.observe_control, s.observe_measured, s.preview_frame == "relative")
+        base = observe(loop, s.preview, s.observe_control, s.observe_measured, s.preview_frame)
         if s.observe_plant == "estimate":
             state = loop.law_state()
             assert state is not None and self._bounds is not None

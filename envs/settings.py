@@ -48,8 +48,9 @@ from mjtraj.media import RENDER_QUALITIES, check_render_options
 
 ACTION_MODES = ("pid", "residual", "torque")
 TASKS = ("paper", "random", "explicit")
-PREVIEW_FRAMES = ("absolute", "relative")
-"""The env's `preview_frame` values: the preview's samples themselves, or minus the observed state."""
+PREVIEW_FRAMES = ("absolute", "relative", "reference")
+"""The env's `preview_frame` values: the preview's samples themselves, minus the observed state, or minus the
+reference now."""
 ENV_FAMILIES = ("none", *FAMILIES)
 """The env's `family` values: none (tasks by `task`), or a sweep family whose rules draw each episode."""
 RENDER_MODES = ("rgb_array", "depth_array", "human")
@@ -87,7 +88,9 @@ class EnvOptions:
     preview: int = option(0, "future reference samples in the observation", minimum=0)
     preview_frame: str = option("absolute", "absolute (the preview's samples q_ref and qd_ref themselves) or relative "
                                 "(each minus the observed q and qd: the error the arm would have if it stayed, the "
-                                "same information in the frame a feedback law reads it in)", choices=PREVIEW_FRAMES)
+                                "same information in the frame a feedback law reads it in) or reference (each minus "
+                                "q_ref and qd_ref now: the measurement enters through q, qd, e and ed alone)",
+                                choices=PREVIEW_FRAMES)
     observe_control: bool = option(False, "append the PID integral and the next feedforward torque to the "
                                    "observation (both enter dtau and the reward)")
     observe_plant: str = option("none", "none; true = append the plant's payload, damping and friction over their "
@@ -194,7 +197,8 @@ class TrackSettings:
     loop: LoopConfig
     preview: int
     preview_frame: str
-    """'absolute' or 'relative' (the preview's samples minus the observed q and qd)."""
+    """'absolute', 'relative' (the preview's samples minus the observed q and qd) or 'reference' (minus q_ref and
+    qd_ref now)."""
     observe_control: bool
     """The observation ends with the PID integral and the next feedforward torque."""
     observe_plant: str

@@ -128,7 +128,8 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     corrected by this period's measurement; it needs a settle window (the filter runs in protocol v2's episodes) and,
     as a predictive teacher does, episodes of one length per vector env (the aggressive family's vary: one sub-env per
     vector env, as `mjtraj.rl.batched.MixedFamilies` runs them). With
-    preview_frame='relative' each preview sample is given minus the observed q and qd (bounds as e and ed). With
+    preview_frame='relative' each preview sample is given minus the observed q and qd, with 'reference' minus q_ref
+    and qd_ref now (bounds as e and ed). With
     observe_measured, q, qd, e and ed are what the control law measures, noisy under measurement_noise (else the
     true state, which a policy then sees and the law does not); theta_max: `mjtraj.core.adaptive.BOUND_RULE`; 'true'
     gives the episode's plant (privileged), 'estimate' the adaptive law's online estimate. observe_control's integral
@@ -236,7 +237,7 @@ class UR5TrackEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
     | reward_baseline  | "none"     | none, or controller: reward = advantage over the law alone (pid: old name) |
     | floor            | False      | at the episode's end also its clairvoyant floor in info["metrics"] (below) |
     | preview          | 0          | future reference samples in the observation                             |
-    | preview_frame    | "absolute" | absolute, or relative: each preview sample minus the observed q and qd   |
+    | preview_frame    | "absolute" | absolute, relative (minus the observed q, qd), reference (minus q_ref, qd_ref) |
     | observe_control  | False      | append the PID integral and the next feedforward torque (6 values)      |
     | observe_plant    | "none"     | none, true (the plant's parameters: privileged) or estimate (adaptive law's) |
     | observe_disturbance | False   | append mpc's filtered torque disturbance over the saturation (3 values) |

@@ -41,12 +41,12 @@ def test_acting_on_the_labels_makes_the_loop_apply_the_teachers_command(mode):
 @pytest.mark.slow
 @pytest.mark.parametrize("recipe", [{}, {"mixing": 0.5, "decay": True, "rounds": 3, "balance": "family-hold",
                                         "families": ("aggressive", "nominal"), "steps": 80, "output": "cubic",
-                                        "action_noise": 0.5}],
+                                        "action_noise": 0.5, "change_weight": 2.0}],
                          ids=["plain", "mixed"])
 def test_a_resumed_distillation_is_the_uninterrupted_one_bit_for_bit(tmp_path, monkeypatch, recipe):
     """Interrupted in its second round's training and resumed: the same policy and losses, bit for bit (with DAgger's
-    mixing and the action noise, whose draws come from the saved generator, the annealed learning rate and the
-    weights by family and phase, whose phases are saved with the data, too)."""
+    mixing and the action noise, whose draws come from the saved generator, the annealed learning rate, the change
+    term and the weights by family and phase, whose phases are saved with the data, too)."""
     import dataclasses
 
     settings = dataclasses.replace(SMALL, **recipe)
@@ -218,6 +218,54 @@ def test_holding_marks_the_settle_window():
         plain.step(np.zeros((2, 3)))
 
 
+def test_a_states_successor_is_its_sub_envs_next_period_in_the_same_episode():
+    """`successors` over two rounds as the distillation gathers them: row t B + i is followed by (t + 1) B + i
+    exactly where sub-env i's step t did not end its episode and was not its round's last (the oracle: the vector
+    env's own terminated and truncated flags); every other row by none."""
+    settings = dataclasses.replace(SMALL, num_envs=4, steps=130, teacher="pid")
+    env = distill_module._Families(settings)
+    rows, wanted = [], []
+    for round_ in range(2):
+        obs = env.reset(round_)
+        for t in range(settings.steps):
+            rows.append(obs.copy())
+            obs, _, terminated, truncated = env.mixed.step(env.labels())
+            ended = terminated | truncated
+            base = (round_ * settings.steps + t) * settings.num_envs
+            wanted += [-1 if ended[i] or t == settings.steps - 1 else base + settings.num_envs + i
+                       for i in range(settings.num_envs)]
+    following = distill_module.successors(np.concatenate(rows), settings, 6 * 3)
+    np.testing.assert_array_equal(following, wanted)
+    assert 4 <= np.sum(following < 0) - 2 * settings.num_envs  # episodes did end within the rounds
+
+
+def test_the_change_term_is_the_error_of_the_networks_change_against_the_labels():
+    """With change_weight c, a single batch's loss is mean(w (f - y)^2) + c sum over rows with a successor of
+    w (f(next) - f - (y(next) - y))^2 / (M n) (the oracle: the formula in float64 over the module's own outputs,
+    read before its first step); without it, or with c = 0, the first term alone."""
+    from mjtraj.rl.batched_policy import batched_policy_class
+
+    rng = np.random.default_rng(3)
+    x, y, w = rng.normal(size=(12, 5)), rng.uniform(-0.5, 0.5, size=(12, 3)), rng.uniform(0.5, 2.0, size=12)
+    following = np.array([1, 2, -1, 4, 5, -1, 7, 8, 9, -1, 11, -1])
+    for weight in (0.0, 2.5):
+        settings = dataclasses.replace(SMALL, epochs=1, batch=12, change_weight=weight)
+        module = batched_policy_class()(5, 3, settings.policy_settings())
+        module.clip.fill_(10.0)  # as `distill` sets them
+        module.epsilon.fill_(1e-8)
+        optimiser = torch.optim.Adam(module.net.parameters(), lr=settings.learning_rate)
+        mean, std = x.mean(axis=0), x.std(axis=0)
+        with torch.no_grad():
+            f = module.net(torch.as_tensor((x - mean) / (std + 1e-8), dtype=torch.float32)).numpy().astype(float)
+        loss = distill_module._train(module, optimiser, x, y, w, settings, np.random.default_rng(0), following)
+        first = following >= 0
+        second = following[first]
+        change = (f[second] - f[first]) - (y[second] - y[first])
+        wanted = np.mean(w[:, None] * (f - y) ** 2) + weight * np.sum(w[first, None] * change**2) / y.size
+        assert loss == pytest.approx(wanted, rel=1e-5)
+        assert weight == 0.0 or loss > np.mean(w[:, None] * (f - y) ** 2) * (1 + 1e-3)  # the term counts
+
+
 def test_the_families_of_the_sub_envs_are_the_ones_the_weights_assume():
     """`families_of_envs` (what `sample_weights` groups by) is the family of each sub-env in the order the
     distillation collects them (`_Families`), also where a previewing teacher splits the aggressive family into
@@ -271,11 +319,16 @@ def test_settings_are_refused_by_name():
     with pytest.raises(InvalidInputError, match=r"^noise_on: teacher chooses where action_noise goes and needs some; "
                                                 r"expected action_noise > 0, got 0.0$"):
         DistillSettings(noise_on="teacher")
+    for bad in (-1.0, float("nan"), float("inf"), "1", True):
+        with pytest.raises(InvalidInputError, match=rf"^change_weight: expected a finite weight >= 0, got "
+                                                    rf"{re.escape(repr(bad))}$"):
+            DistillSettings(change_weight=bad)  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match=r"^observe_plant: "):
         DistillSettings(observe_plant="true")
     with pytest.raises(InvalidInputError, match=r"^observe_plant: a torque policy cannot observe"):
         DistillSettings(action_mode="torque", observe_plant="estimate")
-    with pytest.raises(InvalidInputError, match=r"^preview_frame: unknown value 'ahead'; valid: absolute, relative$"):
+    with pytest.raises(InvalidInputError, match=r"^preview_frame: unknown value 'ahead'; valid: absolute, relative, "
+                                                r"reference$"):
         DistillSettings(preview_frame="ahead")
     with pytest.raises(InvalidInputError, match=r"^validation: expected a number of tasks >= 0, got -1$"):
         DistillSettings(validation=-1)

@@ -171,23 +171,28 @@ def test_observation_layout():
     np.testing.assert_array_equal(obs[25:31], np.concatenate([ref.q[3], ref.qd[3]]))
     assert obs.shape == env.observation_space.shape == (31,)
 
-def test_a_relative_preview_is_the_reference_ahead_minus_the_observed_state():
-    """preview_frame='relative' gives each preview sample minus the observed (here measured, noisy) q and qd and
-    changes nothing else; the observations stay inside the space."""
+@pytest.mark.parametrize("frame", ["relative", "reference"])
+def test_a_framed_preview_is_the_reference_ahead_minus_its_origin(frame):
+    """preview_frame='relative' gives each preview sample minus the observed (here measured, noisy) q and qd,
+    'reference' minus q_ref and qd_ref now, and neither changes anything else; the observations stay inside the
+    space."""
     kwargs = {"preview": 2, "task": "random", "measurement_noise": 0.01, "observe_measured": True, "settle": 0.5}
-    absolute, relative = UR5TrackEnv(**kwargs), UR5TrackEnv(**kwargs, preview_frame="relative")
+    absolute, framed = UR5TrackEnv(**kwargs), UR5TrackEnv(**kwargs, preview_frame=frame)
     obs_a, _ = absolute.reset(seed=3)
-    obs_r, _ = relative.reset(seed=3)
+    obs_f, _ = framed.reset(seed=3)
+    moving = 0  # periods whose preview differs from the reference now: there the two origins differ
     for _ in range(110):  # through the motion's end into the settle window (the preview held at the goal)
         action = absolute.action_space.sample()
         obs_a, *_ = absolute.step(action)
-        obs_r, *_ = relative.step(action)
-        state = np.concatenate([obs_a[:3], obs_a[3:6]])
-        np.testing.assert_array_equal(obs_r[:19], obs_a[:19])
-        np.testing.assert_array_equal(obs_r[19:25], obs_a[19:25] - state)
-        np.testing.assert_array_equal(obs_r[25:31], obs_a[25:31] - state)
-        assert relative.observation_space.contains(obs_r)
+        obs_f, *_ = framed.step(action)
+        origin = obs_a[:6] if frame == "relative" else obs_a[6:12]  # (q, qd) or (q_ref, qd_ref)
+        np.testing.assert_array_equal(obs_f[:19], obs_a[:19])
+        np.testing.assert_array_equal(obs_f[19:25], obs_a[19:25] - origin)
+        np.testing.assert_array_equal(obs_f[25:31], obs_a[25:31] - origin)
+        assert framed.observation_space.contains(obs_f)
+        moving += not np.allclose(obs_a[6:9], obs_a[19:22], rtol=0, atol=1e-6)
     assert not np.allclose(obs_a[:3], absolute.loop.positions[0], rtol=0, atol=1e-4)  # both observe the noise
+    assert moving > 50
 
 
 def test_seeded_resets_are_identical():
@@ -458,7 +463,7 @@ def test_random_episodes_are_scored_by_brysons_rule_of_their_task():
                    r"feedforward, ff_accel, gravity_comp, anti_windup, adaptation_rate, substeps, divergence_bound, "
                    r"delay$"),
     ({"substeps": 0}, r"^substeps: expected a value >= 1, got 0$"),
-    ({"preview_frame": "ahead"}, r"^preview_frame: unknown value 'ahead'; valid: absolute, relative$"),
+    ({"preview_frame": "ahead"}, r"^preview_frame: unknown value 'ahead'; valid: absolute, relative, reference$"),
     ({"observe_plant": "estimate"}, r"^observe_plant: 'estimate' observes the adaptive law's estimate; expected "
                                     r"controller='adaptive_computed_torque', got 'pid'$"),
     ({"observe_plant": "all"}, r"^observe_plant: unknown value 'all'; valid: none, true, estimate$"),

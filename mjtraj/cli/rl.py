@@ -71,8 +71,9 @@ def add(sub: Any, laws: str) -> None:
                    "0.1)")
     p.add_argument("--preview", type=int, help="with --batched: future reference samples the policy observes "
                    "(default 0)")
-    p.add_argument("--preview-frame", dest="preview_frame", choices=("absolute", "relative"),
-                   help="with --batched: relative: each preview sample minus the observed q and qd (default --init's, "
+    p.add_argument("--preview-frame", dest="preview_frame", choices=("absolute", "relative", "reference"),
+                   help="with --batched: relative: each preview sample minus the observed q and qd; reference: minus "
+                   "q_ref and qd_ref now (default --init's, "
                    "else absolute)")
     p.add_argument("--settle", type=float,
                    help="with --batched: the episodes' settle window, s, in training and validation (default --init's, "
@@ -148,9 +149,10 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--hidden", type=widths, default=[256, 256, 256],
                    help="hidden layer widths, comma-separated, or none: a linear student (default 256,256,256)")
     p.add_argument("--preview", type=int, default=10, help="future reference samples observed (default 10)")
-    p.add_argument("--preview-frame", dest="preview_frame", choices=("absolute", "relative"),
+    p.add_argument("--preview-frame", dest="preview_frame", choices=("absolute", "relative", "reference"),
                    default="absolute",
-                   help="relative: each preview sample minus the observed q and qd (default absolute)")
+                   help="relative: each preview sample minus the observed q and qd; reference: minus q_ref and qd_ref "
+                   "now (default absolute)")
     p.add_argument("--action-mode", dest="action_mode", choices=("residual", "torque"), default="residual",
                    help="residual: the student adds to --controller's command; torque: it commands the whole "
                    "corrective torque (default residual)")
@@ -183,6 +185,10 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--noise-on", dest="noise_on", choices=("all", "teacher"), default="all",
                    help="teacher: add --action-noise to the teacher's actions alone (round 0's, and those --mixing "
                    "lets it apply) (default all)")
+    p.add_argument("--change-weight", dest="change_weight", type=float, default=0.0,
+                   help="weight of a second loss term: the network's change between a sub-env's consecutive "
+                   "periods against the labels' change (the teacher's gain along the data, not only its value) "
+                   "(default 0: none)")
     p.add_argument("--decay", action="store_true",
                    help="anneal the learning rate by a cosine over each round's epochs (default constant)")
     p.add_argument("--balance", choices=("none", "family", "family-hold"), default="none",
@@ -415,7 +421,7 @@ def run_distill(args: argparse.Namespace) -> int:
                                    history=args.history, output=args.output, features=args.features,
                                    anchor=args.anchor,
                                    mixing=args.mixing, action_noise=args.action_noise, noise_on=args.noise_on,
-                                   decay=args.decay,
+                                   change_weight=args.change_weight, decay=args.decay,
                                    balance=args.balance, validation=args.validation,
                                    validate_versus=args.validate_versus, seed=args.seed, threads=args.threads)
         report = distill(settings, args.out, progress=not args.no_progress, command=command_line(args))

@@ -72,7 +72,8 @@ class DistillSettings:
     preview: int = 10
     """Future reference samples the student observes (the env's `preview`)."""
     preview_frame: str = "absolute"
-    """absolute, or relative: the preview's samples minus the observed q and qd (the env's `preview_frame`)."""
+    """absolute; relative: the preview's samples minus the observed q and qd; reference: minus q_ref and qd_ref now
+    (the env's `preview_frame`)."""
     observe_task: bool = False
     """The student also observes the move and the time to the motion's end (UR5Track-v2's observation)."""
     observe_control: bool = False
@@ -107,6 +108,12 @@ class DistillSettings:
     """Which applied actions get `action_noise`: all, or teacher (only the teacher's: all of round 0, and in later
     rounds the steps where mixing lets the teacher act; DART's noise on the supervisor, the student's own errors
     perturbing the rest)."""
+    change_weight: float = 0.0
+    """Weight of a second loss term: the squared error of the network's change between a sub-env's consecutive
+    labelled periods against its labels' change (in the same units and weights as the first), so that the student
+    matches how the teacher's command moves with the state along the data, not only its value: a student whose gain
+    is off commands a different change (its torque alternating from period to period where the teacher's barely
+    does). 0: none (the first term alone)."""
     decay: bool = False
     """Anneal the learning rate by a cosine to a thousandth of `learning_rate` over each round's epochs (restarting
     each round); False: constant."""
@@ -148,6 +155,9 @@ class DistillSettings:
             raise InvalidInputError(f"action_noise: expected a finite standard deviation >= 0, N m, got "
                                     f"{self.action_noise!r}")
         choice("noise_on", self.noise_on, NOISE_ON)
+        if not (isinstance(self.change_weight, (int, float)) and not isinstance(self.change_weight, bool)
+                and 0.0 <= self.change_weight < float("inf")):
+            raise InvalidInputError(f"change_weight: expected a finite weight >= 0, got {self.change_weight!r}")
         if self.noise_on != "all" and not self.action_noise:
             raise InvalidInputError(f"noise_on: {self.noise_on} chooses where action_noise goes and needs some; "
                                     f"expected action_noise > 0, got {self.action_noise!r}")
@@ -319,7 +329,8 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
         states = np.concatenate(run.x)  # every round's: the largest array a distillation holds, made once a round
         fitted = targets(_less_anchor(module, states, np.concatenate(run.y)), settings.output)
         weights = sample_weights(fitted, settings, np.concatenate(run.hold))
-        loss = _train(module, optimiser, _inputs(module, states), fitted, weights, settings, rng)
+        following = successors(states, settings, 6 * env.actions) if settings.change_weight else None
+        loss = _train(module, optimiser, _inputs(module, states), fitted, weights, settings, rng, following)
         row: dict[str, Any] = {"round": r, "samples": sum(len(x) for x in run.x), "collect_s": collected,
                                "train_s": time.perf_counter() - start - collected, "loss": loss}
         if validation is not None:
@@ -479,11 +490,25 @@ def targets(y: NDArray[np.float64], output: str) -> NDArray[np.float64]:
     return np.cbrt(y) if output == "cubic" else y
 
 
+def successors(x: NDArray[np.float64], settings: DistillSettings, phase: int) -> NDArray[np.intp]:
+    """(M,): for each of the labelled states x (M, d) gathered round by round (a round's steps x num_envs rows,
+    step-major), the row of its sub-env's next period in the same episode, or -1 (a round's last step, or an
+    episode's last period: the next row's phase, column `phase` of x, is not later)."""
+    rows = np.arange(len(x))
+    step = settings.steps * settings.num_envs
+    following = rows + settings.num_envs
+    last = (rows % step) >= step - settings.num_envs
+    following[last] = rows[last]  # a placeholder, refused below: the next round is another episode
+    later = ~last & (x[following, phase] > x[rows, phase])
+    return np.where(later, following, -1)
+
+
 def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.float64], w: NDArray[np.float64],
-           settings: DistillSettings, rng: np.random.Generator) -> float:
+           settings: DistillSettings, rng: np.random.Generator, following: NDArray[np.intp] | None = None) -> float:
     """`settings.epochs` passes of mean-squared error of the network's output over (x, y) in shuffled minibatches,
-    each state weighted by w (`sample_weights`), the standardisation refitted to all of x first; the last epoch's mean
-    loss."""
+    each state weighted by w (`sample_weights`), the standardisation refitted to all of x first; with `following`
+    (`successors`) and a change_weight, plus change_weight times the same error of the change from each state to its
+    successor; the last epoch's mean loss."""
     import torch
 
     module.mean.copy_(torch.as_tensor(x.mean(axis=0), dtype=torch.float32))
@@ -492,6 +517,7 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
     targets = torch.as_tensor(y, dtype=torch.float32)
     weights = torch.as_tensor(w, dtype=torch.float32)[:, None]
     normal = torch.clamp((inputs - module.mean) / (module.std + module.epsilon), -module.clip, module.clip)
+    after = None if following is None or not settings.change_weight else torch.as_tensor(following)
     loss_sum = 0.0
     for epoch in range(settings.epochs):
         # with decay, a cosine from learning_rate to a thousandth of it over the round's epochs
@@ -502,7 +528,13 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
         loss_sum, batches = 0.0, 0
         for k in range(0, len(x), settings.batch):
             pick = order[k:k + settings.batch]
-            loss = torch.mean(weights[pick] * (module.net(normal[pick]) - targets[pick]) ** 2)
+            output = module.net(normal[pick])
+            loss = torch.mean(weights[pick] * (output - targets[pick]) ** 2)
+            if after is not None:
+                pair = after[pick] >= 0
+                first, second = pick[pair], after[pick][pair]
+                change = module.net(normal[second]) - output[pair] - (targets[second] - targets[first])
+                loss = loss + settings.change_weight * torch.sum(weights[first] * change**2) / (len(pick) * y.shape[1])
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
