@@ -70,8 +70,11 @@ def observe(loop: ClosedLoop, preview: int, control: bool = False, measured: boo
     q, qd = loop.measured() if measured else (loop.positions, loop.velocities)
     q_ref, qd_ref = loop.reference()
     parts = [q, qd, q_ref, qd_ref, q_ref - q, qd_ref - qd, (loop.periods / loop.ends)[:, None]]
-    origins = {"relative": (q, qd), "reference": (q_ref, qd_ref)}
-    origin = origins.get(frame, (np.zeros_like(q), np.zeros_like(qd)))  # absolute: minus +0.0, the samples bit for bit
+    # absolute: minus +0.0, the samples bit for bit
+    origins = {"absolute": (np.zeros_like(q), np.zeros_like(qd)), "relative": (q, qd), "reference": (q_ref, qd_ref)}
+    if frame not in origins:
+        raise InvalidInputError(f"frame: expected one of {', '.join(origins)}, got {frame!r}")
+    origin = origins[frame]
     for offset in range(1, preview + 1):
         ahead_q, ahead_qd = loop.reference(offset)
         parts += [ahead_q - origin[0], ahead_qd - origin[1]]

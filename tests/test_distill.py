@@ -240,30 +240,83 @@ def test_a_states_successor_is_its_sub_envs_next_period_in_the_same_episode():
 
 
 def test_the_change_term_is_the_error_of_the_networks_change_against_the_labels():
-    """With change_weight c, a single batch's loss is mean(w (f - y)^2) + c sum over rows with a successor of
-    w (f(next) - f - (y(next) - y))^2 / (M n) (the oracle: the formula in float64 over the module's own outputs,
-    read before its first step); without it, or with c = 0, the first term alone."""
+    """With change_weight c, a batch B's loss is mean over B of w (f - y)^2 plus c times the sum over B's rows with a
+    successor of w (f(next) - f - (y(next) - y))^2, over |B| n; the epoch's loss is the batches' mean (the oracle:
+    the formula in float64 over the module's own outputs, the batches drawn as `_train` draws them, the steps made
+    negligible); without the term, or with c = 0, the first alone. The first step's gradient is the formula's
+    through both outputs (autograd over a copy of the network, in float64)."""
+    import copy
+
     from mjtraj.rl.batched_policy import batched_policy_class
 
     rng = np.random.default_rng(3)
     x, y, w = rng.normal(size=(12, 5)), rng.uniform(-0.5, 0.5, size=(12, 3)), rng.uniform(0.5, 2.0, size=12)
     following = np.array([1, 2, -1, 4, 5, -1, 7, 8, 9, -1, 11, -1])
+    normal = (x - x.mean(axis=0)) / (x.std(axis=0) + 1e-8)
     for weight in (0.0, 2.5):
-        settings = dataclasses.replace(SMALL, epochs=1, batch=12, change_weight=weight)
+        settings = dataclasses.replace(SMALL, epochs=1, batch=5, change_weight=weight, learning_rate=1e-12)
         module = batched_policy_class()(5, 3, settings.policy_settings())
         module.clip.fill_(10.0)  # as `distill` sets them
         module.epsilon.fill_(1e-8)
+        net = copy.deepcopy(module.net).double()
         optimiser = torch.optim.Adam(module.net.parameters(), lr=settings.learning_rate)
-        mean, std = x.mean(axis=0), x.std(axis=0)
-        with torch.no_grad():
-            f = module.net(torch.as_tensor((x - mean) / (std + 1e-8), dtype=torch.float32)).numpy().astype(float)
+        gradients: list[list[torch.Tensor]] = []
+        real_step = optimiser.step
+
+        def step(*args, _real=real_step, _net=module.net, _seen=gradients, **kwargs):
+            if not _seen:
+                _seen.append([p.grad.detach().clone() for p in _net.parameters()])
+            return _real(*args, **kwargs)
+
+        optimiser.step = step  # type: ignore[method-assign]
         loss = distill_module._train(module, optimiser, x, y, w, settings, np.random.default_rng(0), following)
-        first = following >= 0
-        second = following[first]
-        change = (f[second] - f[first]) - (y[second] - y[first])
-        wanted = np.mean(w[:, None] * (f - y) ** 2) + weight * np.sum(w[first, None] * change**2) / y.size
-        assert loss == pytest.approx(wanted, rel=1e-5)
-        assert weight == 0.0 or loss > np.mean(w[:, None] * (f - y) ** 2) * (1 + 1e-3)  # the term counts
+        order = np.random.default_rng(0).permutation(12)  # `_train`'s first draw: epoch 0's order
+        f = net(torch.as_tensor(normal))
+        yt, wt = torch.as_tensor(y), torch.as_tensor(w)[:, None]
+        losses = []
+        for k in range(0, 12, 5):
+            pick = order[k:k + 5]
+            first = pick[following[pick] >= 0]
+            second = torch.as_tensor(following[first])
+            change = (f[second] - f[first]) - (yt[second] - yt[first])
+            losses.append(torch.mean(wt[pick] * (f[pick] - yt[pick]) ** 2)
+                          + weight * torch.sum(wt[first] * change**2) / (len(pick) * 3))
+        assert loss == pytest.approx(float(torch.stack(losses).mean().detach()), rel=1e-5)
+        wanted = torch.autograd.grad(losses[0], list(net.parameters()))
+        for got, expected in zip(gradients[0], wanted, strict=True):
+            np.testing.assert_allclose(got.numpy(), expected.numpy(), rtol=1e-4, atol=1e-7)
+        if weight:  # the term counts
+            plain = [torch.mean(wt[order[k:k + 5]] * (f[order[k:k + 5]] - yt[order[k:k + 5]]) ** 2)
+                     for k in range(0, 12, 5)]
+            assert loss > float(torch.stack(plain).mean().detach()) * (1 + 1e-3)
+
+
+def test_a_distillation_with_a_change_weight_trains_on_each_rounds_successors(tmp_path, monkeypatch):
+    """`distill` hands `_train` the rows' successors (`successors` of the round's states, the phase column 6n) with
+    a change_weight, and none without."""
+    seen: list[object] = []
+    train = distill_module._train
+
+    def spy(module, optimiser, x, y, w, settings, rng, following=None):
+        seen.append(following)
+        return train(module, optimiser, x, y, w, settings, rng, following)
+
+    monkeypatch.setattr(distill_module, "_train", spy)
+    states: list[np.ndarray] = []
+    real = distill_module.successors
+    monkeypatch.setattr(distill_module, "successors",
+                        lambda x, settings, phase: (states.append((x.copy(), phase)), real(x, settings, phase))[1])
+    for weight in (0.0, 1.0):
+        seen.clear()
+        settings = dataclasses.replace(SMALL, rounds=1, validation=0, change_weight=weight)
+        distill(settings, tmp_path / f"weight_{weight:g}", progress=False)
+        if not weight:
+            assert seen == [None]
+            continue
+        (x, phase), = states
+        assert phase == 18
+        np.testing.assert_array_equal(seen[0], real(x, settings, 18))
+        assert np.sum(seen[0] >= 0) > len(x) // 2
 
 
 def test_the_families_of_the_sub_envs_are_the_ones_the_weights_assume():

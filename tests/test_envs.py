@@ -195,6 +195,17 @@ def test_a_framed_preview_is_the_reference_ahead_minus_its_origin(frame):
     assert moving > 50
 
 
+def test_observe_refuses_an_unknown_frame():
+    """`observe`'s frame was a bool (relative) before the reference frame: an old call's True is refused by name
+    rather than read as another frame."""
+    from mjtraj.envs import observe
+
+    env = UR5TrackEnv(preview=1)
+    env.reset(seed=0)
+    with pytest.raises(InvalidInputError, match=r"^frame: expected one of absolute, relative, reference, got True$"):
+        observe(env.loop, 1, False, False, True)  # type: ignore[arg-type]
+
+
 def test_seeded_resets_are_identical():
     env = UR5TrackEnv(task="random", action_mode="torque")
     env.action_space.seed(5)

@@ -110,10 +110,11 @@ class DistillSettings:
     perturbing the rest)."""
     change_weight: float = 0.0
     """Weight of a second loss term: the squared error of the network's change between a sub-env's consecutive
-    labelled periods against its labels' change (in the same units and weights as the first), so that the student
-    matches how the teacher's command moves with the state along the data, not only its value: a student whose gain
-    is off commands a different change (its torque alternating from period to period where the teacher's barely
-    does). 0: none (the first term alone)."""
+    labelled periods against its targets' change (what the network learns: the labels less the anchor, their cube
+    roots with the cubic output; in the first term's units and weights), so that the student matches how the
+    teacher's command moves with the state along the data, not only its value: a student whose gain is off commands
+    a different change (its torque alternating from period to period where the teacher's barely does). 0: none (the
+    first term alone)."""
     decay: bool = False
     """Anneal the learning rate by a cosine to a thousandth of `learning_rate` over each round's epochs (restarting
     each round); False: constant."""
@@ -507,8 +508,8 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
            settings: DistillSettings, rng: np.random.Generator, following: NDArray[np.intp] | None = None) -> float:
     """`settings.epochs` passes of mean-squared error of the network's output over (x, y) in shuffled minibatches,
     each state weighted by w (`sample_weights`), the standardisation refitted to all of x first; with `following`
-    (`successors`) and a change_weight, plus change_weight times the same error of the change from each state to its
-    successor; the last epoch's mean loss."""
+    ((M,): each row's successor row or -1, `successors`) and a change_weight, plus change_weight times the same error
+    of the output's change from each state to its successor against y's change; the last epoch's mean loss."""
     import torch
 
     module.mean.copy_(torch.as_tensor(x.mean(axis=0), dtype=torch.float32))
