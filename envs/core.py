@@ -13,7 +13,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
-from mjtraj.envs.settings import TrackSettings
+from mjtraj.envs.settings import PREVIEW_FRAMES, TrackSettings
 from numpy.typing import NDArray
 
 from mjtraj.core import (
@@ -70,14 +70,12 @@ def observe(loop: ClosedLoop, preview: int, control: bool = False, measured: boo
     q, qd = loop.measured() if measured else (loop.positions, loop.velocities)
     q_ref, qd_ref = loop.reference()
     parts = [q, qd, q_ref, qd_ref, q_ref - q, qd_ref - qd, (loop.periods / loop.ends)[:, None]]
-    # absolute: minus +0.0, the samples bit for bit
-    origins = {"absolute": (np.zeros_like(q), np.zeros_like(qd)), "relative": (q, qd), "reference": (q_ref, qd_ref)}
-    if frame not in origins:
-        raise InvalidInputError(f"frame: expected one of {', '.join(origins)}, got {frame!r}")
-    origin = origins[frame]
+    if frame not in PREVIEW_FRAMES:
+        raise InvalidInputError(f"frame: expected one of {', '.join(PREVIEW_FRAMES)}, got {frame!r}")
+    origin = {"relative": (q, qd), "reference": (q_ref, qd_ref)}.get(frame)  # None: absolute, the samples themselves
     for offset in range(1, preview + 1):
         ahead_q, ahead_qd = loop.reference(offset)
-        parts += [ahead_q - origin[0], ahead_qd - origin[1]]
+        parts += [ahead_q, ahead_qd] if origin is None else [ahead_q - origin[0], ahead_qd - origin[1]]
     if control:
         parts += loop.controller_state()
     return np.concatenate(parts, axis=1)

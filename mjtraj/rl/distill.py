@@ -151,17 +151,12 @@ class DistillSettings:
             positive(name, getattr(self, name))
         if not (isinstance(self.mixing, (int, float)) and 0.0 <= self.mixing < 1.0):
             raise InvalidInputError(f"mixing: expected a probability in [0, 1), got {self.mixing!r}")
-        if not (isinstance(self.action_noise, (int, float)) and not isinstance(self.action_noise, bool)
-                and 0.0 <= self.action_noise < float("inf")):
-            raise InvalidInputError(f"action_noise: expected a finite standard deviation >= 0, N m, got "
-                                    f"{self.action_noise!r}")
+        _finite_nonnegative("action_noise", self.action_noise, "a finite standard deviation >= 0, N m")
         choice("noise_on", self.noise_on, NOISE_ON)
-        if not (isinstance(self.change_weight, (int, float)) and not isinstance(self.change_weight, bool)
-                and 0.0 <= self.change_weight < float("inf")):
-            raise InvalidInputError(f"change_weight: expected a finite weight >= 0, got {self.change_weight!r}")
         if self.noise_on != "all" and not self.action_noise:
             raise InvalidInputError(f"noise_on: {self.noise_on} chooses where action_noise goes and needs some; "
                                     f"expected action_noise > 0, got {self.action_noise!r}")
+        _finite_nonnegative("change_weight", self.change_weight, "a finite weight >= 0")
         choice("task", self.task, ("random", "paper"))
         choice("balance", self.balance, BALANCES)
         if self.balance == "family-hold" and not self.settle > 0:
@@ -213,6 +208,12 @@ class DistillReport:
     """The best round's row ({} without validation)."""
     stopped: str = ""
     """Why it stopped before its last round ('' if it did not)."""
+
+
+def _finite_nonnegative(name: str, value: object, expected: str) -> None:
+    """Raise naming `name` and `expected` unless `value` is a finite int or float >= 0 (not a bool, not a str)."""
+    if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0.0 <= value < float("inf")):
+        raise InvalidInputError(f"{name}: expected {expected}, got {value!r}")
 
 
 def distill_defaults() -> dict[str, Any]:
@@ -532,8 +533,9 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
             output = module.net(normal[pick])
             loss = torch.mean(weights[pick] * (output - targets[pick]) ** 2)
             if after is not None:
-                pair = after[pick] >= 0
-                first, second = pick[pair], after[pick][pair]
+                following_pick = after[pick]
+                pair = following_pick >= 0
+                first, second = pick[pair], following_pick[pair]
                 change = module.net(normal[second]) - output[pair] - (targets[second] - targets[first])
                 loss = loss + settings.change_weight * torch.sum(weights[first] * change**2) / (len(pick) * y.shape[1])
             optimiser.zero_grad()
