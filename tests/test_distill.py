@@ -297,9 +297,9 @@ def test_a_distillation_with_a_change_weight_trains_on_each_rounds_successors(tm
     seen: list[object] = []
     train = distill_module._train
 
-    def spy(module, optimiser, x, y, w, settings, rng, following=None):
+    def spy(module, optimiser, x, y, w, settings, rng, following=None, bound=None):
         seen.append(following)
-        return train(module, optimiser, x, y, w, settings, rng, following)
+        return train(module, optimiser, x, y, w, settings, rng, following, bound)
 
     monkeypatch.setattr(distill_module, "_train", spy)
     states: list[np.ndarray] = []
@@ -390,6 +390,13 @@ def test_settings_are_refused_by_name():
     with pytest.raises(InvalidInputError, match=r"^hidden: expected layer widths >= 1 \(none: a linear network\), "
                                                 r"got \(8, 0\)$"):
         DistillSettings(hidden=(8, 0))
+    with pytest.raises(InvalidInputError, match=r"^structure: unknown value 'bilinear'; valid: none, gain, gain_full$"):
+        DistillSettings(structure="bilinear")
+    with pytest.raises(InvalidInputError, match=r"^structure: gain reads the measured state through e and ed alone; "
+                                                r"expected output linear, features none, history 0 and a preview "
+                                                r"frame absolute or reference, got output 'cubic', history 1, "
+                                                r"preview_frame 'relative'$"):
+        DistillSettings(structure="gain", output="cubic", history=1, preview_frame="relative")
 
 
 @pytest.mark.slow
@@ -632,3 +639,165 @@ def test_an_anchored_student_adds_the_torque_that_cancels_the_observed_disturban
                                                 r"whole torque; expected observe_disturbance true and action_mode "
                                                 r"torque, got False and 'torque'$"):
         DistillSettings(action_mode="torque", anchor="disturbance")
+
+
+GAIN = DistillSettings(families=("nominal",), num_envs=2, hidden=(16, 16), preview=2, preview_frame="reference",
+                       controller="pid", structure="gain")
+
+
+def _gain_student(inputs: int = 40, hidden=(16, 16)):
+    """A gain-structured student (3 joints) of `inputs` observed values, standardisation the identity."""
+    from mjtraj.rl.batched_policy import batched_policy_class
+
+    module = batched_policy_class()(inputs, 3, dataclasses.replace(GAIN, hidden=hidden).policy_settings())
+    module.std.fill_(1.0)
+    module.clip.fill_(1e6)
+    return module
+
+
+def test_a_gain_student_is_affine_in_e_and_ed_and_reads_q_and_qd_through_them_alone():
+    """structure gain: the output is k + K [e; ed] with (k, K) the network's output at the observation without q,
+    qd, e and ed, e and ed clipped to GAIN_RANGE (the oracle: the network applied to those entries by hand);
+    changing q or qd leaves it; within the range it is affine in e and ed (second differences vanish), beyond it
+    held."""
+    from mjtraj.rl.batched_policy import GAIN_RANGE
+
+    torch.manual_seed(0)
+    module = _gain_student()
+    gen = np.random.default_rng(0)
+    obs = torch.as_tensor(gen.normal(size=(32, 40)), dtype=torch.float32)
+    obs[:, 12:18] = torch.as_tensor(gen.uniform(-1.5, 1.5, size=(32, 6)), dtype=torch.float32)
+    keep = [j for j in range(40) if not (j < 6 or 12 <= j < 18)]
+    with torch.no_grad():
+        out = module.net(obs[:, keep])
+        gain = out[:, 3:].reshape(-1, 3, 6)
+        by_hand = out[:, :3] + torch.einsum("bij,bj->bi", gain, obs[:, 12:18])
+        np.testing.assert_allclose(module.raw(obs).numpy(), by_hand.numpy(), rtol=1e-6, atol=1e-6)
+        moved = obs.clone()
+        moved[:, :6] += 3.0
+        assert torch.equal(module.raw(moved), module.raw(obs))
+        step = torch.zeros(40)
+        step[12:18] = torch.as_tensor(gen.uniform(-1, 1, size=6), dtype=torch.float32)
+        second = module.raw(obs + step) + module.raw(obs - step) - 2 * module.raw(obs)
+        assert float(second.abs().max()) < 1e-4
+        assert float((module.raw(obs + step) - module.raw(obs)).abs().max()) > 1e-2  # e and ed do act
+        far = obs.clone()
+        far[:, 12:18] = GAIN_RANGE
+        farther = obs.clone()
+        farther[:, 12:18] = 10 * GAIN_RANGE
+        assert torch.equal(module.raw(far), module.raw(farther))
+
+
+def test_a_full_gain_student_adds_a_gain_path_to_a_network_of_the_whole_observation():
+    """structure gain_full: (k, K) are the network's output at the whole observation (the oracle: by hand), the
+    output k + K [e; ed], e and ed within GAIN_RANGE; it takes a cubic output and the relative frame."""
+    from mjtraj.rl.batched_policy import GAIN_RANGE, batched_policy_class
+
+    settings = dataclasses.replace(GAIN, structure="gain_full", output="cubic", preview_frame="relative")
+    torch.manual_seed(0)
+    module = batched_policy_class()(40, 3, settings.policy_settings())
+    module.std.fill_(1.0)
+    module.clip.fill_(1e6)
+    obs = torch.as_tensor(np.random.default_rng(0).normal(scale=2.0, size=(32, 40)), dtype=torch.float32)
+    with torch.no_grad():
+        out = module.net(obs)
+        errors = torch.clamp(obs[:, 12:18], -GAIN_RANGE, GAIN_RANGE)
+        by_hand = out[:, :3] + torch.einsum("bij,bj->bi", out[:, 3:].reshape(-1, 3, 6), errors)
+        np.testing.assert_allclose(module.raw(obs).numpy(), by_hand.numpy(), rtol=1e-6, atol=1e-6)
+        assert torch.equal(module(obs), torch.clamp(module.raw(obs), -1, 1) ** 3)
+
+
+def test_a_gain_student_trained_on_a_linear_law_recovers_its_gains():
+    """The oracle: labels of a known law, y = G [e; ed] + C r (G a fixed 3 x 6 gain, r two entries of the rest),
+    fitted by the distillation's training step with a linear network (k and K then linear in the rest, the law inside
+    the family exactly; e and ed uniform, within GAIN_RANGE standard deviations): the student's output at held-out
+    observations is the law's, and its finite-difference gain in e and ed is G, both within 1e-4 of their size
+    (measured: 1e-7, float32)."""
+    torch.manual_seed(0)
+    gen = np.random.default_rng(1)
+
+    def draw(m):
+        x = gen.normal(size=(m, 40))
+        x[:, 12:18] = gen.uniform(-1.5, 1.5, size=(m, 6))
+        return x
+
+    x = draw(4000)
+    G = gen.uniform(-0.1, 0.1, size=(3, 6))
+    C = gen.uniform(-0.2, 0.2, size=(3, 2))
+
+    def law(obs):
+        return obs[:, 12:18] @ G.T + obs[:, 20:22] @ C.T
+
+    module = _gain_student(hidden=())
+    optimiser = torch.optim.Adam(module.net.parameters())
+    settings = dataclasses.replace(GAIN, hidden=(), epochs=20, batch=128, learning_rate=1e-2, decay=True)
+    distill_module._train(module, optimiser, x, law(x), np.ones(len(x)), settings, np.random.default_rng(2))
+    held = draw(200)
+    with torch.no_grad():
+        got = module(torch.as_tensor(held, dtype=torch.float32)).numpy()
+        np.testing.assert_allclose(got, law(held), atol=1e-4 * np.abs(law(held)).max(), rtol=0)
+        h = 1e-1
+        for j in range(6):
+            step = np.zeros(40)
+            step[12 + j] = h
+            fd = (module(torch.as_tensor(held + step, dtype=torch.float32))
+                  - module(torch.as_tensor(held - step, dtype=torch.float32))).numpy() / (2 * h)
+            np.testing.assert_allclose(fd, np.broadcast_to(G[:, j], fd.shape), atol=1e-4 * np.abs(G).max(), rtol=0)
+
+
+def test_a_label_at_the_limit_is_met_by_any_output_beyond_it():
+    """one_sided: where the teacher's command is at the saturation (a label of +-1), an output past it has no error
+    and one short of it keeps its error; elsewhere the error is untouched. saturated marks the limits."""
+    y = np.array([[1.0, -1.0, 0.5], [1.0, -1.0, -0.999]])
+    bound = distill_module.saturated(y)
+    np.testing.assert_array_equal(bound, [[1, -1, 0], [1, -1, 0]])
+    error = torch.tensor([[0.3, -0.3, 0.2], [-0.3, 0.3, -0.2]])
+    got = distill_module.one_sided(error, torch.as_tensor(bound))
+    np.testing.assert_array_equal(got.numpy(), np.array([[0.0, 0.0, 0.2], [-0.3, 0.3, -0.2]], dtype=np.float32))
+
+
+def test_a_gain_distillation_trains_one_sided_at_the_saturated_labels(tmp_path, monkeypatch):
+    """`distill` hands `_train` the labels' limits (`saturated` of every round's labels) with a gain structure, and
+    none without."""
+    seen: list[object] = []
+    labelled: list[np.ndarray] = []
+    train = distill_module._train
+
+    def spy(module, optimiser, x, y, w, settings, rng, following=None, bound=None):
+        seen.append(bound)
+        return train(module, optimiser, x, y, w, settings, rng, following, bound)
+
+    monkeypatch.setattr(distill_module, "_train", spy)
+    real = distill_module.saturated
+    monkeypatch.setattr(distill_module, "saturated", lambda y: (labelled.append(y.copy()), real(y))[1])
+    for structure in ("none", "gain"):
+        seen.clear()
+        settings = dataclasses.replace(GAIN, rounds=1, steps=10, epochs=1, validation=0, structure=structure)
+        distill(settings, tmp_path / structure, progress=False)
+        if structure == "none":
+            assert seen == [None] and not labelled
+            continue
+        (y,) = labelled
+        assert y.shape == (10 * settings.num_envs, 3)
+        np.testing.assert_array_equal(seen[0], real(y))
+
+
+def test_a_gain_student_saves_and_loads_and_ppo_refuses_it(tmp_path):
+    """A distilled gain student round-trips through its file (the same actions; its joints recovered from the
+    network's n + 2 n^2 outputs), and batched PPO refuses the structure by name."""
+    from mjtraj.rl.batched import BatchedSettings, train_batched
+    from mjtraj.rl.batched_policy import load_batched
+
+    report = distill(dataclasses.replace(GAIN, rounds=1, steps=10, epochs=1, validation=0), tmp_path / "run",
+                     progress=False)
+    module = load_batched(report.policy)
+    assert module.n == 3 and module.net[-1].out_features == 3 + 2 * 9
+    obs = torch.randn(8, module.mean.numel())
+    saved = torch.load(report.policy, weights_only=True)
+    again = load_batched(report.policy)
+    with torch.no_grad():
+        assert torch.equal(module(obs), again(obs))
+    assert "context" not in saved["state"]  # not persistent: files without it (every earlier policy) load
+    with pytest.raises(InvalidInputError, match=r"^structure: batched PPO's networks act on the observation alone, "
+                                                r"expected none, got 'gain'"):
+        train_batched(BatchedSettings(preview_frame="reference", structure="gain"), tmp_path / "ppo")

@@ -176,6 +176,10 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--features", choices=("none", "error_over_move"), default="none",
                    help="error_over_move: the network also reads the position error over the task's move (the "
                    "score's and the settling band's unit; needs --observe-task) (default none)")
+    p.add_argument("--structure", choices=("none", "gain", "gain_full"), default="none",
+                   help="gain: the network outputs an offset k and a gain matrix K from the observation without q, "
+                   "qd, e and ed, and the action is k + K [e; ed] (needs --output linear, --preview-frame absolute "
+                   "or reference, --history 0); gain_full: k and K from the whole observation (default none)")
     p.add_argument("--mixing", type=float, default=0.0,
                    help="DAgger's beta: in round r the teacher acts with probability MIXING^r (default 0: the student)")
     p.add_argument("--action-noise", dest="action_noise", type=float, default=0.0,
@@ -419,7 +423,7 @@ def run_distill(args: argparse.Namespace) -> int:
                                    observe_plant=args.observe_plant,
                                    observe_disturbance=args.observe_disturbance,
                                    history=args.history, output=args.output, features=args.features,
-                                   anchor=args.anchor,
+                                   anchor=args.anchor, structure=args.structure,
                                    mixing=args.mixing, action_noise=args.action_noise, noise_on=args.noise_on,
                                    change_weight=args.change_weight, decay=args.decay,
                                    balance=args.balance, validation=args.validation,

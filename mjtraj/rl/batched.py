@@ -366,7 +366,8 @@ def new_agent(settings: BatchedSettings, env: MixedFamilies, out: Path) -> Any:
 
 
 INIT_SHARED = ("controller", "action_mode", "residual_scale", "hidden", "preview", "preview_frame", "observe_control",
-               "observe_task", "observe_plant", "observe_disturbance", "history", "output", "features", "anchor")
+               "observe_task", "observe_plant", "observe_disturbance", "history", "output", "features", "anchor",
+               "structure")
 """The settings a policy that starts a run (`BatchedSettings.init`) must share with it: what it observes, how its
 action acts, its network."""
 
@@ -494,15 +495,17 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
 
     Raises:
       InvalidInputError: a cubic `output` (PPO's actions are Gaussian around the network's output itself), or
-        `features` or an `anchor` (its networks act on the observation alone).
+        `features`, an `anchor` or a `structure` (its networks act on the observation alone).
     """
     from mjtraj.rl.extra import rl_versions
 
     if settings.output != "linear":
         raise InvalidInputError(f"output: PPO explores around the network's output itself, expected linear, got "
                                 f"{settings.output!r} (a cubic output is a distillation's)")
-    if settings.features != "none" or settings.anchor != "none":
-        name = "features" if settings.features != "none" else "anchor"
+    shaped = [k for k, plain in (("features", "none"), ("anchor", "none"), ("structure", "none"))
+              if getattr(settings, k) != plain]
+    if shaped:
+        name = shaped[0]
         raise InvalidInputError(f"{name}: batched PPO's networks act on the observation alone, expected none, got "
                                 f"{getattr(settings, name)!r} (a distillation's)")
     out = Path(out)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import functools
 import io
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,12 @@ FEATURES = ("none", "error_over_move")
 """What a policy's network reads besides the observation (`BatchedSettings.features`)."""
 ANCHORS = ("none", "disturbance")
 """What a policy's action adds to its network's (`BatchedSettings.anchor`)."""
+STRUCTURES = ("none", "gain", "gain_full")
+"""How a policy's network output is formed from the observation (`BatchedSettings.structure`)."""
+GAIN_RANGE = 3.0
+"""Standard deviations of the data's e and ed within which a gain-structured policy's output is affine in them; the
+gain acts on them clipped to this range (beyond it the response is held, as a saturating command's is, and the
+rare large errors of a student's failed episodes do not steer the gain that the small ones decide)."""
 
 
 @dataclass(frozen=True)
@@ -52,7 +59,8 @@ class BatchedSettings:
     preview: int = 0
     """Future reference samples the policy observes (the env's `preview`)."""
     preview_frame: str = "absolute"
-    """absolute, or relative: the preview's samples minus the observed q and qd (the env's `preview_frame`)."""
+    """absolute, relative (the preview's samples minus the observed q and qd) or reference (minus q_ref and qd_ref
+    now): the env's `preview_frame`."""
     observe_control: bool = False
     """The policy also observes the law's integral state and the next feedforward torque (the env's option)."""
     patience: int = 0
@@ -81,6 +89,16 @@ class BatchedSettings:
     payload of tens (an offset-free anchor, as `mpc`'s own prediction is; distillation only). The network's output
     stays within [-1, 1] of the anchor, the sum within the saturation: a command farther from the anchor than the
     saturation is out of reach (its label is clipped so)."""
+    structure: str = "none"
+    """How the network forms its output: none (a function of the whole standardised observation), gain or gain_full
+    (distillation only). gain: an offset k and a gain matrix K (n x 2n), both functions of the observation without
+    the measured entries q, qd, e and ed; the output is k + K [e; ed], e and ed standardised and clipped to
+    GAIN_RANGE: affine in the measured state given the rest, as a predictive law's answer is along its reference
+    where no limit binds, so that the response to a velocity error, an alternating one included, is one learned
+    gain; needs a linear output, a preview frame that does not read the measurement (absolute or reference), no
+    features and no history. gain_full: the same output, k and K functions of the whole observation (a network
+    beside a gain path, nonlinear in e and ed where the data asks it; any output, frame, features or history). With
+    either, the distillation's loss does not push the output past a label at the saturation."""
     settle: float = 0.0
     """The episodes' settle window, s, in training and validation (0: protocol v1's episodes scored by J_exec; 0.5:
     protocol v2's, scored by J_settle, held to the at-rest rule, the measured state observed)."""
@@ -140,6 +158,16 @@ class BatchedSettings:
         if self.features != "none" and not self.observe_task:
             raise InvalidInputError(f"features: {self.features} reads the task's move, which the policy observes with "
                                     f"observe_task; expected observe_task true, got false")
+        choice("structure", self.structure, STRUCTURES)
+        if self.structure == "gain":
+            wanted = {"output": "linear", "features": "none", "history": 0}
+            wrong = [f"{k} {getattr(self, k)!r}" for k, v in wanted.items() if getattr(self, k) != v]
+            if self.preview_frame == "relative":
+                wrong.append("preview_frame 'relative'")
+            if wrong:
+                raise InvalidInputError(f"structure: {self.structure} reads the measured state through e and ed "
+                                        f"alone; expected output linear, features none, history 0 and a preview "
+                                        f"frame absolute or reference, got {', '.join(wrong)}")
         if self.action_mode == "torque" and self.observe_plant != "none":
             raise InvalidInputError(f"observe_plant: a torque policy cannot observe the adaptive law's estimate (the "
                                     f"law does not run under its torque), expected none, got {self.observe_plant!r}")
@@ -147,6 +175,10 @@ class BatchedSettings:
     def extra_inputs(self, n: int) -> int:
         """How many values `features` adds to the network's input for n joints."""
         return n if self.features == "error_over_move" else 0
+
+    def network_outputs(self, n: int) -> int:
+        """The network's outputs for n joints: n, or with a gain structure n + 2 n^2 (k, then K row by row)."""
+        return n if self.structure == "none" else n + 2 * n * n
 
     @property
     def iterations(self) -> int:
@@ -187,8 +219,9 @@ def mlp(inputs: int, outputs: int, hidden: tuple[int, ...]) -> Any:
 
 @functools.cache
 def batched_policy_class() -> type:
-    """The deployable policy's class: standardise the observation as training did, the mean network, clip to
-    [-1, 1], cube if its `output` is cubic (made on first use: PyTorch is imported only here)."""
+    """The deployable policy's class: standardise the observation as training did, the mean network (with the gain
+    `structure`, k + K [e; ed]), clip to [-1, 1], cube if its `output` is cubic, add its anchor (made on first use:
+    PyTorch is imported only here)."""
     import torch
 
     class BatchedPolicy(torch.nn.Module):
@@ -197,7 +230,17 @@ def batched_policy_class() -> type:
         def __init__(self, inputs: int, outputs: int, settings: BatchedSettings) -> None:
             super().__init__()
             extra = settings.extra_inputs(outputs)
-            self.net = mlp(inputs + extra, outputs, settings.hidden)
+            n = outputs
+            # gain structure: the network reads the observation without q, qd (entries 0..2n) and e, ed (4n..6n),
+            # which enter as K [e; ed] alone (gain_full: the whole observation, and K [e; ed] beside)
+            self.fast = None if settings.structure == "none" else (4 * n, 6 * n)
+            context = torch.ones(inputs + extra, dtype=torch.bool)
+            if settings.structure == "gain":
+                context[:2 * n] = False
+                context[4 * n:6 * n] = False
+            self.register_buffer("context", torch.nonzero(context).ravel(), persistent=False)
+            self.n = n
+            self.net = mlp(int(context.sum()), settings.network_outputs(n), settings.hidden)
             for name in ("mean", "std"):
                 self.register_buffer(name, torch.zeros(inputs + extra))
             # error_over_move: e (the observation's entries 4n..5n) over the move (observe_task's next to last entry
@@ -220,10 +263,22 @@ def batched_policy_class() -> type:
             start, stop, move = self.scaled
             return torch.cat([obs, obs[:, start:stop] / torch.clamp(obs[:, move:move + 1], min=1e-6)], dim=1)
 
+        def raw(self, x: Any) -> Any:
+            """(B, n): the output before the clip for standardised inputs x (B, d + features): net(x), or with a
+            gain structure k + K [e; ed], (k, K) the network's output at x's context (gain: x without q, qd, e and
+            ed; gain_full: all of x), e and ed within GAIN_RANGE."""
+            if self.fast is None:
+                return self.net(x)
+            out = self.net(x[:, self.context])  # type: ignore[index]
+            n = self.n
+            gain = out[:, n:].reshape(-1, n, 2 * n)
+            errors = torch.clamp(x[:, self.fast[0]:self.fast[1]], -GAIN_RANGE, GAIN_RANGE)
+            return out[:, :n] + torch.einsum("bij,bj->bi", gain, errors)
+
         def forward(self, obs: Any) -> Any:
             mean, std, epsilon, clip = self.mean, self.std, self.epsilon, self.clip
             x = torch.clamp((self.inputs(obs) - mean) / (std + epsilon), -clip, clip)  # type: ignore[operator,arg-type]
-            action = torch.clamp(self.net(x), -1.0, 1.0)
+            action = torch.clamp(self.raw(x), -1.0, 1.0)
             action = action**3 if self.cubic else action
             return action if self.anchored is None else torch.clamp(action + self.anchor(obs), -1.0, 1.0)
 
@@ -302,6 +357,8 @@ def module_from_state(state: dict[str, Any], record: dict[str, Any]) -> Any:
     """The BatchedPolicy of a saved module `state` and its run's `record` (as `record`)."""
     settings = policy_settings(record)
     outputs = state[[k for k in state if k.endswith("bias")][-1]].numel()
+    if settings.structure != "none":  # n + 2 n^2 outputs
+        outputs = (math.isqrt(1 + 8 * outputs) - 1) // 4
     module = batched_policy_class()(state["mean"].numel() - settings.extra_inputs(outputs), outputs, settings)
     module.load_state_dict(state)
     module.record = record

@@ -91,6 +91,11 @@ class DistillSettings:
     """What the student's network also reads (`BatchedSettings.features`): none, or error_over_move."""
     anchor: str = "none"
     """What the student's action adds to its network's (`BatchedSettings.anchor`): none, or disturbance."""
+    structure: str = "none"
+    """How the student's network forms its output (`BatchedSettings.structure`): none, gain (k + K [e; ed], k and K
+    functions of the rest of the observation) or gain_full (the same, k and K of the whole observation); with a gain
+    structure the loss does not push the output past a label at the saturation (a teacher's command at its limit is
+    any output beyond it)."""
     output: str = "linear"
     """How the network's output becomes the action: linear, or cubic (its cube; the network then learns the labels'
     cube roots, so that a nominal motion's corrections of a few hundredths of the authority are fitted as finely,
@@ -187,7 +192,7 @@ class DistillSettings:
                                observe_task=self.observe_task, observe_control=self.observe_control,
                                observe_plant=self.observe_plant, observe_disturbance=self.observe_disturbance,
                                history=self.history, output=self.output, features=self.features,
-                               anchor=self.anchor,
+                               anchor=self.anchor, structure=self.structure,
                                validation=max(self.validation, 1))
 
     def families_of_envs(self) -> NDArray[np.intp]:
@@ -332,7 +337,8 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
         fitted = targets(_less_anchor(module, states, np.concatenate(run.y)), settings.output)
         weights = sample_weights(fitted, settings, np.concatenate(run.hold))
         following = successors(states, settings, 6 * env.actions) if settings.change_weight else None
-        loss = _train(module, optimiser, _inputs(module, states), fitted, weights, settings, rng, following)
+        bound = saturated(np.concatenate(run.y)) if settings.structure != "none" else None
+        loss = _train(module, optimiser, _inputs(module, states), fitted, weights, settings, rng, following, bound)
         row: dict[str, Any] = {"round": r, "samples": sum(len(x) for x in run.x), "collect_s": collected,
                                "train_s": time.perf_counter() - start - collected, "loss": loss}
         if validation is not None:
@@ -492,6 +498,21 @@ def targets(y: NDArray[np.float64], output: str) -> NDArray[np.float64]:
     return np.cbrt(y) if output == "cubic" else y
 
 
+def saturated(y: NDArray[np.float64]) -> NDArray[np.int8]:
+    """(M, n): +1 where a label of y (M, n) is at the upper limit (the teacher's command saturated), -1 at the lower,
+    0 elsewhere."""
+    return np.where(y >= 1.0, 1, np.where(y <= -1.0, -1, 0)).astype(np.int8)
+
+
+def one_sided(error: Any, bound: Any) -> Any:
+    """The output's error (B, n) against its targets, 0 where a label at the limit (`bound` (B, n): +1 upper, -1
+    lower) is met or passed: any output beyond it makes the same saturated command."""
+    import torch
+
+    return torch.where(bound > 0, torch.clamp(error, max=0.0), torch.where(bound < 0, torch.clamp(error, min=0.0),
+                                                                           error))
+
+
 def successors(x: NDArray[np.float64], settings: DistillSettings, phase: int) -> NDArray[np.intp]:
     """(M,): for each of the labelled states x (M, d) gathered round by round (a round's steps x num_envs rows,
     step-major), the row of its sub-env's next period in the same episode, or -1 (a round's last step, or an
@@ -506,11 +527,14 @@ def successors(x: NDArray[np.float64], settings: DistillSettings, phase: int) ->
 
 
 def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.float64], w: NDArray[np.float64],
-           settings: DistillSettings, rng: np.random.Generator, following: NDArray[np.intp] | None = None) -> float:
-    """`settings.epochs` passes of mean-squared error of the network's output over (x, y) in shuffled minibatches,
-    each state weighted by w (`sample_weights`), the standardisation refitted to all of x first; with `following`
-    ((M,): each row's successor row or -1, `successors`) and a change_weight, plus change_weight times the same error
-    of the output's change from each state to its successor against y's change; the last epoch's mean loss."""
+           settings: DistillSettings, rng: np.random.Generator, following: NDArray[np.intp] | None = None,
+           bound: NDArray[np.int8] | None = None) -> float:
+    """`settings.epochs` passes of mean-squared error of the network's output (`raw`, before the clip) over (x, y) in
+    shuffled minibatches, each state weighted by w (`sample_weights`), the standardisation refitted to all of x
+    first; with `following` ((M,): each row's successor row or -1, `successors`) and a change_weight, plus
+    change_weight times the same error of the output's change from each state to its successor against y's change;
+    with `bound` ((M, n), `saturated`) the error is `one_sided` where a label is at the limit; the last epoch's mean
+    loss."""
     import torch
 
     module.mean.copy_(torch.as_tensor(x.mean(axis=0), dtype=torch.float32))
@@ -520,6 +544,7 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
     weights = torch.as_tensor(w, dtype=torch.float32)[:, None]
     normal = torch.clamp((inputs - module.mean) / (module.std + module.epsilon), -module.clip, module.clip)
     after = None if following is None or not settings.change_weight else torch.as_tensor(following)
+    limits = None if bound is None else torch.as_tensor(bound)
     loss_sum = 0.0
     for epoch in range(settings.epochs):
         # with decay, a cosine from learning_rate to a thousandth of it over the round's epochs
@@ -530,13 +555,16 @@ def _train(module: Any, optimiser: Any, x: NDArray[np.float64], y: NDArray[np.fl
         loss_sum, batches = 0.0, 0
         for k in range(0, len(x), settings.batch):
             pick = order[k:k + settings.batch]
-            output = module.net(normal[pick])
-            loss = torch.mean(weights[pick] * (output - targets[pick]) ** 2)
+            output = module.raw(normal[pick])
+            error = output - targets[pick]
+            if limits is not None:
+                error = one_sided(error, limits[pick])
+            loss = torch.mean(weights[pick] * error**2)
             if after is not None:
                 following_pick = after[pick]
                 pair = following_pick >= 0
                 first, second = pick[pair], following_pick[pair]
-                change = module.net(normal[second]) - output[pair] - (targets[second] - targets[first])
+                change = module.raw(normal[second]) - output[pair] - (targets[second] - targets[first])
                 loss = loss + settings.change_weight * torch.sum(weights[first] * change**2) / (len(pick) * y.shape[1])
             optimiser.zero_grad()
             loss.backward()

@@ -3,14 +3,16 @@ members' actions, inferred in NumPy.
 
 Members are policies saved by `mjtraj rl distill` or `mjtraj rl train --batched` (policy.pt, best.pt) that act in
 one env (the same observation, action and law) with one architecture (`SHAPING`). Each member computes its action
-as its torch module does (`mjtraj.rl.batched_policy`: standardise, the network, clip to [-1, 1], cube where its
-output is cubic, add its anchor and clip again), in float32 from the float32 observation, as `rl eval` feeds a
-torch module; the ensemble acts with the mean of the members' actions. Students trained on other seeds err apart
-where their data was thin, and their mean can err less than each (measured in docs/benchmark.md, "Ensembles").
+as its torch module does (`mjtraj.rl.batched_policy`: standardise, the network (with the gain structure, k + K
+[e; ed]), clip to [-1, 1], cube where its output is cubic, add its anchor and clip again), in float32 from the
+float32 observation, as `rl eval` feeds a torch module; the ensemble acts with the mean of the members' actions.
+Students trained on other seeds err apart where their data was thin, and their mean can err less than each
+(measured in docs/benchmark.md, "Ensembles").
 
 The NumPy path is the ensemble's definition, what `rl eval` scores and times, not a stand-in for the torch modules:
-it agrees with the members' modules within float32 rounding (a test holds it to 1e-5), and at batch 1 it spends a
-fraction of PyTorch's per-call time on the same arithmetic (docs/benchmark.md, "Ensembles").
+it agrees with the members' modules within float32 rounding (a test holds it to 1e-5, 2e-5 with a gain structure),
+and at batch 1 it spends a fraction of PyTorch's per-call time on the same arithmetic (docs/benchmark.md,
+"Ensembles").
 """
 
 from __future__ import annotations
@@ -26,9 +28,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjtraj.exceptions import InvalidInputError
-from mjtraj.rl.batched_policy import ENSEMBLE_FORMAT, read_saved, save_payload
+from mjtraj.rl.batched_policy import ENSEMBLE_FORMAT, GAIN_RANGE, read_saved, save_payload
 
-SHAPING = ("hidden", "output", "features", "anchor")
+SHAPING = ("hidden", "output", "features", "anchor", "structure")
 """The settings that shape a member's module besides its env: members share them, so that their arithmetic stacks."""
 
 
@@ -47,6 +49,10 @@ class _Stacked:
     scaled: tuple[int, int, int] | None
     anchored: tuple[int, int] | None
     cubic: bool
+    context: NDArray[np.intp]
+    """The standardised inputs the network reads (all of them, or the gain structure's context)."""
+    fast: tuple[int, int] | None
+    """The gain structure's [e; ed] entries, or None."""
 
     @classmethod
     def of(cls, modules: Sequence[Any]) -> _Stacked:
@@ -65,7 +71,8 @@ class _Stacked:
                        for k in range(count))
         first = modules[0]
         return cls(stack(lambda m: m.mean[None]), stack(lambda m: (m.std + m.epsilon)[None]),
-                   stack(lambda m: m.clip.reshape(1, 1)), layers, first.scaled, first.anchored, bool(first.cubic))
+                   stack(lambda m: m.clip.reshape(1, 1)), layers, first.scaled, first.anchored, bool(first.cubic),
+                   first.context.cpu().numpy(), first.fast)
 
     def __call__(self, obs: NDArray[np.float32]) -> NDArray[np.float32]:
         """Each member's actions (K, B, n) for float32 observations (B, d), as its torch module computes them."""
@@ -73,12 +80,19 @@ class _Stacked:
         if self.scaled is not None:
             start, stop, move = self.scaled
             x = np.concatenate([obs, obs[:, start:stop] / np.maximum(obs[:, move:move + 1], np.float32(1e-6))], axis=1)
-        h = np.clip((x - self.mean) / self.scale, -self.clip, self.clip)
+        standard = np.clip((x - self.mean) / self.scale, -self.clip, self.clip)
+        h = standard if self.fast is None else standard[:, :, self.context]
         last = len(self.layers) - 1
         for k, (weight, bias) in enumerate(self.layers):
             h = h @ weight + bias
             if k < last:
                 h = np.tanh(h)
+        if self.fast is not None:  # k + K [e; ed], e and ed within GAIN_RANGE
+            start, stop = self.fast
+            n = (stop - start) // 2
+            gain = h[:, :, n:].reshape(h.shape[0], h.shape[1], n, 2 * n)
+            errors = np.clip(standard[:, :, start:stop], np.float32(-GAIN_RANGE), np.float32(GAIN_RANGE))
+            h = h[:, :, :n] + np.einsum("kbij,kbj->kbi", gain, errors)
         action = np.clip(h, np.float32(-1.0), np.float32(1.0))
         action = action**3 if self.cubic else action
         if self.anchored is None:
