@@ -390,13 +390,18 @@ def test_settings_are_refused_by_name():
     with pytest.raises(InvalidInputError, match=r"^hidden: expected layer widths >= 1 \(none: a linear network\), "
                                                 r"got \(8, 0\)$"):
         DistillSettings(hidden=(8, 0))
-    with pytest.raises(InvalidInputError, match=r"^structure: unknown value 'bilinear'; valid: none, gain, gain_full$"):
+    with pytest.raises(InvalidInputError, match=r"^structure: unknown value 'bilinear'; valid: none, gain, "
+                                                r"gain_beyond, gain_full$"):
         DistillSettings(structure="bilinear")
     with pytest.raises(InvalidInputError, match=r"^structure: gain reads the measured state through e and ed alone; "
                                                 r"expected output linear, features none, history 0 and a preview "
                                                 r"frame absolute or reference, got output 'cubic', history 1, "
                                                 r"preview_frame 'relative'$"):
         DistillSettings(structure="gain", output="cubic", history=1, preview_frame="relative")
+    with pytest.raises(InvalidInputError, match=r"^structure: gain_beyond reads the measured state through e and ed "
+                                                r"alone; .*, got features 'error_over_move'$"):
+        DistillSettings(structure="gain_beyond", features="error_over_move", observe_task=True,
+                        preview_frame="reference")
 
 
 @pytest.mark.slow
@@ -686,6 +691,38 @@ def test_a_gain_student_is_affine_in_e_and_ed_and_reads_q_and_qd_through_them_al
         farther = obs.clone()
         farther[:, 12:18] = 10 * GAIN_RANGE
         assert torch.equal(module.raw(far), module.raw(farther))
+
+
+def test_a_gain_beyond_student_is_affine_within_the_range_and_reads_the_excess_beyond_it():
+    """structure gain_beyond: (k, K) are the network's output at the context and the excess of e and ed beyond
+    GAIN_RANGE (the oracle: by hand, the excess 0 within the range), the output k + K [e; ed] with e and ed clipped;
+    within the range it is affine in e and ed, and beyond it the network sees how far they lie."""
+    from mjtraj.rl.batched_policy import GAIN_RANGE, batched_policy_class
+
+    torch.manual_seed(0)
+    module = batched_policy_class()(40, 3, dataclasses.replace(GAIN, structure="gain_beyond").policy_settings())
+    module.std.fill_(1.0)
+    module.clip.fill_(1e6)
+    gen = np.random.default_rng(0)
+    obs = torch.as_tensor(gen.normal(size=(32, 40)), dtype=torch.float32)
+    obs[:, 12:18] = torch.as_tensor(gen.uniform(-6, 6, size=(32, 6)), dtype=torch.float32)
+    keep = [j for j in range(40) if not (j < 6 or 12 <= j < 18)]
+    with torch.no_grad():
+        errors = torch.clamp(obs[:, 12:18], -GAIN_RANGE, GAIN_RANGE)
+        out = module.net(torch.cat([obs[:, keep], obs[:, 12:18] - errors], dim=1))
+        by_hand = out[:, :3] + torch.einsum("bij,bj->bi", out[:, 3:].reshape(-1, 3, 6), errors)
+        np.testing.assert_allclose(module.raw(obs).numpy(), by_hand.numpy(), rtol=1e-6, atol=1e-6)
+        inside = obs.clone()
+        inside[:, 12:18] = torch.as_tensor(gen.uniform(-1.5, 1.5, size=(32, 6)), dtype=torch.float32)
+        step = torch.zeros(40)
+        step[12:18] = torch.as_tensor(gen.uniform(-1, 1, size=6), dtype=torch.float32)
+        second = module.raw(inside + step) + module.raw(inside - step) - 2 * module.raw(inside)
+        assert float(second.abs().max()) < 1e-4
+        far = inside.clone()
+        far[:, 12] = GAIN_RANGE
+        farther = inside.clone()
+        farther[:, 12] = 2 * GAIN_RANGE
+        assert float((module.raw(farther) - module.raw(far)).abs().max()) > 1e-3  # the excess is read
 
 
 def test_a_full_gain_student_adds_a_gain_path_to_a_network_of_the_whole_observation():

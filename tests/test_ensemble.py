@@ -22,6 +22,7 @@ ANCHORED = DistillSettings(families=("mismatch",), num_envs=2, hidden=(8, 8), pr
 PLAIN = DistillSettings(families=("nominal",), num_envs=2, hidden=(8,), preview=2, controller="pid")
 GAIN = dataclasses.replace(ANCHORED, output="linear", features="none", preview_frame="reference", structure="gain")
 GAIN_FULL = dataclasses.replace(ANCHORED, structure="gain_full")
+GAIN_BEYOND = dataclasses.replace(GAIN, structure="gain_beyond")
 
 
 def _member(tmp_path, settings, seed, *, gym_seeds=(), distilled=False, unknown=(), name=""):
@@ -53,8 +54,9 @@ def _member(tmp_path, settings, seed, *, gym_seeds=(), distilled=False, unknown=
     return path
 
 
-@pytest.mark.parametrize("settings", [ANCHORED, PLAIN, GAIN, GAIN_FULL],
-                         ids=["anchored-cubic-features", "linear", "gain", "gain_full-anchored-cubic-features"])
+@pytest.mark.parametrize("settings", [ANCHORED, PLAIN, GAIN, GAIN_BEYOND, GAIN_FULL],
+                         ids=["anchored-cubic-features", "linear", "gain", "gain_beyond",
+                              "gain_full-anchored-cubic-features"])
 def test_an_ensembles_action_is_the_mean_of_its_members_modules_actions(tmp_path, settings):
     """The oracle: each member's torch module, as rl eval feeds it (float32), averaged; within float32 rounding.
     Observations spread wide enough that clipping, the cube and the anchor each act; 1e-5 is float32 rounding

@@ -176,10 +176,11 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--features", choices=("none", "error_over_move"), default="none",
                    help="error_over_move: the network also reads the position error over the task's move (the "
                    "score's and the settling band's unit; needs --observe-task) (default none)")
-    p.add_argument("--structure", choices=("none", "gain", "gain_full"), default="none",
+    p.add_argument("--structure", choices=("none", "gain", "gain_beyond", "gain_full"), default="none",
                    help="gain: the network outputs an offset k and a gain matrix K from the observation without q, "
                    "qd, e and ed, and the action is k + K [e; ed] (needs --output linear, --preview-frame absolute "
-                   "or reference, --history 0); gain_full: k and K from the whole observation (default none)")
+                   "or reference, --history 0); gain_beyond: k and K also read how far e and ed lie beyond three "
+                   "standard deviations; gain_full: k and K from the whole observation (default none)")
     p.add_argument("--mixing", type=float, default=0.0,
                    help="DAgger's beta: in round r the teacher acts with probability MIXING^r (default 0: the student)")
     p.add_argument("--action-noise", dest="action_noise", type=float, default=0.0,

@@ -24,7 +24,7 @@ FEATURES = ("none", "error_over_move")
 """What a policy's network reads besides the observation (`BatchedSettings.features`)."""
 ANCHORS = ("none", "disturbance")
 """What a policy's action adds to its network's (`BatchedSettings.anchor`)."""
-STRUCTURES = ("none", "gain", "gain_full")
+STRUCTURES = ("none", "gain", "gain_beyond", "gain_full")
 """How a policy's network output is formed from the observation (`BatchedSettings.structure`)."""
 GAIN_RANGE = 3.0
 """Standard deviations of the data's e and ed within which a gain-structured policy's output is affine in them; the
@@ -90,15 +90,17 @@ class BatchedSettings:
     stays within [-1, 1] of the anchor, the sum within the saturation: a command farther from the anchor than the
     saturation is out of reach (its label is clipped so)."""
     structure: str = "none"
-    """How the network forms its output: none (a function of the whole standardised observation), gain or gain_full
-    (distillation only). gain: an offset k and a gain matrix K (n x 2n), both functions of the observation without
-    the measured entries q, qd, e and ed; the output is k + K [e; ed], e and ed standardised and clipped to
-    GAIN_RANGE: affine in the measured state given the rest, as a predictive law's answer is along its reference
-    where no limit binds, so that the response to a velocity error, an alternating one included, is one learned
-    gain; needs a linear output, a preview frame that does not read the measurement (absolute or reference), no
-    features and no history. gain_full: the same output, k and K functions of the whole observation (a network
-    beside a gain path, nonlinear in e and ed where the data asks it; any output, frame, features or history). With
-    either, the distillation's loss does not push the output past a label at the saturation."""
+    """How the network forms its output: none (a function of the whole standardised observation), gain,
+    gain_beyond or gain_full (distillation only). gain: an offset k and a gain matrix K (n x 2n), both functions of
+    the observation without the measured entries q, qd, e and ed; the output is k + K [e; ed], e and ed standardised
+    and clipped to GAIN_RANGE: affine in the measured state given the rest, as a predictive law's answer is along its
+    reference where no limit binds, so that the response to a velocity error, an alternating one included, is one
+    learned gain; needs a linear output, a preview frame that does not read the measurement (absolute or
+    reference), no features and no history. gain_beyond: as gain, k and K also reading how far e and ed lie beyond
+    GAIN_RANGE (0 within it): affine within the range, free beyond it (the same needs). gain_full: the same output,
+    k and K functions of the whole observation (a network beside a gain path, nonlinear in e and ed where the data
+    asks it; any output, frame, features or history). With any of them the distillation's loss does not push the
+    output past a label at the saturation."""
     settle: float = 0.0
     """The episodes' settle window, s, in training and validation (0: protocol v1's episodes scored by J_exec; 0.5:
     protocol v2's, scored by J_settle, held to the at-rest rule, the measured state observed)."""
@@ -159,7 +161,7 @@ class BatchedSettings:
             raise InvalidInputError(f"features: {self.features} reads the task's move, which the policy observes with "
                                     f"observe_task; expected observe_task true, got false")
         choice("structure", self.structure, STRUCTURES)
-        if self.structure == "gain":
+        if self.structure in ("gain", "gain_beyond"):
             wanted = {"output": "linear", "features": "none", "history": 0}
             wrong = [f"{k} {getattr(self, k)!r}" for k, v in wanted.items() if getattr(self, k) != v]
             if self.preview_frame == "relative":
@@ -232,15 +234,17 @@ def batched_policy_class() -> type:
             extra = settings.extra_inputs(outputs)
             n = outputs
             # gain structure: the network reads the observation without q, qd (entries 0..2n) and e, ed (4n..6n),
-            # which enter as K [e; ed] alone (gain_full: the whole observation, and K [e; ed] beside)
+            # which enter as K [e; ed] alone (gain_beyond: and their excess beyond the range; gain_full: the whole
+            # observation, and K [e; ed] beside)
             self.fast = None if settings.structure == "none" else (4 * n, 6 * n)
+            self.beyond = settings.structure == "gain_beyond"
             context = torch.ones(inputs + extra, dtype=torch.bool)
-            if settings.structure == "gain":
+            if settings.structure in ("gain", "gain_beyond"):
                 context[:2 * n] = False
                 context[4 * n:6 * n] = False
             self.register_buffer("context", torch.nonzero(context).ravel(), persistent=False)
             self.n = n
-            self.net = mlp(int(context.sum()), settings.network_outputs(n), settings.hidden)
+            self.net = mlp(int(context.sum()) + 2 * n * self.beyond, settings.network_outputs(n), settings.hidden)
             for name in ("mean", "std"):
                 self.register_buffer(name, torch.zeros(inputs + extra))
             # error_over_move: e (the observation's entries 4n..5n) over the move (observe_task's next to last entry
@@ -266,13 +270,16 @@ def batched_policy_class() -> type:
         def raw(self, x: Any) -> Any:
             """(B, n): the output before the clip for standardised inputs x (B, d + features): net(x), or with a
             gain structure k + K [e; ed], (k, K) the network's output at x's context (gain: x without q, qd, e and
-            ed; gain_full: all of x), e and ed within GAIN_RANGE."""
+            ed; gain_beyond: that and the excess of e and ed beyond GAIN_RANGE; gain_full: all of x), e and ed within
+            GAIN_RANGE."""
             if self.fast is None:
                 return self.net(x)
-            out = self.net(x[:, self.context])  # type: ignore[index]
+            fast = x[:, self.fast[0]:self.fast[1]]
+            errors = torch.clamp(fast, -GAIN_RANGE, GAIN_RANGE)
+            context = x[:, self.context]  # type: ignore[index]
+            out = self.net(torch.cat([context, fast - errors], dim=1) if self.beyond else context)
             n = self.n
             gain = out[:, n:].reshape(-1, n, 2 * n)
-            errors = torch.clamp(x[:, self.fast[0]:self.fast[1]], -GAIN_RANGE, GAIN_RANGE)
             return out[:, :n] + torch.einsum("bij,bj->bi", gain, errors)
 
         def forward(self, obs: Any) -> Any:

@@ -93,9 +93,9 @@ class DistillSettings:
     """What the student's action adds to its network's (`BatchedSettings.anchor`): none, or disturbance."""
     structure: str = "none"
     """How the student's network forms its output (`BatchedSettings.structure`): none, gain (k + K [e; ed], k and K
-    functions of the rest of the observation) or gain_full (the same, k and K of the whole observation); with a gain
-    structure the loss does not push the output past a label at the saturation (a teacher's command at its limit is
-    any output beyond it)."""
+    functions of the rest of the observation), gain_beyond (k and K also of the excess of e and ed beyond the range
+    where the output is affine) or gain_full (k and K of the whole observation); with a gain structure the loss does
+    not push the output past a label at the saturation (a teacher's command at its limit is any output beyond it)."""
     output: str = "linear"
     """How the network's output becomes the action: linear, or cubic (its cube; the network then learns the labels'
     cube roots, so that a nominal motion's corrections of a few hundredths of the authority are fitted as finely,

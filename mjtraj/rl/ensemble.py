@@ -53,6 +53,8 @@ class _Stacked:
     """The standardised inputs the network reads (all of them, or the gain structure's context)."""
     fast: tuple[int, int] | None
     """The gain structure's [e; ed] entries, or None."""
+    beyond: bool
+    """The network also reads the excess of e and ed beyond GAIN_RANGE (gain_beyond)."""
 
     @classmethod
     def of(cls, modules: Sequence[Any]) -> _Stacked:
@@ -72,7 +74,7 @@ class _Stacked:
         first = modules[0]
         return cls(stack(lambda m: m.mean[None]), stack(lambda m: (m.std + m.epsilon)[None]),
                    stack(lambda m: m.clip.reshape(1, 1)), layers, first.scaled, first.anchored, bool(first.cubic),
-                   first.context.cpu().numpy(), first.fast)
+                   first.context.cpu().numpy(), first.fast, bool(first.beyond))
 
     def __call__(self, obs: NDArray[np.float32]) -> NDArray[np.float32]:
         """Each member's actions (K, B, n) for float32 observations (B, d), as its torch module computes them."""
@@ -81,17 +83,21 @@ class _Stacked:
             start, stop, move = self.scaled
             x = np.concatenate([obs, obs[:, start:stop] / np.maximum(obs[:, move:move + 1], np.float32(1e-6))], axis=1)
         standard = np.clip((x - self.mean) / self.scale, -self.clip, self.clip)
-        h = standard if self.fast is None else standard[:, :, self.context]
+        h, errors = standard, None
+        if self.fast is not None:  # k + K [e; ed], e and ed within GAIN_RANGE
+            start, stop = self.fast
+            errors = np.clip(standard[:, :, start:stop], np.float32(-GAIN_RANGE), np.float32(GAIN_RANGE))
+            h = standard[:, :, self.context]
+            if self.beyond:
+                h = np.concatenate([h, standard[:, :, start:stop] - errors], axis=2)
         last = len(self.layers) - 1
         for k, (weight, bias) in enumerate(self.layers):
             h = h @ weight + bias
             if k < last:
                 h = np.tanh(h)
-        if self.fast is not None:  # k + K [e; ed], e and ed within GAIN_RANGE
-            start, stop = self.fast
-            n = (stop - start) // 2
+        if errors is not None:
+            n = errors.shape[2] // 2
             gain = h[:, :, n:].reshape(h.shape[0], h.shape[1], n, 2 * n)
-            errors = np.clip(standard[:, :, start:stop], np.float32(-GAIN_RANGE), np.float32(GAIN_RANGE))
             h = h[:, :, :n] + np.einsum("kbij,kbj->kbi", gain, errors)
         action = np.clip(h, np.float32(-1.0), np.float32(1.0))
         action = action**3 if self.cubic else action
