@@ -744,12 +744,13 @@ def test_a_full_gain_student_adds_a_gain_path_to_a_network_of_the_whole_observat
         assert torch.equal(module(obs), torch.clamp(module.raw(obs), -1, 1) ** 3)
 
 
-def test_a_gain_student_trained_on_a_linear_law_recovers_its_gains():
-    """The oracle: labels of a known law, y = G [e; ed] + C r (G a fixed 3 x 6 gain, r two entries of the rest),
-    fitted by the distillation's training step with a linear network (k and K then linear in the rest, the law inside
-    the family exactly; e and ed uniform, within GAIN_RANGE standard deviations): the student's output at held-out
-    observations is the law's, and its finite-difference gain in e and ed is G, both within 1e-4 of their size
-    (measured: 1e-7, float32)."""
+def test_a_gain_student_trained_on_a_law_whose_gain_varies_recovers_its_gains():
+    """The oracle: labels of a known law whose gain varies with the context, y = (G + r H) [e; ed] + C s (G, H fixed
+    3 x 6 gains, r one entry of the rest, s two others), fitted by the distillation's training step with a linear
+    network (k and K then linear in the rest: the law inside the form exactly, which no linear function of the
+    observation is; e and ed uniform, within GAIN_RANGE standard deviations): the student's output at held-out
+    observations is the law's, and its finite-difference gain in e and ed is G + r H, both within 1e-4 of their size
+    (measured: below 1e-6, float32)."""
     torch.manual_seed(0)
     gen = np.random.default_rng(1)
 
@@ -760,14 +761,18 @@ def test_a_gain_student_trained_on_a_linear_law_recovers_its_gains():
 
     x = draw(4000)
     G = gen.uniform(-0.1, 0.1, size=(3, 6))
+    H = gen.uniform(-0.05, 0.05, size=(3, 6))
     C = gen.uniform(-0.2, 0.2, size=(3, 2))
 
+    def gains(obs):
+        return G[None] + obs[:, 25, None, None] * H[None]  # (M, 3, 6)
+
     def law(obs):
-        return obs[:, 12:18] @ G.T + obs[:, 20:22] @ C.T
+        return np.einsum("mij,mj->mi", gains(obs), obs[:, 12:18]) + obs[:, 20:22] @ C.T
 
     module = _gain_student(hidden=())
     optimiser = torch.optim.Adam(module.net.parameters())
-    settings = dataclasses.replace(GAIN, hidden=(), epochs=20, batch=128, learning_rate=1e-2, decay=True)
+    settings = dataclasses.replace(GAIN, hidden=(), epochs=30, batch=128, learning_rate=1e-2, decay=True)
     distill_module._train(module, optimiser, x, law(x), np.ones(len(x)), settings, np.random.default_rng(2))
     held = draw(200)
     with torch.no_grad():
@@ -779,7 +784,27 @@ def test_a_gain_student_trained_on_a_linear_law_recovers_its_gains():
             step[12 + j] = h
             fd = (module(torch.as_tensor(held + step, dtype=torch.float32))
                   - module(torch.as_tensor(held - step, dtype=torch.float32))).numpy() / (2 * h)
-            np.testing.assert_allclose(fd, np.broadcast_to(G[:, j], fd.shape), atol=1e-4 * np.abs(G).max(), rtol=0)
+            np.testing.assert_allclose(fd, gains(held)[:, :, j], atol=1e-4 * np.abs(gains(held)).max(), rtol=0)
+
+
+def test_the_training_step_leaves_an_output_past_its_saturated_labels_alone():
+    """With the labels' limits, a network whose outputs all lie past labels at the limit (+1 labels, outputs 2; -1
+    labels, outputs -2) has no error and the training step leaves it unchanged, bit for bit; without them, the same
+    step pulls it to the labels (the oracle: the parameters before and after)."""
+    for bound in (True, False):
+        module = _gain_student(hidden=())
+        with torch.no_grad():
+            for parameter in module.net.parameters():
+                parameter.zero_()
+            module.net[-1].bias[:3] = torch.tensor([2.0, -2.0, 2.0])  # k; K = 0
+        before = [q.detach().clone() for q in module.net.parameters()]
+        x = np.random.default_rng(0).normal(size=(256, 40))
+        y = np.tile([1.0, -1.0, 1.0], (256, 1))
+        optimiser = torch.optim.Adam(module.net.parameters())
+        distill_module._train(module, optimiser, x, y, np.ones(256), dataclasses.replace(GAIN, epochs=2),
+                              np.random.default_rng(1), None, distill_module.saturated(y) if bound else None)
+        same = all(torch.equal(a, b) for a, b in zip(before, module.net.parameters(), strict=True))
+        assert same == bound
 
 
 def test_a_label_at_the_limit_is_met_by_any_output_beyond_it():
@@ -820,21 +845,29 @@ def test_a_gain_distillation_trains_one_sided_at_the_saturated_labels(tmp_path, 
 
 
 def test_a_gain_student_saves_and_loads_and_ppo_refuses_it(tmp_path):
-    """A distilled gain student round-trips through its file (the same actions; its joints recovered from the
-    network's n + 2 n^2 outputs), and batched PPO refuses the structure by name."""
+    """A gain student round-trips through a policy file: the module loaded acts as the one saved, bit for bit (the
+    oracle: the module in memory), its joints recovered from the network's n + 2 n^2 outputs; a distilled one's file
+    loads so too; batched PPO refuses the structure by name."""
     from mjtraj.rl.batched import BatchedSettings, train_batched
-    from mjtraj.rl.batched_policy import load_batched
+    from mjtraj.rl.batched_policy import load_batched, save_policy
 
+    torch.manual_seed(3)
+    for structure in ("gain", "gain_beyond", "gain_full"):
+        settings = dataclasses.replace(GAIN, structure=structure).policy_settings()
+        module = _gain_student()
+        module = type(module)(40, 3, settings)
+        module.std.fill_(1.0)
+        module.clip.fill_(10.0)
+        save_policy(module, tmp_path / f"{structure}.pt", {"settings": dataclasses.asdict(settings)})
+        loaded = load_batched(tmp_path / f"{structure}.pt")
+        assert loaded.n == 3 and loaded.net[-1].out_features == 3 + 2 * 9
+        obs = torch.randn(64, 40) * 3
+        with torch.no_grad():
+            assert torch.equal(loaded(obs), module(obs))
+        assert "context" not in torch.load(tmp_path / f"{structure}.pt", weights_only=True)["state"]
     report = distill(dataclasses.replace(GAIN, rounds=1, steps=10, epochs=1, validation=0), tmp_path / "run",
                      progress=False)
-    module = load_batched(report.policy)
-    assert module.n == 3 and module.net[-1].out_features == 3 + 2 * 9
-    obs = torch.randn(8, module.mean.numel())
-    saved = torch.load(report.policy, weights_only=True)
-    again = load_batched(report.policy)
-    with torch.no_grad():
-        assert torch.equal(module(obs), again(obs))
-    assert "context" not in saved["state"]  # not persistent: files without it (every earlier policy) load
+    assert load_batched(report.policy).n == 3
     with pytest.raises(InvalidInputError, match=r"^structure: batched PPO's networks act on the observation alone, "
                                                 r"expected none, got 'gain'"):
         train_batched(BatchedSettings(preview_frame="reference", structure="gain"), tmp_path / "ppo")

@@ -93,14 +93,15 @@ class BatchedSettings:
     """How the network forms its output: none (a function of the whole standardised observation), gain,
     gain_beyond or gain_full (distillation only). gain: an offset k and a gain matrix K (n x 2n), both functions of
     the observation without the measured entries q, qd, e and ed; the output is k + K [e; ed], e and ed standardised
-    and clipped to GAIN_RANGE: affine in the measured state given the rest, as a predictive law's answer is along its
-    reference where no limit binds, so that the response to a velocity error, an alternating one included, is one
-    learned gain; needs a linear output, a preview frame that does not read the measurement (absolute or
-    reference), no features and no history. gain_beyond: as gain, k and K also reading how far e and ed lie beyond
-    GAIN_RANGE (0 within it): affine within the range, free beyond it (the same needs). gain_full: the same output,
-    k and K functions of the whole observation (a network beside a gain path, nonlinear in e and ed where the data
-    asks it; any output, frame, features or history). With any of them the distillation's loss does not push the
-    output past a label at the saturation."""
+    and clipped to GAIN_RANGE: affine in e and ed given the rest (which may hold memories of the measurement: a
+    filtered disturbance, the PID integral), as a predictive law's answer is along its reference where no limit
+    binds, so that the response to a velocity error, an alternating one included, is one learned gain; needs a
+    linear output, a preview frame that does not read the measurement (absolute or reference), no features and no
+    history. gain_beyond: as gain, k and K also reading how far e and ed lie beyond GAIN_RANGE (0 within it): affine
+    within the range, free beyond it (the same needs). gain_full: the same output, k and K functions of the whole
+    observation (a network beside a gain path, nonlinear in e and ed where the data asks it; any output, frame,
+    features or history). With any of them the distillation's loss does not push the output past a label at the
+    action's limit."""
     settle: float = 0.0
     """The episodes' settle window, s, in training and validation (0: protocol v1's episodes scored by J_exec; 0.5:
     protocol v2's, scored by J_settle, held to the at-rest rule, the measured state observed)."""
