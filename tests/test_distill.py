@@ -650,11 +650,12 @@ GAIN = DistillSettings(families=("nominal",), num_envs=2, hidden=(16, 16), previ
                        controller="pid", structure="gain")
 
 
-def _gain_student(inputs: int = 40, hidden=(16, 16)):
-    """A gain-structured student (3 joints) of `inputs` observed values, standardisation the identity."""
+def _gain_student(inputs: int = 40, **changes):
+    """A student (3 joints) of `inputs` observed values with GAIN's settings and `changes` (a gain structure by
+    default), standardisation the identity."""
     from mjtraj.rl.batched_policy import batched_policy_class
 
-    module = batched_policy_class()(inputs, 3, dataclasses.replace(GAIN, hidden=hidden).policy_settings())
+    module = batched_policy_class()(inputs, 3, dataclasses.replace(GAIN, **changes).policy_settings())
     module.std.fill_(1.0)
     module.clip.fill_(1e6)
     return module
@@ -697,12 +698,10 @@ def test_a_gain_beyond_student_is_affine_within_the_range_and_reads_the_excess_b
     """structure gain_beyond: (k, K) are the network's output at the context and the excess of e and ed beyond
     GAIN_RANGE (the oracle: by hand, the excess 0 within the range), the output k + K [e; ed] with e and ed clipped;
     within the range it is affine in e and ed, and beyond it the network sees how far they lie."""
-    from mjtraj.rl.batched_policy import GAIN_RANGE, batched_policy_class
+    from mjtraj.rl.batched_policy import GAIN_RANGE
 
     torch.manual_seed(0)
-    module = batched_policy_class()(40, 3, dataclasses.replace(GAIN, structure="gain_beyond").policy_settings())
-    module.std.fill_(1.0)
-    module.clip.fill_(1e6)
+    module = _gain_student(structure="gain_beyond")
     gen = np.random.default_rng(0)
     obs = torch.as_tensor(gen.normal(size=(32, 40)), dtype=torch.float32)
     obs[:, 12:18] = torch.as_tensor(gen.uniform(-6, 6, size=(32, 6)), dtype=torch.float32)
@@ -728,13 +727,10 @@ def test_a_gain_beyond_student_is_affine_within_the_range_and_reads_the_excess_b
 def test_a_full_gain_student_adds_a_gain_path_to_a_network_of_the_whole_observation():
     """structure gain_full: (k, K) are the network's output at the whole observation (the oracle: by hand), the
     output k + K [e; ed], e and ed within GAIN_RANGE; it takes a cubic output and the relative frame."""
-    from mjtraj.rl.batched_policy import GAIN_RANGE, batched_policy_class
+    from mjtraj.rl.batched_policy import GAIN_RANGE
 
-    settings = dataclasses.replace(GAIN, structure="gain_full", output="cubic", preview_frame="relative")
     torch.manual_seed(0)
-    module = batched_policy_class()(40, 3, settings.policy_settings())
-    module.std.fill_(1.0)
-    module.clip.fill_(1e6)
+    module = _gain_student(structure="gain_full", output="cubic", preview_frame="relative")
     obs = torch.as_tensor(np.random.default_rng(0).normal(scale=2.0, size=(32, 40)), dtype=torch.float32)
     with torch.no_grad():
         out = module.net(obs)
@@ -853,12 +849,9 @@ def test_a_gain_student_saves_and_loads_and_ppo_refuses_it(tmp_path):
 
     torch.manual_seed(3)
     for structure in ("gain", "gain_beyond", "gain_full"):
-        settings = dataclasses.replace(GAIN, structure=structure).policy_settings()
-        module = _gain_student()
-        module = type(module)(40, 3, settings)
-        module.std.fill_(1.0)
-        module.clip.fill_(10.0)
-        save_policy(module, tmp_path / f"{structure}.pt", {"settings": dataclasses.asdict(settings)})
+        module = _gain_student(structure=structure)
+        record = {"settings": dataclasses.asdict(dataclasses.replace(GAIN, structure=structure).policy_settings())}
+        save_policy(module, tmp_path / f"{structure}.pt", record)
         loaded = load_batched(tmp_path / f"{structure}.pt")
         assert loaded.n == 3 and loaded.net[-1].out_features == 3 + 2 * 9
         obs = torch.randn(64, 40) * 3

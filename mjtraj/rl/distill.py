@@ -95,7 +95,8 @@ class DistillSettings:
     """How the student's network forms its output (`BatchedSettings.structure`): none, gain (k + K [e; ed], k and K
     functions of the rest of the observation), gain_beyond (k and K also of the excess of e and ed beyond the range
     where the output is affine) or gain_full (k and K of the whole observation); with a gain structure the loss does
-    not push the output past a label at the saturation (a teacher's command at its limit is any output beyond it)."""
+    not push the output past a label at the action's limit (any output beyond it makes the same command; the
+    change term, `change_weight`, stays two-sided)."""
     output: str = "linear"
     """How the network's output becomes the action: linear, or cubic (its cube; the network then learns the labels'
     cube roots, so that a nominal motion's corrections of a few hundredths of the authority are fitted as finely,
@@ -334,10 +335,11 @@ def distill(settings: DistillSettings, out: str | Path, *, progress: bool = True
         run.hold.append(hold)
         collected = time.perf_counter() - start
         states = np.concatenate(run.x)  # every round's: the largest array a distillation holds, made once a round
-        fitted = targets(_less_anchor(module, states, np.concatenate(run.y)), settings.output)
+        labels_now = np.concatenate(run.y)
+        fitted = targets(_less_anchor(module, states, labels_now), settings.output)
         weights = sample_weights(fitted, settings, np.concatenate(run.hold))
         following = successors(states, settings, 6 * env.actions) if settings.change_weight else None
-        bound = saturated(np.concatenate(run.y)) if settings.structure != "none" else None
+        bound = saturated(labels_now) if settings.structure != "none" else None
         loss = _train(module, optimiser, _inputs(module, states), fitted, weights, settings, rng, following, bound)
         row: dict[str, Any] = {"round": r, "samples": sum(len(x) for x in run.x), "collect_s": collected,
                                "train_s": time.perf_counter() - start - collected, "loss": loss}
@@ -499,8 +501,8 @@ def targets(y: NDArray[np.float64], output: str) -> NDArray[np.float64]:
 
 
 def saturated(y: NDArray[np.float64]) -> NDArray[np.int8]:
-    """(M, n): +1 where a label of y (M, n) is at the upper limit (the teacher's command saturated), -1 at the lower,
-    0 elsewhere."""
+    """(M, n): +1 where a label of y (M, n) is at the action's upper limit, -1 at the lower, 0 elsewhere (in torque
+    mode the teacher's command saturated; in residual mode the command beyond the residual's authority)."""
     return np.where(y >= 1.0, 1, np.where(y <= -1.0, -1, 0)).astype(np.int8)
 
 
