@@ -502,8 +502,7 @@ def train_batched(settings: BatchedSettings, out: str | Path, *, progress: bool 
     if settings.output != "linear":
         raise InvalidInputError(f"output: PPO explores around the network's output itself, expected linear, got "
                                 f"{settings.output!r} (a cubic output is a distillation's)")
-    shaped = [k for k, plain in (("features", "none"), ("anchor", "none"), ("structure", "none"))
-              if getattr(settings, k) != plain]
+    shaped = [k for k in ("features", "anchor", "structure") if getattr(settings, k) != "none"]
     if shaped:
         name = shaped[0]
         raise InvalidInputError(f"{name}: batched PPO's networks act on the observation alone, expected none, got "
