@@ -210,9 +210,9 @@ def test_bare_rl_and_bench_say_what_they_hold(capsys):
     """A bare `mjtraj rl` lists its subcommands (exit 0); `bench --help` names what a bare bench runs."""
     assert main(["rl"]) == 0
     out = capsys.readouterr().out
-    assert " ".join(out.split()).startswith("usage: mjtraj rl [-h] {train,search,distill,plot,eval,baselines,best,"
-                                            "ship,ensemble}")
-    for command in ("train", "search", "distill", "plot", "eval", "baselines", "best", "ship"):
+    assert " ".join(out.split()).startswith("usage: mjtraj rl [-h] {train,search,distill,plan,plot,eval,baselines,"
+                                            "best,ship,ensemble}")
+    for command in ("train", "search", "distill", "plan", "plot", "eval", "baselines", "best", "ship"):
         assert f"    {command} " in out
     from mjtraj.cli.bench import BENCH_ALL
 

@@ -374,10 +374,11 @@ def test_every_method_is_paired_against_the_named_one_and_an_unknown_name_is_ref
     assert (itself["ratio"]["value"], itself["ratio"]["low"], itself["ratio"]["high"]) == (1.0, 1.0, 1.0)
     assert itself["beats"]["value"] == 0.5
     assert "Paired against cubic+CT" in report.markdown.read_text()
-    with pytest.raises(InvalidInputError, match=r"^versus: expected a method of one run in this evaluation, one of "
+    with pytest.raises(InvalidInputError, match=r"^versus: expected a method of this evaluation, one of "
                                                 r"cubic\+PID, cubic\+CT; got 'cubic\+MPC'$"):
         evaluate([], families=("nominal",), scenarios=2, seed=3, reps=20, controllers=("pid", "computed_torque"),
                  out=tmp_path / "b", versus="cubic+MPC", protocol="v1")
+    assert not (tmp_path / "b" / "eval.csv").exists()  # refused before anything ran
     several = evaluate([], families=("nominal",), scenarios=4, seed=3, reps=20,
                        controllers=("pid", "computed_torque"), out=tmp_path / "c", versus=("cubic+CT", "cubic+PID"),
                        protocol="v1")

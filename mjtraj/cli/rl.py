@@ -211,6 +211,32 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--resume", action="store_true", help="continue the distillation saved in --out")
     no_progress_option(p)
     p.set_defaults(handler=run_distill)
+    p = rl_sub.add_parser("plan", help="fit a plan policy to mpc's executions (mjtraj.rl.plan_train): mpc executes "
+                          "training-stream tasks on the nominal plant, a network learns its plan as an offset from "
+                          "the held cubic, and computed torque tracks the plan with mpc's filtered disturbance "
+                          "subtracted; policy.npz (rl eval --policy RUN/policy.npz scores it), run.json, labels.npz "
+                          "(reused when run again on the same folder with the same task settings)")
+    p.add_argument("--families", "--family", type=names, default=["nominal", "aggressive", "mismatch"],
+                   help="families whose rules draw the training tasks, comma-separated (default "
+                   "nominal,aggressive,mismatch)")
+    p.add_argument("--tasks", type=int, default=2000, help="training tasks per family (default 2000)")
+    p.add_argument("--epochs", type=int, default=200, help="passes over the labelled samples (default 200)")
+    p.add_argument("--batch", type=int, default=512, help="samples per gradient step (default 512)")
+    p.add_argument("--learning-rate", dest="learning_rate", type=float, default=1e-3,
+                   help="Adam's initial step, decayed by a cosine (default 1e-3)")
+    p.add_argument("--hidden", type=widths, default=[256, 256, 256],
+                   help="hidden layer widths, comma-separated (default 256,256,256)")
+    p.add_argument("--weighting", choices=("task", "family"), default="task",
+                   help="what a task's squared errors are divided by: task, its own J_settle under mpc and its "
+                   "samples; family, its family's mean J_settle (the loss reads as the benchmark's ratio of means) "
+                   "(default task)")
+    p.add_argument("--seed", type=int, default=0, help="the training streams' seed and the fit's (default 0)")
+    p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="processes that run mpc for the labels (the labels do not depend on it; default 1)")
+    p.add_argument("--out", type=Path, default=Path("runs/plan"), help="output folder (default runs/plan)")
+    no_progress_option(p)
+    p.set_defaults(handler=run_plan)
     p = rl_sub.add_parser("plot", help="redraw a run's learning_curve.png from its learning_curve.csv (also of a run "
                           "still going or interrupted)")
     p.add_argument("run", type=Path, help="the folder rl train wrote")
@@ -432,6 +458,20 @@ def run_distill(args: argparse.Namespace) -> int:
         report = distill(settings, args.out, progress=not args.no_progress, command=command_line(args))
     print(f"wrote {report.policy} (the last round's, {int(report.rounds[-1]['samples'])} labelled states) and "
           f"{report.best} (the best validated round's); score one: mjtraj rl eval --policy {report.best}")
+    return 0
+
+
+def run_plan(args: argparse.Namespace) -> int:
+    """`mjtraj rl plan`."""
+    from mjtraj.rl.plan_train import PlanSettings, train_plan
+
+    settings = PlanSettings(families=tuple(args.families), tasks=args.tasks, epochs=args.epochs, batch=args.batch,
+                            learning_rate=args.learning_rate, hidden=tuple(args.hidden), weighting=args.weighting,
+                            seed=args.seed, threads=args.threads, workers=args.workers)
+    report = train_plan(settings, args.out, progress=not args.no_progress, command=command_line(args))
+    seconds = report.record["seconds"]
+    print(f"wrote {report.policy} ({report.record['samples']} labelled samples; labels {seconds['labels']:.0f} s, "
+          f"fit {seconds['fit']:.0f} s); score it: mjtraj rl eval --protocol v2 --policy {report.policy}")
     return 0
 
 

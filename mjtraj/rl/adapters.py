@@ -430,10 +430,21 @@ def _batched(path: Path, *, source: str) -> ScoredPolicy:
     return policy
 
 
+def _plan(path: Path, *, source: str) -> ScoredPolicy:
+    """A plan policy file (mjtraj.rl.plan_policy) as the benchmark scores it, named `source`; its sha256 covers
+    the file."""
+    from mjtraj.rl.plan_policy import load_plan
+
+    module = load_plan(path)
+    policy = from_object(module, label=module.name, source=source)
+    policy.path = path  # its record declares its streams as a callable does (`streams`), checked as theirs
+    return policy
+
+
 def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> ScoredPolicy:
-    """A policy from what a user names: PATH.zip (rl train's), PATH.pt (rl train --batched's), baseline:NAME
-    (shipped), MODULE:ATTR or FILE.py:ATTR (a callable or torch module), or the object itself. `settings`
-    (ENV_KEYS) apply to policies that are not zips where they do not declare their own.
+    """A policy from what a user names: PATH.zip (rl train's), PATH.pt (rl train --batched's), PATH.npz (rl
+    plan's), baseline:NAME (shipped), MODULE:ATTR or FILE.py:ATTR (a callable or torch module), or the object
+    itself. `settings` (ENV_KEYS) apply to policies that are not zips where they do not declare their own.
 
     Raises:
       InvalidInputError: nothing loadable by that name (the message says why).
@@ -448,12 +459,16 @@ def load_any(source: Any, *, settings: Mapping[str, Any] | None = None) -> Score
         from mjtraj.rl.baselines import baseline_path
 
         path = baseline_path(text.split(":", 1)[1])
+        if path.suffix == ".npz":
+            return _plan(path, source=text)
         if path.suffix == ".pt":
             return _batched(path, source=text)
         return from_zip_policy(load_policy(path), source=text)
     if text.endswith(".py") and ":" not in text:
         raise InvalidInputError(f"policy: expected FILE.py:ATTR (the file and the name of the policy in it, e.g. "
                                 f"{text}:policy), got {text!r}")
+    if text.endswith(".npz") and ":" not in text:  # a plan policy (mjtraj.rl.plan_policy)
+        return _plan(Path(text), source=text)
     if text.endswith(".pt") and ":" not in text:  # a batched run's policy (mjtraj.rl.batched)
         return _batched(Path(text), source=text)
     if text.endswith(".zip") or ":" not in text or Path(text).exists():

@@ -61,34 +61,44 @@ def law_compute(config: Any, family_tasks: Sequence[Any], model: Any, planner: A
 
 
 def policy_compute(act: Any, size: int, *, shadows: Sequence[str] = (), config: Any = None, model: Any = None,
-                   references: Sequence[Any] = ()) -> StepCompute:
+                   references: Sequence[Any] = (), observer: Any = None, reset: Any = None) -> StepCompute:
     """A policy's inference `act` timed on one observation of `size` values at a time (batch 1). A policy whose
     observation needs estimators beside the loop (`shadows`, e.g. `mpc_filter`) is timed per period along the law's
     execution of each of `references` (loop `config` on `model`, one simulation): the estimators' update and the
-    inference together, as a deployed policy spends them."""
+    inference together, as a deployed policy spends them. A policy with episode state (`reset(starts)`) is timed
+    there on the observations `observer` (a `mjtraj.envs.Observer` of one simulation) makes of that execution, each
+    reference an episode it starts (the observations made untimed, as the zeros of the others are): its first
+    period, where it may plan, counts as any other."""
     obs = np.zeros((1, size))
     times: list[float] = []
     with one_blas_thread():
-        for k in range(10 + POLICY_CALLS * (not shadows)):
+        for k in range(0 if observer is not None else 10 + POLICY_CALLS * (not shadows)):
             clock = time.perf_counter()
             act(obs)
             if k >= 10:
                 times.append(time.perf_counter() - clock)
-        if not shadows:
+        if not shadows and observer is None:
             return _summary("inference, batch 1", times)
         from mjtraj.core import ClosedLoop
 
         for ref in references:
             loop = ClosedLoop(model, config, nsim=1, teachers=tuple(shadows))
             loop.start([ref])
+            if observer is not None:
+                observer.start(np.arange(1), [None], [ref])
+                reset(np.ones(1, dtype=bool))
             while not loop.done.all():
                 clock = time.perf_counter()
                 for name in shadows:
                     loop.teach(name)
-                act(obs)
-                times.append(time.perf_counter() - clock)
+                spent = time.perf_counter() - clock
+                given = observer(loop) if observer is not None else obs  # made apart, as the zeros are
+                clock = time.perf_counter()
+                act(given)
+                times.append(spent + time.perf_counter() - clock)
                 loop.step()
-    return _summary(f"inference and {', '.join(shadows)}, batch 1", times)
+    what = ", ".join(("inference", *shadows))
+    return _summary(f"{what}, batch 1{', on its episodes' if observer is not None else ''}", times)
 
 
 def _summary(what: str, seconds: Sequence[float]) -> StepCompute:

@@ -307,6 +307,7 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
     request = _request(policies, families=families, scenarios=scenarios, seed=seed, planners=planners,
                        controllers=controllers, settings=settings, out=out, reps=reps, threads=threads,
                        figure_formats=figure_formats, protocol=protocol)
+    _check_versus(versus, request, tuned_gains is not None)
     plans = _plans(request, tuned_gains, batch)
     rows = _executions(request, plans, progress=progress, keep_going=keep_going)
     floors = scenario_floors(request.families, request.scenarios, request.seed, request.out, progress,
@@ -317,6 +318,18 @@ def evaluate(policies: Sequence[Any], *, families: Sequence[str] | None = None, 
     computes = _computes(request, plans)
     return _reports(request, rows, floors, csv_path, computes, tuned_gains=tuned_gains, progress=progress,
                     figure_formats=figure_formats, versus=versus, command=command)
+
+
+def _check_versus(versus: str | Sequence[str] | None, request: _Request, tuned: bool) -> None:
+    """InvalidInputError, before anything runs, if a `versus` method is none of the evaluation's (whether it is one
+    run, not several seeds, is checked once the rows are in)."""
+    methods = [f"{planner}+{law_label(law)}" for law in request.laws for planner in request.planners]
+    methods += [TUNED_LABEL] * tuned + [ORACLE_LABEL] * ("adaptive_computed_torque" in request.laws)
+    methods += list(dict.fromkeys(request.labels))
+    for method in [versus] if isinstance(versus, str) else list(versus or ()):
+        if method not in methods:
+            raise InvalidInputError(f"versus: expected a method of this evaluation, one of {', '.join(methods)}; "
+                                    f"got {method!r}")
 
 
 @dataclass(frozen=True)
@@ -450,10 +463,12 @@ def _executions(request: _Request, plans: list[_Plan], *, progress: bool, keep_g
 def _computes(request: _Request, plans: list[_Plan]) -> dict[str, StepCompute]:
     """Each method's per-period compute (`mjtraj.rl.compute`): every law of the evaluation timed along its own
     execution of the first scenario of each family (cubic, the protocol's window), and every policy's inference
-    (with the estimators it observes, e.g. `mpc_filter`, timed with it along those executions; not a recurrent or
-    privileged one, which a call outside its episodes would disturb or could not feed, nor one
-    that raises)."""
+    (with the estimators it observes, e.g. `mpc_filter`, timed with it along those executions; a callable with
+    episode state, `reset`, on the observations of those executions, each an episode it starts; not a privileged
+    one, which could not be fed, a recurrent zip or module, whose state a call outside its episodes would disturb,
+    nor one that raises)."""
     from mjtraj.core import held, window_steps
+    from mjtraj.envs import Observer
     from mjtraj.study import draw_scenario
 
     out: dict[str, StepCompute] = {}
@@ -473,16 +488,22 @@ def _computes(request: _Request, plans: list[_Plan]) -> dict[str, StepCompute]:
         out[f"cubic+{law_label(law)}"] = law_compute(mine[0][1].base.loop, [], mine[0][1].base.model, None,
                                                      references=references(mine))
     for policy, label in zip(request.loaded, request.labels, strict=True):
-        if policy.reset_hook is None and not policy.privileged:  # no episode state, no plants: callable alone
-            settings = acting_settings(policy, request.protocol)
-            shadows = settings.shadows()
-            mine = list({family: (family, sweep) for family, _, sweep, _ in plans}.values()) if shadows else []
-            try:
-                out[label] = policy_compute(policy.act_batch, settings.obs_size, shadows=shadows,
-                                            config=settings.loop, model=settings.model,
-                                            references=references(mine) if mine else ())
-            except Exception:  # noqa: BLE001 - a broken policy (kept going) is not timed; its rows say why
-                continue
+        if policy.privileged or (policy.reset_hook is not None and (policy.env.get("history", 0) or policy.kind
+                                                                     != "callable")):
+            continue  # plants it cannot be fed, or a recurrent state a call outside its episodes would disturb
+        settings = acting_settings(policy, request.protocol)
+        shadows = settings.shadows()
+        stateful = policy.reset_hook is not None  # a callable with episode state: timed on its own episodes
+        mine = (list({family: (family, sweep) for family, _, sweep, _ in plans}.values()) if shadows or stateful
+                else [])
+        try:
+            out[label] = policy_compute(policy.act_batch, settings.obs_size, shadows=shadows,
+                                        config=settings.loop, model=settings.model,
+                                        references=references(mine) if mine else (),
+                                        observer=Observer(settings, 1) if stateful else None,
+                                        reset=policy.reset_hook)
+        except Exception:  # noqa: BLE001 - a broken policy (kept going) is not timed; its rows say why
+            continue
     return out
 
 

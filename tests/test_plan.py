@@ -1,0 +1,235 @@
+"""The plan policy (mjtraj.rl.plan_policy) and its fit (mjtraj.rl.plan_train), against oracles: the task the
+observation encodes, the pipeline's computed-torque law with the anchor, `mpc`'s own execution, a known function."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401 - registers the envs
+from mjtraj.core.settle import Settle
+from mjtraj.domain.pipeline import Job, execute_batch
+from mjtraj.exceptions import InvalidInputError
+from mjtraj.rl.adapters import load_any
+from mjtraj.rl.evaluate import check_held_out
+from mjtraj.rl.plan_policy import PLAN_ENV, PlanNetwork, PlanPolicy, held_cubic, load_plan, save_plan, task_of
+from mjtraj.rl.plan_train import Labels, PlanSettings, env_settings, fit, label, train_plan
+
+WINDOW = 0.5
+
+
+def _zero_network(inputs: int = 49, outputs: int = 9) -> PlanNetwork:
+    return PlanNetwork([(np.zeros((inputs, outputs)), np.zeros(outputs))], np.zeros(inputs), np.ones(inputs))
+
+
+def _episode(policy: PlanPolicy, family: str, seed: int) -> tuple[dict, np.ndarray, float]:
+    """The policy's whole episode in UR5Track-v2 (PLAN_ENV): the task, the visited positions (N + S + 1, n) and the
+    episode's J_settle."""
+    env = gym.make_vec("UR5Track-v2", num_envs=1, vectorization_mode="vector_entry_point", family=family,
+                       **{k: v for k, v in PLAN_ENV.items() if k != "planner"})
+    obs, info = env.reset(seed=seed)
+    task = {k: v[0] for k, v in info["task"].items()}
+    policy.reset(np.ones(1, dtype=bool))
+    q = [obs[0, :3]]
+    while True:
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        q.append(obs[0, :3])  # the ending step returns the final observation (autoreset on the next step)
+        if terminated[0] or truncated[0]:
+            cost = float(info["metrics"]["cost"][0])  # J_settle in an episode with a settle window
+            break
+    env.close()
+    return task, np.array(q), cost
+
+
+def test_the_task_read_from_the_first_observation_is_the_episodes():
+    """task_of: q0 exactly, the goal within 1e-9 rad of the env's (info["task"]), the duration exactly, on tasks of
+    every family (the aggressive family's durations vary)."""
+    for family, seed in (("nominal", 3), ("aggressive", 4), ("mismatch", 5)):
+        env = gym.make_vec("UR5Track-v2", num_envs=1, vectorization_mode="vector_entry_point", family=family,
+                           **{k: v for k, v in PLAN_ENV.items() if k != "planner"})
+        obs, info = env.reset(seed=seed)
+        env.close()
+        task = task_of(obs[0], 3, 0.02)
+        np.testing.assert_array_equal(task.q0, info["task"]["q0"][0])
+        np.testing.assert_allclose(task.qg, info["task"]["qg"][0], rtol=0, atol=1e-9)
+        assert task.duration == info["task"]["duration"][0]
+
+
+def test_zero_offsets_command_computed_torque_with_the_anchor_as_the_pipeline_runs_it():
+    """With a network that outputs zeros the plan is the held cubic, and the episode the env runs under the policy
+    is the one the pipeline runs with its computed-torque law and an actor adding -d (mpc_filter's estimate): the
+    same positions to 1e-8 rad at every period (the policy reads the goal from the observation, to 1e-9 rad), and
+    the same score to 1e-6."""
+    from envs.core import disturbance_estimate
+
+    settings = env_settings(WINDOW)
+    policy = PlanPolicy(_zero_network(), {"window_steps": settings.settle_steps}, settings)
+    task_info, q_env, cost_env = _episode(policy, "nominal", 11)
+    task = _task(task_info)
+    target = held_cubic(task, settings.planner, settings.model, settings.settle_steps)
+
+    class Anchor:
+        shadows = ("mpc_filter",)
+        action_mode = "residual"
+
+        def begin(self, loop, refs, perts):
+            pass
+
+        def act(self, loop):
+            return -disturbance_estimate(loop)
+
+    loop = dataclasses.replace(settings.loop, controller="computed_torque")
+    rollout, outcomes = execute_batch(settings.model, loop, [Job(target, settings.weights(task), None, None,
+                                                                 Settle.of(task, task.steps, settings.settle_steps))],
+                                      actor=Anchor())
+    q_pipe = np.concatenate([rollout.q[0], rollout.q_final])
+    np.testing.assert_allclose(q_env, q_pipe, rtol=0, atol=1e-8)
+    assert cost_env == pytest.approx(outcomes[0].metrics["cost"], rel=1e-6)
+
+
+def _task(info: dict):
+    from mjtraj.core.task import Task
+
+    return Task(np.asarray(info["q0"]), np.asarray(info["qg"]), float(info["duration"]), 0.02)
+
+
+def test_mpcs_own_execution_as_the_plan_reproduces_mpcs_score():
+    """The oracle plan: `mpc`'s nominal execution of the episode's task (the labels `label` makes, times the move
+    squared) tracked by the policy scores `mpc`'s J_settle within 0.5 % and ends at rest, on a nominal and an
+    aggressive task."""
+    settings = env_settings(WINDOW)
+
+    class Oracle(PlanPolicy):
+        def plan(self, task):
+            labels = label(PlanSettings(), tasks=[task])
+            target = held_cubic(task, self.settings.planner, self.settings.model, self.window)
+            self.mpc_cost = float(labels.cost[0])
+            return np.concatenate([target.q, target.qd, target.qdd], axis=1) + labels.y * np.max(
+                np.abs(task.qg - task.q0)) ** 2
+
+    for family, seed in (("nominal", 1), ("aggressive", 2)):
+        policy = Oracle(_zero_network(), {"window_steps": settings.settle_steps}, settings)
+        _, q, cost = _episode(policy, family, seed)
+        assert cost == pytest.approx(policy.mpc_cost, rel=5e-3)
+
+
+def test_a_fit_recovers_a_known_smooth_function():
+    """fit: labels that are a smooth function of the features (sines of linear maps), uniform weights: the loss ends
+    below 1 % of the zero plan's, and the saved network (NumPy) gives the torch fit's outputs."""
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-1, 1, size=(2000, 5))
+    a = rng.normal(size=(5, 9))
+    y = np.sin(x @ a) * 0.5
+    labels = Labels(x, y, np.ones_like(y), np.array([0, 2000]), np.ones(1), np.zeros(1, dtype=np.intp))
+    network, losses = fit(labels, PlanSettings(epochs=60, batch=64, hidden=(64, 64), learning_rate=3e-3,
+                                               weighting="family"))
+    assert losses[-1] < 0.01 < losses[0]
+    assert np.mean((network(x) - y) ** 2) / np.mean(y ** 2) < 0.01
+
+
+def test_a_plan_policy_file_loads_as_saved_and_scores_through_rl_eval(tmp_path):
+    """save_plan, load_plan: the network's outputs bit for bit and the record; load_any reads PATH.npz as a plan
+    policy acting in PLAN_ENV whose sha256 covers the file."""
+    rng = np.random.default_rng(1)
+    layers = [(rng.normal(size=(49, 8)), rng.normal(size=8)), (rng.normal(size=(8, 9)), rng.normal(size=9))]
+    network = PlanNetwork(layers, rng.normal(size=49), rng.uniform(1, 2, size=49))
+    record = {"window_steps": 25, "dt": 0.02, "label": "test", "streams": [[0, 16, 0]]}
+    save_plan(network, record, tmp_path / "policy.npz")
+    loaded = load_plan(tmp_path / "policy.npz")
+    x = rng.normal(size=(4, 49))
+    np.testing.assert_array_equal(loaded.network(x), network(x))
+    assert loaded.record["label"] == "test" and loaded.streams == [[0, 16, 0]]
+    scored = load_any(str(tmp_path / "policy.npz"))
+    assert scored.env["action_mode"] == "torque" and scored.env["observe_disturbance"] is True
+    first = scored.sha256
+    save_plan(PlanNetwork([(w * 2, b) for w, b in network.layers], network.mean, network.std), record,
+              tmp_path / "policy.npz")
+    assert load_any(str(tmp_path / "policy.npz")).sha256 != first
+    (tmp_path / "bad.npz").write_bytes(b"not a file")
+    with pytest.raises(InvalidInputError, match=r"^policy: .*bad.npz is not a plan policy file"):
+        load_plan(tmp_path / "bad.npz")
+
+
+def test_rl_eval_refuses_a_plan_policy_on_the_streams_it_trained_on(tmp_path):
+    """A plan policy declares its training streams; scored on a scenario drawn from one of them it is refused (the
+    oracle: a record naming the nominal family's scenario 2 under seed 5)."""
+    record = {"window_steps": 25, "dt": 0.02, "label": "test", "streams": [[5, 0, 2]]}
+    save_plan(_zero_network(), record, tmp_path / "policy.npz")
+    scored = load_any(str(tmp_path / "policy.npz"))
+    check_held_out(scored, "nominal", 5, 2)  # scenarios 0 and 1: apart
+    with pytest.raises(InvalidInputError, match=r"^seed: 1 of the nominal scenarios under seed 5 share a seed stream"):
+        check_held_out(scored, "nominal", 5, 3)
+
+
+def test_plan_settings_refuse_bad_values_by_name():
+    for kwargs, pattern in (({"tasks": 0}, r"^tasks: expected a whole number >= 1, got 0$"),
+                            ({"families": ("nominal", "noisy")}, r"^families: "),
+                            ({"families": ()}, r"^families: expected at least one"),
+                            ({"hidden": (8, 0)}, r"^hidden: expected layer widths >= 1"),
+                            ({"learning_rate": -1.0}, r"^learning_rate: "),
+                            ({"seed": -1}, r"^seed: ")):
+        with pytest.raises(InvalidInputError, match=pattern):
+            PlanSettings(**kwargs)
+
+
+def test_a_run_reuses_its_labels_and_refuses_another_runs(tmp_path):
+    """train_plan on a folder with labels of the same task settings fits again without labelling (the same
+    labels, so the same policy bit for bit: the fit is seeded); labels of other settings are refused by name."""
+    settings = PlanSettings(families=("nominal",), tasks=2, epochs=2, hidden=(8,))
+    first = train_plan(settings, tmp_path, progress=False)
+    saved = (tmp_path / "labels.npz").stat().st_mtime_ns
+    again = train_plan(settings, tmp_path, progress=False)
+    assert (tmp_path / "labels.npz").stat().st_mtime_ns == saved
+    assert again.record["seconds"]["labels"] == first.record["seconds"]["labels"]
+    x = np.random.default_rng(2).normal(size=(3, 49))
+    np.testing.assert_array_equal(load_plan(first.policy).network(x), load_plan(again.policy).network(x))
+    assert json.loads((tmp_path / "run.json").read_text())["samples"] == first.record["samples"]
+    with pytest.raises(InvalidInputError, match=r"^out: .*labels.npz holds labels of other settings"):
+        train_plan(PlanSettings(families=("nominal",), tasks=3, epochs=2, hidden=(8,)), tmp_path, progress=False)
+
+
+def test_labels_do_not_depend_on_the_workers_that_make_them():
+    """label with two processes gives one process's labels bit for bit (the chunks are run alike)."""
+    one = label(PlanSettings(families=("nominal", "aggressive"), tasks=2, workers=1))
+    two = label(PlanSettings(families=("nominal", "aggressive"), tasks=2, workers=2))
+    for name in ("x", "y", "w", "starts", "cost", "family"):
+        np.testing.assert_array_equal(getattr(one, name), getattr(two, name))
+    assert one.family.tolist() == [0, 0, 1, 1]
+
+
+def test_a_plan_policy_is_timed_on_its_own_episodes():
+    """policy_compute with an observer: the policy gets the observations of the law's execution, each reference an
+    episode it starts (the oracle: on zeros its task cannot be read and it raises), and is timed on every period of
+    each, the estimators it observes with it."""
+    from mjtraj.envs import Observer
+
+    from mjtraj.exceptions import PolicyError
+    from mjtraj.rl.compute import policy_compute
+
+    settings = env_settings(WINDOW)
+    policy = PlanPolicy(_zero_network(), {"window_steps": settings.settle_steps}, settings)
+    with pytest.raises(PolicyError, match=r"^plan policy: an episode's first observation must be at phase 0"):
+        policy(np.zeros((1, settings.obs_size)))
+    tasks = [_task({"q0": [0.1, -1.0, 1.2], "qg": [0.5, -0.7, 0.9], "duration": d}) for d in (1.0, 0.6)]
+    references = [held_cubic(t, settings.planner, settings.model, settings.settle_steps) for t in tasks]
+    compute = policy_compute(policy, settings.obs_size, shadows=settings.shadows(), config=settings.loop,
+                             model=settings.model, references=references, observer=Observer(settings, 1),
+                             reset=policy.reset)
+    assert compute.samples == sum(t.steps + settings.settle_steps for t in tasks)
+    assert compute.what == "inference, mpc_filter, batch 1, on its episodes"
+    assert 0 < compute.median_ms <= compute.p99_ms
+
+
+def test_a_fits_name_is_its_configuration_without_the_seed():
+    """configuration: fits that differ only in their seed share a name (so rl eval pools them as seeds); any other
+    setting that shapes the policy shows."""
+    from mjtraj.rl.plan_train import configuration
+
+    assert configuration(PlanSettings(seed=3)) == configuration(PlanSettings(seed=4)) == (
+        "task weighting, 2000 tasks, 200 epochs")
+    assert configuration(PlanSettings(weighting="family", hidden=(64, 64), families=("nominal",))) == (
+        "family weighting, 2000 tasks, 200 epochs, families nominal, hidden 64/64")
