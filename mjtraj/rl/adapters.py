@@ -90,6 +90,9 @@ class ScoredPolicy:
     record: dict[str, Any] | None = field(default=None, repr=False)
     path: Path | None = None
     streams: list[Any] | None = field(default=None, repr=False)
+    configuration: str | None = None
+    """A policy without a record that names its configuration (a plan policy: its fit's settings but the seed):
+    policies of one configuration pool as seeds in `rl eval`; None: a configuration of its own."""
     _settings: TrackSettings | None = field(default=None, repr=False)
     _given: int = field(default=0, repr=False)
     """Observations given so far (where a failing call's first observation is)."""
@@ -438,6 +441,7 @@ def _plan(path: Path, *, source: str) -> ScoredPolicy:
     module = load_plan(path)
     policy = from_object(module, label=module.name, source=source)
     policy.path = path  # its record declares its streams as a callable does (`streams`), checked as theirs
+    policy.configuration = module.name  # the fit's settings but its seed: fits of other seeds pool
     return policy
 
 

@@ -97,7 +97,7 @@ def policy_compute(act: Any, size: int, *, shadows: Sequence[str] = (), config: 
                 act(given)
                 times.append(spent + time.perf_counter() - clock)
                 loop.step()
-    what = ", ".join(("inference", *shadows))
+    what = f"inference and {', '.join(shadows)}" if shadows else "inference"
     return _summary(f"{what}, batch 1{', on its episodes' if observer is not None else ''}", times)
 
 

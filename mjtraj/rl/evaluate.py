@@ -189,16 +189,18 @@ def _recipe(record: dict[str, Any]) -> dict[str, Any]:
 def configurations(policies: Sequence[Any], labels: Sequence[str]) -> dict[str, list[str]]:
     """The policies' table labels grouped by configuration: for a zip everything of the training run but its seed
     and threads, and which of its saved policies it is (policy, best or a step checkpoint, by file name); for an
-    ensemble the same of each member, as a multiset (ensembles of other member seeds pool as seeds); a user's
-    policy is a configuration of its own. The key is the configuration's label (with the file's stem unless it is
-    the final policy), followed, where configurations share a label, by the settings in which they differ (such
-    as [steps=200000])."""
+    ensemble the same of each member, as a multiset (ensembles of other member seeds pool as seeds); a policy
+    without a record that names its configuration (a plan policy) pools with those that name the same; any other
+    user's policy is a configuration of its own. The key is the configuration's label (with the file's stem unless
+    it is the final policy), followed, where configurations share a label, by the settings in which they differ
+    (such as [steps=200000])."""
     facts: dict[str, tuple[str, dict[str, Any]]] = {}
     groups: dict[str, list[str]] = {}
     for policy, label in zip(policies, labels, strict=True):
         if policy.record is None:
-            key = json.dumps(["object", label])
-            facts[key] = label, {}
+            named = getattr(policy, "configuration", None)
+            key = json.dumps(["named", named] if named else ["object", label])
+            facts[key] = named or label, {}
             groups.setdefault(key, []).append(label)
             continue
         settings = _recipe(policy.record)
@@ -325,7 +327,7 @@ def _check_versus(versus: str | Sequence[str] | None, request: _Request, tuned: 
     run, not several seeds, is checked once the rows are in)."""
     methods = [f"{planner}+{law_label(law)}" for law in request.laws for planner in request.planners]
     methods += [TUNED_LABEL] * tuned + [ORACLE_LABEL] * ("adaptive_computed_torque" in request.laws)
-    methods += list(dict.fromkeys(request.labels))
+    methods += list(configurations(request.loaded, request.labels))
     for method in [versus] if isinstance(versus, str) else list(versus or ()):
         if method not in methods:
             raise InvalidInputError(f"versus: expected a method of this evaluation, one of {', '.join(methods)}; "

@@ -49,7 +49,7 @@ def held_cubic(task: Task, planner: Any, model: Any, window: int) -> Any:
 
 
 def plan_features(task: Task, target: Any, probe: DynamicsProbe) -> NDArray[np.float64]:
-    """(N + S + 1, 2n + 3 + 4 + 3n + 1 + n len(SHIFTS)) features of every sample of an episode of `task` whose held
+    """(N + S + 1, (n - 1) + n + 4 + 3n + 1 + n len(SHIFTS)) features of every sample of an episode of `task` whose held
     cubic is `target` (a Reference of N + S + 1 samples): q0 without the pan joint (the UR5's first axis is
     vertical: the dynamics do not depend on it), the displacement qg - q0, T, t, t - T, min(t / T, 1), the cubic's
     q, qd, qdd, log of the move, then the cubic's inverse-dynamics torque (N m, gravity compensated) at SHIFTS."""
@@ -196,11 +196,12 @@ def load_plan(path: str | Path) -> PlanPolicy:
         with np.load(path, allow_pickle=False) as saved:
             arrays = {k: saved[k] for k in saved.files}
         record = json.loads(str(arrays.pop("record")))
-    except (OSError, ValueError, KeyError) as e:
-        raise InvalidInputError(f"policy: {path} is not a plan policy file ({e})") from e
+        window = int(record["window_steps"]) * float(record["dt"])
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise InvalidInputError(f"policy: {path} is not a plan policy file ({type(e).__name__}: {e})") from e
     if record.get("format") != PLAN_POLICY:
         raise InvalidInputError(f"policy: {path} is not a plan policy file (format {record.get('format')!r}, "
                                 f"expected {PLAN_POLICY!r})")
-    settings = resolve(**PLAN_ENV, settle=record["window_steps"] * record["dt"])
+    settings = resolve(**PLAN_ENV, settle=window)
     return PlanPolicy(PlanNetwork.from_arrays(arrays), record, settings, streams=record.get("streams"),
                       files=[str(path.resolve())])

@@ -91,7 +91,10 @@ class PlanSettings:
 
     def label_settings(self) -> dict[str, Any]:
         """What decides the labels (a saved labels.npz is reused only if these match)."""
-        return {"families": list(self.families), "tasks": self.tasks, "window": self.window, "seed": self.seed}
+        from mjtraj.versions import library_version
+
+        return {"families": list(self.families), "tasks": self.tasks, "window": self.window, "seed": self.seed,
+                "run": PLAN_RUN, "mjtraj": library_version("mjtraj")}
 
 
 @dataclass
@@ -173,6 +176,11 @@ def label(settings: PlanSettings, tasks: list[Any] | None = None, progress: bool
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
+    bad = [i for i, p in enumerate(parts) if not (np.isfinite(cost[i]) and np.isfinite(p[1]).all())]
+    if bad:
+        raise InvalidInputError(f"tasks: mpc's execution of {len(bad)} of the {len(tasks)} training tasks is not "
+                                f"finite (the first: task {bad[0]}, stream {settings.streams()[bad[0]]}); expected "
+                                "every label finite")
     x, y, w = (np.concatenate([p[k] for p in parts]) for k in range(3))
     starts = np.concatenate([[0], np.cumsum([p[0].shape[0] for p in parts])]).astype(np.intp)
     family = np.repeat(np.arange(len(settings.families)), settings.tasks)[:len(tasks)]
@@ -224,7 +232,8 @@ def fit(labels: Labels, settings: PlanSettings, progress: bool = False) -> tuple
 
     torch.set_num_threads(settings.threads)
     torch.manual_seed(settings.seed)
-    mean, std = labels.x.mean(axis=0), labels.x.std(axis=0) + 1e-9
+    mean, std = labels.x.mean(axis=0), labels.x.std(axis=0)
+    std = np.where(std < 1e-9 * (1.0 + np.abs(mean)), 1.0, std)  # a feature constant in training: centred only
     x = torch.tensor((labels.x - mean) / std, dtype=torch.float32)
     y = torch.tensor(labels.y, dtype=torch.float32)
     w = torch.tensor(labels.weights(settings.weighting), dtype=torch.float32)
@@ -267,12 +276,15 @@ def _saved_labels(settings: PlanSettings, path: Path) -> Labels | None:
     """The labels saved at `path` if they were made with these settings."""
     if not path.is_file():
         return None
-    with np.load(path, allow_pickle=False) as saved:
-        if json.loads(str(saved["settings"])) != settings.label_settings():
-            raise InvalidInputError(f"out: {path} holds labels of other settings "
-                                    f"({json.loads(str(saved['settings']))}, this run's {settings.label_settings()}): "
-                                    "use another folder")
-        arrays = {f.name: saved[f.name] for f in dataclasses.fields(Labels)}
+    try:
+        with np.load(path, allow_pickle=False) as saved:
+            made = json.loads(str(saved["settings"]))
+            arrays = {f.name: saved[f.name] for f in dataclasses.fields(Labels)}
+    except (OSError, ValueError, KeyError) as e:
+        raise InvalidInputError(f"out: {path} is not a labels file of mjtraj rl plan ({e}); use another folder") from e
+    if made != settings.label_settings():
+        raise InvalidInputError(f"out: {path} holds labels of other settings ({made}, this run's "
+                                f"{settings.label_settings()}): use another folder")
     return Labels(**{**arrays, "seconds": float(arrays["seconds"])})
 
 
