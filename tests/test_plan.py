@@ -17,6 +17,7 @@ from mjtraj.exceptions import InvalidInputError
 from mjtraj.rl.adapters import load_any
 from mjtraj.rl.evaluate import check_held_out
 from mjtraj.rl.plan_policy import PLAN_ENV, PlanNetwork, PlanPolicy, held_cubic, load_plan, save_plan, task_of
+from mjtraj.rl.plan_tracker import Tracker
 from mjtraj.rl.plan_train import Labels, PlanSettings, env_settings, fit, label, train_plan
 
 WINDOW = 0.5
@@ -30,7 +31,7 @@ def _episode(policy: PlanPolicy, family: str, seed: int) -> tuple[dict, np.ndarr
     """The policy's whole episode in UR5Track-v2 (PLAN_ENV): the task, the visited positions (N + S + 1, n) and the
     episode's J_settle."""
     env = gym.make_vec("UR5Track-v2", num_envs=1, vectorization_mode="vector_entry_point", family=family,
-                       **{k: v for k, v in PLAN_ENV.items() if k != "planner"})
+                       **{k: v for k, v in policy.env.items() if k != "planner"})
     obs, info = env.reset(seed=seed)
     task = {k: v[0] for k, v in info["task"].items()}
     policy.reset(np.ones(1, dtype=bool))
@@ -60,14 +61,15 @@ def test_the_task_read_from_the_first_observation_is_the_episodes():
 
 
 def test_zero_offsets_command_computed_torque_with_the_anchor_as_the_pipeline_runs_it():
-    """With a network that outputs zeros the plan is the held cubic, and the episode the env runs under the policy
-    is the one the pipeline runs with its computed-torque law and an actor adding -d (mpc_filter's estimate): the
-    same positions to 1e-8 rad at every period (the policy reads the goal from the observation, to 1e-9 rad), and
-    the same score to 1e-6."""
+    """With a network that outputs zeros and the computed_torque tracker the plan is the held cubic, and the
+    episode the env runs under the policy is the one the pipeline runs with its computed-torque law and an actor
+    adding -d (mpc_filter's estimate): the same positions to 1e-8 rad at every period (the policy reads the goal
+    from the observation, to 1e-9 rad), and the same score to 1e-6."""
     from envs.core import disturbance_estimate
 
     settings = env_settings(WINDOW)
-    policy = PlanPolicy(_zero_network(), {"window_steps": settings.settle_steps}, settings)
+    policy = PlanPolicy(_zero_network(), {"window_steps": settings.settle_steps},
+                        tracker=Tracker.of_rule("computed_torque"))
     task_info, q_env, cost_env = _episode(policy, "nominal", 11)
     task = _task(task_info)
     target = held_cubic(task, settings.planner, settings.model, settings.settle_steps)
@@ -99,24 +101,53 @@ def _task(info: dict):
 
 def test_mpcs_own_execution_as_the_plan_reproduces_mpcs_score():
     """The oracle plan: `mpc`'s nominal execution of the episode's task (the labels `label` makes, times the move
-    squared) tracked by the policy scores `mpc`'s J_settle within 0.5 % and ends inside the settling band, on a
-    nominal and an aggressive task."""
+    squared) tracked by the policy with the computed_torque tracker (which holds to the plan the tighter) scores
+    `mpc`'s J_settle within 0.5 % and ends inside the settling band, on a nominal and an aggressive task."""
     settings = env_settings(WINDOW)
 
     class Oracle(PlanPolicy):
-        def plan(self, task):
+        def offsets(self, task, target):
             labels = label(PlanSettings(), tasks=[task])
-            target = held_cubic(task, self.settings.planner, self.settings.model, self.window)
             self.mpc_cost = float(labels.cost[0])
-            return np.concatenate([target.q, target.qd, target.qdd], axis=1) + labels.y * np.max(
-                np.abs(task.qg - task.q0)) ** 2
+            return labels.y * np.max(np.abs(task.qg - task.q0)) ** 2
 
     for family, seed in (("nominal", 1), ("aggressive", 2)):
-        policy = Oracle(_zero_network(), {"window_steps": settings.settle_steps}, settings)
+        policy = Oracle(_zero_network(), {"window_steps": settings.settle_steps},
+                        tracker=Tracker.of_rule("computed_torque"))
         task_info, q, cost = _episode(policy, family, seed)
         assert cost == pytest.approx(policy.mpc_cost, rel=5e-3)
         settle = Settle.of(_task(task_info), 0, settings.settle_steps)
         assert np.abs(q[-1] - settle.goal).max() < settle.band  # ends inside the band, as mpc's execution does
+
+
+def test_the_lqr_tracker_follows_a_tapered_plan_with_its_gains_to_the_goal_at_rest():
+    """The default tracker: the plan's gain columns are Tracker().gains for the task (the score's weights, the mass
+    matrix at q0); the tapered plan is the held cubic plus the offsets until the motion's end and ends at the goal
+    with zero velocity and acceleration (with a network whose offsets are not zero); and the env's episode under it
+    on an aggressive task ends at rest inside the band."""
+    from mjtraj.core import DynamicsProbe
+
+    settings = env_settings(WINDOW)
+    rng = np.random.default_rng(3)
+    network = PlanNetwork([(rng.normal(size=(49, 9)) * 1e-3, rng.normal(size=9) * 1e-2)], np.zeros(49),
+                          np.full(49, 10.0))
+    policy = PlanPolicy(network, {"window_steps": settings.settle_steps})
+    task = _task({"q0": [0.1, -1.0, 1.2], "qg": [0.5, -0.7, 0.9], "duration": 0.6})
+    plan = policy.plan(task)
+    target = held_cubic(task, settings.planner, settings.model, settings.settle_steps)
+    mass = DynamicsProbe(settings.model).mass_and_bias(task.q0[None], np.zeros((1, 3)))[0][0]
+    kp, kd = Tracker().gains(settings.weights(task), mass, task.steps, settings.settle_steps, settings.dt)
+    np.testing.assert_array_equal(plan[:, 9:12], kp)
+    np.testing.assert_array_equal(plan[:, 12:], kd)
+    raw = policy.offsets(task, target)
+    motion = slice(0, task.steps + 1)
+    np.testing.assert_allclose(plan[motion, :3] - target.q[motion], raw[motion, :3], rtol=0, atol=1e-15)
+    assert np.abs(raw[-1]).max() > 1e-3  # the taper has something to remove
+    np.testing.assert_allclose(plan[-1, :3], task.qg, rtol=0, atol=1e-15)
+    assert np.all(plan[-1, 3:9] == 0.0)
+    task_info, q, _ = _episode(policy, "aggressive", 2)
+    settle = Settle.of(_task(task_info), 0, settings.settle_steps)
+    assert np.abs(q[-1] - settle.goal).max() < settle.band
 
 
 def test_a_fit_recovers_a_known_smooth_function():
@@ -146,13 +177,30 @@ def test_a_plan_policy_file_loads_as_saved_and_scores_through_rl_eval(tmp_path):
     np.testing.assert_array_equal(loaded.network(x), network(x))
     assert loaded.record["label"] == "test" and loaded.streams == [[0, 16, 0]]
     scored = load_any(str(tmp_path / "policy.npz"))
-    assert scored.env["action_mode"] == "torque" and scored.env["observe_disturbance"] is True
+    assert scored.env["action_mode"] == "torque" and scored.env["observe_task"] is True
+    assert not scored.env.get("observe_disturbance")  # the default tracker's anchor is its own (mpc_filter's is not)
     first = scored.sha256
     save_plan(PlanNetwork([(w * 2, b) for w, b in network.layers], network.mean, network.std), record,
               tmp_path / "policy.npz")
     assert load_any(str(tmp_path / "policy.npz")).sha256 != first
     (tmp_path / "bad.npz").write_bytes(b"not a file")
     with pytest.raises(InvalidInputError, match=r"^policy: .*bad.npz is not a plan policy file"):
+        load_plan(tmp_path / "bad.npz")
+
+
+def test_a_plan_file_keeps_its_tracker_and_one_of_format_1_keeps_computed_torque(tmp_path):
+    """A file's record names its tracker (the default, lqr, when it names none); a file of format 1 (written before
+    trackers) is tracked as it was, by CT_RULE's gains without the taper; a bad tracker is refused by name."""
+    save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02}, tmp_path / "default.npz")
+    assert load_plan(tmp_path / "default.npz").tracker == Tracker()
+    ct = Tracker.of_rule("computed_torque")
+    save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "tracker": ct.as_dict()}, tmp_path / "ct.npz")
+    assert load_plan(tmp_path / "ct.npz").tracker == ct
+    old = {"window_steps": 25, "dt": 0.02, "format": "mjtraj-plan-policy/1"}
+    np.savez(tmp_path / "old.npz", **_zero_network().arrays(), record=np.array(json.dumps(old)))
+    assert load_plan(tmp_path / "old.npz").tracker == ct
+    save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "tracker": {"rule": "pid"}}, tmp_path / "bad.npz")
+    with pytest.raises(InvalidInputError, match=r"^policy: .*bad.npz is not a plan policy file .*tracker: "):
         load_plan(tmp_path / "bad.npz")
 
 
@@ -195,6 +243,26 @@ def test_a_run_reuses_its_labels_and_refuses_another_runs(tmp_path):
         train_plan(PlanSettings(families=("nominal",), tasks=3, epochs=2, hidden=(8,)), tmp_path, progress=False)
 
 
+def test_a_run_with_another_tracker_reuses_the_fit_and_one_with_another_fit_fits_again(tmp_path):
+    """train_plan on a folder whose policy was fitted with the same fit settings rewrites only the policy: the same
+    network bit for bit (and the first fit's seconds and command) with the new tracker; other fit settings (epochs)
+    fit again."""
+    settings = PlanSettings(families=("nominal",), tasks=2, epochs=2, hidden=(8,))
+    first = train_plan(settings, tmp_path, progress=False, command="first")
+    assert first.record["tracker"] == Tracker().as_dict() and load_plan(first.policy).tracker == Tracker()
+    network = load_plan(first.policy).network
+    retracked = train_plan(dataclasses.replace(settings, tracker="computed_torque", workers=2), tmp_path,
+                           progress=False, command="second")
+    loaded = load_plan(retracked.policy)
+    assert loaded.tracker == Tracker.of_rule("computed_torque")
+    for (w, b), (w0, b0) in zip(loaded.network.layers, network.layers, strict=True):
+        np.testing.assert_array_equal(w, w0)
+        np.testing.assert_array_equal(b, b0)
+    assert retracked.record["seconds"] == first.record["seconds"] and retracked.record["fit_command"] == "first"
+    refit = train_plan(dataclasses.replace(settings, epochs=3), tmp_path, progress=False, command="third")
+    assert refit.record["fit_command"] == "third" and len(refit.record["loss"]) == 3
+
+
 def test_labels_do_not_depend_on_the_workers_that_make_them():
     """label with two processes gives one process's labels bit for bit (the chunks are run alike)."""
     one = label(PlanSettings(families=("nominal", "aggressive"), tasks=2, workers=1))
@@ -214,7 +282,7 @@ def test_a_plan_policy_is_timed_on_its_own_episodes():
     from mjtraj.rl.compute import policy_compute
 
     settings = env_settings(WINDOW)
-    policy = PlanPolicy(_zero_network(), {"window_steps": settings.settle_steps}, settings)
+    policy = PlanPolicy(_zero_network(), {"window_steps": settings.settle_steps})
     with pytest.raises(PolicyError, match=r"^plan policy: an episode's first observation must be at phase 0"):
         policy(np.zeros((1, settings.obs_size)))
     tasks = [_task({"q0": [0.1, -1.0, 1.2], "qg": [0.5, -0.7, 0.9], "duration": d}) for d in (1.0, 0.6)]
@@ -223,7 +291,7 @@ def test_a_plan_policy_is_timed_on_its_own_episodes():
                              model=settings.model, references=references, observer=Observer(settings, 1),
                              reset=policy.reset)
     assert compute.samples == sum(t.steps + settings.settle_steps for t in tasks)
-    assert compute.what == "inference and mpc_filter, batch 1, on its episodes"
+    assert compute.what == "inference, batch 1, on its episodes"  # its anchor is its own: no estimator observed
     assert 0 < compute.median_ms <= compute.p99_ms
 
 
@@ -233,9 +301,10 @@ def test_a_fits_name_is_its_configuration_without_the_seed():
     from mjtraj.rl.plan_train import configuration
 
     assert configuration(PlanSettings(seed=3)) == configuration(PlanSettings(seed=4)) == (
-        "task weighting, 2000 tasks, 200 epochs")
-    assert configuration(PlanSettings(weighting="family", hidden=(64, 64), families=("nominal",))) == (
-        "family weighting, 2000 tasks, 200 epochs, families nominal, hidden 64/64")
+        "task weighting, 2000 tasks, 100 epochs")
+    assert configuration(PlanSettings(weighting="family", hidden=(64, 64), families=("nominal",),
+                                      tracker="computed_torque")) == (
+        "family weighting, 2000 tasks, 100 epochs, families nominal, hidden 64/64, tracker computed_torque")
 
 
 def test_the_weightings_divide_by_each_tasks_cost_and_samples_or_by_its_familys_mean_cost():

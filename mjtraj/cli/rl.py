@@ -215,12 +215,13 @@ def add(sub: Any, laws: str) -> None:
                           "training-stream tasks on the nominal plant, a network learns its plan as an offset from "
                           "the held cubic, and computed torque tracks the plan with mpc's filtered disturbance "
                           "subtracted; policy.npz (rl eval --policy RUN/policy.npz scores it), run.json, labels.npz "
-                          "(reused when run again on the same folder with the same task settings)")
+                          "(reused when run again on the same folder with the same task settings; so is the fitted "
+                          "network, with the same fit settings)")
     p.add_argument("--families", "--family", type=names, default=["nominal", "aggressive", "mismatch"],
                    help="families whose rules draw the training tasks, comma-separated (default "
                    "nominal,aggressive,mismatch)")
     p.add_argument("--tasks", type=int, default=2000, help="training tasks per family (default 2000)")
-    p.add_argument("--epochs", type=int, default=200, help="passes over the labelled samples (default 200)")
+    p.add_argument("--epochs", type=int, default=100, help="passes over the labelled samples (default 100)")
     p.add_argument("--batch", type=int, default=512, help="samples per gradient step (default 512)")
     p.add_argument("--learning-rate", dest="learning_rate", type=float, default=1e-3,
                    help="Adam's initial step, decayed by a cosine (default 1e-3)")
@@ -230,6 +231,11 @@ def add(sub: Any, laws: str) -> None:
                    help="what a task's squared errors are divided by: task, its own J_settle under mpc and its "
                    "samples; family, its family's mean J_settle (the loss reads as the benchmark's ratio of means) "
                    "(default task)")
+    p.add_argument("--tracker", choices=("lqr", "computed_torque"), default="lqr",
+                   help="how the policy follows its plan: lqr, computed torque with the finite-horizon LQR gains of "
+                   "the score's own weights and the plan's offsets tapered to zero over the settle window; "
+                   "computed_torque, CT's fixed gains and no taper (plan files of format 1); it does not change the "
+                   "fit (default lqr)")
     p.add_argument("--seed", type=int, default=0, help="the training streams' seed and the fit's (default 0)")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1)")
     p.add_argument("--workers", type=int, default=1,
@@ -467,7 +473,7 @@ def run_plan(args: argparse.Namespace) -> int:
 
     settings = PlanSettings(families=tuple(args.families), tasks=args.tasks, epochs=args.epochs, batch=args.batch,
                             learning_rate=args.learning_rate, hidden=tuple(args.hidden), weighting=args.weighting,
-                            seed=args.seed, threads=args.threads, workers=args.workers)
+                            seed=args.seed, threads=args.threads, workers=args.workers, tracker=args.tracker)
     report = train_plan(settings, args.out, progress=not args.no_progress, command=command_line(args))
     seconds = report.record["seconds"]
     print(f"wrote {report.policy} ({report.record['samples']} labelled samples; labels {seconds['labels']:.0f} s, "

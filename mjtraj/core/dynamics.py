@@ -165,6 +165,15 @@ class DynamicsProbe:
         D = np.zeros((q.shape[0], self.n, self.n))
         bias, passive, gravcomp = np.empty_like(q), np.empty_like(q), np.empty_like(q)
         i, j, a = self._dense
+        if self.serial:  # straight on the MjData, without the engine's copies (a few states per call)
+            model, data = self.model, _scratch_data(self.model)
+            for row in range(q.shape[0]):
+                data.qpos[:], data.qvel[:] = q[row], qd[row]
+                mujoco.mj_fwdPosition(model, data)
+                mujoco.mj_fwdVelocity(model, data)
+                D[row, i, j] = data.M[a]
+                bias[row], passive[row], gravcomp[row] = data.qfrc_bias, data.qfrc_passive, data.qfrc_gravcomp
+            return D, bias, passive, gravcomp
         engine = self._engine(mujoco.mjtStage.mjSTAGE_VEL)
         qpos, qvel, M, qfrc_bias, qfrc_passive, qfrc_gravcomp = (engine.bind(name) for name in (
             "qpos", "qvel", "M", "qfrc_bias", "qfrc_passive", "qfrc_gravcomp"))

@@ -3,18 +3,21 @@
 At an episode's first observation the policy recovers the task from the observation (`task_of`), plans the held
 cubic as the env does, and evaluates its network once on every sample of the episode (the motion's N periods, the
 settle window's S and the end): the network gives the plan's offset from the held cubic in position, velocity and
-acceleration, over the move squared (`plan_features`, `offset_scale`). Every period it then commands what the
-project's computed-torque law commands at that plan's sample, with `mpc`'s filtered torque disturbance subtracted
-(the anchor): dtau = clip(D(q) (qdd_p + kp e_p + kd ed_p) + h(q, qd) - d, +-limit), e_p = q_p - q, on the measured
-state, as a torque-mode action (dtau over the saturation). `mjtraj.rl.plan_train` fits the network to `mpc`'s
-executions on the nominal plant.
+acceleration, over the move squared (`plan_features`, `offset_scale`), tapered to zero over the settle window, and
+the tracker's gains at every sample (`mjtraj.rl.plan_tracker`). Every period it then commands what the project's
+computed-torque law commands at that plan's sample with that sample's gains, with the tracker's estimate of the
+torque disturbance subtracted (the anchor): dtau = clip(D(q) (qdd_p + kp_k e_p + kd_k ed_p) + h(q, qd) - d,
++-limit), e_p = q_p - q, on the measured state, as a torque-mode action (dtau over the saturation).
+`mjtraj.rl.plan_train` fits the network to `mpc`'s executions on the nominal plant.
 
 The policy acts in UR5Track-v2's observation with a preview of one sample, the move and the time to the end
-(observe_task) and the disturbance (observe_disturbance): PLAN_ENV. Inference is NumPy only (no torch).
+(observe_task): PLAN_ENV; with the mpc_filter anchor also `mpc`'s disturbance estimate (observe_disturbance).
+Inference is NumPy and MuJoCo only (no torch).
 """
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -26,16 +29,40 @@ from numpy.typing import NDArray
 from mjtraj.core import ComputedTorque, DynamicsProbe, Task, held
 from mjtraj.exceptions import InvalidInputError, PolicyError
 from mjtraj.files import atomic_path
+from mjtraj.rl.plan_tracker import DisturbanceObserver, Tracker, tapered
 
-PLAN_POLICY = "mjtraj-plan-policy/1"
-"""The format of a plan policy file (an .npz of the network's arrays and the run record)."""
+PLAN_POLICY = "mjtraj-plan-policy/2"
+"""The format of a plan policy file (an .npz of the network's arrays and the run record, with its tracker). Files of
+format 1 (written before trackers) are tracked as they were: CT_RULE's fixed gains, no taper, mpc_filter's
+anchor."""
+PLAN_FORMATS = ("mjtraj-plan-policy/1", PLAN_POLICY)
 PLAN_ENV: dict[str, Any] = {"planner": "cubic", "controller": "computed_torque", "action_mode": "torque",
                             "preview": 1, "preview_frame": "absolute", "observe_task": True,
-                            "observe_measured": True, "observe_disturbance": True}
-"""The env settings a plan policy acts in (the rest are UR5Track-v1's; rl eval's protocol v2 adds the window)."""
+                            "observe_measured": True}
+"""The env settings a plan policy acts in (the rest are UR5Track-v1's; rl eval's protocol v2 adds the window); with
+the mpc_filter anchor, observe_disturbance too (`plan_env`)."""
 SHIFTS = (-10, -5, 0, 5, 10, 15, 20, 30, 40, 50)
 """Samples at which the cubic's inverse-dynamics torque enters the features of a sample, relative to it (clipped to
 the episode): what the plan must prepare for and what it follows from."""
+
+
+def plan_env(tracker: Tracker) -> dict[str, Any]:
+    """The env settings a plan policy with `tracker` acts in."""
+    return {**PLAN_ENV, "observe_disturbance": True} if tracker.anchor == "mpc_filter" else dict(PLAN_ENV)
+
+
+@functools.lru_cache(maxsize=8)
+def _resolved(observe_disturbance: bool, window_steps: int) -> Any:
+    from mjtraj.envs import resolve
+
+    env = {**PLAN_ENV, "observe_disturbance": observe_disturbance}
+    return resolve(**env, settle=window_steps * resolve(**env).dt)
+
+
+def plan_settings(tracker: Tracker, window_steps: int) -> Any:
+    """The resolved env settings (`mjtraj.envs.resolve`) of a plan policy with `tracker` and a settle window of
+    `window_steps` periods (made once for each)."""
+    return _resolved(tracker.anchor == "mpc_filter", int(window_steps))
 
 
 def offset_scale(task: Task) -> float:
@@ -117,46 +144,66 @@ class PlanPolicy:
 
     Args:
       network: the plan's network (features to offsets over the move squared, 3n).
-      record: the run record it was trained with (saved beside it).
-      settings: the env settings it acts in (`mjtraj.envs.resolve(**PLAN_ENV, settle=...)`).
+      record: the run record it was trained with (saved beside it): its settle window (window_steps) and tracker.
       streams: the seeds of its training tasks (rl eval refuses to score it on them).
+      tracker: how it follows its plan (default the record's, else `Tracker()`).
+
+    Attributes:
+      env: the env settings it acts in (`plan_env`); settings: them resolved, with the window.
     """
 
     batched = True
-    env = PLAN_ENV
 
-    def __init__(self, network: PlanNetwork, record: dict[str, Any], settings: Any,
-                 streams: list[Any] | None = None, files: list[str] | None = None) -> None:
-        self.network, self.record, self.settings = network, record, settings
+    def __init__(self, network: PlanNetwork, record: dict[str, Any], streams: list[Any] | None = None,
+                 files: list[str] | None = None, tracker: Tracker | None = None) -> None:
+        self.network, self.record = network, record
         self.streams, self.files = streams, files or []
+        self.tracker = tracker or Tracker(**record.get("tracker", {}))
+        self.window = int(record["window_steps"])
+        self.env = plan_env(self.tracker)
+        self.settings = settings = plan_settings(self.tracker, self.window)
         self.name = f"plan tracked by computed torque ({record.get('label', 'plan')})"
-        self.n, self.dt, self.window = settings.n, settings.dt, int(record["window_steps"])
-        self.law = ComputedTorque.for_period(self.dt, self.n)
+        self.n, self.dt, self.obs_size = settings.n, settings.dt, settings.obs_size
         self.probe = DynamicsProbe(settings.model, serial=True)  # one MjData: the cheaper for a few rows
         self.limit = settings.torque_limit
+        self.observer = (DisturbanceObserver(settings.model, settings.loop.gravity_comp, settings.loop.substeps,
+                                             self.tracker.anchor_gain) if self.tracker.anchor == "nominal" else None)
         self._plans: list[NDArray[np.float64]] = []  # each row's episode plan (empty before its first observation)
         self._fresh = np.zeros(0, dtype=bool)
 
+    def offsets(self, task: Task, target: Any) -> NDArray[np.float64]:
+        """(N + S + 1, 3n): the learned offsets of the plan of `task` from its held cubic `target` (rad, rad/s,
+        rad/s^2)."""
+        return self.network(plan_features(task, target, self.probe)) * offset_scale(task)
+
     def plan(self, task: Task) -> NDArray[np.float64]:
-        """(N + S + 1, 3n): the episode's plan q_p, qd_p, qdd_p (the held cubic plus the learned offsets)."""
+        """(N + S + 1, 5n): the episode's plan q_p, qd_p, qdd_p (the held cubic plus the `offsets`, tapered with the
+        tracker's taper) and the tracker's gains kp, kd at its every sample."""
         target = held_cubic(task, self.settings.planner, self.settings.model, self.window)
-        offsets = self.network(plan_features(task, target, self.probe)) * offset_scale(task)
-        return np.concatenate([target.q, target.qd, target.qdd], axis=1) + offsets
+        offsets = self.offsets(task, target)
+        if self.tracker.taper:
+            offsets = tapered(offsets, target.t, task.duration, target.t[-1])
+        mass = self.probe.mass_and_bias(task.q0[None], np.zeros((1, self.n)))[0][0]
+        kp, kd = self.tracker.gains(self.settings.weights(task), mass, task.steps, self.window, self.dt)
+        return np.concatenate([target.q + offsets[:, :self.n], target.qd + offsets[:, self.n:2 * self.n],
+                               target.qdd + offsets[:, 2 * self.n:], kp, kd], axis=1)
 
     def reset(self, starts: NDArray[np.bool_]) -> None:
         """Episodes `starts` (bool (B,)) begin: their next observation is their first."""
         starts = np.asarray(starts, dtype=bool)
         if self._fresh.size != starts.size:
-            self._plans = [np.empty((0, 3 * self.n))] * starts.size
+            self._plans = [np.empty((0, 5 * self.n))] * starts.size
             self._fresh = np.ones(starts.size, dtype=bool)
         self._fresh |= starts
+        if self.observer is not None:
+            self.observer.reset(starts)
 
     def __call__(self, obs: NDArray[np.float64]) -> NDArray[np.float64]:
         """(B, d) observations to (B, n) torque-mode actions (dtau over the saturation)."""
         obs = np.asarray(obs, dtype=np.float64)
         n, count = self.n, obs.shape[0]
-        if obs.ndim != 2 or obs.shape[1] != self.settings.obs_size:
-            raise PolicyError(f"plan policy: expected observations (B, {self.settings.obs_size}) of its env "
+        if obs.ndim != 2 or obs.shape[1] != self.obs_size:
+            raise PolicyError(f"plan policy: expected observations (B, {self.obs_size}) of its env "
                               f"(PLAN_ENV), got shape {obs.shape}")
         if self._fresh.size != count:
             self.reset(np.ones(count, dtype=bool))
@@ -165,14 +212,20 @@ class PlanPolicy:
                 self._plans[fresh] = self.plan(task_of(obs[fresh], n, self.dt))
             self._fresh[:] = False
         # the period k of each row from the time to its motion's end, (N - k) dt: N - (N - k) in its plan
-        ahead = np.rint(obs[:, -1] / self.dt).astype(np.intp).tolist()
-        samples = np.array([plan[min(max(len(plan) - 1 - self.window - left, 0), len(plan) - 1)]
-                            for plan, left in zip(self._plans, ahead, strict=True)])
+        samples = np.array([plan[min(max(len(plan) - 1 - self.window - round(left / self.dt), 0), len(plan) - 1)]
+                            for plan, left in zip(self._plans, obs[:, -1].tolist(), strict=True)])
         q, qd = obs[:, :n], obs[:, n:2 * n]
-        d = obs[:, 8 * n + 1:9 * n + 1] * self.limit  # after the preview sample: mpc's filtered disturbance
+        if self.observer is None:
+            d = obs[:, 8 * n + 1:9 * n + 1] * self.limit  # after the preview sample: mpc's filtered disturbance
+        else:
+            d = self.observer.estimate(q, qd)
         none = np.zeros((count, n))
-        out = self.law(samples[:, :n] - q, samples[:, n:2 * n] - qd, none, none, samples[:, 2 * n:],
-                       self.probe.mass_and_bias(q, qd), self.limit, self.dt, residual=-d)
+        law = ComputedTorque(samples[:, 3 * n:4 * n], samples[:, 4 * n:])
+        dynamics = self.probe.mass_and_bias(q, qd)
+        out = law(samples[:, :n] - q, samples[:, n:2 * n] - qd, none, none, samples[:, 2 * n:3 * n], dynamics,
+                  self.limit, self.dt, residual=-d)
+        if self.observer is not None:
+            self.observer.remember(q, qd, out.dtau, dynamics[0])
         return out.dtau / self.limit  # type: ignore[no-any-return]
 
 
@@ -189,19 +242,16 @@ def load_plan(path: str | Path) -> PlanPolicy:
     Raises:
       InvalidInputError: not a plan policy file.
     """
-    from mjtraj.envs import resolve
-
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as saved:
             arrays = {k: saved[k] for k in saved.files}
         record = json.loads(str(arrays.pop("record")))
-        window = int(record["window_steps"]) * float(record["dt"])
-    except (OSError, ValueError, KeyError, TypeError) as e:
+        if record.get("format") not in PLAN_FORMATS:
+            raise ValueError(f"format {record.get('format')!r}, expected one of {', '.join(PLAN_FORMATS)}")
+        if record["format"] == PLAN_FORMATS[0]:  # before trackers
+            record = {**record, "tracker": Tracker.of_rule("computed_torque").as_dict()}
+        return PlanPolicy(PlanNetwork.from_arrays(arrays), record, streams=record.get("streams"),
+                          files=[str(path.resolve())], tracker=Tracker(**record.get("tracker", {})))
+    except (OSError, ValueError, KeyError, TypeError) as e:  # InvalidInputError is a ValueError
         raise InvalidInputError(f"policy: {path} is not a plan policy file ({type(e).__name__}: {e})") from e
-    if record.get("format") != PLAN_POLICY:
-        raise InvalidInputError(f"policy: {path} is not a plan policy file (format {record.get('format')!r}, "
-                                f"expected {PLAN_POLICY!r})")
-    settings = resolve(**PLAN_ENV, settle=window)
-    return PlanPolicy(PlanNetwork.from_arrays(arrays), record, settings, streams=record.get("streams"),
-                      files=[str(path.resolve())])

@@ -36,7 +36,8 @@ from numpy.typing import NDArray
 from mjtraj.checks import choice, positive, positive_int
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path, write_text_atomic
-from mjtraj.rl.plan_policy import PLAN_ENV, PlanNetwork, held_cubic, offset_scale, plan_features, save_plan
+from mjtraj.rl.plan_policy import PLAN_ENV, PlanNetwork, held_cubic, offset_scale, plan_env, plan_features, save_plan
+from mjtraj.rl.plan_tracker import TRACKER_RULES, Tracker
 from mjtraj.rl.streams import TRAIN_STREAM, check_seed
 
 PLAN_RUN = "mjtraj-plan-run/1"
@@ -54,7 +55,7 @@ class PlanSettings:
     """Whose rules draw the training tasks (every one executed on the nominal plant)."""
     tasks: int = 2000
     """Training tasks per family."""
-    epochs: int = 200
+    epochs: int = 100
     batch: int = 512
     learning_rate: float = 1e-3
     hidden: tuple[int, ...] = (256, 256, 256)
@@ -69,6 +70,9 @@ class PlanSettings:
     weighting: str = "task"
     """What each task's squared errors are divided by: task (its own J_settle under `mpc` and its samples) or family
     (its family's mean J_settle). On the validation scenarios task scored lower on aggressive motions."""
+    tracker: str = "lqr"
+    """How the policy follows its plan (`mjtraj.rl.plan_tracker`): lqr (the score's weights' gains, the taper) or
+    computed_torque (CT_RULE's gains, no taper: plan files of format 1). It does not change the fit."""
 
     def __post_init__(self) -> None:
         if not self.families:
@@ -78,6 +82,7 @@ class PlanSettings:
         for name in ("tasks", "epochs", "batch", "threads", "workers"):
             positive_int(name, getattr(self, name))
         choice("weighting", self.weighting, WEIGHTINGS)
+        choice("tracker", self.tracker, TRACKER_RULES)
         positive("learning_rate", self.learning_rate)
         positive("window", self.window)
         if any(isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in self.hidden):
@@ -95,6 +100,11 @@ class PlanSettings:
 
         return {"families": list(self.families), "tasks": self.tasks, "window": self.window, "seed": self.seed,
                 "run": PLAN_RUN, "mjtraj": library_version("mjtraj")}
+
+    def fit_settings(self) -> dict[str, Any]:
+        """What decides the fitted network (a saved policy's network is reused only if these match): every setting
+        but the label workers and the tracker."""
+        return {**dataclasses.asdict(self), "workers": None, "tracker": None, **self.label_settings()}
 
 
 @dataclass
@@ -293,7 +303,7 @@ def configuration(settings: PlanSettings) -> str:
     configuration pool as seeds in `rl eval`)."""
     default = PlanSettings()
     parts = [f"{settings.weighting} weighting", f"{settings.tasks} tasks", f"{settings.epochs} epochs"]
-    for name in ("families", "batch", "learning_rate", "hidden"):
+    for name in ("families", "batch", "learning_rate", "hidden", "tracker"):
         value = getattr(settings, name)
         if value != getattr(default, name):
             parts.append(f"{name} {'/'.join(map(str, value)) if isinstance(value, tuple) else value}")
@@ -308,8 +318,21 @@ class PlanReport:
     record: dict[str, Any]
 
 
+def _saved_fit(settings: PlanSettings, path: Path) -> tuple[PlanNetwork, dict[str, Any]] | None:
+    """The network and record of the policy saved at `path` if its fit had these settings (`fit_settings`)."""
+    if not path.is_file():
+        return None
+    from mjtraj.rl.plan_policy import load_plan
+
+    saved = load_plan(path)
+    made = saved.record.get("fit_settings")
+    return (saved.network, saved.record) if made == json.loads(json.dumps(settings.fit_settings())) else None
+
+
 def train_plan(settings: PlanSettings, out: str | Path, *, progress: bool = True, command: str = "") -> PlanReport:
-    """Label (or reuse out/labels.npz of the same settings), fit, and write out/policy.npz and out/run.json."""
+    """Label (or reuse out/labels.npz of the same settings), fit (or reuse the network of out/policy.npz fitted
+    with the same settings: a run started again with another tracker only rewrites the policy), and write
+    out/policy.npz and out/run.json."""
     from mjtraj.rl.extra import rl_versions
 
     out = Path(out)
@@ -318,14 +341,21 @@ def train_plan(settings: PlanSettings, out: str | Path, *, progress: bool = True
     if labels is None:
         labels = label(settings, progress=progress)
         _save_labels(labels, settings, out / "labels.npz")
-    clock = time.perf_counter()
-    network, losses = fit(labels, settings, progress=progress)
-    env = env_settings(settings.window)
-    record = {"run": PLAN_RUN, "settings": dataclasses.asdict(settings), "command": command,
-              "versions": rl_versions(), "dt": env.dt, "window_steps": env.settle_steps, "env": PLAN_ENV,
-              "label": configuration(settings), "streams": settings.streams(), "samples": int(labels.x.shape[0]),
-              "mpc_mean_cost": float(labels.cost.mean()),
-              "seconds": {"labels": round(labels.seconds, 1), "fit": round(time.perf_counter() - clock, 1)},
+    saved = _saved_fit(settings, out / "policy.npz")
+    if saved is None:
+        clock = time.perf_counter()
+        network, losses = fit(labels, settings, progress=progress)
+        seconds, first = round(time.perf_counter() - clock, 1), command
+    else:
+        network, losses = saved[0], saved[1]["loss"]
+        seconds, first = saved[1]["seconds"]["fit"], saved[1]["fit_command"]
+    env, tracker = env_settings(settings.window), Tracker.of_rule(settings.tracker)
+    record = {"run": PLAN_RUN, "settings": dataclasses.asdict(settings), "command": command, "fit_command": first,
+              "fit_settings": settings.fit_settings(), "tracker": tracker.as_dict(), "versions": rl_versions(),
+              "dt": env.dt, "window_steps": env.settle_steps, "env": plan_env(tracker),
+              "label": configuration(settings), "streams": settings.streams(),
+              "samples": int(labels.x.shape[0]), "mpc_mean_cost": float(labels.cost.mean()),
+              "seconds": {"labels": round(labels.seconds, 1), "fit": seconds},
               "loss": [round(v, 6) for v in losses]}
     save_plan(network, record, out / "policy.npz")
     write_text_atomic(out / "run.json", json.dumps({k: v for k, v in record.items() if k != "streams"}, indent=1)

@@ -1,0 +1,175 @@
+"""How a plan policy follows its plan: computed torque with gains from the score's own weights, its own estimate of
+the torque disturbance, and a plan that ends at the goal at rest.
+
+Gains. Computed torque turns every joint's error from the plan into a double integrator driven by the commanded
+acceleration v = qdd_p + kp e + kd ed (e = q_p - q). Over one period dt it moves x = (q - q_p, qd - qd_p) as
+x' = A x + B v, A = [[1, dt], [0, 1]], B = [dt^2 / 2, dt], and costs what the score charges for it: x^T Q_j x with
+Q_j = diag(Q_q,j, Q_qd,j) (the score's weights on joint j, Bryson's rule for the task) and R_j (M_jj v)^2, the
+torque that acceleration costs at the start's mass matrix M. The `lqr` rule's gains (kp_k, kd_k) = K_k are the
+finite-horizon LQR's over the episode's N periods of motion and S of the settle window: the stage weight is Q_j in
+the motion and `window_boost` Q_j in the window, the terminal weight `terminal` Q_j (the at-rest rule, which the
+score itself does not charge). `computed_torque` keeps CT_RULE's fixed gains (plan files of format 1).
+
+Anchor. The torque the nominal model does not explain is subtracted from the command. `nominal` (the default)
+estimates it itself: each period the nominal plant (the project's `BatchPlant` of the policy's model, as the env
+steps it) is stepped from the last measured state under the last command, and the velocity it misses over the
+period, times the mass matrix there, (M (qd_k - qd_pred,k) / dt), is low-passed by `anchor_gain` (d_k = d_k-1 +
+gain (raw - d_k-1); 0 at an episode's start, and exactly 0 on the nominal plant). `mpc_filter` reads `mpc`'s
+filtered disturbance from the observation instead (plan files of format 1): its estimate also holds what `mpc`'s
+linear prediction misses on the nominal plant, which computed torque does not need removed.
+
+Taper. With `taper`, the plan's offsets o(t) from the held cubic are multiplied by g(t), 1 until the motion's end T
+and falling to 0 at the window's end E by the quintic smoothstep; their rates follow by the product rule
+(o g, o' g + o g', o'' g + 2 o' g' + o g''), so that a plan whose offsets are a motion's position, velocity and
+acceleration stays one, and ends at the goal at rest.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mjtraj.checks import choice, positive
+from mjtraj.core import BatchPlant, ComputedTorque
+from mjtraj.exceptions import InvalidInputError
+
+TRACKER_RULES = ("lqr", "computed_torque")
+ANCHORS = ("nominal", "mpc_filter")
+
+
+@dataclass(frozen=True)
+class Tracker:
+    """A plan policy's tracker (module docstring): its gain rule, the window's and the end's weights, the taper and
+    the anchor. The defaults' weights and gain were chosen on the validation scenarios (docs/benchmark.md)."""
+
+    rule: str = "lqr"
+    window_boost: float = 3.0
+    """The LQR's stage weight in the settle window over the motion's."""
+    terminal: float = 1000.0
+    """The LQR's weight on the last sample's error over the motion's stage weight."""
+    taper: bool = True
+    anchor: str = "nominal"
+    anchor_gain: float = 1.0
+    """The nominal anchor's low-pass gain per period, in (0, 1]."""
+
+    def __post_init__(self) -> None:
+        choice("tracker", self.rule, TRACKER_RULES)
+        positive("window_boost", self.window_boost)
+        positive("terminal", self.terminal)
+        choice("anchor", self.anchor, ANCHORS)
+        if not 0.0 < self.anchor_gain <= 1.0:
+            raise InvalidInputError(f"anchor_gain: expected a gain in (0, 1], got {self.anchor_gain!r}")
+
+    @classmethod
+    def of_rule(cls, rule: str) -> Tracker:
+        """The tracker `mjtraj rl plan --tracker RULE` gives: lqr's defaults, or computed_torque as plan files of
+        format 1 were tracked (no taper, mpc_filter's anchor)."""
+        return cls() if rule == "lqr" else cls(rule, taper=False, anchor="mpc_filter")
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def gains(self, weights: tuple[NDArray[np.float64], NDArray[np.float64]], mass: NDArray[np.float64],
+              motion: int, window: int, dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(kp, kd), each (motion + window + 1, n) in 1/s^2 and 1/s: the gains at every sample of an episode of
+        `motion` + `window` periods of dt s, for the score's weights (diag Q (2n,), diag R (n,)) and the mass
+        matrix M (n, n) at the start. The last sample repeats the one before it."""
+        n = mass.shape[0]
+        if self.rule == "computed_torque":
+            law = ComputedTorque.for_period(dt, n)
+            return np.tile(law.kp, (motion + window + 1, 1)), np.tile(law.kd, (motion + window + 1, 1))
+        return lqr_gains(weights[0][:n], weights[0][n:], weights[1] * np.diag(mass) ** 2, motion, window, dt,
+                         self.window_boost, self.terminal)
+
+
+def lqr_gains(q_position: NDArray[np.float64], q_velocity: NDArray[np.float64], r: NDArray[np.float64],
+              motion: int, window: int, dt: float, window_boost: float, terminal: float
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The finite-horizon LQR gains of n independent double integrators (module docstring), every joint's 2 x 2
+    Riccati recursion written out elementwise: stage weights diag(q_position, q_velocity) (n,) each (times
+    `window_boost` from period `motion` on), control weight r (n,), terminal weight `terminal` times the stage's.
+    Returns kp, kd (motion + window + 1, n)."""
+    steps = motion + window
+    b1, b2 = dt * dt / 2.0, dt
+    p11, p12, p22 = terminal * q_position, np.zeros_like(q_position), terminal * q_velocity
+    kp, kd = np.empty((steps + 1, r.size)), np.empty((steps + 1, r.size))
+    for k in range(steps - 1, -1, -1):
+        g1, g2 = b1 * p11 + b2 * p12, b1 * (dt * p11 + p12) + b2 * (dt * p12 + p22)  # B^T P A
+        s = b1 * g1 + b2 * (b1 * p12 + b2 * p22) + r  # B^T P B + r
+        kp[k], kd[k] = g1 / s, g2 / s
+        boost = window_boost if k >= motion else 1.0
+        p11, p12, p22 = (boost * q_position + p11 - g1 * g1 / s,
+                         dt * p11 + p12 - g1 * g2 / s,
+                         boost * q_velocity + dt * dt * p11 + 2.0 * dt * p12 + p22 - g2 * g2 / s)
+    kp[steps], kd[steps] = kp[steps - 1], kd[steps - 1]
+    return kp, kd
+
+
+def taper(t: NDArray[np.float64], start: float, end: float) -> tuple[NDArray[np.float64], ...]:
+    """g(t), g'(t), g''(t) (each like t): 1 before `start`, 0 after `end`, the quintic smoothstep between (s)."""
+    length = end - start
+    s = np.clip((t - start) / length, 0.0, 1.0)
+    g = 1.0 - s ** 3 * (10.0 - 15.0 * s + 6.0 * s * s)
+    g1 = -30.0 * s * s * (1.0 - s) ** 2 / length
+    g2 = -60.0 * s * (1.0 - s) * (1.0 - 2.0 * s) / length ** 2
+    return g, g1, g2
+
+
+def tapered(offsets: NDArray[np.float64], t: NDArray[np.float64], start: float, end: float
+            ) -> NDArray[np.float64]:
+    """(K, 3n) offsets (position, velocity, acceleration at times t (K,)) times `taper(t, start, end)`, their rates
+    by the product rule."""
+    n = offsets.shape[1] // 3
+    o, o1, o2 = offsets[:, :n], offsets[:, n:2 * n], offsets[:, 2 * n:]
+    g, g1, g2 = (v[:, None] for v in taper(t, start, end))
+    return np.concatenate([g * o, g * o1 + g1 * o, g * o2 + 2.0 * g1 * o1 + g2 * o], axis=1)
+
+
+class DisturbanceObserver:
+    """The nominal anchor's estimate (module docstring) for a batch of episodes: call `estimate` with each period's
+    measured state, then `remember` the command; `reset` forgets the episodes that start.
+
+    Args:
+      model: the nominal model; gravity_comp, substeps: the loop's (`BatchPlant`'s arguments); gain: anchor_gain.
+    """
+
+    def __init__(self, model: Any, gravity_comp: str, substeps: int, gain: float) -> None:
+        self.model, self.gravity_comp, self.substeps, self.gain = model, gravity_comp, substeps, gain
+        self.dt = float(model.opt.timestep)
+        self._plant: BatchPlant | None = None
+        self._known = np.zeros(0, dtype=bool)
+
+    def reset(self, starts: NDArray[np.bool_]) -> None:
+        """Episodes `starts` (bool (B,)) begin: no last period, estimate 0."""
+        starts = np.asarray(starts, dtype=bool)
+        if self._known.size != starts.size:
+            rows, n = starts.size, self.model.nv
+            self._plant = BatchPlant(self.model, rows, gravity_comp=self.gravity_comp, substeps=self.substeps)
+            self._known = np.zeros(rows, dtype=bool)
+            self._d, self._q, self._qd, self._u = (np.zeros((rows, n)) for _ in range(4))
+            self._mass = np.zeros((rows, n, n))
+        self._known &= ~starts
+        self._d[starts] = 0.0
+
+    def estimate(self, q: NDArray[np.float64], qd: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(B, n) N m: the disturbance estimate after measuring (q, qd) (B, n) this period."""
+        if self._known.size != q.shape[0]:
+            self.reset(np.ones(q.shape[0], dtype=bool))
+        if self._known.any():
+            assert self._plant is not None
+            self._plant.reset(self._q, self._qd)
+            self._plant.step(self._u)
+            raw = np.einsum("bij,bj->bi", self._mass, (qd - self._plant.qvel) / self.dt)
+            known = self._known
+            self._d[known] += self.gain * (raw[known] - self._d[known])
+        return self._d.copy()
+
+    def remember(self, q: NDArray[np.float64], qd: NDArray[np.float64], dtau: NDArray[np.float64],
+                 mass: NDArray[np.float64]) -> None:
+        """The period's measured state, the command dtau (B, n) it applies and the mass matrix (B, n, n) there."""
+        self._q[:], self._qd[:], self._u[:], self._mass[:] = q, qd, dtau, mass
+        self._known[:] = True
