@@ -304,7 +304,7 @@ def test_a_fits_name_is_its_configuration_without_the_seed():
         "task weighting, 2000 tasks, 100 epochs")
     assert configuration(PlanSettings(weighting="family", hidden=(64, 64), families=("nominal",),
                                       tracker="computed_torque")) == (
-        "family weighting, 2000 tasks, 100 epochs, families nominal, hidden 64/64, tracker computed_torque")
+        "family weighting, 2000 tasks, 100 epochs, families nominal, hidden 64/64")
 
 
 def test_the_weightings_divide_by_each_tasks_cost_and_samples_or_by_its_familys_mean_cost():
@@ -320,15 +320,20 @@ def test_the_weightings_divide_by_each_tasks_cost_and_samples_or_by_its_familys_
 
 
 def test_fits_of_one_configuration_pool_as_seeds_in_rl_eval(tmp_path):
-    """Two plan policy files of one configuration and other seeds are one configuration of two seeds in rl eval;
-    one of another configuration is its own."""
+    """Two plan policy files of one configuration and tracker and other seeds are one configuration of two seeds in
+    rl eval; one of another configuration is its own, and so is one of the same configuration with another tracker
+    (a file of format 1)."""
     from mjtraj.rl.evaluate import _labels, configurations
 
     task, family = "task weighting, 2000 tasks, 200 epochs", "family weighting, 2000 tasks, 200 epochs"
     for name, named in (("a", task), ("b", task), ("c", family)):
         (tmp_path / name).mkdir()
         save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "label": named}, tmp_path / name / "policy.npz")
-    loaded = [load_any(str(tmp_path / name / "policy.npz")) for name in "abc"]
+    old = {"window_steps": 25, "dt": 0.02, "label": task, "format": "mjtraj-plan-policy/1"}
+    (tmp_path / "d").mkdir()
+    np.savez(tmp_path / "d" / "policy.npz", **_zero_network().arrays(), record=np.array(json.dumps(old)))
+    loaded = [load_any(str(tmp_path / name / "policy.npz")) for name in "abcd"]
     groups = configurations(loaded, _labels(loaded))
-    assert sorted(len(v) for v in groups.values()) == [1, 2]
+    assert sorted(len(v) for v in groups.values()) == [1, 1, 2]  # a file of format 1 has another tracker: apart
+    assert "plan tracked with LQR gains (task weighting, 2000 tasks, 200 epochs)" in groups
     assert "plan tracked by computed torque (task weighting, 2000 tasks, 200 epochs)" in groups

@@ -83,8 +83,9 @@ def test_the_lqr_rule_weighs_an_acceleration_by_the_torque_it_costs():
     """Tracker.gains: the control weight of joint j is R_j M_jj^2 (the same gains as lqr_gains given it)."""
     Q, R = np.array([30.0, 20.0, 10.0, 3.0, 2.0, 1.0]), np.array([0.01, 0.02, 0.03])
     mass = np.array([[2.0, 0.3, 0.1], [0.3, 1.5, 0.2], [0.1, 0.2, 0.5]])
-    got = Tracker().gains((Q, R), mass, 30, 25, DT)
-    want = lqr_gains(Q[:3], Q[3:], R * np.diag(mass) ** 2, 30, 25, DT, 3.0, 1000.0)
+    tracker = Tracker()
+    got = tracker.gains((Q, R), mass, 30, 25, DT)
+    want = lqr_gains(Q[:3], Q[3:], R * np.diag(mass) ** 2, 30, 25, DT, tracker.window_boost, tracker.terminal)
     np.testing.assert_array_equal(got[0], want[0])
     np.testing.assert_array_equal(got[1], want[1])
 

@@ -213,10 +213,10 @@ def add(sub: Any, laws: str) -> None:
     p.set_defaults(handler=run_distill)
     p = rl_sub.add_parser("plan", help="fit a plan policy to mpc's executions (mjtraj.rl.plan_train): mpc executes "
                           "training-stream tasks on the nominal plant, a network learns its plan as an offset from "
-                          "the held cubic, and computed torque tracks the plan with mpc's filtered disturbance "
-                          "subtracted; policy.npz (rl eval --policy RUN/policy.npz scores it), run.json, labels.npz "
-                          "(reused when run again on the same folder with the same task settings; so is the fitted "
-                          "network, with the same fit settings)")
+                          "the held cubic, and computed torque tracks the plan with its tracker's gains and "
+                          "disturbance estimate subtracted; policy.npz (rl eval --policy RUN/policy.npz scores it), "
+                          "run.json, labels.npz (reused when run again on the same folder with the same task "
+                          "settings; so is the fitted network, with the same fit settings)")
     p.add_argument("--families", "--family", type=names, default=["nominal", "aggressive", "mismatch"],
                    help="families whose rules draw the training tasks, comma-separated (default "
                    "nominal,aggressive,mismatch)")
@@ -233,9 +233,9 @@ def add(sub: Any, laws: str) -> None:
                    "(default task)")
     p.add_argument("--tracker", choices=("lqr", "computed_torque"), default="lqr",
                    help="how the policy follows its plan: lqr, computed torque with the finite-horizon LQR gains of "
-                   "the score's own weights and the plan's offsets tapered to zero over the settle window; "
-                   "computed_torque, CT's fixed gains and no taper (plan files of format 1); it does not change the "
-                   "fit (default lqr)")
+                   "the score's own weights, the plan's offsets tapered to zero over the settle window and its own "
+                   "disturbance estimate; computed_torque, CT's fixed gains, no taper and mpc_filter's estimate, "
+                   "observed (plan files of format 1); it does not change the fit (default lqr)")
     p.add_argument("--seed", type=int, default=0, help="the training streams' seed and the fit's (default 0)")
     p.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads (default 1)")
     p.add_argument("--workers", type=int, default=1,

@@ -41,6 +41,8 @@ PLAN_ENV: dict[str, Any] = {"planner": "cubic", "controller": "computed_torque",
                             "observe_measured": True}
 """The env settings a plan policy acts in (the rest are UR5Track-v1's; rl eval's protocol v2 adds the window); with
 the mpc_filter anchor, observe_disturbance too (`plan_env`)."""
+TRACKED = {"computed_torque": "plan tracked by computed torque", "lqr": "plan tracked with LQR gains"}
+"""How a plan policy's name begins, by its tracker's rule: fits of one configuration and one tracker pool as seeds."""
 SHIFTS = (-10, -5, 0, 5, 10, 15, 20, 30, 40, 50)
 """Samples at which the cubic's inverse-dynamics torque enters the features of a sample, relative to it (clipped to
 the episode): what the plan must prepare for and what it follows from."""
@@ -162,7 +164,7 @@ class PlanPolicy:
         self.window = int(record["window_steps"])
         self.env = plan_env(self.tracker)
         self.settings = settings = plan_settings(self.tracker, self.window)
-        self.name = f"plan tracked by computed torque ({record.get('label', 'plan')})"
+        self.name = f"{TRACKED[self.tracker.rule]} ({record.get('label', 'plan')})"  # rl eval pools by it
         self.n, self.dt, self.obs_size = settings.n, settings.dt, settings.obs_size
         self.probe = DynamicsProbe(settings.model, serial=True)  # one MjData: the cheaper for a few rows
         self.limit = settings.torque_limit

@@ -1,22 +1,24 @@
 """How a plan policy follows its plan: computed torque with gains from the score's own weights, its own estimate of
 the torque disturbance, and a plan that ends at the goal at rest.
 
-Gains. Computed torque turns every joint's error from the plan into a double integrator driven by the commanded
-acceleration v = qdd_p + kp e + kd ed (e = q_p - q). Over one period dt it moves x = (q - q_p, qd - qd_p) as
-x' = A x + B v, A = [[1, dt], [0, 1]], B = [dt^2 / 2, dt], and costs what the score charges for it: x^T Q_j x with
-Q_j = diag(Q_q,j, Q_qd,j) (the score's weights on joint j, Bryson's rule for the task) and R_j (M_jj v)^2, the
-torque that acceleration costs at the start's mass matrix M. The `lqr` rule's gains (kp_k, kd_k) = K_k are the
-finite-horizon LQR's over the episode's N periods of motion and S of the settle window: the stage weight is Q_j in
-the motion and `window_boost` Q_j in the window, the terminal weight `terminal` Q_j (the at-rest rule, which the
-score itself does not charge). `computed_torque` keeps CT_RULE's fixed gains (plan files of format 1).
+Gains. Computed torque (commanded acceleration qdd_p + u, u = kp e + kd ed, e = q_p - q) turns every joint's error
+from the plan into a double integrator driven by the feedback acceleration u. Over one period dt it moves
+x = (q - q_p, qd - qd_p) as x' = A x + B u, A = [[1, dt], [0, 1]], B = [dt^2 / 2, dt], and is charged x^T Q_j x
+with Q_j = diag(Q_q,j, Q_qd,j) (the score's weights on joint j, Bryson's rule for the task; the score itself
+measures the error from the held cubic) and R_j (M_jj u)^2, the torque u costs at the start's mass matrix M.
+The `lqr` rule's gains (kp_k, kd_k) = K_k are the finite-horizon LQR's over the episode's N periods of motion and
+S of the settle window: the stage weight is Q_j in the motion and `window_boost` Q_j in the window, the terminal
+weight `terminal` Q_j (the at-rest rule, which the score itself does not charge). `computed_torque` keeps CT_RULE's
+fixed gains (plan files of format 1).
 
 Anchor. The torque the nominal model does not explain is subtracted from the command. `nominal` (the default)
 estimates it itself: each period the nominal plant (the project's `BatchPlant` of the policy's model, as the env
 steps it) is stepped from the last measured state under the last command, and the velocity it misses over the
 period, times the mass matrix there, (M (qd_k - qd_pred,k) / dt), is low-passed by `anchor_gain` (d_k = d_k-1 +
-gain (raw - d_k-1); 0 at an episode's start, and exactly 0 on the nominal plant). `mpc_filter` reads `mpc`'s
-filtered disturbance from the observation instead (plan files of format 1): its estimate also holds what `mpc`'s
-linear prediction misses on the nominal plant, which computed torque does not need removed.
+gain (raw - d_k-1); 0 at an episode's start, and exactly 0 on the nominal plant without noise or actuation
+delay). `mpc_filter` reads `mpc`'s filtered disturbance from the observation instead (plan files of format 1): its
+estimate also holds what `mpc`'s linear prediction misses on the nominal plant, which computed torque does not
+need removed.
 
 Taper. With `taper`, the plan's offsets o(t) from the held cubic are multiplied by g(t), 1 until the motion's end T
 and falling to 0 at the window's end E by the quintic smoothstep; their rates follow by the product rule

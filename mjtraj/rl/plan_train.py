@@ -71,8 +71,9 @@ class PlanSettings:
     """What each task's squared errors are divided by: task (its own J_settle under `mpc` and its samples) or family
     (its family's mean J_settle). On the validation scenarios task scored lower on aggressive motions."""
     tracker: str = "lqr"
-    """How the policy follows its plan (`mjtraj.rl.plan_tracker`): lqr (the score's weights' gains, the taper) or
-    computed_torque (CT_RULE's gains, no taper: plan files of format 1). It does not change the fit."""
+    """How the policy follows its plan (`mjtraj.rl.plan_tracker`): lqr (the score's weights' gains, the taper, its
+    own disturbance estimate) or computed_torque (CT_RULE's gains, no taper, mpc_filter's estimate, observed: plan
+    files of format 1). It does not change the fit."""
 
     def __post_init__(self) -> None:
         if not self.families:
@@ -299,11 +300,11 @@ def _saved_labels(settings: PlanSettings, path: Path) -> Labels | None:
 
 
 def configuration(settings: PlanSettings) -> str:
-    """How tables name a fit's configuration: every setting that shapes the policy but the seed (fits of one
-    configuration pool as seeds in `rl eval`)."""
+    """How tables name a fit's configuration: every setting that shapes the network but the seed (fits of one
+    configuration pool as seeds in `rl eval`; the policy's name adds its tracker, `TRACKED`)."""
     default = PlanSettings()
     parts = [f"{settings.weighting} weighting", f"{settings.tasks} tasks", f"{settings.epochs} epochs"]
-    for name in ("families", "batch", "learning_rate", "hidden", "tracker"):
+    for name in ("families", "batch", "learning_rate", "hidden"):
         value = getattr(settings, name)
         if value != getattr(default, name):
             parts.append(f"{name} {'/'.join(map(str, value)) if isinstance(value, tuple) else value}")
