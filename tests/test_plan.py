@@ -337,3 +337,35 @@ def test_fits_of_one_configuration_pool_as_seeds_in_rl_eval(tmp_path):
     assert sorted(len(v) for v in groups.values()) == [1, 1, 2]  # a file of format 1 has another tracker: apart
     assert "plan tracked with LQR gains (task weighting, 2000 tasks, 200 epochs)" in groups
     assert "plan tracked by computed torque (task weighting, 2000 tasks, 200 epochs)" in groups
+
+
+def test_each_periods_command_uses_the_gains_of_its_own_sample():
+    """Alignment of plan samples and gains: two policies alike but for the gains of one sample k (ten times larger in
+    one copy) command the same torque at every period of an episode up to k, and another one at period k."""
+    settings = env_settings(WINDOW)
+    k = 7
+
+    class Spiked(PlanPolicy):
+        def plan(self, task):
+            plan = super().plan(task)
+            plan[k, 3 * self.n:] *= 10.0
+            return plan
+
+    rng = np.random.default_rng(4)
+    network = PlanNetwork([(rng.normal(size=(49, 9)) * 1e-3, rng.normal(size=9) * 1e-2)], np.zeros(49),
+                          np.full(49, 10.0))
+    plain, spiked = PlanPolicy(network, {"window_steps": settings.settle_steps}), Spiked(
+        network, {"window_steps": settings.settle_steps})
+    env = gym.make_vec("UR5Track-v2", num_envs=1, vectorization_mode="vector_entry_point", family="nominal",
+                       **{key: v for key, v in plain.env.items() if key != "planner"})
+    obs, _ = env.reset(seed=6)
+    plain.reset(np.ones(1, dtype=bool))
+    spiked.reset(np.ones(1, dtype=bool))
+    for period in range(k + 1):
+        action, other = plain(obs), spiked(obs)
+        if period < k:
+            np.testing.assert_array_equal(action, other)
+        else:
+            assert np.abs(action - other).max() > 0.0
+        obs, *_ = env.step(action)
+    env.close()
