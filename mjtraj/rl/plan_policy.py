@@ -67,6 +67,12 @@ def plan_settings(tracker: Tracker, window_steps: int) -> Any:
     return _resolved(tracker.anchor == "mpc_filter", int(window_steps))
 
 
+def start_mass(task: Task, probe: DynamicsProbe) -> NDArray[np.float64]:
+    """(n, n) kg m^2: the mass matrix at the task's start, D(q0): what an acceleration costs in torque there (the
+    fit's weights, the tracker's control weight)."""
+    return probe.mass_and_bias(task.q0[None], np.zeros((1, task.q0.size)))[0][0]  # type: ignore[no-any-return]
+
+
 def offset_scale(task: Task) -> float:
     """rad^2: the move squared, max_i |qg_i - q0_i|^2; the network's outputs are the offsets over it."""
     return float(np.max(np.abs(task.qg - task.q0))) ** 2
@@ -185,8 +191,8 @@ class PlanPolicy:
         offsets = self.offsets(task, target)
         if self.tracker.taper:
             offsets = tapered(offsets, target.t, task.duration, target.t[-1])
-        mass = self.probe.mass_and_bias(task.q0[None], np.zeros((1, self.n)))[0][0]
-        kp, kd = self.tracker.gains(self.settings.weights(task), mass, task.steps, self.window, self.dt)
+        kp, kd = self.tracker.gains(self.settings.weights(task), start_mass(task, self.probe), task.steps,
+                                    self.window, self.dt)
         return np.concatenate([target.q + offsets[:, :self.n], target.qd + offsets[:, self.n:2 * self.n],
                                target.qdd + offsets[:, 2 * self.n:], kp, kd], axis=1)
 
@@ -254,6 +260,6 @@ def load_plan(path: str | Path) -> PlanPolicy:
         if record["format"] == PLAN_FORMATS[0]:  # before trackers
             record = {**record, "tracker": Tracker.of_rule("computed_torque").as_dict()}
         return PlanPolicy(PlanNetwork.from_arrays(arrays), record, streams=record.get("streams"),
-                          files=[str(path.resolve())], tracker=Tracker(**record.get("tracker", {})))
+                          files=[str(path.resolve())])
     except (OSError, ValueError, KeyError, TypeError) as e:  # InvalidInputError is a ValueError
         raise InvalidInputError(f"policy: {path} is not a plan policy file ({type(e).__name__}: {e})") from e

@@ -36,7 +36,17 @@ from numpy.typing import NDArray
 from mjtraj.checks import choice, positive, positive_int
 from mjtraj.exceptions import InvalidInputError
 from mjtraj.files import atomic_path, write_text_atomic
-from mjtraj.rl.plan_policy import PLAN_ENV, PlanNetwork, held_cubic, offset_scale, plan_env, plan_features, save_plan
+from mjtraj.rl.plan_policy import (
+    PLAN_ENV,
+    PlanNetwork,
+    held_cubic,
+    load_plan,
+    offset_scale,
+    plan_env,
+    plan_features,
+    save_plan,
+    start_mass,
+)
 from mjtraj.rl.plan_tracker import TRACKER_RULES, Tracker
 from mjtraj.rl.streams import TRAIN_STREAM, check_seed
 
@@ -231,7 +241,7 @@ def _task_rows(task: Any, target: Any, q: NDArray[np.float64], qd: NDArray[np.fl
     qdd[:-1] = np.diff(qd, axis=0) / dt
     scale = offset_scale(task)
     y = np.concatenate([q - target.q, qd - target.qd, qdd - target.qdd], axis=1) / scale
-    mass = probe.mass_and_bias(task.q0[None], np.zeros((1, task.q0.size)))[0][0]
+    mass = start_mass(task, probe)
     row = np.concatenate([weights[0], weights[1] * np.diag(mass) ** 2]) * scale ** 2
     return plan_features(task, target, probe), y, np.tile(row, (q.shape[0], 1))
 
@@ -323,8 +333,6 @@ def _saved_fit(settings: PlanSettings, path: Path) -> tuple[PlanNetwork, dict[st
     """The network and record of the policy saved at `path` if its fit had these settings (`fit_settings`)."""
     if not path.is_file():
         return None
-    from mjtraj.rl.plan_policy import load_plan
-
     saved = load_plan(path)
     made = saved.record.get("fit_settings")
     return (saved.network, saved.record) if made == json.loads(json.dumps(settings.fit_settings())) else None
