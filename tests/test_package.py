@@ -99,8 +99,9 @@ def test_wheel_contains_model_and_scenario(tmp_path):
     from mjtraj.rl.baselines import baseline_names, baseline_path
 
     for name in baseline_names():  # the shipped baselines, policy and record, so that baseline:NAME loads anywhere
-        if baseline_path(name).suffix == ".pt":  # a batched run's module carries its record
-            wanted = {f"mjtraj/rl/baselines/{name}/policy.pt", f"mjtraj/rl/baselines/{name}/run.json"}
+        if baseline_path(name).suffix in (".pt", ".npz"):  # a batched run's module or a plan carries its record
+            wanted = {f"mjtraj/rl/baselines/{name}/policy{baseline_path(name).suffix}",
+                      f"mjtraj/rl/baselines/{name}/run.json"}
         else:
             wanted = {f"mjtraj/rl/baselines/{name}/policy.zip", f"mjtraj/rl/baselines/{name}/policy.json"}
         assert wanted <= set(names), name

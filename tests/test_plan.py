@@ -124,14 +124,15 @@ def test_the_lqr_tracker_follows_a_tapered_plan_with_its_gains_to_the_goal_at_re
     """The default tracker: the plan's gain columns are Tracker().gains for the task (the score's weights, the mass
     matrix at q0); the tapered plan is the held cubic plus the offsets until the motion's end and ends at the goal
     with zero velocity and acceleration (with a network whose offsets are not zero); and the env's episode under it
-    on an aggressive task ends at rest inside the band."""
+    on an aggressive task (the nominal plant) ends at rest inside the band, the anchor's estimate exactly 0 at every
+    period."""
     from mjtraj.core import DynamicsProbe
 
     settings = env_settings(WINDOW)
     rng = np.random.default_rng(3)
     network = PlanNetwork([(rng.normal(size=(49, 9)) * 1e-3, rng.normal(size=9) * 1e-2)], np.zeros(49),
                           np.full(49, 10.0))
-    policy = PlanPolicy(network, {"window_steps": settings.settle_steps})
+    policy = PlanPolicy(network, {"window_steps": settings.settle_steps, "tracker": Tracker().as_dict()})
     task = _task({"q0": [0.1, -1.0, 1.2], "qg": [0.5, -0.7, 0.9], "duration": 0.6})
     plan = policy.plan(task)
     target = held_cubic(task, settings.planner, settings.model, settings.settle_steps)
@@ -145,9 +146,13 @@ def test_the_lqr_tracker_follows_a_tapered_plan_with_its_gains_to_the_goal_at_re
     assert np.abs(raw[-1]).max() > 1e-3  # the taper has something to remove
     np.testing.assert_allclose(plan[-1, :3], task.qg, rtol=0, atol=1e-15)
     assert np.all(plan[-1, 3:9] == 0.0)
+    assert policy.observer is not None
+    estimates, estimate = [], policy.observer.estimate
+    policy.observer.estimate = lambda q, qd: estimates.append(estimate(q, qd)) or estimates[-1]  # type: ignore
     task_info, q, _ = _episode(policy, "aggressive", 2)
     settle = Settle.of(_task(task_info), 0, settings.settle_steps)
     assert np.abs(q[-1] - settle.goal).max() < settle.band
+    assert len(estimates) == len(q) - 1 and not np.any(np.concatenate(estimates))
 
 
 def test_a_fit_recovers_a_known_smooth_function():
@@ -189,10 +194,14 @@ def test_a_plan_policy_file_loads_as_saved_and_scores_through_rl_eval(tmp_path):
 
 
 def test_a_plan_file_keeps_its_tracker_and_one_of_format_1_keeps_computed_torque(tmp_path):
-    """A file's record names its tracker (the default, lqr, when it names none); a file of format 1 (written before
-    trackers) is tracked as it was, by CT_RULE's gains without the taper; a bad tracker is refused by name."""
-    save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02}, tmp_path / "default.npz")
+    """A file's record names its tracker (when it names none, the first lqr tracker: no end segment); a file of
+    format 1 (written before trackers) is tracked as it was, by CT_RULE's gains without the taper; a bad tracker is
+    refused by name."""
+    save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "tracker": Tracker().as_dict()},
+              tmp_path / "default.npz")
     assert load_plan(tmp_path / "default.npz").tracker == Tracker()
+    save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02}, tmp_path / "none.npz")
+    assert load_plan(tmp_path / "none.npz").tracker == dataclasses.replace(Tracker(), end_periods=0)
     ct = Tracker.of_rule("computed_torque")
     save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "tracker": ct.as_dict()}, tmp_path / "ct.npz")
     assert load_plan(tmp_path / "ct.npz").tracker == ct
@@ -263,6 +272,38 @@ def test_a_run_with_another_tracker_reuses_the_fit_and_one_with_another_fit_fits
     assert refit.record["fit_command"] == "third" and len(refit.record["loss"]) == 3
 
 
+def test_a_plan_run_ships_as_a_baseline_that_plans_as_its_run(tmp_path, monkeypatch, capsys):
+    """Oracle: the run's own policy.npz. `rl ship` of a plan run writes policy.npz and run.json; as baseline:NAME it
+    is listed and described by its name and seed, loads with the run file's bits (sha256) and plans as the run's
+    policy, bit for bit; a folder without run.json is refused by name."""
+    import shutil
+
+    from mjtraj.cli import main
+    from mjtraj.core import Task
+    from mjtraj.rl import baselines
+
+    run = tmp_path / "run"
+    train_plan(PlanSettings(families=("nominal",), tasks=2, epochs=2, hidden=(8,), seed=3), run, progress=False)
+    folder = tmp_path / "baselines"
+    assert main(["rl", "ship", str(run), "--name", "plan_tiny", "--into", str(folder)]) == 0
+    assert sorted(p.name for p in (folder / "plan_tiny").iterdir()) == ["policy.npz", "run.json"]
+    monkeypatch.setattr(baselines, "baselines_folder", lambda: folder)
+    assert baselines.baseline_names() == ["plan_tiny"]
+    capsys.readouterr()
+    assert main(["rl", "baselines"]) == 0
+    mine = load_plan(run / "policy.npz")
+    assert capsys.readouterr().out == f"baseline:plan_tiny  {mine.name}, seed 3: a plan fitted to mpc's executions " \
+                                      f"(mjtraj rl plan)\n"
+    shipped = load_any("baseline:plan_tiny")
+    assert shipped.source == "baseline:plan_tiny" and shipped.sha256 == load_any(str(run / "policy.npz")).sha256
+    task = Task(np.array([0.2, -1.1, 1.3]), np.array([0.6, -0.8, 1.0]), 0.9, mine.dt)
+    np.testing.assert_array_equal(load_plan(folder / "plan_tiny" / "policy.npz").plan(task), mine.plan(task))
+    (tmp_path / "bare").mkdir()
+    shutil.copyfile(run / "policy.npz", tmp_path / "bare" / "policy.npz")
+    with pytest.raises(InvalidInputError, match=r"^run: .*run.json not found; expected a folder of rl plan"):
+        baselines.ship(tmp_path / "bare", "plan_bare", into=folder)
+
+
 def test_labels_do_not_depend_on_the_workers_that_make_them():
     """label with two processes gives one process's labels bit for bit (the chunks are run alike)."""
     one = label(PlanSettings(families=("nominal", "aggressive"), tasks=2, workers=1))
@@ -301,10 +342,10 @@ def test_a_fits_name_is_its_configuration_without_the_seed():
     from mjtraj.rl.plan_train import configuration
 
     assert configuration(PlanSettings(seed=3)) == configuration(PlanSettings(seed=4)) == (
-        "task weighting, 2000 tasks, 100 epochs")
+        "task weighting, 2000 tasks, 160 epochs")
     assert configuration(PlanSettings(weighting="family", hidden=(64, 64), families=("nominal",),
                                       tracker="computed_torque")) == (
-        "family weighting, 2000 tasks, 100 epochs, families nominal, hidden 64/64")
+        "family weighting, 2000 tasks, 160 epochs, families nominal, hidden 64/64")
 
 
 def test_the_weightings_divide_by_each_tasks_cost_and_samples_or_by_its_familys_mean_cost():
@@ -322,20 +363,23 @@ def test_the_weightings_divide_by_each_tasks_cost_and_samples_or_by_its_familys_
 def test_fits_of_one_configuration_pool_as_seeds_in_rl_eval(tmp_path):
     """Two plan policy files of one configuration and tracker and other seeds are one configuration of two seeds in
     rl eval; one of another configuration is its own, and so is one of the same configuration with another tracker
-    (a file of format 1)."""
+    (a file of format 1; a file whose tracker departs from its rule's in one field, named in the name)."""
     from mjtraj.rl.evaluate import _labels, configurations
 
     task, family = "task weighting, 2000 tasks, 200 epochs", "family weighting, 2000 tasks, 200 epochs"
-    for name, named in (("a", task), ("b", task), ("c", family)):
+    trackers = {"a": Tracker(), "b": Tracker(), "c": Tracker(), "e": Tracker(end_periods=0)}
+    for name, named in (("a", task), ("b", task), ("c", family), ("e", task)):
         (tmp_path / name).mkdir()
-        save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "label": named}, tmp_path / name / "policy.npz")
+        save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "label": named,
+                                    "tracker": trackers[name].as_dict()}, tmp_path / name / "policy.npz")
     old = {"window_steps": 25, "dt": 0.02, "label": task, "format": "mjtraj-plan-policy/1"}
     (tmp_path / "d").mkdir()
     np.savez(tmp_path / "d" / "policy.npz", **_zero_network().arrays(), record=np.array(json.dumps(old)))
-    loaded = [load_any(str(tmp_path / name / "policy.npz")) for name in "abcd"]
+    loaded = [load_any(str(tmp_path / name / "policy.npz")) for name in "abcde"]
     groups = configurations(loaded, _labels(loaded))
-    assert sorted(len(v) for v in groups.values()) == [1, 1, 2]  # a file of format 1 has another tracker: apart
+    assert sorted(len(v) for v in groups.values()) == [1, 1, 1, 2]  # another tracker: apart
     assert "plan tracked with LQR gains (task weighting, 2000 tasks, 200 epochs)" in groups
+    assert "plan tracked with LQR gains, end_periods 0 (task weighting, 2000 tasks, 200 epochs)" in groups
     assert "plan tracked by computed torque (task weighting, 2000 tasks, 200 epochs)" in groups
 
 

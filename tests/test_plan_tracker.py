@@ -19,11 +19,18 @@ def _double_integrator() -> tuple[np.ndarray, np.ndarray]:
     return np.array([[1.0, DT], [0.0, 1.0]]), np.array([[DT * DT / 2.0], [DT]])
 
 
-def _batch_optimal_controls(x0, qp, qv, r, motion, window, boost, terminal):
-    """The controls u_0..u_{K-1} minimising sum_k x_k^T Q_k x_k + r u_k^2 + x_K^T (terminal Q) x_K from x0 for
-    x' = A x + B u, as one linear least-squares problem over the stacked controls (no Riccati recursion)."""
+def _stage_scales(motion, window, boost, end_boost=None, end_periods=0):
+    """Each period's stage weight over the motion's, as the module docstring states it: 1 in the motion, `boost` in
+    the window, `end_boost` over its last `end_periods`."""
+    return [end_boost if k >= motion + window - end_periods else boost if k >= motion else 1.0
+            for k in range(motion + window)]
+
+
+def _batch_optimal_controls(x0, qp, qv, r, scales, terminal):
+    """The controls u_0..u_{K-1} minimising sum_k scales[k] x_k^T Q x_k + r u_k^2 + x_K^T (terminal Q) x_K from
+    x0 for x' = A x + B u, as one linear least-squares problem over the stacked controls (no Riccati recursion)."""
     A, B = _double_integrator()
-    steps = motion + window
+    steps = len(scales)
     Phi = np.zeros((2 * (steps + 1), 2))
     Gamma = np.zeros((2 * (steps + 1), steps))
     for k in range(steps + 1):
@@ -32,7 +39,7 @@ def _batch_optimal_controls(x0, qp, qv, r, motion, window, boost, terminal):
             Gamma[2 * k:2 * k + 2, j] = (np.linalg.matrix_power(A, k - 1 - j) @ B)[:, 0]
     weights = []
     for k in range(steps + 1):
-        scale = terminal if k == steps else (boost if k >= motion else 1.0)
+        scale = terminal if k == steps else scales[k]
         weights += [scale * qp, scale * qv]
     W = np.diag(weights)
     H = Gamma.T @ W @ Gamma + r * np.eye(steps)
@@ -44,17 +51,23 @@ def test_the_lqr_gains_give_the_controls_of_the_whole_horizons_least_squares_sol
     controls that minimise the finite-horizon cost, found without a Riccati recursion (to 1e-7 relative)."""
     A, B = _double_integrator()
     qp, qv, r = np.array([40.0, 3.0]), np.array([2.0, 0.5]), np.array([0.02, 0.3])
-    motion, window, boost, terminal = 20, 8, 3.0, 1000.0
-    kp, kd = lqr_gains(qp, qv, r, motion, window, DT, boost, terminal)
-    assert kp.shape == kd.shape == (motion + window + 1, 2)
+    scales = _stage_scales(20, 8, 3.0, 30.0, 3)
+    kp, kd = lqr_gains(qp, qv, r, DT, np.array(scales), 1000.0)
+    assert kp.shape == kd.shape == (29, 2)
     for j, x0 in ((0, np.array([0.1, -0.3])), (1, np.array([-0.02, 0.5]))):
-        best = _batch_optimal_controls(x0, qp[j], qv[j], r[j], motion, window, boost, terminal)
-        x, played = x0.copy(), []
-        for k in range(motion + window):
-            u = -(kp[k, j] * x[0] + kd[k, j] * x[1])
-            played.append(u)
-            x = A @ x + B[:, 0] * u
-        np.testing.assert_allclose(played, best, rtol=1e-7, atol=1e-9 * np.abs(best).max())
+        _assert_plays_the_best_controls(kp[:, j], kd[:, j], _batch_optimal_controls(x0, qp[j], qv[j], r[j], scales,
+                                                                                     1000.0), x0)
+
+
+def _assert_plays_the_best_controls(kp, kd, best, x0):
+    """The loop u_k = -(kp_k e_k + kd_k ed_k) from x0 plays `best` (to 1e-7 relative)."""
+    A, B = _double_integrator()
+    x, played = x0.copy(), []
+    for k in range(len(best)):
+        u = -(kp[k] * x[0] + kd[k] * x[1])
+        played.append(u)
+        x = A @ x + B[:, 0] * u
+    np.testing.assert_allclose(played, best, rtol=1e-7, atol=1e-9 * np.abs(best).max())
 
 
 def test_far_from_the_end_the_lqr_gains_are_the_infinite_horizons():
@@ -62,7 +75,7 @@ def test_far_from_the_end_the_lqr_gains_are_the_infinite_horizons():
     motion's weights (to 1e-9 relative)."""
     A, B = _double_integrator()
     qp, qv, r = np.array([55.0, 12.0, 3.0]), np.array([4.0, 1.0, 0.2]), np.array([0.05, 0.01, 0.002])
-    kp, kd = lqr_gains(qp, qv, r, 400, 25, DT, 3.0, 1000.0)
+    kp, kd = lqr_gains(qp, qv, r, DT, np.array(_stage_scales(400, 25, 3.0, 30.0, 8)), 1000.0)
     for j in range(3):
         P = scipy.linalg.solve_discrete_are(A, B, np.diag([qp[j], qv[j]]), np.array([[r[j]]]))
         K = np.linalg.solve(B.T @ P @ B + r[j], B.T @ P @ A)[0]
@@ -79,15 +92,21 @@ def test_the_computed_torque_rule_keeps_ct_rules_gains_at_every_sample():
     assert not Tracker.of_rule("computed_torque").taper and Tracker.of_rule("lqr") == Tracker()
 
 
-def test_the_lqr_rule_weighs_an_acceleration_by_the_torque_it_costs():
-    """Tracker.gains: the control weight of joint j is R_j M_jj^2 (the same gains as lqr_gains given it)."""
+def test_the_lqr_rule_weighs_an_acceleration_by_the_torque_it_costs_and_each_period_by_its_part():
+    """Tracker.gains play, for joint j, the controls that minimise the episode's cost with control weight
+    R_j M_jj^2 and the stage weights of the module docstring (motion, window, the window's end, terminal)."""
     Q, R = np.array([30.0, 20.0, 10.0, 3.0, 2.0, 1.0]), np.array([0.01, 0.02, 0.03])
     mass = np.array([[2.0, 0.3, 0.1], [0.3, 1.5, 0.2], [0.1, 0.2, 0.5]])
-    tracker = Tracker()
-    got = tracker.gains((Q, R), mass, 30, 25, DT)
-    want = lqr_gains(Q[:3], Q[3:], R * np.diag(mass) ** 2, 30, 25, DT, tracker.window_boost, tracker.terminal)
-    np.testing.assert_array_equal(got[0], want[0])
-    np.testing.assert_array_equal(got[1], want[1])
+    tracker = Tracker(window_boost=3.0, end_boost=30.0, end_periods=4, terminal=100.0)
+    kp, kd = tracker.gains((Q, R), mass, 12, 10, DT)
+    assert kp.shape == kd.shape == (23, 3)
+    scales = _stage_scales(12, 10, 3.0, 30.0, 4)
+    for j in range(3):
+        x0 = np.array([0.05 * (j + 1), -0.2])
+        best = _batch_optimal_controls(x0, Q[j], Q[3 + j], R[j] * mass[j, j] ** 2, scales, 100.0)
+        _assert_plays_the_best_controls(kp[:, j], kd[:, j], best, x0)
+    without = Tracker(window_boost=3.0, end_periods=0, terminal=100.0).gains((Q, R), mass, 12, 10, DT)
+    assert not np.allclose(without[0], kp)  # the end segment moves the gains
 
 
 def test_the_taper_falls_from_one_to_zero_smoothly_with_its_derivatives():
@@ -126,9 +145,21 @@ def test_tapered_offsets_of_a_motion_are_a_motion_ending_at_rest():
 def test_a_tracker_refuses_bad_settings_by_name():
     for kwargs, name in (({"rule": "pid"}, "tracker"), ({"window_boost": 0.0}, "window_boost"),
                          ({"terminal": -1.0}, "terminal"), ({"anchor": "kalman"}, "anchor"),
-                         ({"anchor_gain": 1.5}, "anchor_gain")):
+                         ({"anchor_gain": 1.5}, "anchor_gain"), ({"end_boost": 0.0}, "end_boost"),
+                         ({"end_periods": -1}, "end_periods"), ({"end_periods": 2.5}, "end_periods")):
         with pytest.raises(InvalidInputError, match=name):
             Tracker(**kwargs)
+    with pytest.raises(InvalidInputError, match="end_periods.*window's 5"):
+        Tracker(end_periods=8).gains((np.ones(6), np.ones(3)), np.eye(3), 10, 5, DT)
+
+
+def test_a_record_written_before_a_field_existed_keeps_the_tracker_it_was_tracked_with():
+    """Tracker.of_record: a record without the end segment's fields tracks with no end segment, whatever today's
+    defaults; a record that names them keeps them."""
+    old = {"rule": "lqr", "window_boost": 3.0, "terminal": 1000.0, "taper": True, "anchor": "nominal",
+           "anchor_gain": 1.0}
+    assert Tracker.of_record(old).end_periods == 0
+    assert Tracker.of_record(Tracker().as_dict()) == Tracker()
 
 
 def test_the_nominal_anchor_is_zero_on_the_nominal_plant_and_finds_a_plants_damping():

@@ -221,7 +221,7 @@ def add(sub: Any, laws: str) -> None:
                    help="families whose rules draw the training tasks, comma-separated (default "
                    "nominal,aggressive,mismatch)")
     p.add_argument("--tasks", type=int, default=2000, help="training tasks per family (default 2000)")
-    p.add_argument("--epochs", type=int, default=100, help="passes over the labelled samples (default 100)")
+    p.add_argument("--epochs", type=int, default=160, help="passes over the labelled samples (default 160)")
     p.add_argument("--batch", type=int, default=512, help="samples per gradient step (default 512)")
     p.add_argument("--learning-rate", dest="learning_rate", type=float, default=1e-3,
                    help="Adam's initial step, decayed by a cosine (default 1e-3)")
@@ -306,10 +306,11 @@ def add(sub: Any, laws: str) -> None:
     p.set_defaults(handler=run_best)
     p = rl_sub.add_parser("ship", help="ship a run's policy as a baseline: its zip without optimiser states (the same "
                           "actions, checked), its record and run.json; a batched run's policy.pt with its run.json "
-                          "and learning curve")
-    p.add_argument("run", type=Path, help="the folder rl train wrote")
+                          "and learning curve; a plan run's policy.npz with its run.json")
+    p.add_argument("run", type=Path, help="the folder rl train or rl plan wrote")
     p.add_argument("--name", required=True, help="the baseline's name (letters, digits, _ and -)")
-    p.add_argument("--which", default="best", help="best (selected on validation; default) | policy (the final one)")
+    p.add_argument("--which", default="best", help="best (selected on validation; default) | policy (the final "
+                   "one); a plan run has its policy only")
     p.add_argument("--into", type=Path, help="folder of baselines (default: the package's own, mjtraj/rl/baselines)")
     p.add_argument("--student", action="store_true", help="ship a privileged teacher (--observe-plant true on the "
                    "adaptive law) as its deployable student: the same weights observing the adaptive law's estimate")
@@ -516,6 +517,10 @@ def run_baselines(args: argparse.Namespace) -> int:
 
     for name in baseline_names():
         facts = describe(name)
+        if facts["algo"] == "plan":
+            print(f"baseline:{name}  {facts['label']}, seed {facts['seed']}: a plan fitted to mpc's executions "
+                  f"(mjtraj rl plan)")
+            continue
         print(f"baseline:{name}  {facts['algo'].upper()} seed {facts['seed']}, the checkpoint at "
               f"{facts['timesteps']:,} of {facts['settings']['steps']:,} trained steps (best on validation), "
               f"controller {facts['env'].get('controller', 'pid')}, plants {facts['env']['plant_randomization']}")

@@ -42,7 +42,8 @@ PLAN_ENV: dict[str, Any] = {"planner": "cubic", "controller": "computed_torque",
 """The env settings a plan policy acts in (the rest are UR5Track-v1's; rl eval's protocol v2 adds the window); with
 the mpc_filter anchor, observe_disturbance too (`plan_env`)."""
 TRACKED = {"computed_torque": "plan tracked by computed torque", "lqr": "plan tracked with LQR gains"}
-"""How a plan policy's name begins, by its tracker's rule: fits of one configuration and one tracker pool as seeds."""
+"""How a plan policy's name begins, by its tracker's rule; the tracker's fields that depart from the rule's follow
+(`Tracker.departures`), so that fits of one configuration and one tracker pool as seeds."""
 SHIFTS = (-10, -5, 0, 5, 10, 15, 20, 30, 40, 50)
 """Samples at which the cubic's inverse-dynamics torque enters the features of a sample, relative to it (clipped to
 the episode): what the plan must prepare for and what it follows from."""
@@ -154,7 +155,7 @@ class PlanPolicy:
       network: the plan's network (features to offsets over the move squared, 3n).
       record: the run record it was trained with (saved beside it): its settle window (window_steps) and tracker.
       streams: the seeds of its training tasks (rl eval refuses to score it on them).
-      tracker: how it follows its plan (default the record's, else `Tracker()`).
+      tracker: how it follows its plan (default the record's, `Tracker.of_record`).
 
     Attributes:
       env: the env settings it acts in (`plan_env`); settings: them resolved, with the window.
@@ -166,11 +167,13 @@ class PlanPolicy:
                  files: list[str] | None = None, tracker: Tracker | None = None) -> None:
         self.network, self.record = network, record
         self.streams, self.files = streams, files or []
-        self.tracker = tracker or Tracker(**record.get("tracker", {}))
+        self.tracker = tracker or Tracker.of_record(record.get("tracker", {}))
         self.window = int(record["window_steps"])
         self.env = plan_env(self.tracker)
         self.settings = settings = plan_settings(self.tracker, self.window)
-        self.name = f"{TRACKED[self.tracker.rule]} ({record.get('label', 'plan')})"  # rl eval pools by it
+        # rl eval pools seeds by name: the tracker's rule and any field that departs from the rule's
+        self.name = ", ".join([TRACKED[self.tracker.rule], *self.tracker.departures()]) + \
+            f" ({record.get('label', 'plan')})"
         self.n, self.dt, self.obs_size = settings.n, settings.dt, settings.obs_size
         self.probe = DynamicsProbe(settings.model, serial=True)  # one MjData: the cheaper for a few rows
         self.limit = settings.torque_limit

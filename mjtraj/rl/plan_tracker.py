@@ -7,9 +7,11 @@ x = (q - q_p, qd - qd_p) as x' = A x + B u, A = [[1, dt], [0, 1]], B = [dt^2 / 2
 with Q_j = diag(Q_q,j, Q_qd,j) (the score's weights on joint j, Bryson's rule for the task; the score itself
 measures the error from the held cubic) and R_j (M_jj u)^2, the torque u costs at the start's mass matrix M.
 The `lqr` rule's gains (kp_k, kd_k) = K_k are the finite-horizon LQR's over the episode's N periods of motion and
-S of the settle window: the stage weight is Q_j in the motion and `window_boost` Q_j in the window, the terminal
-weight `terminal` Q_j (the at-rest rule, which the score itself does not charge). `computed_torque` keeps CT_RULE's
-fixed gains (plan files of format 1).
+S of the settle window: the stage weight is Q_j in the motion, `window_boost` Q_j in the window and `end_boost` Q_j
+over the window's last `end_periods` periods, the terminal weight `terminal` Q_j (the at-rest rule, which the score
+itself does not charge). The end's stiffer weight holds the arm where the anchor would otherwise integrate against
+a joint's dry friction until it breaks free, still moving when the window ends (docs/benchmark.md); it costs little
+score, since by then the error is small. `computed_torque` keeps CT_RULE's fixed gains (plan files of format 1).
 
 Anchor. The torque the nominal model does not explain is subtracted from the command. `nominal` (the default)
 estimates it itself: each period the nominal plant (the project's `BatchPlant` of the policy's model, as the env
@@ -41,6 +43,9 @@ from mjtraj.exceptions import InvalidInputError
 
 TRACKER_RULES = ("lqr", "computed_torque")
 ANCHORS = ("nominal", "mpc_filter")
+BEFORE = {"end_periods": 0}
+"""Tracker fields added since plan files of format 2 were first written, with the values that tracked those files
+(no end segment: the window's weight to its end)."""
 
 
 @dataclass(frozen=True)
@@ -51,6 +56,10 @@ class Tracker:
     rule: str = "lqr"
     window_boost: float = 3.0
     """The LQR's stage weight in the settle window over the motion's."""
+    end_boost: float = 30.0
+    """The LQR's stage weight over the window's last `end_periods` periods over the motion's."""
+    end_periods: int = 8
+    """How many of the window's last periods take `end_boost` (0: none; at most the window)."""
     terminal: float = 1000.0
     """The LQR's weight on the last sample's error over the motion's stage weight."""
     taper: bool = True
@@ -61,19 +70,34 @@ class Tracker:
     def __post_init__(self) -> None:
         choice("tracker", self.rule, TRACKER_RULES)
         positive("window_boost", self.window_boost)
+        positive("end_boost", self.end_boost)
         positive("terminal", self.terminal)
+        if isinstance(self.end_periods, bool) or not isinstance(self.end_periods, int) or self.end_periods < 0:
+            raise InvalidInputError(f"end_periods: expected a whole number of periods >= 0, got {self.end_periods!r}")
         choice("anchor", self.anchor, ANCHORS)
         if not 0.0 < self.anchor_gain <= 1.0:
             raise InvalidInputError(f"anchor_gain: expected a gain in (0, 1], got {self.anchor_gain!r}")
 
     @classmethod
+    def of_record(cls, fields: dict[str, Any]) -> Tracker:
+        """The tracker a run record names; fields it lacks (written before they existed) take the values that
+        tracked it then (`BEFORE`), not today's defaults."""
+        return cls(**{**BEFORE, **fields})
+
+    @classmethod
     def of_rule(cls, rule: str) -> Tracker:
         """The tracker `mjtraj rl plan --tracker RULE` gives: lqr's defaults, or computed_torque as plan files of
-        format 1 were tracked (no taper, mpc_filter's anchor)."""
-        return cls() if rule == "lqr" else cls(rule, taper=False, anchor="mpc_filter")
+        format 1 were tracked (no taper, mpc_filter's anchor; no end segment, as its fixed gains ignore the
+        weights)."""
+        return cls() if rule == "lqr" else cls(rule, end_periods=0, taper=False, anchor="mpc_filter")
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+    def departures(self) -> list[str]:
+        """'field value' for every field that differs from its rule's tracker (`of_rule`), in field order."""
+        usual = Tracker.of_rule(self.rule).as_dict()
+        return [f"{k} {v}" for k, v in self.as_dict().items() if v != usual[k]]
 
     def gains(self, weights: tuple[NDArray[np.float64], NDArray[np.float64]], mass: NDArray[np.float64],
               motion: int, window: int, dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -84,18 +108,23 @@ class Tracker:
         if self.rule == "computed_torque":
             law = ComputedTorque.for_period(dt, n)
             return np.tile(law.kp, (motion + window + 1, 1)), np.tile(law.kd, (motion + window + 1, 1))
-        return lqr_gains(weights[0][:n], weights[0][n:], weights[1] * np.diag(mass) ** 2, motion, window, dt,
-                         self.window_boost, self.terminal)
+        if self.end_periods > window:
+            raise InvalidInputError(f"end_periods: expected at most the window's {window} periods, "
+                                    f"got {self.end_periods}")
+        boosts = np.ones(motion + window)
+        boosts[motion:] = self.window_boost
+        boosts[motion + window - self.end_periods:] = self.end_boost
+        return lqr_gains(weights[0][:n], weights[0][n:], weights[1] * np.diag(mass) ** 2, dt, boosts, self.terminal)
 
 
 def lqr_gains(q_position: NDArray[np.float64], q_velocity: NDArray[np.float64], r: NDArray[np.float64],
-              motion: int, window: int, dt: float, window_boost: float, terminal: float
+              dt: float, boosts: NDArray[np.float64], terminal: float
               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The finite-horizon LQR gains of n independent double integrators (module docstring), every joint's 2 x 2
-    Riccati recursion written out elementwise: stage weights diag(q_position, q_velocity) (n,) each (times
-    `window_boost` from period `motion` on), control weight r (n,), terminal weight `terminal` times the stage's.
-    Returns kp, kd (motion + window + 1, n)."""
-    steps = motion + window
+    """The finite-horizon LQR gains of n independent double integrators of period dt s (module docstring), every
+    joint's 2 x 2 Riccati recursion written out elementwise: stage weights diag(q_position, q_velocity) (n,) each
+    (1/rad^2, s^2/rad^2) times boosts[k] at period k (K,), control weight r (n,) on the feedback acceleration
+    (s^4/rad^2), terminal weight `terminal` times the stage's. Returns kp (1/s^2), kd (1/s), each (K + 1, n)."""
+    steps = boosts.size
     b1, b2 = dt * dt / 2.0, dt
     p11, p12, p22 = terminal * q_position, np.zeros_like(q_position), terminal * q_velocity
     kp, kd = np.empty((steps + 1, r.size)), np.empty((steps + 1, r.size))
@@ -103,7 +132,7 @@ def lqr_gains(q_position: NDArray[np.float64], q_velocity: NDArray[np.float64], 
         g1, g2 = b1 * p11 + b2 * p12, b1 * (dt * p11 + p12) + b2 * (dt * p12 + p22)  # B^T P A
         s = b1 * g1 + b2 * (b1 * p12 + b2 * p22) + r  # B^T P B + r
         kp[k], kd[k] = g1 / s, g2 / s
-        boost = window_boost if k >= motion else 1.0
+        boost = boosts[k]
         p11, p12, p22 = (boost * q_position + p11 - g1 * g1 / s,
                          dt * p11 + p12 - g1 * g2 / s,
                          boost * q_velocity + dt * dt * p11 + 2.0 * dt * p12 + p22 - g2 * g2 / s)
@@ -112,7 +141,8 @@ def lqr_gains(q_position: NDArray[np.float64], q_velocity: NDArray[np.float64], 
 
 
 def taper(t: NDArray[np.float64], start: float, end: float) -> tuple[NDArray[np.float64], ...]:
-    """g(t), g'(t), g''(t) (each like t): 1 before `start`, 0 after `end`, the quintic smoothstep between (s)."""
+    """g(t) (1), g'(t) (1/s), g''(t) (1/s^2), each like t (s): 1 before `start`, 0 after `end` (s), the quintic
+    smoothstep between."""
     length = end - start
     s = np.clip((t - start) / length, 0.0, 1.0)
     g = 1.0 - s ** 3 * (10.0 - 15.0 * s + 6.0 * s * s)
@@ -172,6 +202,7 @@ class DisturbanceObserver:
 
     def remember(self, q: NDArray[np.float64], qd: NDArray[np.float64], dtau: NDArray[np.float64],
                  mass: NDArray[np.float64]) -> None:
-        """The period's measured state, the command dtau (B, n) it applies and the mass matrix (B, n, n) there."""
+        """The period's measured state (q rad, qd rad/s, each (B, n)), the command dtau (B, n) N m it applies and the
+        mass matrix (B, n, n) kg m^2 there."""
         self._q[:], self._qd[:], self._u[:], self._mass[:] = q, qd, dtau, mass
         self._known[:] = True

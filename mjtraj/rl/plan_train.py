@@ -65,7 +65,7 @@ class PlanSettings:
     """Whose rules draw the training tasks (every one executed on the nominal plant)."""
     tasks: int = 2000
     """Training tasks per family."""
-    epochs: int = 100
+    epochs: int = 160
     batch: int = 512
     learning_rate: float = 1e-3
     hidden: tuple[int, ...] = (256, 256, 256)

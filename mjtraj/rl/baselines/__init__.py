@@ -1,7 +1,8 @@
 """The trained policies the benchmark's summary reports, shipped so that anyone can score them again.
 
-Each baseline is a folder NAME/ with the SB3 zip and its record (policy.zip, policy.json), or a batched run's
-policy (policy.pt: the torch module with its record; mjtraj.rl.batched), and the training run's run.json;
+Each baseline is a folder NAME/ with the SB3 zip and its record (policy.zip, policy.json), a batched run's
+policy (policy.pt: the torch module with its record; mjtraj.rl.batched) or a plan run's (policy.npz: the network
+with its record; mjtraj.rl.plan_policy), and the training run's run.json;
 `baseline:NAME` loads it wherever a policy is accepted, `mjtraj rl baselines` lists them, and
 TRAINING.md beside this file gives the command that trained each.
 """
@@ -29,8 +30,8 @@ def baselines_folder() -> Path:
     return Path(str(resources.files("mjtraj.rl.baselines")))
 
 
-POLICY_FILES = ("policy.zip", "policy.pt")
-"""A baseline's policy: an SB3 zip, or a batched run's module."""
+POLICY_FILES = ("policy.zip", "policy.pt", "policy.npz")
+"""A baseline's policy: an SB3 zip, a batched run's module, or a plan run's policy."""
 
 
 def baseline_names() -> list[str]:
@@ -55,7 +56,7 @@ def best_name(folder: Path | None = None) -> str:
 
 
 def baseline_path(name: str) -> Path:
-    """The policy file of baseline `name` (policy.zip or policy.pt; best: the one BEST.json names, see
+    """The policy file of baseline `name` (one of POLICY_FILES; best: the one BEST.json names, see
     mjtraj.rl.best).
 
     Raises:
@@ -72,9 +73,16 @@ def baseline_path(name: str) -> Path:
 
 
 def describe(name: str) -> dict[str, Any]:
-    """A baseline's facts from its record: algorithm, seed, the checkpoint's steps, the env it acts in, the run's
-    settings."""
+    """A baseline's facts from its record: algorithm, seed, the checkpoint's steps (None for a plan), the env it
+    acts in, the run's settings; a plan's also its name (`label`)."""
     path = baseline_path(name)
+    if path.suffix == ".npz":
+        from mjtraj.rl.plan_policy import load_plan
+
+        plan = load_plan(path)
+        settings = plan.record["settings"]
+        return {"name": name, "algo": "plan", "seed": settings["seed"], "timesteps": None, "env": plan.env,
+                "settings": settings, "label": plan.name}
     if path.suffix == ".pt":
         from mjtraj.rl.batched_policy import load_batched
 
@@ -129,6 +137,8 @@ def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | 
     run = Path(run)
     if (run / f"{which}.pt").is_file() and not (run / f"{which}.zip").is_file():
         return _ship_batched(run, name, which, into)
+    if (run / "policy.npz").is_file() and not (run / f"{which}.zip").is_file():
+        return _ship_plan(run, name, into)
     source = run / f"{which}.zip"
     if not source.is_file() or not (run / "run.json").is_file():
         raise InvalidInputError(f"run: {source} or {run / 'run.json'} not found; expected a folder of rl train")
@@ -163,6 +173,30 @@ def _check_name(name: str) -> None:
     """Refuse a baseline name that is not a plain folder name."""
     if not name or not all(c.isalnum() or c in "_-" for c in name):
         raise InvalidInputError(f"name: expected letters, digits, _ and -, got {name!r}")
+
+
+def _ship_plan(run: Path, name: str, into: str | Path | None) -> Path:
+    """`ship` of a plan run (mjtraj.rl.plan_train): its policy.npz and run.json; the copy is checked to plan and
+    track as the original, bit for bit, on a probe task."""
+    import numpy as np
+
+    from mjtraj.core import Task
+    from mjtraj.rl.plan_policy import load_plan
+
+    if not (run / "run.json").is_file():
+        raise InvalidInputError(f"run: {run / 'run.json'} not found; expected a folder of rl plan")
+    _check_name(name)
+    target = (Path(into) if into is not None else baselines_folder()) / name
+    target.mkdir(parents=True, exist_ok=True)
+    for file in ("policy.npz", "run.json"):
+        with atomic_path(target / file) as tmp:
+            shutil.copyfile(run / file, tmp)
+    original, shipped = load_plan(run / "policy.npz"), load_plan(target / "policy.npz")
+    q0 = np.array([0.3, -1.2, 1.4])[:original.n]
+    probe = Task(q0, q0 + 0.4, 0.8, original.dt)
+    if original.record != shipped.record or not np.array_equal(original.plan(probe), shipped.plan(probe)):
+        raise InvalidInputError(f"ship: the copy of {run / 'policy.npz'} plans differently; not shipped")
+    return target / "policy.npz"
 
 
 def _ship_batched(run: Path, name: str, which: str, into: str | Path | None) -> Path:
