@@ -194,14 +194,19 @@ def test_a_plan_policy_file_loads_as_saved_and_scores_through_rl_eval(tmp_path):
 
 
 def test_a_plan_file_keeps_its_tracker_and_one_of_format_1_keeps_computed_torque(tmp_path):
-    """A file's record names its tracker (when it names none, the first lqr tracker: no end segment); a file of
-    format 1 (written before trackers) is tracked as it was, by CT_RULE's gains without the taper; a bad tracker is
-    refused by name."""
+    """A file's record names its tracker (the default when it names none; fields it lacks as they were before they
+    existed); a file of format 1 (written before trackers) is tracked as it was, by CT_RULE's gains without the
+    taper; a bad tracker, or an end segment longer than the window, is refused by name."""
     save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "tracker": Tracker().as_dict()},
               tmp_path / "default.npz")
     assert load_plan(tmp_path / "default.npz").tracker == Tracker()
     save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02}, tmp_path / "none.npz")
-    assert load_plan(tmp_path / "none.npz").tracker == dataclasses.replace(Tracker(), end_periods=0)
+    assert load_plan(tmp_path / "none.npz").tracker == Tracker()
+    lacking = {k: v for k, v in Tracker().as_dict().items() if k not in ("end_boost", "end_periods")}
+    save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "tracker": lacking}, tmp_path / "lacking.npz")
+    assert load_plan(tmp_path / "lacking.npz").tracker == dataclasses.replace(Tracker(), end_periods=0)
+    with pytest.raises(InvalidInputError, match=r"^end_periods: expected at most the settle window's 5 periods, got 8"):
+        PlanPolicy(_zero_network(), {"window_steps": 5, "tracker": Tracker().as_dict()})
     ct = Tracker.of_rule("computed_torque")
     save_plan(_zero_network(), {"window_steps": 25, "dt": 0.02, "tracker": ct.as_dict()}, tmp_path / "ct.npz")
     assert load_plan(tmp_path / "ct.npz").tracker == ct
@@ -292,8 +297,9 @@ def test_a_plan_run_ships_as_a_baseline_that_plans_as_its_run(tmp_path, monkeypa
     capsys.readouterr()
     assert main(["rl", "baselines"]) == 0
     mine = load_plan(run / "policy.npz")
-    assert capsys.readouterr().out == f"baseline:plan_tiny  {mine.name}, seed 3: a plan fitted to mpc's executions " \
-                                      f"(mjtraj rl plan)\n"
+    listed = capsys.readouterr().out
+    assert listed.startswith("baseline:plan_tiny  plan tracked with LQR gains (task weighting, 2 tasks, 2 epochs")
+    assert listed.count("\n") == 1 and "seed 3" in listed and "checkpoint" not in listed
     shipped = load_any("baseline:plan_tiny")
     assert shipped.source == "baseline:plan_tiny" and shipped.sha256 == load_any(str(run / "policy.npz")).sha256
     task = Task(np.array([0.2, -1.1, 1.3]), np.array([0.6, -0.8, 1.0]), 0.9, mine.dt)
@@ -302,6 +308,17 @@ def test_a_plan_run_ships_as_a_baseline_that_plans_as_its_run(tmp_path, monkeypa
     shutil.copyfile(run / "policy.npz", tmp_path / "bare" / "policy.npz")
     with pytest.raises(InvalidInputError, match=r"^run: .*run.json not found; expected a folder of rl plan"):
         baselines.ship(tmp_path / "bare", "plan_bare", into=folder)
+    with pytest.raises(InvalidInputError, match=r"^student: .* is a plan run"):
+        baselines.ship(run, "plan_student", into=folder, student=True)
+    (folder / "older").mkdir()
+    (folder / "older" / "policy.zip").write_bytes(b"an earlier baseline")
+    with pytest.raises(InvalidInputError, match=r"^name: baseline 'older' already holds policy.zip"):
+        baselines.ship(run, "older", into=folder)
+    assert sorted(p.name for p in (folder / "older").iterdir()) == ["policy.zip"]  # nothing written beside it
+    with pytest.raises(InvalidInputError, match=r"^window: expected a settle window of at least the tracker's 8"):
+        train_plan(PlanSettings(families=("nominal",), tasks=2, epochs=2, hidden=(8,), window=0.1),
+                   tmp_path / "short", progress=False)
+    assert not (tmp_path / "short").exists()
 
 
 def test_labels_do_not_depend_on_the_workers_that_make_them():

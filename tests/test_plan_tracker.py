@@ -4,6 +4,8 @@ differences of the taper."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.linalg
@@ -160,6 +162,23 @@ def test_a_record_written_before_a_field_existed_keeps_the_tracker_it_was_tracke
            "anchor_gain": 1.0}
     assert Tracker.of_record(old).end_periods == 0
     assert Tracker.of_record(Tracker().as_dict()) == Tracker()
+    # bit for bit the gains of the rule such records were tracked with: the window's weight to the window's end
+    Q, R, mass = np.array([30.0, 20.0, 10.0, 3.0, 2.0, 1.0]), np.array([0.01, 0.02, 0.03]), np.diag([2.0, 1.5, 0.5])
+    kp, kd = Tracker.of_record(old).gains((Q, R), mass, 30, 25, DT)
+    want = lqr_gains(Q[:3], Q[3:], R * np.diag(mass) ** 2, DT, np.array([1.0] * 30 + [3.0] * 25), 1000.0)
+    np.testing.assert_array_equal(kp, want[0])
+    np.testing.assert_array_equal(kd, want[1])
+
+
+def test_a_trackers_departures_name_only_the_fields_that_act():
+    """departures: the lqr default has none; no end segment names end_periods but not its idle weight; the
+    computed_torque rule, whose fixed gains read no weight, names none of the LQR's fields."""
+    assert Tracker().departures() == []
+    assert Tracker(end_periods=0, end_boost=10.0).departures() == ["end_periods 0"]
+    assert Tracker(window_boost=5.0, anchor_gain=0.5).departures() == ["window_boost 5.0", "anchor_gain 0.5"]
+    ct = Tracker.of_rule("computed_torque")
+    assert dataclasses.replace(ct, end_periods=8, terminal=5.0).departures() == []
+    assert dataclasses.replace(ct, taper=True).departures() == ["taper True"]
 
 
 def test_the_nominal_anchor_is_zero_on_the_nominal_plant_and_finds_a_plants_damping():

@@ -155,7 +155,8 @@ class PlanPolicy:
       network: the plan's network (features to offsets over the move squared, 3n).
       record: the run record it was trained with (saved beside it): its settle window (window_steps) and tracker.
       streams: the seeds of its training tasks (rl eval refuses to score it on them).
-      tracker: how it follows its plan (default the record's, `Tracker.of_record`).
+      tracker: how it follows its plan (default the record's, `Tracker.of_record`; `Tracker()` if it names
+        none).
 
     Attributes:
       env: the env settings it acts in (`plan_env`); settings: them resolved, with the window.
@@ -167,8 +168,11 @@ class PlanPolicy:
                  files: list[str] | None = None, tracker: Tracker | None = None) -> None:
         self.network, self.record = network, record
         self.streams, self.files = streams, files or []
-        self.tracker = tracker or Tracker.of_record(record.get("tracker", {}))
+        self.tracker = tracker or (Tracker.of_record(record["tracker"]) if "tracker" in record else Tracker())
         self.window = int(record["window_steps"])
+        if self.tracker.rule == "lqr" and self.tracker.end_periods > self.window:
+            raise InvalidInputError(f"end_periods: expected at most the settle window's {self.window} periods, got "
+                                    f"{self.tracker.end_periods}")
         self.env = plan_env(self.tracker)
         self.settings = settings = plan_settings(self.tracker, self.window)
         # rl eval pools seeds by name: the tracker's rule and any field that departs from the rule's

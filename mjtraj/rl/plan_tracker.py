@@ -43,6 +43,8 @@ from mjtraj.exceptions import InvalidInputError
 
 TRACKER_RULES = ("lqr", "computed_torque")
 ANCHORS = ("nominal", "mpc_filter")
+LQR_FIELDS = ("window_boost", "end_boost", "end_periods", "terminal")
+"""The fields only the lqr rule's gains read."""
 BEFORE = {"end_periods": 0}
 """Tracker fields added since plan files of format 2 were first written, with the values that tracked those files
 (no end segment: the window's weight to its end)."""
@@ -95,9 +97,11 @@ class Tracker:
         return dataclasses.asdict(self)
 
     def departures(self) -> list[str]:
-        """'field value' for every field that differs from its rule's tracker (`of_rule`), in field order."""
+        """'field value' for every field that differs from its rule's tracker (`of_rule`) and acts, in field order
+        (computed_torque's fixed gains ignore the LQR's weights; no end segment ignores its weight)."""
         usual = Tracker.of_rule(self.rule).as_dict()
-        return [f"{k} {v}" for k, v in self.as_dict().items() if v != usual[k]]
+        idle = set(LQR_FIELDS) if self.rule == "computed_torque" else {"end_boost"} if self.end_periods == 0 else set()
+        return [f"{k} {v}" for k, v in self.as_dict().items() if v != usual[k] and k not in idle]
 
     def gains(self, weights: tuple[NDArray[np.float64], NDArray[np.float64]], mass: NDArray[np.float64],
               motion: int, window: int, dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

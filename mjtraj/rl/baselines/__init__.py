@@ -138,6 +138,9 @@ def ship(run: str | Path, name: str, *, which: str = "best", into: str | Path | 
     if (run / f"{which}.pt").is_file() and not (run / f"{which}.zip").is_file():
         return _ship_batched(run, name, which, into)
     if (run / "policy.npz").is_file() and not (run / f"{which}.zip").is_file():
+        if student:
+            raise InvalidInputError(f"student: {run} is a plan run (rl plan); only a teacher on the adaptive law "
+                                    "ships as a student")
         return _ship_plan(run, name, into)
     source = run / f"{which}.zip"
     if not source.is_file() or not (run / "run.json").is_file():
@@ -176,8 +179,8 @@ def _check_name(name: str) -> None:
 
 
 def _ship_plan(run: Path, name: str, into: str | Path | None) -> Path:
-    """`ship` of a plan run (mjtraj.rl.plan_train): its policy.npz and run.json; the copy is checked to plan and
-    track as the original, bit for bit, on a probe task."""
+    """`ship` of a plan run (mjtraj.rl.plan_train; `which` does not apply: it has one policy): its policy.npz and
+    run.json, checked to plan as the original, bit for bit, on a probe task; nothing is left behind if not."""
     import numpy as np
 
     from mjtraj.core import Task
@@ -186,15 +189,22 @@ def _ship_plan(run: Path, name: str, into: str | Path | None) -> Path:
     if not (run / "run.json").is_file():
         raise InvalidInputError(f"run: {run / 'run.json'} not found; expected a folder of rl plan")
     _check_name(name)
+    original = load_plan(run / "policy.npz")  # refuses a file that is not a plan policy before anything is written
     target = (Path(into) if into is not None else baselines_folder()) / name
+    others = [f for f in POLICY_FILES if f != "policy.npz" and (target / f).is_file()]
+    if others:
+        raise InvalidInputError(f"name: baseline {name!r} already holds {', '.join(others)}, which baseline:{name} "
+                                "would load instead; expected a new name or an empty folder")
     target.mkdir(parents=True, exist_ok=True)
     for file in ("policy.npz", "run.json"):
         with atomic_path(target / file) as tmp:
             shutil.copyfile(run / file, tmp)
-    original, shipped = load_plan(run / "policy.npz"), load_plan(target / "policy.npz")
+    shipped = load_plan(target / "policy.npz")
     q0 = np.array([0.3, -1.2, 1.4])[:original.n]
     probe = Task(q0, q0 + 0.4, 0.8, original.dt)
     if original.record != shipped.record or not np.array_equal(original.plan(probe), shipped.plan(probe)):
+        for file in ("policy.npz", "run.json"):
+            (target / file).unlink(missing_ok=True)
         raise InvalidInputError(f"ship: the copy of {run / 'policy.npz'} plans differently; not shipped")
     return target / "policy.npz"
 
