@@ -170,9 +170,7 @@ class PlanPolicy:
         self.streams, self.files = streams, files or []
         self.tracker = tracker or (Tracker.of_record(record["tracker"]) if "tracker" in record else Tracker())
         self.window = int(record["window_steps"])
-        if self.tracker.rule == "lqr" and self.tracker.end_periods > self.window:
-            raise InvalidInputError(f"end_periods: expected at most the settle window's {self.window} periods, got "
-                                    f"{self.tracker.end_periods}")
+        self.tracker.check_window(self.window)
         self.env = plan_env(self.tracker)
         self.settings = settings = plan_settings(self.tracker, self.window)
         # rl eval pools seeds by name: the tracker's rule and any field that departs from the rule's

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.checks import choice, positive
+from mjtraj.checks import choice, in_range, nonnegative_int, positive
 from mjtraj.core import BatchPlant, ComputedTorque
 from mjtraj.exceptions import InvalidInputError
 
@@ -74,11 +74,9 @@ class Tracker:
         positive("window_boost", self.window_boost)
         positive("end_boost", self.end_boost)
         positive("terminal", self.terminal)
-        if isinstance(self.end_periods, bool) or not isinstance(self.end_periods, int) or self.end_periods < 0:
-            raise InvalidInputError(f"end_periods: expected a whole number of periods >= 0, got {self.end_periods!r}")
+        nonnegative_int("end_periods", self.end_periods)
         choice("anchor", self.anchor, ANCHORS)
-        if not 0.0 < self.anchor_gain <= 1.0:
-            raise InvalidInputError(f"anchor_gain: expected a gain in (0, 1], got {self.anchor_gain!r}")
+        in_range("anchor_gain", self.anchor_gain, 0.0, 1.0, high_open=False)
 
     @classmethod
     def of_record(cls, fields: dict[str, Any]) -> Tracker:
@@ -103,6 +101,17 @@ class Tracker:
         idle = set(LQR_FIELDS) if self.rule == "computed_torque" else {"end_boost"} if self.end_periods == 0 else set()
         return [f"{k} {v}" for k, v in self.as_dict().items() if v != usual[k] and k not in idle]
 
+    @property
+    def settle_periods(self) -> int:
+        """The fewest settle-window periods this tracker's gains need: its end segment (lqr), none (computed_torque)."""
+        return self.end_periods if self.rule == "lqr" else 0
+
+    def check_window(self, window: int) -> None:
+        """Refuse (InvalidInputError naming end_periods) a settle window of `window` periods shorter than it needs."""
+        if self.settle_periods > window:
+            raise InvalidInputError(f"end_periods: expected at most the settle window's {window} periods, got "
+                                    f"{self.end_periods}")
+
     def gains(self, weights: tuple[NDArray[np.float64], NDArray[np.float64]], mass: NDArray[np.float64],
               motion: int, window: int, dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(kp, kd), each (motion + window + 1, n) in 1/s^2 and 1/s: the gains at every sample of an episode of
@@ -112,9 +121,7 @@ class Tracker:
         if self.rule == "computed_torque":
             law = ComputedTorque.for_period(dt, n)
             return np.tile(law.kp, (motion + window + 1, 1)), np.tile(law.kd, (motion + window + 1, 1))
-        if self.end_periods > window:
-            raise InvalidInputError(f"end_periods: expected at most the window's {window} periods, "
-                                    f"got {self.end_periods}")
+        self.check_window(window)
         boosts = np.ones(motion + window)
         boosts[motion:] = self.window_boost
         boosts[motion + window - self.end_periods:] = self.end_boost

@@ -346,8 +346,8 @@ def train_plan(settings: PlanSettings, out: str | Path, *, progress: bool = True
 
     tracker = Tracker.of_rule(settings.tracker)
     window = env_settings(settings.window).settle_steps
-    if tracker.rule == "lqr" and tracker.end_periods > window:  # refused before hours of labels and fit
-        raise InvalidInputError(f"window: expected a settle window of at least the tracker's {tracker.end_periods} "
+    if tracker.settle_periods > window:  # refused before hours of labels and fit
+        raise InvalidInputError(f"window: expected a settle window of at least the tracker's {tracker.settle_periods} "
                                 f"end periods, got {window} periods ({settings.window} s)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
