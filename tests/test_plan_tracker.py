@@ -145,14 +145,24 @@ def test_tapered_offsets_of_a_motion_are_a_motion_ending_at_rest():
 
 
 def test_a_tracker_refuses_bad_settings_by_name():
-    for kwargs, name in (({"rule": "pid"}, "tracker"), ({"window_boost": 0.0}, "window_boost"),
-                         ({"terminal": -1.0}, "terminal"), ({"anchor": "kalman"}, "anchor"),
-                         ({"anchor_gain": 1.5}, "anchor_gain"), ({"end_boost": 0.0}, "end_boost"),
-                         ({"end_periods": -1}, "end_periods"), ({"end_periods": 2.5}, "end_periods")):
-        with pytest.raises(InvalidInputError, match=name):
+    """Each bad field is refused with one message naming it, what was expected and what arrived."""
+    import re
+
+    for kwargs, message in (
+            ({"rule": "pid"}, "tracker: unknown value 'pid'; valid: lqr, computed_torque"),
+            ({"window_boost": 0.0}, "window_boost: expected a positive number, got 0.0"),
+            ({"terminal": -1.0}, "terminal: expected a positive number, got -1.0"),
+            ({"anchor": "kalman"}, "anchor: unknown value 'kalman'; valid: nominal, mpc_filter"),
+            ({"anchor_gain": 1.5}, "anchor_gain: expected a number in (0, 1], got 1.5"),
+            ({"end_boost": 0.0}, "end_boost: expected a positive number, got 0.0"),
+            ({"end_periods": -1}, "end_periods: expected a whole number >= 0, got -1"),
+            ({"end_periods": 2.5}, "end_periods: expected a whole number >= 0, got 2.5")):
+        with pytest.raises(InvalidInputError, match=f"^{re.escape(message)}$"):
             Tracker(**kwargs)
-    with pytest.raises(InvalidInputError, match="end_periods.*window's 5"):
+    with pytest.raises(InvalidInputError,
+                       match=r"^end_periods: expected at most the settle window's 5 periods, got 8$"):
         Tracker(end_periods=8).gains((np.ones(6), np.ones(3)), np.eye(3), 10, 5, DT)
+    Tracker.of_rule("computed_torque").check_window(0)  # fixed gains need no window
 
 
 def test_a_record_written_before_a_field_existed_keeps_the_tracker_it_was_tracked_with():
