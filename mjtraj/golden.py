@@ -14,8 +14,9 @@ What a set pins (SETS; every scenario from the held-out seed SEED, as `rl eval` 
 - `floor/FAMILY/I`: each starting law's J_exec on cubic's reference (pid, computed torque, the adaptive law, the
   oracle; `.../predictive` mpc's and adaptive mpc's) and `floor/FAMILY/I/solve` the clairvoyant floor
   (`mjtraj.study.floor.family_floors`, as `mjtraj floor` runs it);
-- `policy/FAMILY/I`, `policy_v2/FAMILY/I`: the shipped policy `baseline:best` scored as `mjtraj rl eval` scores it
-  by protocol v1 and v2 (its planner's reference, its control law, `run_unit` with the policy as an actor).
+- `policy/FAMILY/I`, `policy_v2/FAMILY/I`: the shipped policy each protocol's published table scores (POLICIES)
+  scored as `mjtraj rl eval` scores it by protocol v1 and v2 (its planner's reference, its control law, `run_unit`
+  with the policy as an actor).
 
 How they are compared (`compare_entries`): statuses (a row's status, a plan's solver, the floor's start, a policy's
 sha256) always exactly. On a machine whose fingerprint (`fingerprint`: CPU model and flags, Python, the numerical
@@ -55,7 +56,9 @@ PLANNERS = ("optimal", "cubic", "quintic", "trapezoidal")
 """The sweep's default planners."""
 LAWS = ("pid", "computed_torque", "adaptive_computed_torque", "mpc", "adaptive_mpc")
 NONLINEAR = ("nonlinear_optimal", "nonlinear_min_effort")
-POLICY = "baseline:best"
+POLICIES = {"v1": "baseline:ppo_batched_s1", "v2": "baseline:best"}
+"""The shipped policy each protocol's published table scores: docs/results/best (v1) the baseline v1's rule chose,
+docs/results/v2 (v2) `baseline:best`, chosen by v2's rule (`mjtraj.rl.best`)."""
 TOLERANCES: dict[str, float | None] = {"float64": 1e-9, "float32": 1e-5, "sensitive": None}
 """An entry's relative tolerance by its kind, where the machine is not the recording one (docs/testing.md gives the
 measurements).
@@ -64,7 +67,8 @@ measurements).
   and a second BLAS thread moved no such value of the `full` set by more than 1e-12, and every dependency at its
   declared floor (NumPy 2.2, SciPy 1.13.1, DAQP 0.5, ...) none by more than 1e-9. A change moves them by far more: a
   link's mass by 1e-6 moved nearly all of them by more than 1e-9 (the median by 1e-7).
-- float32: the shipped policy's network computes in float32 (PyTorch), whose last bit is 1.2e-7 of a value.
+- float32: a shipped network that computes in float32 (PyTorch), whose last bit is 1.2e-7 of a value (a plan
+  policy computes in float64: NumPy and MuJoCo).
 - sensitive: values that another machine or release moves by more than any tolerance that would still see a change,
   pinned on the recording machine only (their statuses everywhere): the predictive laws' executions, which solve a
   QP each period to DAQP's tolerance (DAQP 0.5 moved their rows by up to 36 %, and where the command saturates a
@@ -502,16 +506,19 @@ def floors(spec: GoldenSet) -> dict[str, Entry]:
 
 
 def policy_rows(spec: GoldenSet, folder: Path, protocol: str = "v1") -> dict[str, Entry]:
-    """`policy/FAMILY/I` (protocol v1) or `policy_v2/FAMILY/I` (v2): the shipped policy POLICY scored as
-    `mjtraj rl eval` scores it, on one PyTorch thread (rl eval's default): its rows of `run_unit` with the policy as
-    an actor on its planner's references under its control law's base scenario."""
+    """`policy/FAMILY/I` (protocol v1) or `policy_v2/FAMILY/I` (v2): the protocol's shipped policy (POLICIES)
+    scored as `mjtraj rl eval` scores it, on one PyTorch thread (rl eval's default): its rows of `run_unit` with the
+    policy as an actor on its planner's references under its control law's base scenario; float32 entries for a
+    PyTorch network, float64 for one in NumPy."""
     import torch
 
     from mjtraj.rl.adapters import load_any
     from mjtraj.rl.episodes import PolicyActor
     from mjtraj.study import ActorSpec, run_unit
 
-    policy = load_any(POLICY)
+    name = POLICIES[protocol]
+    policy = load_any(name)
+    kind = "float32" if policy.kind in ("torch", "sb3-zip") else "float64"
     group = "policy" if protocol == "v1" else f"policy_{protocol}"
     count = spec.policy[0 if protocol == "v1" else 1]
     threads = torch.get_num_threads()
@@ -520,12 +527,12 @@ def policy_rows(spec: GoldenSet, folder: Path, protocol: str = "v1") -> dict[str
         out = {}
         for family in FAMILIES if protocol == "v1" else FAMILIES_V2:
             settings = sweep_settings(policy.controller, family, count, (policy.planner,), protocol, folder)
-            actor = ActorSpec(POLICY, policy.planner, PolicyActor(policy, policy.settings()))
+            actor = ActorSpec(name, policy.planner, PolicyActor(policy, policy.settings()))
             for row in run_unit(settings, (settings.families[0], 0), actors=[actor]).rows:
-                if row["planner"] == POLICY:
-                    entry = _row_entry(row, "float32")
+                if row["planner"] == name:
+                    entry = _row_entry(row, kind)
                     out[f"{group}/{family}/{row['scenario']}"] = Entry(
-                        "float32", {**entry.statuses, "policy_sha256": policy.sha256[:16]}, entry.values)
+                        kind, {**entry.statuses, "policy_sha256": policy.sha256[:16]}, entry.values)
     finally:
         torch.set_num_threads(threads)
     return out

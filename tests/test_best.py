@@ -32,9 +32,18 @@ def test_the_rule_takes_the_lowest_worst_family_ratio(tmp_path, monkeypatch):
     monkeypatch.setattr(best, "score_baselines", lambda deployable, **_: {n: scores[n] for n in deployable})
     record = best.choose_best(tmp_path, names, scenarios=3, command="test")
     assert record["best"] == names[1]  # worst ratios 1.5, 1.2, inf
+    assert record["protocol"] == "v2" and record["rule"] == best.BEST_RULES["v2"]
     written = json.loads((tmp_path / BEST_FILE).read_text())
     assert written["best"] == names[1] and written["scores"][names[2]]["nominal"] == "inf"
     assert best_name(tmp_path) == names[1]
+
+
+def test_a_family_ratio_reads_where_the_reference_succeeded_and_any_failure_is_infinite():
+    inf = np.inf
+    assert best.family_ratio(np.array([1.0, 2.0, 3.0]), np.array([2.0, 2.0, 2.0])) == 1.0
+    assert best.family_ratio(np.array([1.0, 2.0, 9.0]), np.array([2.0, 2.0, inf])) == 0.75
+    assert best.family_ratio(np.array([1.0, 2.0, inf]), np.array([2.0, 2.0, inf])) == inf
+    assert best.family_ratio(np.array([1.0]), np.array([inf])) == inf
 
 
 def test_best_name_without_a_choice(tmp_path):
@@ -42,54 +51,73 @@ def test_best_name_without_a_choice(tmp_path):
         best_name(tmp_path)
 
 
-def _env_costs(env, scenarios, act, monkeypatch) -> np.ndarray:
-    """Each scenario's J_exec, replayed in `env` (reset to it, `act(obs)` each step, the cost from the last step's
-    info): +inf where the episode diverged, or, on the nominal family, ended short of the goal."""
+def test_an_unknown_protocol_is_refused(tmp_path):
+    with pytest.raises(InvalidInputError, match="protocol: expected one of v1, v2, got 'v3'"):
+        best.choose_best(tmp_path, baseline_names()[:1], scenarios=1, protocol="v3")
+    assert not (tmp_path / BEST_FILE).exists()
+
+
+def _env_costs(env, scenarios, act, monkeypatch, start=None) -> np.ndarray:
+    """Each scenario's score, replayed in `env` (reset to it, `act(obs)` each step, the cost from the last step's
+    info): +inf where the episode diverged, or, with a settle window, did not end at rest at the goal, or without
+    one, on the nominal family, ended short of the goal. `start()` is called before each episode (a policy with
+    episode state starts afresh)."""
     from mjtraj.envs.settings import TrackSettings
 
     costs = []
     for scenario in scenarios:
         monkeypatch.setattr(TrackSettings, "scenario", lambda self, spec, scenario=scenario: scenario)
         obs, _ = env.reset(options={"scenario": {"family": scenario.family, "seed": 0, "index": scenario.index}})
+        if start is not None:
+            start()
         done = False
         while not done:
             obs, _, terminated, truncated, info = env.step(act(obs))
             done = terminated or truncated
-        failed = info["diverged"] or (scenario.family == "nominal" and info["missed_goal"])
+        failed = info["diverged"] or (not info["settled"] if "settled" in info else
+                                      scenario.family == "nominal" and info["missed_goal"])
         costs.append(np.inf if failed else info["metrics"]["cost"])
     return np.array(costs)
 
 
 @pytest.mark.slow
-def test_scores_are_ratios_to_cubic_pid_on_the_same_scenarios(monkeypatch):
+@pytest.mark.parametrize("protocol", ["v1", "v2"])
+def test_scores_are_ratios_to_the_reference_on_the_same_scenarios(monkeypatch, protocol):
     """One baseline, two scenarios per family. Oracle: the validation scenarios drawn here from the stated stream
     [VALIDATION_SEED, VALIDATION_STREAM, family id, i] and replayed in UR5TrackEnv, stepped by hand: the policy acting
-    on the env's observations in the env it declares, and the controller alone (a zero action) in the default
-    random-task env (cubic+PID); each ratio is the mean of the policy's episode costs over cubic+PID's. The policy's
-    float32 kernels batch differently in the two paths: 1e-9 relative."""
+    on the env's observations in the env it declares, and the controller alone (a zero action) in the random-task env
+    of the protocol's reference (v1: the default env, cubic+PID; v2: the adaptive law's shipped scenario, every
+    episode with the settle window, the policy observing the measured state); each ratio is the mean of the policy's
+    episode costs over the reference's. The policy's float32 kernels batch differently in the two paths: 1e-9
+    relative."""
     from mjtraj.envs import UR5TrackEnv
 
+    from mjtraj.core import SETTLE_WINDOW
     from mjtraj.rl.adapters import load_any
     from mjtraj.rl.streams import VALIDATION_STREAM
-    from mjtraj.study import FAMILY_ID, FamilyScenario, draw_family
+    from mjtraj.study import FAMILY_ID, FamilyScenario, draw_family, load_scenario
 
     name = baseline_names()[0]
     policy = load_any(f"baseline:{name}")
     assert not policy.sees_plant  # a deployable one: acts on observations alone
-    got = best.score_baselines([name], scenarios=2)[name]
+    got = best.score_baselines([name], scenarios=2, protocol=protocol)[name]
     assert list(got) == list(FAMILIES)
+    v2 = {"settle": SETTLE_WINDOW} if protocol == "v2" else {}
+    law = {"scenario": load_scenario("paper_adaptive")} if protocol == "v2" else {}
     for family in FAMILIES:
         plants = {"plant_randomization": "mismatch"} if family == "mismatch" else {}
-        acting = UR5TrackEnv(**{**policy.env, "task": "random", **plants})
-        alone = UR5TrackEnv(task="random", **plants)
+        acting = UR5TrackEnv(**{**policy.env, "task": "random", **plants, **v2,
+                                **({"observe_measured": True} if v2 else {})})
+        alone = UR5TrackEnv(task="random", **plants, **v2, **law)
         scenarios = []
         for i in range(2):
             rng = np.random.default_rng([best.VALIDATION_SEED, VALIDATION_STREAM, FAMILY_ID[family], i])
             scenarios.append(FamilyScenario(family, i, *draw_family(rng, family, alone.settings.model,
                                                                     alone.settings.dt), 0))
-        policy.start(np.ones(1, dtype=bool))
-        mine = _env_costs(acting, scenarios, lambda obs: policy.act(obs[None])[0], monkeypatch)
+        mine = _env_costs(acting, scenarios, lambda obs: policy.act(obs[None])[0], monkeypatch,
+                          start=lambda: policy.start(np.ones(1, dtype=bool)))
         reference = _env_costs(alone, scenarios, lambda obs: np.zeros(3), monkeypatch)
-        assert np.all(np.isfinite(reference)), family
-        expected = mine.mean() / reference.mean() if np.all(np.isfinite(mine)) else np.inf
+        keep = np.isfinite(reference)  # the scenarios the reference came to rest on
+        assert keep.any(), family
+        expected = mine[keep].mean() / reference[keep].mean() if np.all(np.isfinite(mine)) else np.inf
         assert got[family] == pytest.approx(expected, rel=1e-9), family

@@ -196,10 +196,10 @@ QUOTED = [  # (page, its words with the number as a group, the source that measu
 
 
 def _baseline_steps() -> tuple[str, str]:
+    """The checkpoint of ppo_batched_s1, the protocol v1 table's baseline (baseline:best under v1's rule)."""
     import json
 
-    best = json.loads((ROOT / "mjtraj/rl/baselines/BEST.json").read_text())["best"]
-    run = json.loads((ROOT / f"mjtraj/rl/baselines/{best}/run.json").read_text())
+    run = json.loads((ROOT / "mjtraj/rl/baselines/ppo_batched_s1/run.json").read_text())
     return f"{int(run['best']['timesteps']):,}", f"{int(run['timesteps']):,}"
 
 
@@ -238,7 +238,10 @@ def test_no_page_but_the_ones_that_measure_them_quotes_timings():
 def test_the_published_v2_rows_that_succeeded_are_at_rest_and_not_below_their_floor():
     """docs/results/v2/eval.csv (protocol v2, 200 held-out scenarios per family, every method): every row whose status
     is ok ends within the settling band of its goal (2 % of the move) and below 0.05 rad/s, and scores at or above
-    its scenario's floor (to the replay's tolerance, 1e-6)."""
+    its scenario's floor (to the replay's tolerance, 1e-6): every control law's row, and on the nominal and
+    aggressive families every row. On mismatched plants (the noisy family's too) the floor is the best minimum found
+    from the laws' executions, an upper estimate, which a policy's execution may beat (docs/results.md says where
+    one does)."""
     import csv
 
     from mjtraj.core.settle import SETTLE_BAND, SETTLE_SPEED
@@ -250,4 +253,5 @@ def test_the_published_v2_rows_that_succeeded_are_at_rest_and_not_below_their_fl
     for r in rows:
         assert float(r["end_err"]) <= SETTLE_BAND * float(r["max_displacement"]), r["scenario"]
         assert float(r["end_speed"]) <= SETTLE_SPEED, r["scenario"]
-        assert float(r["cost_over_floor"]) >= 1.0 - 1e-6, (r["family"], r["scenario"], r["method"])
+        if not (r["policy"] and r["family"] in ("mismatch", "noisy")):
+            assert float(r["cost_over_floor"]) >= 1.0 - 1e-6, (r["family"], r["scenario"], r["method"])

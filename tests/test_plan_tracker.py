@@ -28,9 +28,11 @@ def _stage_scales(motion, window, boost, end_boost=None, end_periods=0):
             for k in range(motion + window)]
 
 
-def _batch_optimal_controls(x0, qp, qv, r, scales, terminal):
-    """The controls u_0..u_{K-1} minimising sum_k scales[k] x_k^T Q x_k + r u_k^2 + x_K^T (terminal Q) x_K from
-    x0 for x' = A x + B u, as one linear least-squares problem over the stacked controls (no Riccati recursion)."""
+def _batch_optimal_controls(x0, qp, qv, r, scales, terminal, position_scales=None):
+    """The controls u_0..u_{K-1} minimising sum_k scales[k] x_k^T diag(position_scales[k] qp, qv) x_k + r u_k^2 +
+    x_K^T (terminal Q) x_K from x0 for x' = A x + B u, as one linear least-squares problem over the stacked controls
+    (no Riccati recursion)."""
+    position_scales = [1.0] * len(scales) if position_scales is None else position_scales
     A, B = _double_integrator()
     steps = len(scales)
     Phi = np.zeros((2 * (steps + 1), 2))
@@ -42,7 +44,7 @@ def _batch_optimal_controls(x0, qp, qv, r, scales, terminal):
     weights = []
     for k in range(steps + 1):
         scale = terminal if k == steps else scales[k]
-        weights += [scale * qp, scale * qv]
+        weights += [scale * (1.0 if k == steps else position_scales[k]) * qp, scale * qv]
     W = np.diag(weights)
     H = Gamma.T @ W @ Gamma + r * np.eye(steps)
     return np.linalg.solve(H, -Gamma.T @ W @ Phi @ x0)
@@ -96,19 +98,23 @@ def test_the_computed_torque_rule_keeps_ct_rules_gains_at_every_sample():
 
 def test_the_lqr_rule_weighs_an_acceleration_by_the_torque_it_costs_and_each_period_by_its_part():
     """Tracker.gains play, for joint j, the controls that minimise the episode's cost with control weight
-    R_j M_jj^2 and the stage weights of the module docstring (motion, window, the window's end, terminal)."""
+    R_j M_jj^2 and the stage weights of the module docstring (motion, window, the window's end with its position
+    weight, terminal)."""
     Q, R = np.array([30.0, 20.0, 10.0, 3.0, 2.0, 1.0]), np.array([0.01, 0.02, 0.03])
     mass = np.array([[2.0, 0.3, 0.1], [0.3, 1.5, 0.2], [0.1, 0.2, 0.5]])
-    tracker = Tracker(window_boost=3.0, end_boost=30.0, end_periods=4, terminal=100.0)
+    tracker = Tracker(window_boost=3.0, end_boost=30.0, end_periods=4, end_position=7.0, terminal=100.0)
     kp, kd = tracker.gains((Q, R), mass, 12, 10, DT)
     assert kp.shape == kd.shape == (23, 3)
     scales = _stage_scales(12, 10, 3.0, 30.0, 4)
+    position = _stage_scales(12, 10, 1.0, 7.0, 4)  # 1 but over the end segment
     for j in range(3):
         x0 = np.array([0.05 * (j + 1), -0.2])
-        best = _batch_optimal_controls(x0, Q[j], Q[3 + j], R[j] * mass[j, j] ** 2, scales, 100.0)
+        best = _batch_optimal_controls(x0, Q[j], Q[3 + j], R[j] * mass[j, j] ** 2, scales, 100.0, position)
         _assert_plays_the_best_controls(kp[:, j], kd[:, j], best, x0)
     without = Tracker(window_boost=3.0, end_periods=0, terminal=100.0).gains((Q, R), mass, 12, 10, DT)
     assert not np.allclose(without[0], kp)  # the end segment moves the gains
+    alike = dataclasses.replace(tracker, end_position=1.0).gains((Q, R), mass, 12, 10, DT)
+    assert not np.allclose(alike[0], kp)  # and so does its position weight
 
 
 def test_the_taper_falls_from_one_to_zero_smoothly_with_its_derivatives():
@@ -155,6 +161,7 @@ def test_a_tracker_refuses_bad_settings_by_name():
             ({"anchor": "kalman"}, "anchor: unknown value 'kalman'; valid: nominal, mpc_filter"),
             ({"anchor_gain": 1.5}, "anchor_gain: expected a number in (0, 1], got 1.5"),
             ({"end_boost": 0.0}, "end_boost: expected a positive number, got 0.0"),
+            ({"end_position": -2.0}, "end_position: expected a positive number, got -2.0"),
             ({"end_periods": -1}, "end_periods: expected a whole number >= 0, got -1"),
             ({"end_periods": 2.5}, "end_periods: expected a whole number >= 0, got 2.5")):
         with pytest.raises(InvalidInputError, match=f"^{re.escape(message)}$"):
@@ -166,16 +173,25 @@ def test_a_tracker_refuses_bad_settings_by_name():
 
 
 def test_a_record_written_before_a_field_existed_keeps_the_tracker_it_was_tracked_with():
-    """Tracker.of_record: a record without the end segment's fields tracks with no end segment, whatever today's
-    defaults; a record that names them keeps them."""
+    """Tracker.of_record: a record without the end segment's fields tracks with no end segment, one without its
+    position weight with the end segment's position weighed as its velocity, whatever today's defaults; a record
+    that names them keeps them."""
     old = {"rule": "lqr", "window_boost": 3.0, "terminal": 1000.0, "taper": True, "anchor": "nominal",
            "anchor_gain": 1.0}
     assert Tracker.of_record(old).end_periods == 0
     assert Tracker.of_record(Tracker().as_dict()) == Tracker()
-    # bit for bit the gains of the rule such records were tracked with: the window's weight to the window's end
+    # bit for bit the gains of the rules such records were tracked with: the window's weight to the window's end
     Q, R, mass = np.array([30.0, 20.0, 10.0, 3.0, 2.0, 1.0]), np.array([0.01, 0.02, 0.03]), np.diag([2.0, 1.5, 0.5])
     kp, kd = Tracker.of_record(old).gains((Q, R), mass, 30, 25, DT)
     want = lqr_gains(Q[:3], Q[3:], R * np.diag(mass) ** 2, DT, np.array([1.0] * 30 + [3.0] * 25), 1000.0)
+    np.testing.assert_array_equal(kp, want[0])
+    np.testing.assert_array_equal(kd, want[1])
+    # and an end segment of 30 over the last 8 periods on the position as on the velocity
+    ended = {**old, "end_boost": 30.0, "end_periods": 8}
+    assert Tracker.of_record(ended).end_position == 1.0
+    kp, kd = Tracker.of_record(ended).gains((Q, R), mass, 30, 25, DT)
+    want = lqr_gains(Q[:3], Q[3:], R * np.diag(mass) ** 2, DT, np.array([1.0] * 30 + [3.0] * 17 + [30.0] * 8),
+                     1000.0)
     np.testing.assert_array_equal(kp, want[0])
     np.testing.assert_array_equal(kd, want[1])
 
@@ -184,7 +200,8 @@ def test_a_trackers_departures_name_only_the_fields_that_act():
     """departures: the lqr default has none; no end segment names end_periods but not its idle weight; the
     computed_torque rule, whose fixed gains read no weight, names none of the LQR's fields."""
     assert Tracker().departures() == []
-    assert Tracker(end_periods=0, end_boost=10.0).departures() == ["end_periods 0"]
+    assert Tracker(end_periods=0, end_boost=10.0, end_position=2.0).departures() == ["end_periods 0"]
+    assert Tracker(end_position=1.0).departures() == ["end_position 1.0"]
     assert Tracker(window_boost=5.0, anchor_gain=0.5).departures() == ["window_boost 5.0", "anchor_gain 0.5"]
     ct = Tracker.of_rule("computed_torque")
     assert dataclasses.replace(ct, end_periods=8, terminal=5.0).departures() == []

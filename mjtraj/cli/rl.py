@@ -302,6 +302,10 @@ def add(sub: Any, laws: str) -> None:
     p = rl_sub.add_parser("best", help="choose baseline:best on validation scenarios (never evaluation ones) by "
                              "the stated rule and write it, with every score, into the baselines' BEST.json")
     p.add_argument("--scenarios", type=int, default=100, help="validation scenarios per family (default 100)")
+    p.add_argument("--protocol", choices=tuple(PROTOCOLS), default=PROTOCOL,
+                   help=f"the protocol the choice is scored on (default {PROTOCOL}: J_settle over the settle window, "
+                   "held to the at-rest rule, beside cubic+adaptive CT; v1: J_exec and the goal rule beside "
+                   "cubic+PID, the rule of the choices made before v2)")
     no_progress_option(p)
     p.set_defaults(handler=run_best)
     p = rl_sub.add_parser("ship", help="ship a run's policy as a baseline: its zip without optimiser states (the same "
@@ -536,8 +540,8 @@ def run_best(args: argparse.Namespace) -> int:
     positive_int("scenarios", args.scenarios)
     command = command_line(args)
     with Progress("mjtraj rl best", "baseline", not args.no_progress) as progress:
-        chosen = choose_best(baselines_folder(), baseline_names(), scenarios=args.scenarios, command=command,
-                             progress=progress)
+        chosen = choose_best(baselines_folder(), baseline_names(), scenarios=args.scenarios, protocol=args.protocol,
+                             command=command, progress=progress)
     for name, scores in chosen["scores"].items():
         print(f"{name}: " + ", ".join(f"{f} {r if isinstance(r, str) else format(r, '.4g')}"
                                       for f, r in scores.items()))

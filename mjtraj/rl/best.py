@@ -3,8 +3,10 @@
 The choice never looks at evaluation scenarios: every deployable baseline (nothing privileged reaches it at
 evaluation) runs on `scenarios` validation scenarios of each family, drawn by the family's rules from the stream
 [VALIDATION_SEED, VALIDATION_STREAM, family id, i] (four entropies: no sweep or rl eval scenario, which have three,
-can share it), beside cubic+PID on the same scenarios. BEST_RULE says how they are ranked; `choose_best` writes
-the result, with every score, into the baselines' BEST.json.
+can share it), beside the protocol's reference method on the same scenarios: under protocol v2 (the default) every
+episode goes on for its settle window and is scored by J_settle beside the adaptive law, under v1 it is scored by
+J_exec beside cubic+PID (the rule of the baselines chosen before v2). BEST_RULES says how they are ranked;
+`choose_best` writes the result, with every score and the protocol, into the baselines' BEST.json.
 """
 
 from __future__ import annotations
@@ -15,20 +17,31 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
+from mjtraj.core import Settle, held, window_steps
 from mjtraj.envs import resolve
 from mjtraj.files import write_text_atomic
 from mjtraj.rl.adapters import load_any
 from mjtraj.rl.baselines import BEST_FILE
 from mjtraj.rl.episodes import run_episodes
+from mjtraj.rl.evaluate import LAW_OF, LAW_SCENARIOS, acting_settings
 from mjtraj.rl.extra import rl_versions
+from mjtraj.rl.protocol import REFERENCES, SETTLE, check_protocol
 from mjtraj.rl.streams import VALIDATION_STREAM
-from mjtraj.study import FAMILIES, FAMILY_ID, FamilyScenario, draw_family, goal_checked
+from mjtraj.study import FAMILIES, FAMILY_ID, FamilyScenario, draw_family, goal_checked, load_scenario
 
 VALIDATION_SEED = 0
-BEST_RULE = ("among the deployable baselines, the one whose worst family ratio of mean J_exec to cubic+PID's is "
-             "lowest, over the validation scenarios of nominal, aggressive and mismatch (a failed episode, diverged "
-             "or short of the goal, makes its family's ratio +inf); ties by the mean of the three ratios")
+BEST_RULES = {
+    "v1": ("among the deployable baselines, the one whose worst family ratio of mean J_exec to cubic+PID's is "
+           "lowest, over the validation scenarios of nominal, aggressive and mismatch (a failed episode, diverged "
+           "or short of the goal, makes its family's ratio +inf); ties by the mean of the three ratios"),
+    "v2": ("among the deployable baselines, the one whose worst family ratio of mean J_settle to cubic+adaptive "
+           "CT's is lowest, over the validation scenarios of nominal, aggressive and mismatch, every episode "
+           "followed by protocol v2's settle window (a failed episode, diverged or not at rest at the goal when its "
+           "window ends, makes its family's ratio +inf); ties by the mean of the three ratios"),
+}
+"""How `choose_best` ranks the baselines under each protocol."""
 
 
 def validation_scenarios(family: str, count: int, model: Any, dt: float) -> list[FamilyScenario]:
@@ -41,52 +54,77 @@ def validation_scenarios(family: str, count: int, model: Any, dt: float) -> list
     return out
 
 
-def _costs(policy: Any, settings: Any, draws: Sequence[FamilyScenario]) -> np.ndarray:
-    """Each scenario's J_exec under `policy` (None: the controller of `settings` alone); +inf where it failed, as
-    the protocol counts failures (on the nominal family, ending short of the goal is one: GOAL_TOLERANCE)."""
+def _costs(policy: Any, settings: Any, draws: Sequence[FamilyScenario], window: int) -> np.ndarray:
+    """Each scenario's score under `policy` (None: the controller of `settings` alone): J_exec, or with a settle
+    window of `window` periods J_settle; +inf where it failed, as the protocol counts failures (diverged; with a
+    window not at rest at the goal when it ends; without one, on the nominal family, short of the goal:
+    GOAL_TOLERANCE)."""
     refs = [settings.planner.plan(d.task, settings.model) for d in draws]
+    settles = [Settle.of(d.task, r.steps, window) for d, r in zip(draws, refs, strict=True)] if window else None
+    if window:
+        refs = [held(r, window, d.task.qg) for d, r in zip(draws, refs, strict=True)]
     weights = [settings.weights(d.task) for d in draws]
     plants = [d.perturbation for d in draws] if draws[0].perturbation is not None else None
-    outcomes = run_episodes(policy, settings, refs, weights, plants)
-    if draws[0].family == "nominal":
+    outcomes = run_episodes(policy, settings, refs, weights, plants, settles)
+    if draws[0].family == "nominal" and not window:
         outcomes = [goal_checked(o, float(np.max(np.abs(d.task.displacement)))) for o, d in zip(outcomes, draws,
                                                                                                 strict=True)]
     return np.array([o.metrics["cost"] if o.status == "ok" else np.inf for o in outcomes])
 
 
-def score_baselines(names: Sequence[str], *, scenarios: int = 100,
+def reference_settings(protocol: str) -> Any:
+    """The random-task env settings of `protocol`'s reference method (REFERENCES): cubic + PID (v1) or cubic + the
+    adaptive law from its shipped scenario (v2)."""
+    law = LAW_OF[REFERENCES[protocol]]
+    scenario = LAW_SCENARIOS[law]
+    return resolve(task="random") if scenario is None else resolve(task="random", scenario=load_scenario(scenario))
+
+
+def family_ratio(mine: NDArray[np.float64], theirs: NDArray[np.float64]) -> float:
+    """A family's ratio of mean score to the reference's (each (K,), +inf where failed), over the scenarios the
+    reference did not fail (as `rl eval` reads ratios); +inf if the policy failed any scenario."""
+    keep = np.isfinite(theirs)
+    if not np.all(np.isfinite(mine)) or not keep.any():
+        return float(np.inf)
+    return float(mine[keep].sum() / theirs[keep].sum())
+
+
+def score_baselines(names: Sequence[str], *, scenarios: int = 100, protocol: str = "v2",
                     progress: Callable[[int, int], None] | None = None) -> dict[str, dict[str, float]]:
-    """name -> family -> ratio of mean J_exec to cubic+PID's on the validation scenarios (+inf on a failure)."""
-    pid = resolve(task="random")
-    draws = {f: validation_scenarios(f, scenarios, pid.model, pid.dt) for f in FAMILIES}
-    reference = {f: _costs(None, pid, d) for f, d in draws.items()}
+    """name -> family -> `family_ratio` of its scores to `protocol`'s reference method's on the validation scenarios:
+    J_exec beside cubic+PID (v1), J_settle with the settle window beside the adaptive law (v2)."""
+    check_protocol(protocol)
+    reference = reference_settings(protocol)
+    window = window_steps(SETTLE[protocol], reference.dt)
+    draws = {f: validation_scenarios(f, scenarios, reference.model, reference.dt) for f in FAMILIES}
+    theirs = {f: _costs(None, reference, d, window) for f, d in draws.items()}
     out: dict[str, dict[str, float]] = {}
     for k, name in enumerate(names):
         policy = load_any(f"baseline:{name}")
-        settings = policy.settings()
+        settings = acting_settings(policy, protocol)
         out[name] = {}
         for f, d in draws.items():
-            costs = _costs(policy, settings, d)
-            out[name][f] = float(np.inf) if not np.all(np.isfinite(costs)) else float(costs.mean()
-                                                                                          / reference[f].mean())
+            out[name][f] = family_ratio(_costs(policy, settings, d, window), theirs[f])
         if progress is not None:
             progress(k + 1, len(names))
     return out
 
 
-def choose_best(folder: Path, names: Sequence[str], *, scenarios: int = 100, command: str = "",
+def choose_best(folder: Path, names: Sequence[str], *, scenarios: int = 100, protocol: str = "v2", command: str = "",
                 progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
-    """Score the deployable ones of `names` (shipped baselines in `folder`), pick one by BEST_RULE and write
-    `folder`/BEST.json (the choice, the rule, every score, the command); the record written."""
+    """Score the deployable ones of `names` (shipped baselines in `folder`) under `protocol`, pick one by its rule
+    (BEST_RULES) and write `folder`/BEST.json (the choice, the protocol, the rule, every score, the command); the
+    record written."""
+    check_protocol(protocol)
     deployable = [n for n in names if not load_any(f"baseline:{n}").sees_plant]
-    scores = score_baselines(deployable, scenarios=scenarios, progress=progress)
+    scores = score_baselines(deployable, scenarios=scenarios, protocol=protocol, progress=progress)
 
     def key(name: str) -> tuple[float, float]:
         ratios = list(scores[name].values())
         return max(ratios), float(np.mean(ratios))
 
     best = min(deployable, key=key)
-    record = {"best": best, "rule": BEST_RULE, "scenarios_per_family": scenarios,
+    record = {"best": best, "protocol": protocol, "rule": BEST_RULES[protocol], "scenarios_per_family": scenarios,
               "stream": f"[{VALIDATION_SEED}, {VALIDATION_STREAM}, family id, i]", "command": command,
               "scores": {n: {f: (r if np.isfinite(r) else "inf") for f, r in s.items()} for n, s in scores.items()},
               "versions": rl_versions()}

@@ -8,10 +8,12 @@ with Q_j = diag(Q_q,j, Q_qd,j) (the score's weights on joint j, Bryson's rule fo
 measures the error from the held cubic) and R_j (M_jj u)^2, the torque u costs at the start's mass matrix M.
 The `lqr` rule's gains (kp_k, kd_k) = K_k are the finite-horizon LQR's over the episode's N periods of motion and
 S of the settle window: the stage weight is Q_j in the motion, `window_boost` Q_j in the window and `end_boost` Q_j
-over the window's last `end_periods` periods, the terminal weight `terminal` Q_j (the at-rest rule, which the score
-itself does not charge). The end's stiffer weight holds the arm where the anchor would otherwise integrate against
-a joint's dry friction until it breaks free, still moving when the window ends (docs/benchmark.md); it costs little
-score, since by then the error is small. `computed_torque` keeps CT_RULE's fixed gains (plan files of format 1).
+over the window's last `end_periods` periods, its position part there times `end_position`, the terminal weight
+`terminal` Q_j (the at-rest rule, which the score itself does not charge). The end's stiffer weight holds the arm
+where the anchor would otherwise integrate against a joint's dry friction until it breaks free, still moving when
+the window ends; its stiffer position weight brings the arm into the at-rest rule's band where a fast motion leaves
+it behind its plan when the window begins (docs/benchmark.md). Both cost little score, since by then the error is
+small. `computed_torque` keeps CT_RULE's fixed gains (plan files of format 1).
 
 Anchor. The torque the nominal model does not explain is subtracted from the command. `nominal` (the default)
 estimates it itself: each period the nominal plant (the project's `BatchPlant` of the policy's model, as the env
@@ -43,11 +45,11 @@ from mjtraj.exceptions import InvalidInputError
 
 TRACKER_RULES = ("lqr", "computed_torque")
 ANCHORS = ("nominal", "mpc_filter")
-LQR_FIELDS = ("window_boost", "end_boost", "end_periods", "terminal")
+LQR_FIELDS = ("window_boost", "end_boost", "end_periods", "end_position", "terminal")
 """The fields only the lqr rule's gains read."""
-BEFORE = {"end_periods": 0}
+BEFORE = {"end_periods": 0, "end_position": 1.0}
 """Tracker fields added since plan files of format 2 were first written, with the values that tracked those files
-(no end segment: the window's weight to its end)."""
+(no end segment: the window's weight to its end; an end segment's position weighed as its velocity)."""
 
 
 @dataclass(frozen=True)
@@ -62,6 +64,9 @@ class Tracker:
     """The LQR's stage weight over the window's last `end_periods` periods over the motion's."""
     end_periods: int = 8
     """How many of the window's last periods take `end_boost` (0: none; at most the window)."""
+    end_position: float = 10.0
+    """The end segment's stage weight on the position error over `end_boost`'s (its velocity weight stays
+    `end_boost`'s)."""
     terminal: float = 1000.0
     """The LQR's weight on the last sample's error over the motion's stage weight."""
     taper: bool = True
@@ -73,6 +78,7 @@ class Tracker:
         choice("tracker", self.rule, TRACKER_RULES)
         positive("window_boost", self.window_boost)
         positive("end_boost", self.end_boost)
+        positive("end_position", self.end_position)
         positive("terminal", self.terminal)
         nonnegative_int("end_periods", self.end_periods)
         choice("anchor", self.anchor, ANCHORS)
@@ -96,9 +102,10 @@ class Tracker:
 
     def departures(self) -> list[str]:
         """'field value' for every field that differs from its rule's tracker (`of_rule`) and acts, in field order
-        (computed_torque's fixed gains ignore the LQR's weights; no end segment ignores its weight)."""
+        (computed_torque's fixed gains ignore the LQR's weights; no end segment ignores its weights)."""
         usual = Tracker.of_rule(self.rule).as_dict()
-        idle = set(LQR_FIELDS) if self.rule == "computed_torque" else {"end_boost"} if self.end_periods == 0 else set()
+        idle = (set(LQR_FIELDS) if self.rule == "computed_torque" else {"end_boost", "end_position"}
+                if self.end_periods == 0 else set())
         return [f"{k} {v}" for k, v in self.as_dict().items() if v != usual[k] and k not in idle]
 
     @property
@@ -122,20 +129,24 @@ class Tracker:
             law = ComputedTorque.for_period(dt, n)
             return np.tile(law.kp, (motion + window + 1, 1)), np.tile(law.kd, (motion + window + 1, 1))
         self.check_window(window)
-        boosts = np.ones(motion + window)
+        boosts, position = np.ones(motion + window), np.ones(motion + window)
         boosts[motion:] = self.window_boost
-        boosts[motion + window - self.end_periods:] = self.end_boost
-        return lqr_gains(weights[0][:n], weights[0][n:], weights[1] * np.diag(mass) ** 2, dt, boosts, self.terminal)
+        end = motion + window - self.end_periods
+        boosts[end:], position[end:] = self.end_boost, self.end_position
+        return lqr_gains(weights[0][:n], weights[0][n:], weights[1] * np.diag(mass) ** 2, dt, boosts, self.terminal,
+                         position)
 
 
 def lqr_gains(q_position: NDArray[np.float64], q_velocity: NDArray[np.float64], r: NDArray[np.float64],
-              dt: float, boosts: NDArray[np.float64], terminal: float
-              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+              dt: float, boosts: NDArray[np.float64], terminal: float,
+              position_boosts: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The finite-horizon LQR gains of n independent double integrators of period dt s (module docstring), every
     joint's 2 x 2 Riccati recursion written out elementwise: stage weights diag(q_position, q_velocity) (n,) each
-    (1/rad^2, s^2/rad^2) times boosts[k] at period k (K,), control weight r (n,) on the feedback acceleration
-    (s^4/rad^2), terminal weight `terminal` times the stage's. Returns kp (1/s^2), kd (1/s), each (K + 1, n)."""
+    (1/rad^2, s^2/rad^2) times boosts[k] at period k (K,), the position's also times position_boosts[k] (K,; default
+    1), control weight r (n,) on the feedback acceleration (s^4/rad^2), terminal weight `terminal` times the motion's
+    stage weight. Returns kp (1/s^2), kd (1/s), each (K + 1, n)."""
     steps = boosts.size
+    position_boosts = np.ones(steps) if position_boosts is None else position_boosts
     b1, b2 = dt * dt / 2.0, dt
     p11, p12, p22 = terminal * q_position, np.zeros_like(q_position), terminal * q_velocity
     kp, kd = np.empty((steps + 1, r.size)), np.empty((steps + 1, r.size))
@@ -144,7 +155,7 @@ def lqr_gains(q_position: NDArray[np.float64], q_velocity: NDArray[np.float64], 
         s = b1 * g1 + b2 * (b1 * p12 + b2 * p22) + r  # B^T P B + r
         kp[k], kd[k] = g1 / s, g2 / s
         boost = boosts[k]
-        p11, p12, p22 = (boost * q_position + p11 - g1 * g1 / s,
+        p11, p12, p22 = (boost * position_boosts[k] * q_position + p11 - g1 * g1 / s,
                          dt * p11 + p12 - g1 * g2 / s,
                          boost * q_velocity + dt * dt * p11 + 2.0 * dt * p12 + p22 - g2 * g2 / s)
     kp[steps], kd[steps] = kp[steps - 1], kd[steps - 1]
