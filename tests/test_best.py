@@ -29,21 +29,42 @@ def test_the_rule_takes_the_lowest_worst_family_ratio(tmp_path, monkeypatch):
     scores = {names[0]: {"nominal": 1.01, "aggressive": 1.5, "mismatch": 0.3},
               names[1]: {"nominal": 1.2, "aggressive": 1.1, "mismatch": 0.9},
               names[2]: {"nominal": float("inf"), "aggressive": 1.0, "mismatch": 0.2}}
-    monkeypatch.setattr(best, "score_baselines", lambda deployable, **_: {n: scores[n] for n in deployable})
+    asked = []
+
+    def scored(deployable, *, scenarios, protocol, progress):
+        asked.append((scenarios, protocol))
+        return {n: scores[n] for n in deployable}
+
+    monkeypatch.setattr(best, "score_baselines", scored)
     record = best.choose_best(tmp_path, names, scenarios=3, command="test")
     assert record["best"] == names[1]  # worst ratios 1.5, 1.2, inf
-    assert record["protocol"] == "v2" and record["rule"] == best.BEST_RULES["v2"]
+    assert record["protocol"] == "v2" and record["rule"] == best.BEST_RULES["v2"] and asked == [(3, "v2")]
     written = json.loads((tmp_path / BEST_FILE).read_text())
     assert written["best"] == names[1] and written["scores"][names[2]]["nominal"] == "inf"
     assert best_name(tmp_path) == names[1]
+    # protocol v1's rule is recorded apart: baseline:best stays v2's choice
+    scores[names[0]]["aggressive"] = 1.0
+    record = best.choose_best(tmp_path, names, scenarios=3, protocol="v1", command="test")
+    assert record["best"] == names[0] and record["protocol"] == "v1" and record["rule"] == best.BEST_RULES["v1"]
+    assert asked[-1] == (3, "v1")
+    assert json.loads((tmp_path / best.BEST_FILES["v1"]).read_text())["best"] == names[0]
+    assert best_name(tmp_path) == names[1]
 
 
-def test_a_family_ratio_reads_where_the_reference_succeeded_and_any_failure_is_infinite():
+def test_a_family_ratio_is_rl_evals_ratio_of_means():
+    """Over the scenarios the reference did not fail; +inf once the policy failed one of those (oracle: rl eval's
+    own `ratio_of_means`, NaN marking a failure there)."""
+    from mjtraj.rl.protocol_stats import ratio_of_means
+
     inf = np.inf
-    assert best.family_ratio(np.array([1.0, 2.0, 3.0]), np.array([2.0, 2.0, 2.0])) == 1.0
-    assert best.family_ratio(np.array([1.0, 2.0, 9.0]), np.array([2.0, 2.0, inf])) == 0.75
-    assert best.family_ratio(np.array([1.0, 2.0, inf]), np.array([2.0, 2.0, inf])) == inf
-    assert best.family_ratio(np.array([1.0]), np.array([inf])) == inf
+    for mine, theirs in (([1.0, 2.0, 3.0], [2.0, 2.0, 2.0]), ([1.0, 2.0, 9.0], [2.0, 2.0, inf]),
+                         ([1.0, 2.0, inf], [2.0, 2.0, inf]), ([inf, 2.0, 3.0], [2.0, 2.0, inf])):
+        mine, theirs = np.array(mine), np.array(theirs)
+        want = ratio_of_means(np.where(np.isfinite(mine), mine, np.nan)[None],
+                              np.where(np.isfinite(theirs), theirs, np.nan)[None])[0]
+        assert best.family_ratio(mine, theirs) == want
+    assert best.family_ratio(np.array([1.0, 2.0, inf]), np.array([2.0, 2.0, inf])) == 0.75
+    assert best.family_ratio(np.array([1.0]), np.array([inf])) == inf  # rl eval: NaN, no scenario to read
 
 
 def test_best_name_without_a_choice(tmp_path):
@@ -82,14 +103,16 @@ def _env_costs(env, scenarios, act, monkeypatch, start=None) -> np.ndarray:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("protocol", ["v1", "v2"])
-def test_scores_are_ratios_to_the_reference_on_the_same_scenarios(monkeypatch, protocol):
+@pytest.mark.parametrize("name", ["ppo_batched_s1", "plan_lqr_s1"])
+def test_scores_are_ratios_to_the_reference_on_the_same_scenarios(monkeypatch, protocol, name):
     """One baseline, two scenarios per family. Oracle: the validation scenarios drawn here from the stated stream
     [VALIDATION_SEED, VALIDATION_STREAM, family id, i] and replayed in UR5TrackEnv, stepped by hand: the policy acting
     on the env's observations in the env it declares, and the controller alone (a zero action) in the random-task env
     of the protocol's reference (v1: the default env, cubic+PID; v2: the adaptive law's shipped scenario, every
     episode with the settle window, the policy observing the measured state); each ratio is the mean of the policy's
-    episode costs over the reference's. The policy's float32 kernels batch differently in the two paths: 1e-9
-    relative."""
+    episode costs over the reference's (over the scenarios the reference did not fail). A torch policy's float32
+    kernels batch differently in the two paths: 1e-9 relative. One baseline of each kind: a batched run's torch
+    module and a plan (NumPy, with episode state)."""
     from mjtraj.envs import UR5TrackEnv
 
     from mjtraj.core import SETTLE_WINDOW
@@ -97,7 +120,6 @@ def test_scores_are_ratios_to_the_reference_on_the_same_scenarios(monkeypatch, p
     from mjtraj.rl.streams import VALIDATION_STREAM
     from mjtraj.study import FAMILY_ID, FamilyScenario, draw_family, load_scenario
 
-    name = baseline_names()[0]
     policy = load_any(f"baseline:{name}")
     assert not policy.sees_plant  # a deployable one: acts on observations alone
     got = best.score_baselines([name], scenarios=2, protocol=protocol)[name]
@@ -119,5 +141,5 @@ def test_scores_are_ratios_to_the_reference_on_the_same_scenarios(monkeypatch, p
         reference = _env_costs(alone, scenarios, lambda obs: np.zeros(3), monkeypatch)
         keep = np.isfinite(reference)  # the scenarios the reference came to rest on
         assert keep.any(), family
-        expected = mine[keep].mean() / reference[keep].mean() if np.all(np.isfinite(mine)) else np.inf
+        expected = mine[keep].mean() / reference[keep].mean() if np.all(np.isfinite(mine[keep])) else np.inf
         assert got[family] == pytest.approx(expected, rel=1e-9), family

@@ -170,6 +170,9 @@ def test_a_tracker_refuses_bad_settings_by_name():
                        match=r"^end_periods: expected at most the settle window's 5 periods, got 8$"):
         Tracker(end_periods=8).gains((np.ones(6), np.ones(3)), np.eye(3), 10, 5, DT)
     Tracker.of_rule("computed_torque").check_window(0)  # fixed gains need no window
+    with pytest.raises(InvalidInputError, match=r"^position_boosts: expected one factor per period, shape \(4,\), "
+                       r"got shape \(3,\)$"):
+        lqr_gains(np.ones(1), np.ones(1), np.ones(1), DT, np.ones(4), 10.0, np.ones(3))
 
 
 def test_a_record_written_before_a_field_existed_keeps_the_tracker_it_was_tracked_with():

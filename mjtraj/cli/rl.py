@@ -305,7 +305,8 @@ def add(sub: Any, laws: str) -> None:
     p.add_argument("--protocol", choices=tuple(PROTOCOLS), default=PROTOCOL,
                    help=f"the protocol the choice is scored on (default {PROTOCOL}: J_settle over the settle window, "
                    "held to the at-rest rule, beside cubic+adaptive CT; v1: J_exec and the goal rule beside "
-                   "cubic+PID, the rule of the choices made before v2)")
+                   "cubic+PID, the rule of the choices made before v2, written to BEST_v1.json: baseline:best stays "
+                   "v2's)")
     no_progress_option(p)
     p.set_defaults(handler=run_best)
     p = rl_sub.add_parser("ship", help="ship a run's policy as a baseline: its zip without optimiser states (the same "
@@ -535,7 +536,7 @@ def run_best(args: argparse.Namespace) -> int:
     """`mjtraj rl best`."""
     from mjtraj.checks import positive_int
     from mjtraj.rl.baselines import baseline_names, baselines_folder
-    from mjtraj.rl.best import choose_best
+    from mjtraj.rl.best import BEST_FILES, choose_best
 
     positive_int("scenarios", args.scenarios)
     command = command_line(args)
@@ -545,7 +546,11 @@ def run_best(args: argparse.Namespace) -> int:
     for name, scores in chosen["scores"].items():
         print(f"{name}: " + ", ".join(f"{f} {r if isinstance(r, str) else format(r, '.4g')}"
                                       for f, r in scores.items()))
-    print(f"baseline:best = {chosen['best']} ({chosen['rule']})")
+    if args.protocol == PROTOCOL:
+        print(f"baseline:best = {chosen['best']} ({chosen['rule']})")
+    else:
+        print(f"protocol {args.protocol}'s rule chooses {chosen['best']} ({chosen['rule']}); written to "
+              f"{BEST_FILES[args.protocol]}, baseline:best unchanged")
     return 0
 
 

@@ -6,7 +6,8 @@ evaluation) runs on `scenarios` validation scenarios of each family, drawn by th
 can share it), beside the protocol's reference method on the same scenarios: under protocol v2 (the default) every
 episode goes on for its settle window and is scored by J_settle beside the adaptive law, under v1 it is scored by
 J_exec beside cubic+PID (the rule of the baselines chosen before v2). BEST_RULES says how they are ranked;
-`choose_best` writes the result, with every score and the protocol, into the baselines' BEST.json.
+`choose_best` writes the result, with every score and the protocol, into the baselines' BEST.json (v2: the choice
+`baseline:best` names) or BEST_v1.json (v1's rule, which names nothing).
 """
 
 from __future__ import annotations
@@ -37,11 +38,15 @@ BEST_RULES = {
            "lowest, over the validation scenarios of nominal, aggressive and mismatch (a failed episode, diverged "
            "or short of the goal, makes its family's ratio +inf); ties by the mean of the three ratios"),
     "v2": ("among the deployable baselines, the one whose worst family ratio of mean J_settle to cubic+adaptive "
-           "CT's is lowest, over the validation scenarios of nominal, aggressive and mismatch, every episode "
-           "followed by protocol v2's settle window (a failed episode, diverged or not at rest at the goal when its "
-           "window ends, makes its family's ratio +inf); ties by the mean of the three ratios"),
+           "CT's is lowest, over the validation scenarios of nominal, aggressive and mismatch on which the adaptive "
+           "law came to rest, every episode followed by protocol v2's settle window (a failed episode there, "
+           "diverged or not at rest at the goal when its window ends, makes its family's ratio +inf); ties by the "
+           "mean of the three ratios"),
 }
 """How `choose_best` ranks the baselines under each protocol."""
+BEST_FILES = {"v2": BEST_FILE, "v1": "BEST_v1.json"}
+"""Where each protocol's choice is written: v2's is `baseline:best` (BEST_FILE); v1's, kept so that the rule of the
+choices made before v2 can be run again, names no baseline."""
 
 
 def validation_scenarios(family: str, count: int, model: Any, dt: float) -> list[FamilyScenario]:
@@ -81,10 +86,11 @@ def reference_settings(protocol: str) -> Any:
 
 
 def family_ratio(mine: NDArray[np.float64], theirs: NDArray[np.float64]) -> float:
-    """A family's ratio of mean score to the reference's (each (K,), +inf where failed), over the scenarios the
-    reference did not fail (as `rl eval` reads ratios); +inf if the policy failed any scenario."""
+    """A family's ratio of mean score to the reference's (each (K,), +inf where failed) over the scenarios the
+    reference did not fail, +inf if the policy failed any of them: `rl eval`'s ratio of means
+    (`mjtraj.rl.protocol_stats.ratio_of_means`), +inf also where the reference failed every scenario."""
     keep = np.isfinite(theirs)
-    if not np.all(np.isfinite(mine)) or not keep.any():
+    if not keep.any() or not np.all(np.isfinite(mine[keep])):
         return float(np.inf)
     return float(mine[keep].sum() / theirs[keep].sum())
 
@@ -113,8 +119,8 @@ def score_baselines(names: Sequence[str], *, scenarios: int = 100, protocol: str
 def choose_best(folder: Path, names: Sequence[str], *, scenarios: int = 100, protocol: str = "v2", command: str = "",
                 progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     """Score the deployable ones of `names` (shipped baselines in `folder`) under `protocol`, pick one by its rule
-    (BEST_RULES) and write `folder`/BEST.json (the choice, the protocol, the rule, every score, the command); the
-    record written."""
+    (BEST_RULES) and write `folder`/BEST_FILES[protocol] (the choice, the protocol, the rule, every score, the
+    command); the record written. Only v2's file is `baseline:best`'s."""
     check_protocol(protocol)
     deployable = [n for n in names if not load_any(f"baseline:{n}").sees_plant]
     scores = score_baselines(deployable, scenarios=scenarios, protocol=protocol, progress=progress)
@@ -128,5 +134,5 @@ def choose_best(folder: Path, names: Sequence[str], *, scenarios: int = 100, pro
               "stream": f"[{VALIDATION_SEED}, {VALIDATION_STREAM}, family id, i]", "command": command,
               "scores": {n: {f: (r if np.isfinite(r) else "inf") for f, r in s.items()} for n, s in scores.items()},
               "versions": rl_versions()}
-    write_text_atomic(folder / BEST_FILE, json.dumps(record, indent=1) + "\n")
+    write_text_atomic(folder / BEST_FILES[protocol], json.dumps(record, indent=1) + "\n")
     return record

@@ -146,7 +146,10 @@ def lqr_gains(q_position: NDArray[np.float64], q_velocity: NDArray[np.float64], 
     1), control weight r (n,) on the feedback acceleration (s^4/rad^2), terminal weight `terminal` times the motion's
     stage weight. Returns kp (1/s^2), kd (1/s), each (K + 1, n)."""
     steps = boosts.size
-    position_boosts = np.ones(steps) if position_boosts is None else position_boosts
+    position_boosts = np.ones(steps) if position_boosts is None else np.asarray(position_boosts, dtype=np.float64)
+    if position_boosts.shape != (steps,):
+        raise InvalidInputError(f"position_boosts: expected one factor per period, shape ({steps},), got shape "
+                                f"{position_boosts.shape}")
     b1, b2 = dt * dt / 2.0, dt
     p11, p12, p22 = terminal * q_position, np.zeros_like(q_position), terminal * q_velocity
     kp, kd = np.empty((steps + 1, r.size)), np.empty((steps + 1, r.size))
