@@ -70,6 +70,7 @@ _EXPORTS = {
     "settle_arrays": "mjtraj.core.settle",
     "unsettled": "mjtraj.core.settle",
     "window_steps": "mjtraj.core.settle",
+    "with_window": "mjtraj.core.settle",
     "JOINT_SPEED_LIMIT": "mjtraj.core.scoring",
     "gain_rule": "mjtraj.core.gains",
     "GAIN_RULE": "mjtraj.core.gains",
@@ -138,6 +139,7 @@ if TYPE_CHECKING:
         settle_arrays,
         unsettled,
         window_steps,
+        with_window,
     )
     from mjtraj.core.stability import spectral_radii
     from mjtraj.core.task import Task, random_task
@@ -148,7 +150,7 @@ __all__ = [
     "ControlOutput", "Controller", "DynamicsProbe", "FEEDFORWARD_ACCEL", "FEEDFORWARD_MODES", "GAIN_RULE",
     "GOAL_TOLERANCE", "GRAVITY_COMP", "JOINT_SPEED_LIMIT", "JointInfo", "LoopConfig", "METRIC_NAMES", "METRIC_UNITS",
     "Metrics", "missed_goal", "SETTLE_BAND", "SETTLE_METRICS", "SETTLE_SPEED", "SETTLE_UNITS", "SETTLE_WINDOW",
-    "Settle", "held", "settle_arrays", "unsettled", "window_steps",
+    "Settle", "held", "settle_arrays", "unsettled", "window_steps", "with_window",
     "PID", "PIDGains", "Planner", "QPSolution", "Reference", "Rollout", "Scoring", "Step", "Task", "available",
     "box_lqr", "bryson_weights", "build_qp", "check_name", "check_options", "control_law", "controller_names",
     "declared_options",

@@ -90,6 +90,15 @@ def held(reference: Reference, steps: int, goal: npt.ArrayLike | None = None) ->
     return Reference(reference.planner, t, q, qd, qdd, u_plan, info)
 
 
+def with_window(task: Task, reference: Reference, steps: int) -> tuple[Reference, Settle | None]:
+    """An episode of `task` along `reference` (its motion) with a settle window of `steps` periods: the reference
+    holding the task's goal for them (`held`) and the window (`Settle.of`); without a window (0) `reference` as it is
+    and None."""
+    if not steps:
+        return reference, None
+    return held(reference, steps, task.qg), Settle.of(task, reference.steps, steps)
+
+
 def settle_arrays(rollout: Rollout, q_diag: npt.ArrayLike, r_diag: npt.ArrayLike, settles: list[Settle]
                   ) -> dict[str, NDArray[np.float64]]:
     """SETTLE_METRICS of every execution of `rollout` (B episodes of the same motion_steps + window_steps

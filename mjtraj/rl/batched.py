@@ -188,7 +188,7 @@ def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any]
     `validation` episodes drawn by the family's rules (the env's `sample_episode`, as its own episodes are) from the
     validation stream [seed, 17, k x validation + i] (k the family's position); with a settle window each reference
     ends with it, as the env's episodes do."""
-    from mjtraj.core import Settle, held
+    from mjtraj.core import with_window
     from mjtraj.envs import resolve
 
     out = []
@@ -201,10 +201,10 @@ def validation_sets(settings: BatchedSettings) -> list[tuple[str, Any, list[Any]
         plants = [plant for _, plant in episodes]
         references = [env.planner.plan(task, env.model) for task in tasks]
         window = env.settle_steps
-        settles = [Settle.of(task, ref.steps, window) for task, ref in zip(tasks, references, strict=True)]
-        references = [held(ref, window, task.qg) for task, ref in zip(tasks, references, strict=True)]
+        held_episodes = [with_window(task, ref, window) for task, ref in zip(tasks, references, strict=True)]
+        references = [ref for ref, _ in held_episodes]
         out.append((family, env, references, [env.weights(task) for task in tasks], plants if env.perturbs else None,
-                    settles if window else None))
+                    [settle for _, settle in held_episodes] if window else None))
     return out
 
 

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mjtraj.core import Settle, held, window_steps
+from mjtraj.core import window_steps, with_window
 from mjtraj.envs import resolve
 from mjtraj.files import write_text_atomic
 from mjtraj.rl.adapters import load_any
@@ -64,10 +64,8 @@ def _costs(policy: Any, settings: Any, draws: Sequence[FamilyScenario], window: 
     window of `window` periods J_settle; +inf where it failed, as the protocol counts failures (diverged; with a
     window not at rest at the goal when it ends; without one, on the nominal family, short of the goal:
     GOAL_TOLERANCE)."""
-    refs = [settings.planner.plan(d.task, settings.model) for d in draws]
-    settles = [Settle.of(d.task, r.steps, window) for d, r in zip(draws, refs, strict=True)] if window else None
-    if window:
-        refs = [held(r, window, d.task.qg) for d, r in zip(draws, refs, strict=True)]
+    episodes = [with_window(d.task, settings.planner.plan(d.task, settings.model), window) for d in draws]
+    refs, settles = [reference for reference, _ in episodes], [settle for _, settle in episodes]
     weights = [settings.weights(d.task) for d in draws]
     plants = [d.perturbation for d in draws] if draws[0].perturbation is not None else None
     outcomes = run_episodes(policy, settings, refs, weights, plants, settles)

@@ -59,11 +59,12 @@ class PolicyActor:
 def run_episodes(policy: Policy | ScoredPolicy | None, settings: TrackSettings, references: Sequence[Reference],
                  weights: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
                  plants: Sequence[Perturbation | None] | None = None,
-                 settles: Sequence[Settle] | None = None) -> list[Outcome]:
+                 settles: Sequence[Settle | None] | None = None) -> list[Outcome]:
     """One episode per reference with `policy` acting (None: the controller alone), on the nominal plant or on
     one perturbed plant each (`plants`), scored with per-episode diagonal `weights` ((2n,), (n,)) as sweeps score
     them; with `settles` (protocol v2), each reference ends with its settle window (`mjtraj.core.settle.held`) and
-    its episode is scored over it and held to the at-rest rule; an Outcome each."""
+    its episode is scored over it and held to the at-rest rule (an episode whose entry is None has none); an
+    Outcome each."""
     actor = None if policy is None or settings.action_mode == "pid" else PolicyActor(policy, settings)
     perturbations = [None] * len(references) if plants is None else list(plants)
     windows = [None] * len(references) if settles is None else list(settles)

@@ -344,11 +344,10 @@ def train_plan(settings: PlanSettings, out: str | Path, *, progress: bool = True
     out/policy.npz and out/run.json."""
     from mjtraj.rl.extra import rl_versions
 
-    tracker = Tracker.of_rule(settings.tracker)
-    window = env_settings(settings.window).settle_steps
-    if tracker.settle_periods > window:  # refused before hours of labels and fit
+    tracker, env = Tracker.of_rule(settings.tracker), env_settings(settings.window)
+    if tracker.settle_periods > env.settle_steps:  # refused before hours of labels and fit
         raise InvalidInputError(f"window: expected a settle window of at least the tracker's {tracker.settle_periods} "
-                                f"end periods, got {window} periods ({settings.window} s)")
+                                f"end periods, got {env.settle_steps} periods ({settings.window} s)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     labels = _saved_labels(settings, out / "labels.npz")
@@ -363,7 +362,6 @@ def train_plan(settings: PlanSettings, out: str | Path, *, progress: bool = True
     else:
         network, losses = saved[0], saved[1]["loss"]
         seconds, first = saved[1]["seconds"]["fit"], saved[1]["fit_command"]
-    env = env_settings(settings.window)
     record = {"run": PLAN_RUN, "settings": dataclasses.asdict(settings), "command": command, "fit_command": first,
               "fit_settings": settings.fit_settings(), "tracker": tracker.as_dict(), "versions": rl_versions(),
               "dt": env.dt, "window_steps": env.settle_steps, "env": plan_env(tracker),

@@ -12,7 +12,7 @@ import numpy as np
 
 from mjtraj.core.model import JointInfo
 from mjtraj.core.scoring import Scoring
-from mjtraj.core.settle import Settle, held, window_steps
+from mjtraj.core.settle import window_steps, with_window
 from mjtraj.domain.families import draw_scenario, perturbed_plant
 from mjtraj.domain.floor import ORACLE, STARTS, Floor, floor_of
 from mjtraj.domain.pipeline import Job, one_line
@@ -48,9 +48,8 @@ def family_floors(scenario: Scenario, family: str, *, seed: int, scenarios: Sequ
         record: dict[str, Any] = {"family": family, "scenario": index, "planner": planner}
         try:
             reference = scenario.planner(planner).plan(drawn.task, model)
-            rest = Settle.of(drawn.task, reference.steps, window) if window else None
-            job = Job(held(reference, window, drawn.task.qg), Scoring().weights(drawn.task, limit),
-                      drawn.perturbation, settle=rest)  # as sweeps score
+            reference, rest = with_window(drawn.task, reference, window)
+            job = Job(reference, Scoring().weights(drawn.task, limit), drawn.perturbation, settle=rest)  # as sweeps do
             found = floor_of(model, config, job, plant=plant, starts=starts, displacement=move,
                              every_start=every_start)
         except MjtrajError as e:

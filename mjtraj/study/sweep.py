@@ -34,7 +34,7 @@ from mjtraj.core.options import choices, option_names
 from mjtraj.core.planners import Planner, available, make, plan_all
 from mjtraj.core.reference import Reference
 from mjtraj.core.scoring import Scoring
-from mjtraj.core.settle import Settle, held, window_steps
+from mjtraj.core.settle import window_steps, with_window
 from mjtraj.domain.families import FAMILIES, FamilyScenario, draw_scenario, measurement_noise, perturbed_plant
 from mjtraj.domain.pipeline import Actor, Job, Outcome, execute, goal_checked, one_line, plan_failure
 from mjtraj.domain.scenario import Scenario, load_scenario, scenario_for_model
@@ -281,10 +281,7 @@ def jobs_for(settings: SweepSettings, scenarios: Sequence[FamilyScenario], refer
     window = settings.settle_steps
     out = []
     for s, ref, w in zip(scenarios, references, weights, strict=True):
-        settle = None
-        if window:
-            settle = Settle.of(s.task, ref.steps, window)
-            ref = held(ref, window, s.task.qg)
+        ref, settle = with_window(s.task, ref, window)
         noise, sensor = None, 0.0
         if s.perturbation is not None and settings.sensor_noise > 0:
             noise = measurement_noise([s], ref.steps, model.nv, settings.sensor_noise, model.opt.timestep)[:, 0]
