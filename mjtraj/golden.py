@@ -505,6 +505,12 @@ def floors(spec: GoldenSet) -> dict[str, Entry]:
     return out
 
 
+def policy_entry_kind(policy_kind: str) -> str:
+    """The kind (TOLERANCES) of a shipped policy's entries by its loaded kind (`ScoredPolicy.kind`): float32 for a
+    PyTorch network (a torch module or an SB3 zip), float64 for one in NumPy (a plan policy, a callable)."""
+    return "float32" if policy_kind in ("torch", "sb3-zip") else "float64"
+
+
 def policy_rows(spec: GoldenSet, folder: Path, protocol: str = "v1") -> dict[str, Entry]:
     """`policy/FAMILY/I` (protocol v1) or `policy_v2/FAMILY/I` (v2): the protocol's shipped policy (POLICIES)
     scored as `mjtraj rl eval` scores it, on one PyTorch thread (rl eval's default): its rows of `run_unit` with the
@@ -518,7 +524,7 @@ def policy_rows(spec: GoldenSet, folder: Path, protocol: str = "v1") -> dict[str
 
     name = POLICIES[protocol]
     policy = load_any(name)
-    kind = "float32" if policy.kind in ("torch", "sb3-zip") else "float64"
+    kind = policy_entry_kind(policy.kind)
     group = "policy" if protocol == "v1" else f"policy_{protocol}"
     count = spec.policy[0 if protocol == "v1" else 1]
     threads = torch.get_num_threads()

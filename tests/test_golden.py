@@ -187,8 +187,8 @@ def test_the_committed_files_state_their_command_and_tolerances():
 @pytest.mark.parametrize(("protocol", "table"), [("v1", "best"), ("v2", "v2")])
 def test_each_protocols_golden_policy_is_the_one_its_published_table_scores(protocol, table):
     """The oracle is the published table (docs/results/TABLE/summary.json, written by rl eval): the policy it scores,
-    its sha256 and its kind; the golden entries must pin that policy, at float32's tolerance exactly where it computes
-    in PyTorch."""
+    its sha256 and its kind; the golden entries must pin that policy, with the tolerance kind of the kind it
+    published."""
     published = json.loads((Path(__file__).parents[1] / "docs" / "results" / table / "summary.json").read_text())
     (policy,) = published["policies"]
     assert policy["policy"] == golden.POLICIES[protocol]
@@ -199,7 +199,7 @@ def test_each_protocols_golden_policy_is_the_one_its_published_table_scores(prot
         assert pinned, f"{spec.name}: no {group} entries"
         for entry in pinned:
             assert entry["statuses"]["policy_sha256"] == policy["policy_sha256"]
-            assert entry["kind"] == ("float32" if policy["policy_kind"] in ("torch", "sb3-zip") else "float64")
+            assert entry["kind"] == golden.policy_entry_kind(policy["policy_kind"])
 
 
 def test_the_command_writes_and_checks(tmp_path, capsys, monkeypatch):
