@@ -64,7 +64,7 @@ class Tracker:
     """The LQR's stage weight over the window's last `end_periods` periods over the motion's."""
     end_periods: int = 8
     """How many of the window's last periods take `end_boost` (0: none; at most the window)."""
-    end_position: float = 10.0
+    end_position: float = 30.0
     """The end segment's stage weight on the position error over `end_boost`'s (its velocity weight stays
     `end_boost`'s)."""
     terminal: float = 1000.0
